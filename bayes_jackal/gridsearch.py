@@ -1,0 +1,278 @@
+"""The thesis' grid searches over (d_lat, d_long), vectorised.
+
+Two criteria, both evaluated on every experiment and combined as the thesis
+does: the MSE per experiment (eq. 5-1, 9-2), its mean per series of equal
+commands (eq. 5-2) and the sum of the series means (eq. 5-3).
+
+- ``"simulation"`` (ch. 5): simulate the channel from the measured initial
+  state with the measured input and compare with the measurement.
+- ``"onestep"`` (ch. 9-1-2): predict each next sample from the measured one
+  (eq. 9-1). The residual x[k+1] - alpha x[k] - beta_r u_r[k] - beta_l u_l[k]
+  is linear in the coefficient vector c = (1, -alpha, -beta_r, -beta_l), so
+  its mean square is c^T G c with the 4 x 4 Gram matrix G of the data: O(N)
+  once per experiment, then O(1) per grid point (DESIGN §4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ._files import atomic_path
+from .errors import InputError
+from .experiment import Experiment
+from .physics import Method, channel_coefficients, propagate
+from .robot import RobotProfile
+
+__all__ = [
+    "METHODS",
+    "GridResult",
+    "damping_grid",
+    "grid_search",
+    "onestep_mse",
+    "simulation_mse",
+]
+
+METHODS = ("onestep", "simulation")
+#: Grid points simulated at once by the simulation criterion (bounds memory).
+SIMULATION_CHUNK_ELEMENTS = 4_000_000
+
+
+def damping_grid(start: float, stop: float, step: float, name: str = "d") -> np.ndarray:
+    """Values start, start + step, ..., up to and including stop [N s/m].
+
+    Raises
+    ------
+    InputError
+        When a value is not finite, the range is not positive or empty, or
+        the step is not positive.
+    """
+    values = (start, stop, step)
+    if not all(np.isfinite(values)) or start <= 0 or step <= 0 or stop < start:
+        raise InputError(
+            "grid needs finite 0 < START <= STOP and STEP > 0 [N s/m], "
+            f"got START={start!r} STOP={stop!r} STEP={step!r}",
+            field=name,
+        )
+    return start + step * np.arange(int(np.floor((stop - start) / step + 1e-9)) + 1)
+
+
+def onestep_mse(
+    experiment: Experiment,
+    robot: RobotProfile,
+    d_lat: np.ndarray,
+    d_long: np.ndarray,
+    channel: str = "yaw",
+    discretisation: Method = "zoh",
+) -> np.ndarray:
+    """One-step prediction MSE (eq. 9-2) on a (d_lat, d_long) grid.
+
+    Parameters
+    ----------
+    experiment : Experiment
+    robot : RobotProfile
+    d_lat : ndarray, shape (L,)
+    d_long : ndarray, shape (M,)
+        Grid values [N s/m].
+    channel : {"yaw", "vx", "vy"}
+    discretisation : {"zoh", "euler"}
+
+    Returns
+    -------
+    ndarray, shape (L, M)
+        Mean squared one-step residual [channel unit^2].
+    """
+    y = experiment.channel(channel)
+    regressors = np.column_stack([y[1:], y[:-1], experiment.inputs[:-1]])
+    gram = regressors.T @ regressors / len(regressors)
+    alpha, input_row = channel_coefficients(
+        robot, d_lat[:, None], d_long[None, :], channel, experiment.dt, discretisation
+    )
+    coefficients = np.concatenate(
+        [np.ones((*alpha.shape, 1)), -alpha[..., None], -input_row], axis=-1
+    )
+    return np.einsum("...i,...i->...", coefficients @ gram, coefficients)
+
+
+def simulation_mse(
+    experiment: Experiment,
+    robot: RobotProfile,
+    d_lat: np.ndarray,
+    d_long: np.ndarray,
+    channel: str = "yaw",
+    discretisation: Method = "zoh",
+) -> np.ndarray:
+    """MSE between the simulated and the measured channel (eq. 5-1).
+
+    The simulation starts from the first measured sample and is driven by the
+    measured wheel speeds. Grid points are simulated in chunks, each fully
+    vectorised.
+
+    Parameters and return value as :func:`onestep_mse`.
+    """
+    y = experiment.channel(channel)
+    alpha, input_row = channel_coefficients(
+        robot, d_lat[:, None], d_long[None, :], channel, experiment.dt, discretisation
+    )
+    alpha, input_row = alpha.ravel(), input_row.reshape(-1, 2)
+    chunk = max(1, SIMULATION_CHUNK_ELEMENTS // len(y))
+    mse = np.concatenate(
+        [
+            np.mean(
+                (
+                    propagate(
+                        alpha[i : i + chunk], input_row[i : i + chunk] @ experiment.inputs.T, y[0]
+                    )
+                    - y
+                )
+                ** 2,
+                axis=-1,
+            )
+            for i in range(0, len(alpha), chunk)
+        ]
+    )
+    return mse.reshape(len(d_lat), len(d_long))
+
+
+_CRITERIA = {"onestep": onestep_mse, "simulation": simulation_mse}
+
+
+@dataclass(frozen=True)
+class GridResult:
+    """MSE surfaces of a grid search.
+
+    Attributes
+    ----------
+    method : {"onestep", "simulation"}
+    channel : str
+    d_lat : ndarray, shape (L,)
+    d_long : ndarray, shape (M,)
+        Grid values [N s/m].
+    experiment_mse : dict of str to ndarray, shape (L, M)
+        MSE per experiment (eq. 5-1 or 9-2).
+    series_mse : dict of str to ndarray, shape (L, M)
+        Mean MSE of the experiments of each series (eq. 5-2).
+    series_members : dict of str to list of str
+        Experiment names of each series.
+    mse : ndarray, shape (L, M)
+        Sum of the series means (eq. 5-3); the mean when there is one series.
+    """
+
+    method: str
+    channel: str
+    d_lat: np.ndarray
+    d_long: np.ndarray
+    experiment_mse: dict[str, np.ndarray]
+    series_mse: dict[str, np.ndarray]
+    series_members: dict[str, list[str]] = field(default_factory=dict)
+
+    @property
+    def mse(self) -> np.ndarray:
+        """Total surface, eq. 5-3."""
+        return np.sum(list(self.series_mse.values()), axis=0)
+
+    def argmin(self, surface: np.ndarray | None = None) -> tuple[float, float, float]:
+        """(d_lat, d_long, mse) at the minimum of ``surface`` (the total by default)."""
+        surface = self.mse if surface is None else surface
+        i, j = np.unravel_index(np.argmin(surface), surface.shape)
+        return float(self.d_lat[i]), float(self.d_long[j]), float(surface[i, j])
+
+    def summary(self) -> dict:
+        """JSON-ready summary: the total argmin at top level, then per series and experiment."""
+        d_lat, d_long, mse = self.argmin()
+
+        def best(surface: np.ndarray) -> dict:
+            return dict(zip(("d_lat", "d_long", "mse"), self.argmin(surface), strict=True))
+
+        return {
+            "d_lat": d_lat,
+            "d_long": d_long,
+            "mse": mse,
+            "ratio": d_lat / d_long,
+            "method": self.method,
+            "channel": self.channel,
+            "grid": {
+                "d_lat": [float(self.d_lat[0]), float(self.d_lat[-1]), len(self.d_lat)],
+                "d_long": [float(self.d_long[0]), float(self.d_long[-1]), len(self.d_long)],
+            },
+            "series": {
+                label: {**best(surface), "experiments": self.series_members.get(label, [])}
+                for label, surface in self.series_mse.items()
+            },
+            "experiments": {name: best(s) for name, s in self.experiment_mse.items()},
+        }
+
+    def to_netcdf(self, path: str | Path) -> Path:
+        """Save all surfaces as NetCDF (atomically)."""
+        names = list(self.experiment_mse)
+        labels = list(self.series_mse)
+        dataset = xr.Dataset(
+            {
+                "mse": (("d_lat", "d_long"), self.mse),
+                "experiment_mse": (
+                    ("experiment", "d_lat", "d_long"),
+                    np.stack([self.experiment_mse[n] for n in names]),
+                ),
+                "series_mse": (
+                    ("series", "d_lat", "d_long"),
+                    np.stack([self.series_mse[s] for s in labels]),
+                ),
+            },
+            coords={
+                "d_lat": self.d_lat,
+                "d_long": self.d_long,
+                "experiment": names,
+                "series": labels,
+            },
+            attrs={"method": self.method, "channel": self.channel},
+        )
+        with atomic_path(path) as temporary:
+            dataset.to_netcdf(temporary, engine="h5netcdf")
+        return Path(path)
+
+
+def grid_search(
+    experiments: list[Experiment],
+    robot: RobotProfile,
+    d_lat: np.ndarray,
+    d_long: np.ndarray,
+    method: str = "onestep",
+    channel: str = "yaw",
+    discretisation: Method = "zoh",
+) -> GridResult:
+    """Evaluate a grid-search criterion on every experiment and combine them.
+
+    Parameters
+    ----------
+    experiments : list of Experiment
+        Experiments without a series label form one series, ``"all"``.
+    robot : RobotProfile
+    d_lat, d_long : ndarray
+        Grid values [N s/m], e.g. from :func:`damping_grid`.
+    method : {"onestep", "simulation"}
+    channel : {"yaw", "vx", "vy"}
+    discretisation : {"zoh", "euler"}
+
+    Returns
+    -------
+    GridResult
+    """
+    if method not in _CRITERIA:
+        raise InputError(f"unknown method {method!r}; use one of {METHODS}", field="method")
+    if not experiments:
+        raise InputError("no experiments given", field="experiments")
+    d_lat, d_long = np.asarray(d_lat, float), np.asarray(d_long, float)
+    criterion = _CRITERIA[method]
+    surfaces = {
+        e.name: criterion(e, robot, d_lat, d_long, channel, discretisation) for e in experiments
+    }
+    members: dict[str, list[str]] = {}
+    for e in experiments:
+        members.setdefault(e.series or "all", []).append(e.name)
+    series_mse = {
+        label: np.mean([surfaces[n] for n in names], axis=0) for label, names in members.items()
+    }
+    return GridResult(method, channel, d_lat, d_long, surfaces, series_mse, members)

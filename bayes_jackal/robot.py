@@ -1,0 +1,206 @@
+"""Robot profiles: the constants of a skid-steer robot, read from TOML.
+
+A profile holds the body constants of the thesis' model (ch. 4), the
+diff-drive settings that turn a velocity command into wheel speeds, the
+sampling rate, prior ranges and the ROS topic names. ``models/jackal.toml``
+is the default; any path can be passed instead.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+from .errors import ProfileError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = ["CONVERSIONS", "RobotProfile", "default_profile_path", "load_profile"]
+
+#: Ways of turning a velocity command (v, w) into wheel speeds.
+CONVERSIONS = ("ros", "thesis")
+
+_BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radius")
+_DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
+_PRIOR_KEYS = ("d_lat", "d_long", "sigma_h")
+_DEFAULT_TOPICS = {
+    "imu": "/imu/data",
+    "joint_states": "/joint_states",
+    "cmd_vel": "/cmd_vel",
+    "pose": "/mocap_node/Jackal/pose",
+}
+
+
+@dataclass(frozen=True)
+class RobotProfile:
+    """Constants of a skid-steer robot.
+
+    Attributes
+    ----------
+    name : str
+        Short name of the profile.
+    mass : float
+        Body mass m [kg].
+    yaw_inertia : float
+        Yaw moment of inertia I [kg m^2].
+    half_wheelbase : float
+        a [m], lever arm of the lateral wheel forces (thesis fig. 4-1).
+    half_track : float
+        b [m], lever arm of the longitudinal wheel forces.
+    wheel_radius : float
+        r_w [m].
+    wheel_separation : float
+        s [m], ROS diff_drive_controller's wheel separation.
+    wheel_separation_multiplier : float
+        k [-], ROS diff_drive_controller's separation multiplier.
+    conversion : {"ros", "thesis"}
+        Default command-to-wheel-speed conversion.
+    rate : float
+        Sampling rate of the measured state (IMU) [Hz].
+    priors : dict of str to (float, float)
+        Prior ranges ``d_lat``, ``d_long`` [N s/m] and ``sigma_h`` [s].
+    topics : dict of str to str
+        ROS topic names (``imu``, ``joint_states``, ``cmd_vel``, ``pose``).
+    wheels : dict of str to list of str
+        Joint names of the ``right`` and ``left`` wheels.
+    source : str
+        Where the profile was read from.
+    """
+
+    name: str
+    mass: float
+    yaw_inertia: float
+    half_wheelbase: float
+    half_track: float
+    wheel_radius: float
+    wheel_separation: float
+    wheel_separation_multiplier: float
+    conversion: str = "ros"
+    rate: float = 72.0
+    priors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    topics: dict[str, str] = field(default_factory=lambda: dict(_DEFAULT_TOPICS))
+    wheels: dict[str, list[str]] = field(default_factory=dict)
+    source: str = "<memory>"
+
+    @property
+    def dt(self) -> float:
+        """Sample time 1/rate [s]."""
+        return 1.0 / self.rate
+
+    def replace(self, **changes: object) -> RobotProfile:
+        """Return a copy with some constants changed, validated like a file."""
+        values = {**self.__dict__, **changes}
+        profile = RobotProfile(**values)
+        _validate(profile)
+        return profile
+
+
+def default_profile_path() -> Path:
+    """Path of the packaged Jackal profile (``models/jackal.toml``)."""
+    return Path(str(resources.files("bayes_jackal.models") / "jackal.toml"))
+
+
+def load_profile(path: str | Path | None = None) -> RobotProfile:
+    """Read and validate a robot profile.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        TOML file; the packaged Jackal profile when omitted.
+
+    Returns
+    -------
+    RobotProfile
+
+    Raises
+    ------
+    ProfileError
+        When the file cannot be read or parsed, a constant is missing, not a
+        number, not finite or not positive, or a prior range is empty.
+    """
+    path = Path(path) if path is not None else default_profile_path()
+    source = str(path)
+    try:
+        with open(path, "rb") as stream:
+            doc = tomllib.load(stream)
+    except OSError as exc:
+        raise ProfileError(f"cannot read profile ({exc.strerror})", source=source) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"not valid TOML ({exc})", source=source) from None
+
+    body = _table(doc, "body", source)
+    diff_drive = _table(doc, "diff_drive", source)
+    values = {key: _number(body, "body", key, source) for key in _BODY_KEYS}
+    values |= {key: _number(diff_drive, "diff_drive", key, source) for key in _DIFF_DRIVE_KEYS}
+    sampling = doc.get("sampling", {})
+    profile = RobotProfile(
+        name=str(doc.get("name", path.stem)),
+        conversion=str(diff_drive.get("conversion", "ros")),
+        rate=_number(sampling, "sampling", "rate", source) if "rate" in sampling else 72.0,
+        priors=_priors(doc.get("priors", {}), source),
+        topics={**_DEFAULT_TOPICS, **doc.get("topics", {})},
+        wheels={side: list(names) for side, names in doc.get("wheels", {}).items()},
+        source=source,
+        **values,
+    )
+    _validate(profile)
+    return profile
+
+
+def _table(doc: dict, name: str, source: str) -> dict:
+    if not isinstance(doc.get(name), dict):
+        raise ProfileError(f"missing table [{name}]", source=source, field=name)
+    return doc[name]
+
+
+def _number(table: dict, table_name: str, key: str, source: str) -> float:
+    where = f"{table_name}.{key}"
+    if key not in table:
+        raise ProfileError("missing constant", source=source, field=where)
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ProfileError(f"expected a number, got {value!r}", source=source, field=where)
+    return float(value)
+
+
+def _priors(table: dict, source: str) -> dict[str, tuple[float, float]]:
+    priors = {"d_lat": (10.0, 1000.0), "d_long": (10.0, 1000.0), "sigma_h": (0.001, 1.0)}
+    for key, value in table.items():
+        if not (isinstance(value, list) and len(value) == 2):
+            raise ProfileError(
+                f"expected [low, high], got {value!r}", source=source, field=f"priors.{key}"
+            )
+        priors[key] = tuple(_number({key: v}, "priors", key, source) for v in value)
+    return priors
+
+
+def _validate(profile: RobotProfile) -> None:
+    source = profile.source
+    for key in (*_BODY_KEYS, *_DIFF_DRIVE_KEYS, "rate"):
+        value = getattr(profile, key)
+        if not (math.isfinite(value) and value > 0):
+            raise ProfileError(
+                f"must be a positive finite number, got {value!r}", source=source, field=key
+            )
+    if profile.conversion not in CONVERSIONS:
+        raise ProfileError(
+            f"must be one of {CONVERSIONS}, got {profile.conversion!r}",
+            source=source,
+            field="diff_drive.conversion",
+        )
+    for key, (low, high) in profile.priors.items():
+        if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
+            raise ProfileError(
+                f"prior range must satisfy 0 < low < high, got [{low}, {high}]",
+                source=source,
+                field=f"priors.{key}",
+            )
+    missing = [key for key in _PRIOR_KEYS if key not in profile.priors]
+    if missing:
+        raise ProfileError(f"missing prior ranges {missing}", source=source, field="priors")

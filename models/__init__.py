@@ -1,0 +1,1 @@
+"""Robot profiles shipped with bayes_jackal (TOML files; see README, "Robot profiles")."""
