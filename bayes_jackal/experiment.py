@@ -192,8 +192,8 @@ def _check_columns(
     if (steps <= 0).any():
         i = int(np.flatnonzero(steps <= 0)[0]) + 1
         raise DataError(
-            f"time does not increase at {row_name(i)}: {columns['t'][i - 1]!r} -> "
-            f"{columns['t'][i]!r} s",
+            f"time does not increase at {row_name(i)}: {columns['t'][i - 1]:.10g} -> "
+            f"{columns['t'][i]:.10g} s",
             source=source,
             field="t",
         )
@@ -382,7 +382,9 @@ def load_experiments(paths: list[str | Path]) -> list[Experiment]:
     """Read several experiment files; names must be unique."""
     experiments = [load_experiment(path) for path in paths]
     names = [e.name for e in experiments]
-    duplicated = sorted({n for n in names if names.count(n) > 1})
+    duplicated = {
+        n: [e.source for e in experiments if e.name == n] for n in names if names.count(n) > 1
+    }
     if duplicated:
         raise DataError(f"experiment names are not unique: {duplicated}", field="name")
     return experiments

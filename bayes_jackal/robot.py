@@ -131,21 +131,21 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
             doc = tomllib.load(stream)
     except OSError as exc:
         raise ProfileError(f"cannot read profile ({exc.strerror})", source=source) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ProfileError(f"not valid TOML ({exc})", source=source) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ProfileError(f"not a valid TOML text file ({exc})", source=source) from None
 
     body = _table(doc, "body", source)
     diff_drive = _table(doc, "diff_drive", source)
+    sampling = _table(doc, "sampling", source, required=False)
     values = {key: _number(body, "body", key, source) for key in _BODY_KEYS}
     values |= {key: _number(diff_drive, "diff_drive", key, source) for key in _DIFF_DRIVE_KEYS}
-    sampling = doc.get("sampling", {})
     profile = RobotProfile(
         name=str(doc.get("name", path.stem)),
         conversion=str(diff_drive.get("conversion", "ros")),
         rate=_number(sampling, "sampling", "rate", source) if "rate" in sampling else 72.0,
-        priors=_priors(doc.get("priors", {}), source),
-        topics={**_DEFAULT_TOPICS, **doc.get("topics", {})},
-        wheels={side: list(names) for side, names in doc.get("wheels", {}).items()},
+        priors=_priors(_table(doc, "priors", source, required=False), source),
+        topics={**_DEFAULT_TOPICS, **_table(doc, "topics", source, required=False)},
+        wheels=_wheels(_table(doc, "wheels", source, required=False), source),
         source=source,
         **values,
     )
@@ -153,10 +153,27 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     return profile
 
 
-def _table(doc: dict, name: str, source: str) -> dict:
-    if not isinstance(doc.get(name), dict):
+def _table(doc: dict, name: str, source: str, required: bool = True) -> dict:
+    if name not in doc and not required:
+        return {}
+    if name not in doc:
         raise ProfileError(f"missing table [{name}]", source=source, field=name)
+    if not isinstance(doc[name], dict):
+        raise ProfileError(
+            f"expected a table [{name}], got {doc[name]!r}", source=source, field=name
+        )
     return doc[name]
+
+
+def _wheels(table: dict, source: str) -> dict[str, list[str]]:
+    for side, names in table.items():
+        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+            raise ProfileError(
+                f"expected a list of joint names, got {names!r}",
+                source=source,
+                field=f"wheels.{side}",
+            )
+    return {side: list(names) for side, names in table.items()}
 
 
 def _number(table: dict, table_name: str, key: str, source: str) -> float:
@@ -182,11 +199,13 @@ def _priors(table: dict, source: str) -> dict[str, tuple[float, float]]:
 
 def _validate(profile: RobotProfile) -> None:
     source = profile.source
-    for key in (*_BODY_KEYS, *_DIFF_DRIVE_KEYS, "rate"):
+    qualified = {key: f"body.{key}" for key in _BODY_KEYS}
+    qualified |= {key: f"diff_drive.{key}" for key in _DIFF_DRIVE_KEYS} | {"rate": "sampling.rate"}
+    for key, name in qualified.items():
         value = getattr(profile, key)
         if not (math.isfinite(value) and value > 0):
             raise ProfileError(
-                f"must be a positive finite number, got {value!r}", source=source, field=key
+                f"must be a positive finite number, got {value!r}", source=source, field=name
             )
     if profile.conversion not in CONVERSIONS:
         raise ProfileError(

@@ -1,0 +1,222 @@
+"""The ``bayes-jackal`` command line: simulate and grid, JSON output and exit codes."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from bayes_jackal.cli import main
+from bayes_jackal.experiment import read_csv, read_netcdf
+from bayes_jackal.robot import default_profile_path
+
+SMALL = ["--v1", "1", "--v2", "1"]
+GRID = ["--d-lat", "50", "200", "10", "--d-long", "10", "60", "5"]
+ARRAYS = ("t", "yaw_rate", "omega_r", "omega_l", "vx", "vy")
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory) -> list[str]:
+    """Two simulated NetCDF experiments (v1_01, v2_01), written once per module."""
+    folder = tmp_path_factory.mktemp("simulated")
+    assert main(["simulate", "--out", str(folder), "--seed", "1", *SMALL]) == 0
+    return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
+
+
+def assert_bad_input(code: int, captured, *patterns: str) -> str:
+    """Exit code 2, one line on stderr matching every pattern, no traceback."""
+    assert code == 2
+    assert "Traceback" not in captured.err
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("bayes-jackal: error: ")
+    for pattern in patterns:
+        assert re.search(pattern, lines[0]), (pattern, lines[0])
+    return lines[0]
+
+
+def test_simulate_writes_netcdf_and_prints_json(tmp_path, capsys):
+    code = main(["simulate", "--out", str(tmp_path), "--seed", "1", *SMALL, "--json"])
+    captured = capsys.readouterr()
+    assert code == 0
+    payload = json.loads(captured.out)
+    assert payload["experiments"] == [str(tmp_path / "v1_01.nc"), str(tmp_path / "v2_01.nc")]
+    assert payload["truth"]["d_lat"] == 110.0
+    assert payload["truth"]["d_long"] == 30.0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v1_01.nc", "v2_01.nc"]
+    assert "wrote" in captured.err
+    experiment = read_netcdf(tmp_path / "v2_01.nc")
+    assert experiment.series == "v2"
+    assert experiment.truth["d_lat"] == 110.0
+    assert len(experiment.t) > 1000
+
+
+def test_simulate_csv_format(tmp_path, capsys):
+    code = main(["simulate", "--out", str(tmp_path), "--seed", "3", *SMALL, "--format", "csv"])
+    captured = capsys.readouterr()
+    assert code == 0
+    assert "wrote" in captured.out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v1_01.csv", "v2_01.csv"]
+    experiment = read_csv(tmp_path / "v1_01.csv")
+    assert experiment.channels == ("vx", "vy", "yaw")
+    assert len(experiment.t) > 1000
+
+
+def test_same_seed_same_data(tmp_path, simulated, capsys):
+    assert main(["simulate", "--out", str(tmp_path), "--seed", "1", *SMALL]) == 0
+    assert main(["simulate", "--out", str(tmp_path / "other"), "--seed", "2", *SMALL]) == 0
+    capsys.readouterr()
+    for path in simulated:
+        first = read_netcdf(path)
+        again = read_netcdf(tmp_path / Path(path).name)
+        other = read_netcdf(tmp_path / "other" / Path(path).name)
+        for key in ARRAYS:
+            np.testing.assert_array_equal(getattr(again, key), getattr(first, key))
+        for key, value in first.truth_arrays.items():
+            np.testing.assert_array_equal(again.truth_arrays[key], value)
+        assert not np.array_equal(other.yaw_rate, first.yaw_rate)
+
+
+@pytest.mark.parametrize("method", ["onestep", "simulation"])
+def test_grid_json(simulated, capsys, method):
+    code = main(["grid", *simulated, *GRID, "--method", method, "--json"])
+    captured = capsys.readouterr()
+    assert code == 0
+    payload = json.loads(captured.out)
+    for key in ("d_lat", "d_long", "mse"):
+        assert isinstance(payload[key], float)
+    assert 50.0 <= payload["d_lat"] <= 200.0
+    assert 10.0 <= payload["d_long"] <= 60.0
+    assert payload["mse"] > 0
+    assert payload["method"] == method
+    assert set(payload["series"]) == {"v1", "v2"}
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    assert payload["grid"]["d_lat"] == [50.0, 200.0, 16]
+    assert payload["grid"]["d_long"] == [10.0, 60.0, 11]
+    assert "MSE" in captured.err
+
+
+def test_grid_text_goes_to_stdout_without_json(simulated, capsys):
+    code = main(["grid", *simulated, *GRID])
+    captured = capsys.readouterr()
+    assert code == 0
+    assert "total (5-3)" in captured.out
+    assert captured.err == ""
+
+
+def test_grid_plot_and_netcdf(simulated, tmp_path, capsys):
+    plot, surface = tmp_path / "out.png", tmp_path / "surf.nc"
+    code = main(["grid", *simulated, *GRID, "--plot", str(plot), "--out", str(surface), "--json"])
+    payload = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert plot.stat().st_size > 1000
+    with xr.open_dataset(surface, engine="h5netcdf") as dataset:
+        mse = dataset["mse"].load()
+    assert mse.dims == ("d_lat", "d_long")
+    assert mse.shape == (16, 11)
+    assert float(mse.min()) == pytest.approx(payload["mse"])
+    best = mse.where(mse == mse.min(), drop=True)
+    assert float(best["d_lat"][0]) == payload["d_lat"]
+    assert float(best["d_long"][0]) == payload["d_long"]
+
+
+def test_grid_on_csv(tmp_path, capsys):
+    assert (
+        main(["simulate", "--out", str(tmp_path), "--seed", "1", *SMALL, "--format", "csv"]) == 0
+    )
+    capsys.readouterr()
+    files = [str(tmp_path / "v1_01.csv"), str(tmp_path / "v2_01.csv")]
+    assert main(["grid", *files, *GRID, "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    assert payload["mse"] > 0
+
+
+def test_grid_missing_experiment_file(tmp_path, capsys):
+    missing = tmp_path / "missing.nc"
+    code = main(["grid", str(missing), *GRID, "--json"])
+    captured = capsys.readouterr()
+    assert_bad_input(code, captured, re.escape(str(missing)), "no such file")
+    assert captured.out == ""
+
+
+def test_grid_csv_missing_column(tmp_path, capsys):
+    path = tmp_path / "no_yaw.csv"
+    path.write_text("t,omega_r,omega_l\n0,1,1\n0.1,1,1\n0.2,1,1\n0.3,1,1\n")
+    code = main(["grid", str(path), *GRID])
+    assert_bad_input(code, capsys.readouterr(), re.escape(str(path)), "yaw_rate")
+
+
+@pytest.mark.parametrize(
+    ("flag", "values", "pattern"),
+    [
+        ("--d-lat", ["0", "100", "10"], r"d_lat: .*START=0\.0"),
+        ("--d-lat", ["10", "100", "-5"], r"d_lat: .*STEP=-5\.0"),
+        ("--d-lat", ["nan", "100", "10"], r"d_lat: .*START=nan"),
+        ("--d-long", ["100", "10", "10"], r"d_long: .*START=100\.0 STOP=10\.0"),
+    ],
+)
+def test_grid_bad_range(simulated, capsys, flag, values, pattern):
+    code = main(["grid", simulated[0], flag, *values, "--json"])
+    captured = capsys.readouterr()
+    assert_bad_input(code, captured, pattern)
+    assert captured.out == ""
+
+
+def test_grid_profile_with_negative_mass(simulated, tmp_path, capsys):
+    profile = tmp_path / "heavy.toml"
+    text = default_profile_path().read_text()
+    profile.write_text(text.replace("mass = 16.523", "mass = -16.523"))
+    code = main(["grid", simulated[0], *GRID, "--robot", str(profile)])
+    assert_bad_input(code, capsys.readouterr(), re.escape(str(profile)), r"mass", r"-16\.523")
+
+
+def test_grid_unknown_suffix(tmp_path, capsys):
+    path = tmp_path / "run.bag"
+    path.write_bytes(b"#ROSBAG V2.0\n")
+    code = main(["grid", str(path), *GRID])
+    assert_bad_input(code, capsys.readouterr(), re.escape(str(path)), r"'\.bag'")
+    assert path.read_bytes() == b"#ROSBAG V2.0\n"
+
+
+def test_console_script_reports_bad_input_without_traceback(tmp_path):
+    script = Path(sys.executable).parent / "bayes-jackal"
+    assert script.is_file()
+    missing = tmp_path / "missing.nc"
+    process = subprocess.run(
+        [str(script), "grid", str(missing)], capture_output=True, text=True, timeout=120
+    )
+    assert process.returncode == 2
+    assert "Traceback" not in process.stderr
+    assert str(missing) in process.stderr
+    assert process.stdout == ""
+
+
+def test_grid_experiment_file_given_as_profile(simulated, capsys):
+    code = main(["grid", simulated[0], *GRID, "--robot", simulated[0]])
+    assert_bad_input(code, capsys.readouterr(), re.escape(simulated[0]))
+
+
+def test_demo_writes_experiments_figures_and_results(tmp_path, capsys):
+    folder = tmp_path / "demo"
+    assert main(["demo", "--out", str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "SIMULATED" in out
+    assert sorted(p.name for p in (folder / "experiments").iterdir()) == [
+        "v1_01.nc",
+        "v1_02.nc",
+        "v2_01.nc",
+    ]
+    results = json.loads((folder / "grid.json").read_text())
+    assert results["truth"] == {"d_lat": 110.0, "d_long": 30.0}
+    # The thesis' simulation grid (step 10) finds the demo's truth (fixed seed).
+    assert (results["simulation"]["d_lat"], results["simulation"]["d_long"]) == (110.0, 30.0)
+    for method in ("onestep", "simulation"):
+        assert (folder / f"grid_{method}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

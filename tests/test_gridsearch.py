@@ -1,0 +1,120 @@
+"""Grid searches (thesis ch. 5 and 9-1-2) against per-pair references and known truth."""
+
+import control
+import numpy as np
+import pytest
+
+from bayes_jackal import InputError, load_profile
+from bayes_jackal.gridsearch import damping_grid, grid_search, onestep_mse, simulation_mse
+from bayes_jackal.physics import continuous_matrices, one_step_residuals, simulate
+from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
+
+ROBOT = load_profile()
+#: "Small noise". The one-step least-squares bias from coloured noise scales
+#: as sigma_c^2 over the transient (input-unexplained) variance of the state,
+#: which is tiny for stiff parameters (time constant ~ 1 sample): at 1e-4
+#: rad/s (300, 60) still lands 20 steps down the ridge; at 1e-6 every truth
+#: below is recovered exactly.
+SMALL_NOISE = NoiseSettings(sigma_h=0.047, sigma_c=(1e-6, 1e-6, 1e-6), sigma_n=(1e-7, 1e-7, 1e-7))
+
+
+@pytest.fixture(scope="module")
+def noisy_experiment():
+    return simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=11)
+
+
+def _per_pair(experiment, d_lat, d_long, criterion):
+    """The thesis' way: c2d for every pair, then the MSE (a slow, plain reference)."""
+    states, inputs = experiment.states(), experiment.inputs
+    surface = np.empty((len(d_lat), len(d_long)))
+    for i, lat in enumerate(d_lat):
+        for j, long in enumerate(d_long):
+            A, B = continuous_matrices(ROBOT, lat, long)
+            system = control.c2d(control.ss(A, B, np.eye(3), np.zeros((3, 2))), experiment.dt)
+            if criterion == "onestep":
+                residual = one_step_residuals(system.A, system.B, states, inputs)[:, 2]
+            else:
+                x0 = np.array([0.0, 0.0, states[0, 2]])
+                residual = (
+                    simulate(ROBOT, lat, long, inputs, x0, dt=experiment.dt)[:, 2] - states[:, 2]
+                )
+            surface[i, j] = np.mean(residual**2)
+    return surface
+
+
+@pytest.mark.parametrize("criterion", [onestep_mse, simulation_mse])
+def test_vectorised_criteria_match_the_per_pair_reference(noisy_experiment, criterion):
+    d_lat, d_long = np.array([20.0, 110.0, 640.0, 1000.0]), np.array([10.0, 30.0, 333.0])
+    fast = criterion(noisy_experiment, ROBOT, d_lat, d_long)
+    slow = _per_pair(noisy_experiment, d_lat, d_long, criterion.__name__.removesuffix("_mse"))
+    # The Gram form cancels sums of y^2 ~ 0.1 down to MSEs ~ 1e-4: rounding
+    # ~ 1e-16 * 0.1 / 1e-4 * sqrt(N) ~ 1e-11 relative; 1e-8 leaves margin.
+    np.testing.assert_allclose(fast, slow, rtol=1e-8)
+
+
+@pytest.mark.parametrize(
+    ("d_lat", "d_long"), [(110.0, 30.0), (300.0, 60.0), (45.0, 150.0), (900.0, 400.0)]
+)
+def test_onestep_minimum_is_within_one_step_of_the_truth_when_noise_is_small(d_lat, d_long):
+    experiment = simulate_experiment(ROBOT, d_lat, d_long, "v1", SMALL_NOISE, rng=2)
+    grid = damping_grid(1.0, 1000.0, 1.0)
+    best_lat, best_long, _ = grid_search([experiment], ROBOT, grid, grid, "onestep").argmin()
+    assert abs(best_lat - d_lat) <= 1.0
+    assert abs(best_long - d_long) <= 1.0
+
+
+def test_simulation_mse_valley_follows_a_constant_damping_ratio():
+    # Ridge of thesis fig. 5-4: the yaw steady state depends on d_lat/d_long
+    # only, so for every d_long the best d_lat is ratio x d_long, to within
+    # the d_lat grid step (the transient moves it by less than that).
+    experiments = simulate_series(ROBOT, 110.0, 30.0, {"v1": 1, "v2": 1}, rng=5)
+    grid = damping_grid(10.0, 1000.0, 10.0)
+    result = grid_search(experiments, ROBOT, grid, grid, "simulation")
+    ratio = 110.0 / 30.0
+    inside = grid * ratio + 10.0 <= 1000.0
+    best_lat = grid[np.argmin(result.mse, axis=0)]
+    assert inside.sum() >= 25
+    np.testing.assert_array_less(np.abs(best_lat - ratio * grid)[inside], 10.0 + 1e-9)
+    # The valley is flat next to the surface: along it the MSE stays within 5 %
+    # of the minimum (the process noise dominates), off it > 10x higher. From
+    # d_long = 30 on, where the nearest grid d_lat misses ratio x d_long by
+    # at most 2.3 % (9 % at d_long = 10, enough to raise the MSE by 17 %).
+    valley = result.mse.min(axis=0)[inside & (grid >= 30.0)]
+    assert valley.max() < 1.05 * result.mse.min()
+    assert np.median(result.mse) > 10.0 * result.mse.min()
+    assert result.argmin()[:2] == (110.0, 30.0)
+
+
+def test_series_means_and_total_follow_eq_5_2_and_5_3():
+    experiments = simulate_series(ROBOT, 110.0, 30.0, {"v1": 2, "v2": 1}, rng=8)
+    d_lat, d_long = damping_grid(50.0, 200.0, 50.0), damping_grid(10.0, 50.0, 20.0)
+    result = grid_search(experiments, ROBOT, d_lat, d_long, "onestep")
+    per = result.experiment_mse
+    assert result.series_members == {"v1": ["v1_01", "v1_02"], "v2": ["v2_01"]}
+    np.testing.assert_allclose(result.series_mse["v1"], (per["v1_01"] + per["v1_02"]) / 2)
+    np.testing.assert_allclose(result.series_mse["v2"], per["v2_01"])
+    np.testing.assert_allclose(result.mse, result.series_mse["v1"] + result.series_mse["v2"])
+    summary = result.summary()
+    i, j = np.unravel_index(np.argmin(result.mse), result.mse.shape)
+    assert (summary["d_lat"], summary["d_long"]) == (d_lat[i], d_long[j])
+    assert summary["mse"] == result.mse[i, j]
+    assert set(summary["experiments"]) == {"v1_01", "v1_02", "v2_01"}
+
+
+def test_damping_grid_includes_stop_and_rejects_impossible_ranges():
+    np.testing.assert_array_equal(damping_grid(10, 1000, 10), np.arange(10, 1001, 10))
+    assert len(damping_grid(1, 1000, 1)) == 1000
+    assert damping_grid(0.1, 0.3, 0.1)[-1] == pytest.approx(0.3)
+    for bad in [(0, 100, 10), (-10, 100, 10), (10, 100, 0), (10, 100, -1), (100, 10, 1)]:
+        with pytest.raises(InputError, match="d_lat: grid needs"):
+            damping_grid(*bad, name="d_lat")
+    with pytest.raises(InputError, match="nan"):
+        damping_grid(np.nan, 100, 10)
+
+
+def test_grid_search_rejects_unknown_method_and_empty_input(noisy_experiment):
+    grid = damping_grid(10, 30, 10)
+    with pytest.raises(InputError, match="'mle'"):
+        grid_search([noisy_experiment], ROBOT, grid, grid, "mle")
+    with pytest.raises(InputError, match="no experiments"):
+        grid_search([], ROBOT, grid, grid)
