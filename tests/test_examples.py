@@ -1,0 +1,35 @@
+"""Every script in examples/ runs (quick settings) and prints what it promises."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+@pytest.mark.parametrize("script", sorted(EXAMPLES.glob("*.py")), ids=lambda p: p.name)
+def test_example_runs(script, tmp_path):
+    result = subprocess.run(
+        [sys.executable, str(script), "--quick", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert any(tmp_path.iterdir()), "the example wrote nothing"
+
+
+def test_thesis_example_prints_table_6_1(tmp_path):
+    script = EXAMPLES / "thesis_chapters_5_6.py"
+    result = subprocess.run(
+        [sys.executable, str(script), "--quick", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    assert "table 6-1 zoh  : 0.0000 0.0144 0.0274 0.0392" in result.stdout
