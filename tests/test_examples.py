@@ -9,27 +9,25 @@ import pytest
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
-@pytest.mark.parametrize("script", sorted(EXAMPLES.glob("*.py")), ids=lambda p: p.name)
-def test_example_runs(script, tmp_path):
-    result = subprocess.run(
-        [sys.executable, str(script), "--quick", "--out", str(tmp_path)],
+def run_example(script: Path, out: Path) -> subprocess.CompletedProcess:
+    """Run an example with its quick settings, writing into ``out``."""
+    return subprocess.run(
+        [sys.executable, str(script), "--quick", "--out", str(out)],
         capture_output=True,
         text=True,
         timeout=300,
         check=False,
     )
+
+
+@pytest.mark.parametrize("script", sorted(EXAMPLES.glob("*.py")), ids=lambda p: p.name)
+def test_example_runs(script, tmp_path):
+    result = run_example(script, tmp_path)
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr
     assert any(tmp_path.iterdir()), "the example wrote nothing"
 
 
 def test_thesis_example_prints_table_6_1(tmp_path):
-    script = EXAMPLES / "thesis_chapters_5_6.py"
-    result = subprocess.run(
-        [sys.executable, str(script), "--quick", "--out", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=True,
-    )
+    result = run_example(EXAMPLES / "thesis_chapters_5_6.py", tmp_path)
     assert "table 6-1 zoh  : 0.0000 0.0144 0.0274 0.0392" in result.stdout
