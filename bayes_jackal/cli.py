@@ -17,6 +17,7 @@ from . import __version__
 from .errors import InputError
 from .experiment import load_experiments, write_csv, write_netcdf
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
+from .kernels import FAMILIES
 from .physics import CHANNELS
 from .robot import CONVERSIONS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
@@ -76,7 +77,7 @@ def _save_grid_plot(result: GridResult, path: str | Path) -> Path:
 def cmd_simulate(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
-    noise = NoiseSettings(args.sigma_h, tuple(args.sigma_c), tuple(args.sigma_n))
+    noise = NoiseSettings(args.width, tuple(args.sigma_c), tuple(args.sigma_n), args.family)
     counts = {"v1": args.v1, "v2": args.v2}
     experiments = simulate_series(
         robot, args.d_lat, args.d_long, counts, noise, args.seed, args.conversion
@@ -119,7 +120,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out.say(
         f"bayes-jackal {__version__} demo: SIMULATED thesis-like experiments "
         f"(truth d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} N s/m, "
-        f"Gaussian process noise sigma_h={NoiseSettings().sigma_h} s), written to {folder}/"
+        f"Gaussian process noise sigma_h={NoiseSettings().width} s), written to {folder}/"
     )
     experiments = simulate_series(robot, **DEMO_TRUTH, counts=DEMO_COUNTS, rng=DEMO_SEED)
     for experiment in experiments:
@@ -178,7 +179,17 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--d-lat", type=float, default=110.0, help="true d_lat [N s/m] (110)")
     sim.add_argument("--d-long", type=float, default=30.0, help="true d_long [N s/m] (30)")
     defaults = NoiseSettings()
-    sim.add_argument("--sigma-h", type=float, default=defaults.sigma_h, help="kernel width [s]")
+    sim.add_argument(
+        "--family", choices=list(FAMILIES), default=defaults.family, help="process-noise filter"
+    )
+    sim.add_argument(
+        "--width",
+        "--sigma-h",
+        dest="width",
+        type=float,
+        default=defaults.width,
+        help=f"kernel width [s] (sigma_h of the Gaussian; {defaults.width})",
+    )
     for name, help_text in (("c", "process"), ("n", "sensor")):
         sim.add_argument(
             f"--sigma-{name}",

@@ -3,8 +3,9 @@
 The robot starts from rest, accelerates to a constant command (v, w), drives
 steady circles, and stops (thesis ch. 2-3, table 2-2). The states follow the
 discretised model with coloured process noise, white Gaussian noise filtered
-by the thesis' Gaussian kernel of width sigma_h (eq. 7-5), and the measured
-states add white sensor noise. The truth travels with the data.
+by a kernel of one of the noise families (by default the thesis' Gaussian of
+width sigma_h, eq. 7-5), and the measured states add white sensor noise. The
+truth travels with the data.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 
 from .errors import InputError
 from .experiment import Experiment
-from .kernels import as_rng, coloured_noise, gaussian_kernel
+from .kernels import as_rng, get_family
 from .physics import CHANNELS, simulate, wheel_speeds
 from .robot import RobotProfile
 
@@ -68,18 +69,22 @@ class NoiseSettings:
 
     Attributes
     ----------
-    sigma_h : float
-        Width of the Gaussian process-noise kernel [s] (eq. 7-5).
+    width : float
+        Width of the process-noise kernel [s]: sigma_h of the thesis'
+        Gaussian (eq. 7-5), or the width of another family.
     sigma_c : (float, float, float)
         Standard deviation of the process noise on (vx, vy, yaw) per step
         [m/s, m/s, rad/s].
     sigma_n : (float, float, float)
         Standard deviation of the white sensor noise on (vx, vy, yaw).
+    family : str
+        Process-noise family (:data:`bayes_jackal.kernels.FAMILIES`).
     """
 
-    sigma_h: float = 0.047
+    width: float = 0.047
     sigma_c: tuple[float, float, float] = (0.005, 0.005, 0.01)
     sigma_n: tuple[float, float, float] = (0.003, 0.003, 0.005)
+    family: str = "gaussian"
 
     def __post_init__(self) -> None:
         for name in ("sigma_c", "sigma_n"):
@@ -89,8 +94,9 @@ class NoiseSettings:
                     f"expected three non-negative values (vx, vy, yaw), got {values.tolist()}",
                     field=name,
                 )
-        if not (np.isfinite(self.sigma_h) and self.sigma_h > 0):
-            raise InputError(f"must be positive, got {self.sigma_h!r} s", field="sigma_h")
+        get_family(self.family)
+        if not (np.isfinite(self.width) and self.width > 0):
+            raise InputError(f"must be positive, got {self.width!r} s", field="width")
 
 
 def command_profile(series: Series, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -163,8 +169,8 @@ def simulate_experiment(
     dt = robot.dt
     t, v, w = command_profile(SERIES[series], dt)
     omega_r, omega_l = wheel_speeds(robot, v, w, conversion)
-    kernel = gaussian_kernel(noise.sigma_h, dt)
-    process = coloured_noise(kernel, len(t), np.asarray(noise.sigma_c), rng)
+    family = get_family(noise.family)
+    process = family.noise(noise.width, dt, len(t), np.asarray(noise.sigma_c), rng)
     states = simulate(robot, d_lat, d_long, np.column_stack([omega_r, omega_l]), None, process)
     measured = states + np.asarray(noise.sigma_n) * rng.standard_normal(states.shape)
     truth_arrays = {f"{c}_state": states[:, i] for i, c in enumerate(CHANNELS)}
@@ -182,8 +188,9 @@ def simulate_experiment(
         truth={
             "d_lat": float(d_lat),
             "d_long": float(d_long),
-            "family": "gaussian",
-            "sigma_h": noise.sigma_h,
+            "family": noise.family,
+            "width": noise.width,
+            **({"sigma_h": noise.width} if noise.family == "gaussian" else {}),
             "sigma_c": dict(zip(CHANNELS, map(float, noise.sigma_c), strict=True)),
             "sigma_n": dict(zip(CHANNELS, map(float, noise.sigma_n), strict=True)),
             "conversion": conversion or robot.conversion,

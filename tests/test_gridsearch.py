@@ -15,7 +15,7 @@ ROBOT = load_profile()
 #: which is tiny for stiff parameters (time constant ~ 1 sample): at 1e-4
 #: rad/s (300, 60) still lands 20 steps down the ridge; at 1e-6 every truth
 #: below is recovered exactly.
-SMALL_NOISE = NoiseSettings(sigma_h=0.047, sigma_c=(1e-6, 1e-6, 1e-6), sigma_n=(1e-7, 1e-7, 1e-7))
+SMALL_NOISE = NoiseSettings(width=0.047, sigma_c=(1e-6, 1e-6, 1e-6), sigma_n=(1e-7, 1e-7, 1e-7))
 
 
 @pytest.fixture(scope="module")

@@ -130,7 +130,9 @@ def test_bad_simulation_settings_are_rejected():
         simulate_experiment(ROBOT, 110.0, 30.0, "v9")
     with pytest.raises(InputError, match="sigma_c"):
         NoiseSettings(sigma_c=(0.1, -1.0, 0.1))
-    with pytest.raises(InputError, match="sigma_h"):
-        NoiseSettings(sigma_h=0.0)
+    with pytest.raises(InputError, match="width"):
+        NoiseSettings(width=0.0)
+    with pytest.raises(InputError, match="pink"):
+        NoiseSettings(family="pink")
     with pytest.raises(InputError, match="d_lat"):
         simulate_experiment(ROBOT, -110.0, 30.0)
