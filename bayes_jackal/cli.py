@@ -18,6 +18,7 @@ from .errors import InputError
 from .experiment import load_experiments, write_csv, write_netcdf
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
 from .kernels import FAMILIES
+from .noise import analyse
 from .physics import CHANNELS
 from .robot import CONVERSIONS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
@@ -110,6 +111,42 @@ def cmd_grid(args: argparse.Namespace) -> int:
     if args.out:
         out.say(f"wrote {result.to_netcdf(args.out)}")
     out.result(result.summary())
+    return EXIT_OK
+
+
+def _residual_table(result: dict, say: Callable[[str], None]) -> None:
+    say(
+        f"one-step residuals (eq. 7-3) of the steady-state window at d_lat={result['d_lat']:g}, "
+        f"d_long={result['d_long']:g} N s/m; Ljung-Box and sigma_h fit over {result['lags']} lags"
+    )
+    say(
+        f"{'experiment':12s} {'channel':7s} {'n':>6s} {'sd':>10s} {'LB p':>9s} "
+        f"{'r1':>7s} {'sigma_h [s]':>11s}"
+    )
+    for name, channels in result["experiments"].items():
+        for channel, row in channels.items():
+            r1 = row["autocorrelation"][0]
+            say(
+                f"{name:12s} {channel:7s} {row['n']:6d} {row['sd']:10.4g} "
+                f"{row['ljung_box_p']:9.3g} {r1:7.3f} {row['sigma_h']:11.3f}"
+            )
+    say()
+    say("sigma_h of the yaw channel (thesis table 7-1: v1 0.051, v2 0.041, all 0.047 s)")
+    say(f"{'series':12s} {'runs':>5s} {'sigma_h [s]':>11s}")
+    members = result["series"]
+    for label, value in result["sigma_h"].items():
+        runs = len(result["experiments"]) if label == "all" else len(members[label])
+        say(f"{label:12s} {runs:5d} {value:11.4f}")
+
+
+def cmd_residuals(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
+    robot = _robot(args)
+    experiments = load_experiments(args.experiments)
+    channels = [c.strip() for c in args.channels.split(",")]
+    result = analyse(experiments, robot, args.d_lat, args.d_long, channels, args.lags)
+    _residual_table(result, out.say)
+    out.result(result)
     return EXIT_OK
 
 
@@ -222,6 +259,22 @@ def build_parser() -> argparse.ArgumentParser:
     grid.add_argument("--out", metavar="FILE.nc", help="save all MSE surfaces as NetCDF")
     _add_common(grid)
     grid.set_defaults(func=cmd_grid)
+
+    res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
+    res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    res.add_argument("--d-lat", type=float, default=110.0, help="d_lat of the model [N s/m] (110)")
+    res.add_argument("--d-long", type=float, default=30.0, help="d_long of the model [N s/m] (30)")
+    res.add_argument(
+        "--channels",
+        default="yaw",
+        metavar="yaw,vx,vy",
+        help="comma-separated channels to analyse (yaw)",
+    )
+    res.add_argument(
+        "--lags", type=int, default=30, help="lags of the Ljung-Box test and sigma_h fit (30)"
+    )
+    _add_common(res)
+    res.set_defaults(func=cmd_residuals)
     return parser
 
 

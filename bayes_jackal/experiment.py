@@ -52,6 +52,8 @@ UNITS = {
 UNIFORM_TOLERANCE = 0.01
 #: Fewest samples an experiment may have (one-step residuals need two).
 MIN_SAMPLES = 3
+#: Series label of experiments that carry none (grid and sigma_h tables).
+UNLABELLED = "unlabelled"
 #: Measured-state field of each model channel.
 CHANNEL_FIELDS = {"vx": "vx", "vy": "vy", "yaw": "yaw_rate"}
 

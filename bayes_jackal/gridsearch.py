@@ -23,7 +23,7 @@ import xarray as xr
 
 from ._files import atomic_path
 from .errors import InputError
-from .experiment import Experiment
+from .experiment import UNLABELLED, Experiment
 from .physics import Method, channel_coefficients, propagate
 from .robot import RobotProfile
 
@@ -248,7 +248,7 @@ def grid_search(
     Parameters
     ----------
     experiments : list of Experiment
-        Experiments without a series label form one series, ``"all"``.
+        Experiments without a series label form one series, ``"unlabelled"``.
     robot : RobotProfile
     d_lat, d_long : ndarray
         Grid values [N s/m], e.g. from :func:`damping_grid`.
@@ -271,7 +271,7 @@ def grid_search(
     }
     members: dict[str, list[str]] = {}
     for e in experiments:
-        members.setdefault(e.series or "all", []).append(e.name)
+        members.setdefault(e.series or UNLABELLED, []).append(e.name)
     series_mse = {
         label: np.mean([surfaces[n] for n in names], axis=0) for label, names in members.items()
     }

@@ -54,7 +54,8 @@ def _check_widths(width, name: str) -> np.ndarray:
     bad = ~(np.isfinite(width) & (width > 0))
     if bad.any():
         raise InputError(
-            f"kernel width must be positive and finite, got {width[bad].flat[0]!r} s", field=name
+            f"kernel width must be positive and finite, got {float(width[bad].flat[0])!r} s",
+            field=name,
         )
     return width
 

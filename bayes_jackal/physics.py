@@ -48,7 +48,7 @@ def _check_damping(d_lat, d_long) -> tuple[np.ndarray, np.ndarray]:
         bad = ~(np.isfinite(values) & (values > 0))
         if bad.any():
             raise InputError(
-                f"damping must be positive and finite, got {values[bad].flat[0]!r} N s/m",
+                f"damping must be positive and finite, got {float(values[bad].flat[0])!r} N s/m",
                 field=name,
             )
     return d_lat, d_long

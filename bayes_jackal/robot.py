@@ -21,14 +21,30 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["CONVERSIONS", "RobotProfile", "default_profile_path", "load_profile"]
+__all__ = [
+    "CONVERSIONS",
+    "DEFAULT_PRIORS",
+    "RobotProfile",
+    "default_profile_path",
+    "load_profile",
+]
 
 #: Ways of turning a velocity command (v, w) into wheel speeds.
 CONVERSIONS = ("ros", "thesis")
 
 _BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radius")
 _DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
-_PRIOR_KEYS = ("d_lat", "d_long", "sigma_h")
+_PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
+#: Prior ranges: uniform for the damping [N s/m], log-uniform for the kernel
+#: width [s] and the noise standard deviations [channel units]. sigma_n is
+#: kept away from zero (DESIGN §4).
+DEFAULT_PRIORS = {
+    "d_lat": (10.0, 1000.0),
+    "d_long": (10.0, 1000.0),
+    "sigma_h": (0.001, 1.0),
+    "sigma_c": (1e-5, 1.0),
+    "sigma_n": (1e-4, 1.0),
+}
 _DEFAULT_TOPICS = {
     "imu": "/imu/data",
     "joint_states": "/joint_states",
@@ -64,7 +80,9 @@ class RobotProfile:
     rate : float
         Sampling rate of the measured state (IMU) [Hz].
     priors : dict of str to (float, float)
-        Prior ranges ``d_lat``, ``d_long`` [N s/m] and ``sigma_h`` [s].
+        Prior ranges ``d_lat``, ``d_long`` [N s/m] (uniform), ``sigma_h``
+        [s] (log-uniform; the width of every noise family), ``sigma_c`` and
+        ``sigma_n`` [channel units] (log-uniform).
     topics : dict of str to str
         ROS topic names (``imu``, ``joint_states``, ``cmd_vel``, ``pose``).
     wheels : dict of str to list of str
@@ -83,7 +101,7 @@ class RobotProfile:
     wheel_separation_multiplier: float
     conversion: str = "ros"
     rate: float = 72.0
-    priors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    priors: dict[str, tuple[float, float]] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
     topics: dict[str, str] = field(default_factory=lambda: dict(_DEFAULT_TOPICS))
     wheels: dict[str, list[str]] = field(default_factory=dict)
     source: str = "<memory>"
@@ -187,7 +205,7 @@ def _number(table: dict, table_name: str, key: str, source: str) -> float:
 
 
 def _priors(table: dict, source: str) -> dict[str, tuple[float, float]]:
-    priors = {"d_lat": (10.0, 1000.0), "d_long": (10.0, 1000.0), "sigma_h": (0.001, 1.0)}
+    priors = dict(DEFAULT_PRIORS)
     for key, value in table.items():
         if not (isinstance(value, list) and len(value) == 2):
             raise ProfileError(

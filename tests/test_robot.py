@@ -82,6 +82,8 @@ def test_default_profile_has_thesis_constants():
         "d_lat": (10.0, 1000.0),
         "d_long": (10.0, 1000.0),
         "sigma_h": (0.001, 1.0),
+        "sigma_c": (1e-5, 1.0),
+        "sigma_n": (1e-4, 1.0),
     }
     assert profile.topics == {
         "imu": "/imu/data",

@@ -1,10 +1,9 @@
-"""Simulator and the Gaussian noise kernel (thesis eq. 7-5)."""
+"""Simulator of thesis-like experiments with known truth."""
 
 import numpy as np
 import pytest
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.kernels import autocorrelation, coloured_noise, gaussian_kernel
 from bayes_jackal.physics import discrete_matrices, one_step_residuals
 from bayes_jackal.simulate import (
     REST,
@@ -17,69 +16,6 @@ from bayes_jackal.simulate import (
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
-
-
-def _bartlett_sd(rho: np.ndarray, lag: int, n: int) -> float:
-    """Standard deviation of the sample autocorrelation at ``lag`` (Bartlett's formula)."""
-    full = np.concatenate([rho[:0:-1], rho, np.zeros(lag)])
-    centre = len(rho) - 1
-    j = np.arange(-centre, centre + 1)
-    terms = full[centre + j + lag] + full[centre + j - lag] - 2 * rho[lag] * full[centre + j]
-    return float(np.sqrt(np.sum(terms**2) / n))
-
-
-def test_gaussian_kernel_is_eq_7_5_normalised_to_unit_energy():
-    sigma_h = 0.047
-    kernel = gaussian_kernel(sigma_h, DT)
-    assert np.sum(kernel**2) == pytest.approx(1.0, rel=1e-14)
-    half = len(kernel) // 2
-    assert half == int(3 * sigma_h / DT)  # truncated at +-3 sigma_h
-    t = np.arange(-half, half + 1) * DT
-    eq_7_5 = np.sqrt(DT / (sigma_h * np.sqrt(np.pi))) * np.exp(-(t**2) / (2 * sigma_h**2))
-    # The analytic prefactor misses only the truncated tail, erfc(3) ~ 2.2e-5 of the energy.
-    np.testing.assert_allclose(kernel, eq_7_5, rtol=2e-5)
-    # For sigma_h << dt the sampled kernel is a single tap: white noise.
-    np.testing.assert_array_equal(gaussian_kernel(0.001, DT), [1.0])
-    with pytest.raises(InputError, match="sigma_h"):
-        gaussian_kernel(-0.1, DT)
-
-
-def test_discrete_autocorrelation_approaches_the_continuous_form():
-    # White noise through h has autocorrelation exp(-tau^2 / (4 sigma_h^2)) in
-    # the continuous limit (DESIGN §3). Sampling errors are exponentially small
-    # for sigma_h >> dt; what remains is the +-3 sigma_h truncation, which is
-    # scale-free and moves the self-correlation by about 3e-3 at any width.
-    for sigma_h in (0.047, 0.1, 0.2):
-        rho = autocorrelation(gaussian_kernel(sigma_h, DT), 60)
-        tau = np.arange(60) * DT
-        np.testing.assert_allclose(rho, np.exp(-(tau**2) / (4 * sigma_h**2)), atol=5e-3)
-        assert rho[0] == pytest.approx(1.0)
-
-
-def test_filtered_white_noise_has_the_kernel_autocorrelation():
-    kernel = gaussian_kernel(0.047, DT)
-    n = 400_000
-    noise = coloured_noise(kernel, n, scale=np.array([2.0, 0.5]), rng=42)
-    assert noise.shape == (n, 2)
-    lags = 15
-    rho = autocorrelation(kernel, 2 * len(kernel))
-    for column, scale in zip(noise.T, (2.0, 0.5), strict=True):
-        # Sample variance: sd of the estimate ~ scale^2 sqrt(2 sum rho^2 / n) ~ 0.4 %.
-        assert np.var(column) == pytest.approx(scale**2, rel=0.03)
-        centred = column - column.mean()
-        sample = np.array([centred[: n - k] @ centred[k:] for k in range(lags)]) / (
-            centred @ centred
-        )
-        sd = np.array([_bartlett_sd(rho, k, n) for k in range(lags)])
-        # 5 sd per lag: with 15 lags a false alarm has probability < 1e-5.
-        np.testing.assert_array_less(np.abs(sample - rho[:lags]), 5 * sd + 1e-12)
-    # Same seed, same noise; another seed, other noise.
-    np.testing.assert_array_equal(
-        coloured_noise(kernel, 100, 1.0, 3), coloured_noise(kernel, 100, 1.0, 3)
-    )
-    assert not np.allclose(
-        coloured_noise(kernel, 100, 1.0, 3), coloured_noise(kernel, 100, 1.0, 4)
-    )
 
 
 def test_command_profile_rests_ramps_holds_and_stops():

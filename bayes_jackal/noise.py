@@ -1,0 +1,600 @@
+"""Residual analysis: the thesis' look at the one-step noise (ch. 7).
+
+The one-step residual w[k] = y[k+1] - Ad y[k] - Bd u[k] (eq. 7-3) of a
+measured channel y is what the model leaves unexplained. The thesis reads
+its colour from the magnitude spectrum and the sample autocorrelation with
+white-noise confidence bounds (figs. 7-7..7-18), and fits the width sigma_h
+of its Gaussian filter (eq. 7-5) by least squares between the residual's
+autocorrelation and the filter's over the first 30 lags (eq. 7-6, table 7-1).
+This module reproduces those steps, adds the Ljung-Box test as a number for
+"is it white?", and uses the filter's exact autocorrelation (the sampled
+kernel's self-correlation, :mod:`bayes_jackal.kernels`) instead of the
+thesis' long simulated noise.
+
+The fit ignores sensor noise, as the thesis does ("the measurement noise will
+be ignored", ch. 7-2-2). A white sensor noise n adds n[k+1] - Ad n[k] to the
+residual (DESIGN §4): a spike at lag 0 and a negative lag-1 term that pull
+the fitted sigma_h down. The Bayesian model accounts for it; this module
+does not, by design.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.fft
+import scipy.signal
+import scipy.special
+import scipy.stats
+
+from .errors import DataError, InputError
+from .experiment import CHANNEL_FIELDS, UNLABELLED, Experiment
+from .kernels import get_family
+from .physics import CHANNELS, channel_coefficients
+from .robot import RobotProfile
+
+__all__ = [
+    "FIRST_LAGS",
+    "MATLAB_LEVEL",
+    "SIGMA_H_GRID",
+    "WELCH_SEGMENT",
+    "analyse",
+    "autocorrelation_bounds",
+    "average_per_series",
+    "channel_residuals",
+    "fit_sigma_h",
+    "ljung_box",
+    "magnitude_spectrum",
+    "sample_autocorrelation",
+    "sigma_h_table",
+    "spectrum",
+]
+
+#: The thesis' sigma_h grid: 0.001..1 s in steps of 0.001 s (ch. 7-3-1).
+#: Written as k / 1000 so that every value is the correctly rounded decimal.
+SIGMA_H_GRID = np.arange(1, 1001) / 1000.0
+SIGMA_H_GRID.setflags(write=False)
+#: Confidence level of MATLAB's ``autocorr`` bounds: 2 standard errors
+#: (``NumSTD = 2``), i.e. erf(sqrt(2)) = 0.9545.
+MATLAB_LEVEL = float(scipy.special.erf(np.sqrt(2.0)))
+#: Samples per Welch segment (3.6 s at 72 Hz: 0.28 Hz resolution).
+WELCH_SEGMENT = 256
+#: Autocorrelations (lags 1..FIRST_LAGS) reported by :func:`analyse`.
+FIRST_LAGS = 5
+
+
+def _check_lags(lags) -> int:
+    if isinstance(lags, bool) or not isinstance(lags, (int, np.integer)) or lags < 1:
+        raise InputError(f"number of lags must be an integer >= 1, got {lags!r}", field="lags")
+    return int(lags)
+
+
+def _check_series(x, lags: int) -> np.ndarray:
+    """A finite, non-constant series (..., n) with n >= lags + 1."""
+    x = np.asarray(x, float)
+    if x.ndim < 1 or x.shape[-1] < lags + 1:
+        n = x.shape[-1] if x.ndim else 0
+        raise InputError(
+            f"{n} samples are too few for {lags} lags (at least {lags + 1} are needed)",
+            field="lags",
+        )
+    if not np.isfinite(x).all():
+        raise InputError("series holds non-finite values", field="x")
+    if (np.ptp(x, axis=-1) == 0).any():
+        raise InputError("series is constant: its autocorrelation is undefined", field="x")
+    return x
+
+
+def _check_dt(dt) -> float:
+    dt = float(dt)
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"sample time must be positive, got {dt!r} s", field="dt")
+    return dt
+
+
+def channel_residuals(
+    experiment: Experiment,
+    robot: RobotProfile,
+    d_lat: np.ndarray | float,
+    d_long: np.ndarray | float,
+    channel: str = "yaw",
+    steady: bool = True,
+) -> np.ndarray:
+    """One-step residuals of one measured channel (eq. 7-3).
+
+    w[k] = y[k+1] - Ad y[k] - Bd u[k] for k = 0..N-2, with the channel's
+    exact (ZOH) pole Ad[c, c] and input row Bd[c, :] at the experiment's
+    sample time (eq. 6-6). The thesis evaluates the steady-state window only
+    (ch. 7-1: acceleration and deceleration left out).
+
+    Parameters
+    ----------
+    experiment : Experiment
+    robot : RobotProfile
+    d_lat, d_long : float or array_like
+        Damping [N s/m], broadcast together; arrays add leading axes.
+    channel : {"yaw", "vx", "vy"}
+        Measured state: yaw rate [rad/s] or body velocity [m/s].
+    steady : bool
+        Use ``experiment.steady()`` (the whole experiment when it has no
+        steady-state window); False uses every sample.
+
+    Returns
+    -------
+    ndarray, shape (..., N - 1)
+        Residuals in the channel's unit ([rad/s] or [m/s]).
+
+    Raises
+    ------
+    DataError
+        When the experiment does not measure the channel.
+    InputError
+        For an unknown channel or non-positive damping.
+    """
+    window = experiment.steady() if steady else experiment
+    y = window.channel(channel)
+    alpha, input_row = channel_coefficients(robot, d_lat, d_long, channel, window.dt)
+    # eq. 7-3, one channel of the diagonal model
+    return y[1:] - alpha[..., None] * y[:-1] - input_row @ window.inputs[:-1].T
+
+
+def sample_autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
+    """Normalised sample autocorrelation r[0..lags] (r[0] = 1), by FFT.
+
+    The biased estimator of the thesis' ``autocorr``: the mean is removed and
+    every lag is divided by the same sum, r[k] = sum_t x_c[t] x_c[t+k] /
+    sum_t x_c[t]^2. The FFT is zero-padded to at least n + lags points, so
+    no circular wrap reaches the returned lags.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+        Series, vectorised over leading axes.
+    lags : int
+        Largest lag, >= 1; n >= lags + 1.
+
+    Returns
+    -------
+    ndarray, shape (..., lags + 1)
+
+    Raises
+    ------
+    InputError
+        For lags < 1, too short, non-finite or constant series.
+    """
+    lags = _check_lags(lags)
+    x = _check_series(x, lags)
+    centred = x - x.mean(axis=-1, keepdims=True)
+    size = scipy.fft.next_fast_len(x.shape[-1] + lags, real=True)
+    power = np.abs(scipy.fft.rfft(centred, size)) ** 2
+    covariance = scipy.fft.irfft(power, size)[..., : lags + 1]
+    return covariance / covariance[..., :1]
+
+
+def autocorrelation_bounds(n: int, level: float = 0.95) -> float:
+    """White-noise confidence bound +-z / sqrt(n) of a sample autocorrelation.
+
+    For white noise sqrt(n) r[k] is asymptotically N(0, 1) at every lag
+    k >= 1, so r[k] lies within +-z / sqrt(n) with probability ``level``,
+    z = Phi^-1((1 + level) / 2). MATLAB's ``autocorr`` (thesis figs.
+    7-10..7-18) draws 2 standard errors, +-2 / sqrt(n): pass
+    ``level=MATLAB_LEVEL`` for exactly that; 0.95 gives 1.96 / sqrt(n).
+
+    Parameters
+    ----------
+    n : int
+        Length of the series.
+    level : float
+        Two-sided confidence level, 0 < level < 1.
+
+    Returns
+    -------
+    float
+        The bound (its negative is the lower bound).
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise InputError(f"series length must be an integer >= 1, got {n!r}", field="n")
+    if not 0.0 < level < 1.0:
+        raise InputError(f"confidence level must be in (0, 1), got {level!r}", field="level")
+    return float(scipy.stats.norm.ppf(0.5 + 0.5 * level) / np.sqrt(n))
+
+
+def spectrum(
+    x: np.ndarray, dt: float, segment: int = WELCH_SEGMENT
+) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided power spectral density by Welch's method.
+
+    ``scipy.signal.welch`` with a Hann window of ``min(segment, n)`` samples,
+    50 % overlap, the mean of each segment removed (``detrend="constant"``),
+    density scaling and a one-sided spectrum (bins other than 0 and Nyquist
+    doubled), so that sum(psd) * df is about the variance of ``x``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+        Series [unit], vectorised over leading axes.
+    dt : float
+        Sample time [s].
+    segment : int
+        Samples per segment (256: 3.6 s and 0.28 Hz resolution at 72 Hz).
+
+    Returns
+    -------
+    frequency : ndarray, shape (F,)
+        [Hz], 0..1 / (2 dt).
+    psd : ndarray, shape (..., F)
+        [unit^2 / Hz].
+    """
+    dt = _check_dt(dt)
+    x = np.asarray(x, float)
+    if isinstance(segment, bool) or not isinstance(segment, (int, np.integer)) or segment < 2:
+        raise InputError(f"segment must be an integer >= 2, got {segment!r}", field="segment")
+    if x.ndim < 1 or x.shape[-1] < 2:
+        raise InputError(f"spectrum needs at least 2 samples, got shape {x.shape}", field="x")
+    nperseg = min(int(segment), x.shape[-1])
+    return scipy.signal.welch(
+        x,
+        fs=1.0 / dt,
+        window="hann",
+        nperseg=nperseg,
+        noverlap=nperseg // 2,
+        detrend="constant",
+        return_onesided=True,
+        scaling="density",
+        axis=-1,
+    )
+
+
+def magnitude_spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Single-sided amplitude spectrum |FFT| (thesis figs. 7-7..7-9, 7-13..7-15).
+
+    MATLAB's recipe: |X| / n of the whole series (no window, mean kept),
+    bins other than 0 and Nyquist doubled, so that a sine of amplitude A at a
+    bin frequency shows as A.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+        Series [unit], vectorised over leading axes.
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    frequency : ndarray, shape (n // 2 + 1,)
+        [Hz].
+    magnitude : ndarray, shape (..., n // 2 + 1)
+        [unit].
+    """
+    dt = _check_dt(dt)
+    x = np.asarray(x, float)
+    if x.ndim < 1 or x.shape[-1] < 2:
+        raise InputError(f"spectrum needs at least 2 samples, got shape {x.shape}", field="x")
+    n = x.shape[-1]
+    magnitude = np.abs(scipy.fft.rfft(x, axis=-1)) / n
+    magnitude[..., 1 : (n + 1) // 2] *= 2.0  # the Nyquist bin (even n) has no mirror
+    return scipy.fft.rfftfreq(n, dt), magnitude
+
+
+def _ljung_box(r: np.ndarray, n: int, lags: int) -> tuple[np.ndarray, np.ndarray]:
+    k = np.arange(1, lags + 1)
+    statistic = n * (n + 2.0) * np.sum(r[..., 1 : lags + 1] ** 2 / (n - k), axis=-1)
+    return statistic, scipy.stats.chi2.sf(statistic, lags)
+
+
+def ljung_box(x: np.ndarray, lags: int) -> tuple[np.ndarray, np.ndarray]:
+    """Ljung-Box portmanteau test of whiteness.
+
+    Q = n (n + 2) sum_{k=1..h} r_k^2 / (n - k) with the sample
+    autocorrelation r (:func:`sample_autocorrelation`), h = ``lags``; under
+    white noise Q is asymptotically chi^2 with h degrees of freedom. (No
+    degrees of freedom are removed for fitted parameters: d is fixed here.)
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+        Series, vectorised over leading axes.
+    lags : int
+        h >= 1; n >= h + 1.
+
+    Returns
+    -------
+    Q : ndarray, shape (...)
+    p_value : ndarray, shape (...)
+        P(chi^2_h >= Q); small values reject whiteness.
+    """
+    r = sample_autocorrelation(x, lags)
+    return _ljung_box(r, np.shape(x)[-1], lags)
+
+
+def _gaussian_autocorrelation(grid: np.ndarray, dt: float, lags: int) -> np.ndarray:
+    """Exact autocorrelation of the thesis' filter at lags 1..lags, shape (G, lags)."""
+    return get_family("gaussian").autocorrelation(grid, dt, lags + 1)[..., 1:]
+
+
+def _fit(r: np.ndarray, dt: float, lags: int, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    model = _gaussian_autocorrelation(grid, dt, lags)
+    # eq. 7-6: MSE between the autocorrelations over lags 1..l, for every grid point
+    mse = np.mean((r[..., None, 1 : lags + 1] - model) ** 2, axis=-1)
+    return grid[np.argmin(mse, axis=-1)], mse
+
+
+def _check_grid(grid) -> np.ndarray:
+    if grid is None:
+        return SIGMA_H_GRID
+    grid = np.asarray(grid, float)
+    if grid.ndim != 1 or grid.size == 0:
+        raise InputError(
+            f"sigma_h grid must be a non-empty 1-D array, got shape {grid.shape}", field="grid"
+        )
+    bad = ~(np.isfinite(grid) & (grid > 0))
+    if bad.any():
+        raise InputError(
+            f"sigma_h grid values must be positive and finite, got {float(grid[bad][0])!r} s",
+            field="grid",
+        )
+    return grid
+
+
+def fit_sigma_h(
+    x: np.ndarray, dt: float, lags: int = 30, grid: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The thesis' sigma_h: least squares between autocorrelations (eq. 7-6).
+
+    MSE(sigma_h) = (1/l) sum_{k=1..l} (r_k - rho_k(sigma_h))^2 between the
+    sample autocorrelation r of ``x`` and the autocorrelation rho of white
+    noise through the Gaussian filter of eq. 7-5 (truncated at +-3 sigma_h),
+    minimised over a grid. rho is the sampled kernel's exact discrete
+    self-correlation, computed for the whole grid at once; the thesis used
+    the autocorrelation of a long simulated filtered noise instead. Below
+    sigma_h ~ dt / 3 the sampled kernel is one tap (white noise), so the
+    smallest grid values tie and the first of them is returned.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+        Residuals, vectorised over leading axes.
+    dt : float
+        Sample time [s].
+    lags : int
+        l, the number of lags fitted (30 in the thesis); n >= l + 1.
+    grid : ndarray, shape (G,), optional
+        sigma_h values [s]; :data:`SIGMA_H_GRID` (0.001..1 s by 0.001 s)
+        when omitted.
+
+    Returns
+    -------
+    sigma_h : ndarray, shape (...)
+        Grid value of least MSE [s].
+    mse_curve : ndarray, shape (..., G)
+        MSE at every grid value [dimensionless].
+    """
+    dt = _check_dt(dt)
+    grid = _check_grid(grid)
+    r = sample_autocorrelation(x, lags)
+    return _fit(r, dt, lags, grid)
+
+
+def average_per_series(values: dict[str, float], series: dict[str, str | None]) -> dict:
+    """Average per-experiment values per series and over all (thesis table 7-1).
+
+    Parameters
+    ----------
+    values : dict of str to float
+        One value per experiment name.
+    series : dict of str to (str or None)
+        Series label per experiment name; experiments without a label form
+        the series ``"unlabelled"`` (as in the grid search).
+
+    Returns
+    -------
+    dict
+        ``series``: label -> mean over its experiments; ``members``: label ->
+        experiment names; ``all``: the mean over every experiment (not the
+        mean of the series means: the thesis' 10 x v1 + 5 x v2 weigh 2 : 1).
+    """
+    if not values:
+        raise InputError("no experiments given", field="experiments")
+    members: dict[str, list[str]] = {}
+    for name in values:
+        members.setdefault(series.get(name) or UNLABELLED, []).append(name)
+    return {
+        "series": {
+            label: float(np.mean([values[n] for n in names])) for label, names in members.items()
+        },
+        "members": members,
+        "all": float(np.mean(list(values.values()))),
+    }
+
+
+def _window_residuals(
+    experiment: Experiment,
+    robot: RobotProfile,
+    d_lat: float,
+    d_long: float,
+    channel: str,
+    lags: int,
+) -> tuple[np.ndarray, float]:
+    """Steady-window residuals of one channel, checked for the analysis; and dt [s]."""
+    window = experiment.steady()
+    y = window.channel(channel)
+    where = {"source": experiment.source, "field": CHANNEL_FIELDS[channel]}
+    span = "the experiment" if experiment.steady_window is None else "the steady-state window"
+    if len(y) < lags + 2:
+        raise DataError(
+            f"{span} holds {len(y)} samples; {lags} lags need at least {lags + 2} "
+            f"({lags + 1} residuals)",
+            source=experiment.source,
+            field="lags",
+        )
+    if np.ptp(y) == 0:
+        raise DataError(
+            f"channel {channel!r} is constant ({y[0]:g}) in {span}; "
+            "its residuals cannot be analysed",
+            **where,
+        )
+    residuals = channel_residuals(experiment, robot, d_lat, d_long, channel)
+    if np.ptp(residuals) == 0:
+        raise DataError(
+            f"the residuals of channel {channel!r} are constant ({residuals[0]:g}); "
+            "the model explains the window exactly and there is no noise to analyse",
+            **where,
+        )
+    return residuals, window.dt
+
+
+def _check_experiments(experiments: Sequence[Experiment]) -> None:
+    if not experiments:
+        raise InputError("no experiments given", field="experiments")
+    names = [e.name for e in experiments]
+    duplicated = sorted({n for n in names if names.count(n) > 1})
+    if duplicated:
+        raise InputError(f"experiment names are not unique: {duplicated}", field="name")
+
+
+def sigma_h_table(
+    experiments: Sequence[Experiment],
+    robot: RobotProfile,
+    d_lat: float,
+    d_long: float,
+    lags: int = 30,
+) -> dict:
+    """Thesis table 7-1: sigma_h of the yaw-rate residuals, per series and over all.
+
+    Each experiment's steady-state yaw residuals get their own fit
+    (:func:`fit_sigma_h` on the default grid); the fits are averaged per
+    series and over all experiments (:func:`average_per_series`). The thesis
+    found 0.051 s (v1), 0.041 s (v2) and 0.047 s (all 15 experiments).
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        Unique names; experiments without a series label form series ``"unlabelled"``.
+    robot : RobotProfile
+    d_lat, d_long : float
+        Damping of the model [N s/m] (the thesis: 110, 30).
+    lags : int
+        Lags fitted (30).
+
+    Returns
+    -------
+    dict
+        ``experiments``: name -> sigma_h [s]; ``series``, ``members``, ``all``
+        as :func:`average_per_series`; ``lags``.
+
+    Raises
+    ------
+    DataError
+        When a steady-state window is shorter than lags + 2 samples, or the
+        yaw rate is constant in it (naming the file).
+    InputError
+        For lags < 1, no experiments or duplicate names.
+    """
+    lags = _check_lags(lags)
+    _check_experiments(experiments)
+    values = {}
+    for experiment in experiments:
+        residuals, dt = _window_residuals(experiment, robot, d_lat, d_long, "yaw", lags)
+        values[experiment.name] = float(fit_sigma_h(residuals, dt, lags)[0])
+    series = {e.name: e.series for e in experiments}
+    return {"experiments": values, **average_per_series(values, series), "lags": lags}
+
+
+def _summary(residuals: np.ndarray, dt: float, lags: int) -> dict:
+    """JSON-ready statistics of one residual series."""
+    n = residuals.shape[-1]
+    r = sample_autocorrelation(residuals, lags)
+    statistic, p_value = _ljung_box(r, n, lags)
+    sigma_h, _ = _fit(r, dt, lags, SIGMA_H_GRID)
+    return {
+        "n": int(n),
+        "mean": float(np.mean(residuals)),
+        "sd": float(np.std(residuals, ddof=1)),
+        "ljung_box_q": float(statistic),
+        "ljung_box_p": float(p_value),
+        "autocorrelation": r[1 : min(FIRST_LAGS, lags) + 1].tolist(),
+        "bound": autocorrelation_bounds(n),
+        "sigma_h": float(sigma_h),
+    }
+
+
+def _check_channels(channels: Sequence[str]) -> list[str]:
+    channels = [channels] if isinstance(channels, str) else list(channels)
+    unknown = [c for c in channels if c not in CHANNELS]
+    if not channels or unknown:
+        raise InputError(
+            f"unknown or no channel(s) {unknown or channels!r}; use some of {list(CHANNELS)}",
+            field="channels",
+        )
+    return list(dict.fromkeys(channels))
+
+
+def analyse(
+    experiments: Sequence[Experiment],
+    robot: RobotProfile,
+    d_lat: float,
+    d_long: float,
+    channels: Sequence[str] = ("yaw",),
+    lags: int = 30,
+) -> dict:
+    """Residual analysis of thesis ch. 7 for several experiments (JSON-ready).
+
+    For every experiment and channel, on the steady-state window: the number
+    of residuals ``n``, their ``mean`` and ``sd`` (ddof 1) [channel unit],
+    the Ljung-Box statistic ``ljung_box_q`` and ``ljung_box_p`` at ``lags``,
+    the ``autocorrelation`` at lags 1..5, the 95 % white-noise ``bound``
+    1.96 / sqrt(n), and the fitted Gaussian-filter width ``sigma_h`` [s]
+    (eq. 7-6). Then the thesis' table 7-1 from the yaw channel.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+    robot : RobotProfile
+    d_lat, d_long : float
+        Damping of the model [N s/m].
+    channels : sequence of {"yaw", "vx", "vy"}
+    lags : int
+        Lags of the Ljung-Box test and of the sigma_h fit (30).
+
+    Returns
+    -------
+    dict
+        ``experiments``: name -> channel -> the fields above; ``sigma_h``:
+        series label -> mean sigma_h [s] of the yaw channel, plus ``all``
+        (the mean over every experiment, which wins over an unlabelled
+        series of the same name); ``series``: label -> experiment names;
+        ``d_lat``, ``d_long``, ``lags``, ``channels``.
+
+    Raises
+    ------
+    DataError
+        When a steady-state window is shorter than lags + 2 samples, or a
+        channel is missing or constant in it (naming the file).
+    InputError
+        For lags < 1, unknown channels, bad damping, no or duplicate names.
+    """
+    lags = _check_lags(lags)
+    channels = _check_channels(channels)
+    _check_experiments(experiments)
+    rows = {
+        e.name: {
+            c: _summary(*_window_residuals(e, robot, d_lat, d_long, c, lags), lags)
+            for c in channels
+        }
+        for e in experiments
+    }
+    if "yaw" in channels:
+        values = {name: row["yaw"]["sigma_h"] for name, row in rows.items()}
+        table = average_per_series(values, {e.name: e.series for e in experiments})
+    else:
+        table = sigma_h_table(experiments, robot, d_lat, d_long, lags)
+    return {
+        "d_lat": float(d_lat),
+        "d_long": float(d_long),
+        "lags": lags,
+        "channels": channels,
+        "experiments": rows,
+        "sigma_h": {**table["series"], "all": table["all"]},
+        "series": table["members"],
+    }

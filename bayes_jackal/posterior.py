@@ -1,0 +1,279 @@
+"""Posterior files: arviz InferenceData built from a chain, saved, loaded, summarised.
+
+Layout of a posterior (NetCDF through arviz, groups):
+
+- ``posterior``: ``d_lat``, ``d_long`` [N s/m]; the noise parameters
+  (``sigma_h`` or ``width`` [s], ``sigma_c``, ``sigma_n`` [channel units]),
+  scalars when one noise group, else along ``noise_group``; derived
+  ``ratio`` = d_lat / d_long, ``Ad`` (diagonal, along ``state``) and ``Bd``
+  (``state`` x ``wheel``). Walkers are arviz chains.
+- ``sample_stats``: ``lp`` (log posterior in sampling coordinates) and
+  ``log_likelihood``.
+- ``observed_data``: ``residual_<channel>_<i>``, the one-step residuals of
+  experiment i on its steady window at the posterior median of the damping.
+- ``constant_data``: the measured experiments, ``<field>_<i>``.
+- ``attrs`` of ``posterior``: format, model settings, priors, robot,
+  experiments and convergence diagnostics (dicts as JSON strings).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from ._files import atomic_path
+from .errors import DataError
+from .experiment import REQUIRED
+from .likelihood import ResidualLikelihood, residual_regressors
+from .physics import CHANNELS, channel_coefficients, discrete_matrices
+
+with warnings.catch_warnings():
+    # arviz 0.2x announces its 1.x refactor on import (DESIGN §4 pins arviz<1).
+    warnings.simplefilter("ignore", FutureWarning)
+    import arviz as az
+
+__all__ = [
+    "FORMAT",
+    "az",
+    "build_inference_data",
+    "load_posterior",
+    "parameter_variables",
+    "save_posterior",
+    "summarize",
+]
+
+FORMAT = "bayes_jackal.posterior/1"
+#: The thesis' ridge ratio d_lat / d_long (ch. 5-2-2).
+THESIS_RATIO = 11.0 / 3.0
+#: Credible mass of the reported highest-density intervals (arviz's default).
+HDI_PROB = 0.94
+_SUMMARY_FIELDS = ("mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat")
+
+
+def _noise_variables(likelihood: ResidualLikelihood, draws: np.ndarray) -> tuple[dict, dict]:
+    """Noise parameters as variables: scalars for one group, else along noise_group."""
+    per_group = likelihood.n_noise_parameters
+    bases = [name.split("[")[0] for name in likelihood.parameter_names[2 : 2 + per_group]]
+    groups = len(likelihood.noise_groups)
+    variables, dims = {}, {}
+    for i, base in enumerate(bases):
+        columns = draws[..., 2 + i :: per_group][..., :groups]
+        if groups == 1:
+            variables[base] = columns[..., 0]
+        else:
+            variables[base] = columns
+            dims[base] = ["noise_group"]
+    return variables, dims
+
+
+def build_inference_data(
+    likelihood: ResidualLikelihood,
+    prior,
+    chain: np.ndarray,
+    lp: np.ndarray,
+    diagnostics: dict,
+) -> az.InferenceData:
+    """InferenceData of a sampled chain.
+
+    Parameters
+    ----------
+    likelihood : ResidualLikelihood
+    prior : Prior
+        The priors the chain was sampled under (sampling coordinates).
+    chain : ndarray, shape (draws, walkers, P)
+        Kept draws in sampling coordinates.
+    lp : ndarray, shape (draws, walkers)
+        Their log posterior.
+    diagnostics : dict
+        Convergence diagnostics and settings, stored as attributes.
+    """
+    draws = np.swapaxes(prior.to_natural(chain), 0, 1)  # (walkers, draws, P)
+    d_lat, d_long = draws[..., 0], draws[..., 1]
+    noise, dims = _noise_variables(likelihood, draws)
+    dt = likelihood.experiments[0].dt
+    Ad, Bd = discrete_matrices(likelihood.robot, d_lat, d_long, dt)
+    posterior = {
+        "d_lat": d_lat,
+        "d_long": d_long,
+        **noise,
+        "ratio": d_lat / d_long,
+        "Ad": np.diagonal(Ad, axis1=-2, axis2=-1),
+        "Bd": Bd,
+    }
+    dims |= {"Ad": ["state"], "Bd": ["state", "wheel"]}
+    labels = [likelihood.group_label(c, e).strip("[]") or c for c, e in likelihood.noise_groups]
+    coords = {"noise_group": labels, "state": list(CHANNELS), "wheel": ["right", "left"]}
+    observed, constant = _data_groups(
+        likelihood, float(np.median(d_lat)), float(np.median(d_long))
+    )
+    log_likelihood = np.swapaxes(lp - prior.log_density(chain), 0, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        idata = az.from_dict(
+            posterior=posterior,
+            sample_stats={"lp": np.swapaxes(lp, 0, 1), "log_likelihood": log_likelihood},
+            observed_data=observed,
+            constant_data=constant,
+            coords=coords,
+            dims=dims
+            | {name: [f"step_{name.rsplit('_', 1)[1]}"] for name in observed}
+            | {name: [f"time_{name.rsplit('_', 1)[1]}"] for name in constant},
+        )
+    idata.posterior.attrs.update(_attributes(likelihood, prior, diagnostics))
+    return idata
+
+
+def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
+    """Residuals at (d_lat, d_long) and the measured experiments, keyed by index."""
+    observed, constant = {}, {}
+    for i, experiment in enumerate(likelihood.experiments):
+        for channel in likelihood.channels:
+            alpha, row = channel_coefficients(
+                likelihood.robot, d_lat, d_long, channel, experiment.dt
+            )
+            regressors = residual_regressors(experiment, channel, likelihood.steady)
+            observed[f"residual_{channel}_{i}"] = regressors @ np.r_[1.0, -alpha, -row]
+        for key in (*REQUIRED, "vx", "vy"):
+            values = getattr(experiment, key)
+            if values is not None:
+                constant[f"{key}_{i}"] = np.asarray(values)
+    return observed, constant
+
+
+def _attributes(likelihood: ResidualLikelihood, prior, diagnostics: dict) -> dict:
+    robot = likelihood.robot
+    experiments = [
+        {
+            "name": e.name,
+            "source": e.source,
+            "series": e.series,
+            "steady_window": e.steady_window,
+            "dt": e.dt,
+            "truth": e.truth,
+        }
+        for e in likelihood.experiments
+    ]
+    values = {
+        "format": FORMAT,
+        "bayes_jackal_version": __version__,
+        "family": likelihood.family,
+        "channels": list(likelihood.channels),
+        "shared_noise": likelihood.shared_noise,
+        "sensor": likelihood.sensor,
+        "engine": likelihood.engine,
+        "steady": likelihood.steady,
+        "parameter_names": list(prior.names),
+        "prior": {
+            name: {"low": lo, "high": hi, "kind": "log-uniform" if log else "uniform"}
+            for name, lo, hi, log in zip(
+                prior.names,
+                prior.low.tolist(),
+                prior.high.tolist(),
+                prior.log_uniform,
+                strict=True,
+            )
+        },
+        "robot": {
+            key: getattr(robot, key)
+            for key in (
+                "name",
+                "mass",
+                "yaw_inertia",
+                "half_wheelbase",
+                "half_track",
+                "wheel_radius",
+                "rate",
+                "source",
+            )
+        },
+        "experiments": experiments,
+        **diagnostics,
+    }
+    return {key: _attribute_value(value) for key, value in values.items()}
+
+
+def _attribute_value(value):
+    """NetCDF attributes hold strings and numbers: dicts, lists and None as JSON, bools as 0/1."""
+    if isinstance(value, (dict, list, tuple)) or value is None:
+        return json.dumps(value)
+    if isinstance(value, (bool, np.bool_)):
+        return int(value)
+    return value
+
+
+def parameter_variables(idata: az.InferenceData) -> list[str]:
+    """The sampled parameters' variable names (d_lat, d_long, then the noise)."""
+    skip = {"ratio", "Ad", "Bd"}
+    return [name for name in idata.posterior.data_vars if name not in skip]
+
+
+def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:
+    """Write a posterior as NetCDF, atomically."""
+    path = Path(path)
+    with atomic_path(path) as temporary:
+        idata.to_netcdf(str(temporary))
+    return path
+
+
+def load_posterior(path: str | Path) -> az.InferenceData:
+    """Read a posterior written by :func:`save_posterior`.
+
+    Raises
+    ------
+    DataError
+        When the file is missing, unreadable, or not a bayes_jackal posterior.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError("no such file", source=str(path))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            idata = az.from_netcdf(str(path))
+    except (OSError, ValueError, KeyError) as exc:
+        raise DataError(f"not a readable posterior file ({exc})", source=str(path)) from None
+    posterior = getattr(idata, "posterior", None)
+    if posterior is None or posterior.attrs.get("format") != FORMAT:
+        raise DataError(
+            "not a bayes_jackal posterior (written by `bayes-jackal sample`)", source=str(path)
+        )
+    return idata
+
+
+def summarize(idata: az.InferenceData) -> dict:
+    """JSON-ready summary of a posterior (DESIGN §6 ``sample --json``).
+
+    One key per parameter and for the derived ``ratio``, each with arviz's
+    ``mean``, ``sd``, ``hdi_3%``, ``hdi_97%``, ``ess_bulk``, ``ess_tail``,
+    ``r_hat`` (walkers as chains: a secondary check only) and
+    ``ess_autocorr``, the ESS implied by the integrated autocorrelation time
+    (the primary one for emcee); plus ``corr_d_lat_d_long``,
+    ``autocorr_time``, ``n_steps``, ``converged``, and under ``ratio`` the
+    thesis' 3 2/3.
+    """
+    attrs = idata.posterior.attrs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        table = az.summary(
+            idata, var_names=[*parameter_variables(idata), "ratio"], hdi_prob=HDI_PROB
+        )
+    ess_autocorr = json.loads(attrs["ess_autocorr"])
+    summary: dict = {}
+    for label, row in table.iterrows():
+        summary[label] = {key: float(row[key]) for key in _SUMMARY_FIELDS}
+        if label in ess_autocorr:
+            summary[label]["ess_autocorr"] = ess_autocorr[label]
+    posterior = idata.posterior
+    d_lat, d_long = posterior["d_lat"].values.ravel(), posterior["d_long"].values.ravel()
+    summary["ratio"]["thesis"] = THESIS_RATIO
+    summary["corr_d_lat_d_long"] = float(np.corrcoef(d_lat, d_long)[0, 1])
+    summary["autocorr_time"] = json.loads(attrs["autocorr_time"])
+    summary["n_steps"] = int(attrs["n_steps"])
+    summary["converged"] = bool(attrs["converged"])
+    summary["family"] = str(attrs["family"])
+    summary["channels"] = json.loads(attrs["channels"])
+    return summary

@@ -1,0 +1,168 @@
+"""Noise-filter families: kernels, exact autocorrelations, PSDs and generators."""
+
+import numpy as np
+import pytest
+
+from bayes_jackal import InputError
+from bayes_jackal.kernels import (
+    FAMILIES,
+    autocorrelation,
+    coloured_noise,
+    gaussian_kernel,
+    get_family,
+)
+
+DT = 1.0 / 72.0
+WIDTHS = np.array([0.004, 0.047, 0.1, 0.5])
+FINITE = ["white", "gaussian", "triangular", "moving-average"]
+
+
+def bartlett_sd(rho: np.ndarray, lag: int, n: int) -> float:
+    """Standard deviation of the sample autocorrelation at ``lag`` (Bartlett's formula)."""
+    full = np.concatenate([rho[:0:-1], rho, np.zeros(lag)])
+    centre = len(rho) - 1
+    j = np.arange(-centre, centre + 1)
+    terms = full[centre + j + lag] + full[centre + j - lag] - 2 * rho[lag] * full[centre + j]
+    return float(np.sqrt(np.sum(terms**2) / n))
+
+
+def test_gaussian_kernel_is_eq_7_5_normalised_to_unit_energy():
+    sigma_h = 0.047
+    kernel = gaussian_kernel(sigma_h, DT)
+    assert np.sum(kernel**2) == pytest.approx(1.0, rel=1e-14)
+    half = len(kernel) // 2
+    assert half == int(3 * sigma_h / DT)  # truncated at +-3 sigma_h
+    t = np.arange(-half, half + 1) * DT
+    eq_7_5 = np.sqrt(DT / (sigma_h * np.sqrt(np.pi))) * np.exp(-(t**2) / (2 * sigma_h**2))
+    # The analytic prefactor misses only the truncated tail, erfc(3) ~ 2.2e-5 of the energy.
+    np.testing.assert_allclose(kernel, eq_7_5, rtol=2e-5)
+    # For sigma_h << dt the sampled kernel is a single tap: white noise.
+    np.testing.assert_array_equal(gaussian_kernel(0.001, DT), [1.0])
+    with pytest.raises(InputError, match="sigma_h"):
+        gaussian_kernel(-0.1, DT)
+
+
+def test_gaussian_autocorrelation_approaches_the_continuous_form():
+    # White noise through h has autocorrelation exp(-tau^2 / (4 sigma_h^2)) in
+    # the continuous limit (DESIGN §3). Sampling errors are exponentially small
+    # for sigma_h >> dt; what remains is the +-3 sigma_h truncation, which is
+    # scale-free and moves the self-correlation by about 3e-3 at any width.
+    for sigma_h in (0.047, 0.1, 0.2):
+        rho = FAMILIES["gaussian"].autocorrelation(sigma_h, DT, 60)
+        tau = np.arange(60) * DT
+        np.testing.assert_allclose(rho, np.exp(-(tau**2) / (4 * sigma_h**2)), atol=5e-3)
+
+
+@pytest.mark.parametrize("name", FINITE)
+def test_vectorised_autocorrelation_matches_a_per_width_self_correlation(name):
+    family = FAMILIES[name]
+    rho = family.autocorrelation(WIDTHS, DT, 200)
+    assert rho.shape == (len(WIDTHS), 200)
+    for width, row in zip(WIDTHS, rho, strict=True):
+        taps = np.trim_zeros(family.taps(width, DT))
+        assert np.sum(taps**2) == pytest.approx(1.0, rel=1e-13)
+        np.testing.assert_allclose(row, autocorrelation(taps, 200), rtol=0, atol=1e-13)
+
+
+def test_closed_forms_of_the_exponential_moving_average_and_triangular_families():
+    lags = np.arange(40)
+    # AR(1): rho = exp(-l dt / tau).
+    tau = 0.05
+    np.testing.assert_allclose(
+        FAMILIES["exponential"].autocorrelation(tau, DT, 40), np.exp(-lags * DT / tau), rtol=1e-14
+    )
+    # A boxcar of L whole samples: rho = (1 - l / L)+.
+    L = 7
+    np.testing.assert_allclose(
+        FAMILIES["moving-average"].autocorrelation(L * DT, DT, 40),
+        np.clip(1 - lags / L, 0, None),
+        atol=1e-14,
+    )
+    # A triangle of half-base m samples has taps 1 - |k|/m, |k| < m; its
+    # energy is (2 m^2 + 1) / (3 m).
+    m = 5
+    taps = FAMILIES["triangular"].taps(m * DT, DT)
+    np.testing.assert_allclose(
+        np.trim_zeros(taps) * np.sqrt((2 * m**2 + 1) / (3 * m)),
+        1 - np.abs(np.arange(-m + 1, m)) / m,
+        atol=1e-14,
+    )
+    assert FAMILIES["white"].autocorrelation(0.1, DT, 5).tolist() == [1, 0, 0, 0, 0]
+
+
+def _largest_step(name: str, points: int) -> tuple[float, np.ndarray, np.ndarray]:
+    widths = np.linspace(0.02, 0.2, points)
+    steps = np.abs(np.diff(FAMILIES[name].autocorrelation(widths, DT, 30), axis=0)).max(axis=1)
+    return steps.max(), steps, widths
+
+
+@pytest.mark.parametrize("name", ["moving-average", "triangular"])
+def test_autocorrelation_is_continuous_in_the_width(name):
+    # A continuous rho(width) has steps that shrink with the grid spacing
+    # (10x finer grid: ~10x smaller steps); a jump would not shrink.
+    coarse, _, _ = _largest_step(name, 2001)
+    fine, _, _ = _largest_step(name, 20001)
+    assert fine < coarse / 5
+
+
+def test_gaussian_jumps_only_where_its_truncation_gains_a_tap():
+    # The thesis' +-3 sigma_h truncation adds a tap of relative height
+    # exp(-4.5) ~ 0.011 whenever 3 sigma_h / dt crosses an integer.
+    _, steps, widths = _largest_step("gaussian", 20001)
+    taps_gained = np.diff(np.floor(3 * widths / DT)) > 0
+    assert steps[taps_gained].max() < 0.01
+    assert steps[~taps_gained].max() < steps[taps_gained].min()
+
+
+@pytest.mark.parametrize("name", list(FAMILIES))
+def test_psd_is_the_transform_of_the_autocorrelation_and_integrates_to_one(name):
+    family = FAMILIES[name]
+    width = 0.06
+    frequency = np.linspace(-36.0, 36.0, 4001)
+    psd = family.psd(width, DT, frequency)
+    rho = family.autocorrelation(width, DT, 2000)
+    lags = np.arange(1, 2000)
+    omega = 2 * np.pi * frequency * DT
+    from_rho = DT * (rho[0] + 2 * np.cos(np.outer(omega, lags)) @ rho[1:])
+    np.testing.assert_allclose(psd, from_rho, rtol=1e-9, atol=1e-12)
+    # Parseval: the variance, 1 (trapezoid on 4001 points over a smooth periodic function).
+    assert np.trapezoid(psd, frequency) == pytest.approx(1.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", list(FAMILIES))
+def test_filtered_white_noise_has_the_stated_autocorrelation(name):
+    family = FAMILIES[name]
+    n, lags = 300_000, 15
+    noise = family.noise(0.047, DT, n, scale=np.array([2.0, 0.5]), rng=42)
+    assert noise.shape == (n, 2)
+    rho = family.autocorrelation(0.047, DT, 400)
+    sd = np.array([bartlett_sd(rho, k, n) for k in range(lags)])
+    for column, scale in zip(noise.T, (2.0, 0.5), strict=True):
+        # Sample variance: its sd is scale^2 sqrt(2 sum rho^2 / n) < 1 % here.
+        assert np.var(column) == pytest.approx(scale**2, rel=0.05)
+        centred = column - column.mean()
+        sample = np.array([centred[: n - k] @ centred[k:] for k in range(lags)])
+        sample /= centred @ centred
+        # 5 sd per lag: with 15 lags a false alarm has probability < 1e-5.
+        np.testing.assert_array_less(np.abs(sample - rho[:lags]), 5 * sd + 1e-12)
+
+
+def test_same_seed_same_noise():
+    kernel = gaussian_kernel(0.047, DT)
+    first = coloured_noise(kernel, 100, 1.0, 3)
+    np.testing.assert_array_equal(first, coloured_noise(kernel, 100, 1.0, 3))
+    assert not np.allclose(first, coloured_noise(kernel, 100, 1.0, 4))
+    exponential = FAMILIES["exponential"]
+    np.testing.assert_array_equal(
+        exponential.noise(0.1, DT, 50, rng=1), exponential.noise(0.1, DT, 50, rng=1)
+    )
+
+
+def test_bad_family_and_widths_are_rejected():
+    with pytest.raises(InputError, match="'pink'"):
+        get_family("pink")
+    for name in ("gaussian", "exponential", "triangular", "moving-average"):
+        with pytest.raises(InputError, match=r"got -0\.1"):
+            FAMILIES[name].autocorrelation(np.array([0.1, -0.1]), DT, 5)
+        with pytest.raises(InputError, match="got nan"):
+            FAMILIES[name].noise(np.nan, DT, 5)

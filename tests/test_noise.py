@@ -1,0 +1,493 @@
+"""Residual analysis (thesis ch. 7): residuals, autocorrelation, Ljung-Box, sigma_h fit, CLI."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+import scipy.signal
+import scipy.stats
+
+from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal.cli import main
+from bayes_jackal.experiment import Experiment, read_csv, write_csv
+from bayes_jackal.kernels import get_family
+from bayes_jackal.noise import (
+    MATLAB_LEVEL,
+    SIGMA_H_GRID,
+    analyse,
+    autocorrelation_bounds,
+    average_per_series,
+    channel_residuals,
+    fit_sigma_h,
+    ljung_box,
+    magnitude_spectrum,
+    sample_autocorrelation,
+    sigma_h_table,
+    spectrum,
+)
+from bayes_jackal.physics import (
+    CHANNELS,
+    channel_coefficients,
+    discrete_matrices,
+    one_step_residuals,
+)
+from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
+
+ROBOT = load_profile()
+DT = 1.0 / 72.0
+TRUTH = (110.0, 30.0)
+NOISE_FREE = NoiseSettings(sigma_c=(0.0, 0.0, 0.0), sigma_n=(0.0, 0.0, 0.0))
+SMALL = ["--v1", "1", "--v2", "1"]
+
+
+@pytest.fixture(scope="module")
+def noisy() -> Experiment:
+    """A default (thesis-like, sensor noise included) v2 run."""
+    return simulate_experiment(ROBOT, *TRUTH, "v2", rng=7)
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory) -> list[str]:
+    """Two simulated NetCDF experiments (v1_01, v2_01) written by the CLI."""
+    folder = tmp_path_factory.mktemp("simulated")
+    assert main(["simulate", "--out", str(folder), "--seed", "1", *SMALL]) == 0
+    return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
+
+
+def bartlett_covariance(rho: np.ndarray, lags: int, n: int) -> np.ndarray:
+    """Covariance of the sample autocorrelations r_1..r_lags (Bartlett's formula).
+
+    W_ij = sum_m a_i(m) a_j(m) / n with a_i(m) = rho_{m+i} + rho_{m-i} - 2 rho_i rho_m
+    and rho zero past its last entry.
+    """
+    size = len(rho)
+    m = np.arange(-size + 1, size)
+
+    def at(k):
+        return np.where(np.abs(k) < size, rho[np.minimum(np.abs(k), size - 1)], 0.0)
+
+    i = np.arange(1, lags + 1)[:, None]
+    terms = at(m + i) + at(m - i) - 2.0 * rho[i] * at(m)
+    return terms @ terms.T / n
+
+
+# --- residuals (eq. 7-3) ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("steady", [True, False])
+def test_noise_free_residuals_with_the_true_damping_are_zero(steady):
+    experiment = simulate_experiment(ROBOT, *TRUTH, "v1", NOISE_FREE, rng=1)
+    for channel in CHANNELS:
+        residuals = channel_residuals(experiment, ROBOT, *TRUTH, channel, steady=steady)
+        window = experiment.steady() if steady else experiment
+        y = window.channel(channel)
+        assert residuals.shape == (len(y) - 1,)
+        # The simulator's FFT convolution and the three residual terms round at
+        # ~1e-16 of the signal (observed 3e-16); 1e-12 of the signal leaves margin.
+        # (vy is identically zero in the model, so its residual is exactly 0.)
+        np.testing.assert_allclose(residuals, 0.0, atol=1e-12 * np.max(np.abs(y)))
+    # A wrong damping leaves the input response unexplained: residuals far from zero.
+    wrong = channel_residuals(experiment, ROBOT, 300.0, 60.0, "yaw", steady=False)
+    assert np.max(np.abs(wrong)) > 1e-3
+
+
+def test_residuals_are_process_noise_plus_the_sensor_noise_footprint(noisy):
+    # y = x + n and x[k+1] = alpha x[k] + Bd u[k] + p[k], so the residual is
+    # w[k] = p[k] + n[k+1] - alpha n[k] (DESIGN §4), exactly up to rounding.
+    window = noisy.steady()
+    for channel in CHANNELS:
+        y = window.channel(channel)
+        sensor = y - window.truth_arrays[f"{channel}_state"]
+        process = window.truth_arrays[f"{channel}_process_noise"]
+        alpha, _ = channel_coefficients(ROBOT, *TRUTH, channel, window.dt)
+        expected = process[:-1] + sensor[1:] - alpha * sensor[:-1]
+        residuals = channel_residuals(noisy, ROBOT, *TRUTH, channel)
+        # Same algebra, different rounding (FFT simulation ~1e-16 of the state).
+        np.testing.assert_allclose(residuals, expected, rtol=0, atol=1e-12 * np.max(np.abs(y)))
+
+
+def test_residuals_match_the_physics_module_and_vectorise_over_damping(noisy):
+    window = noisy.steady()
+    Ad, Bd = discrete_matrices(ROBOT, *TRUTH, window.dt)
+    reference = one_step_residuals(Ad, Bd, window.states(), window.inputs)
+    for i, channel in enumerate(CHANNELS):
+        # Identical formulas evaluated in another order: rounding ~1e-16 of the signal.
+        np.testing.assert_allclose(
+            channel_residuals(noisy, ROBOT, *TRUTH, channel),
+            reference[:, i],
+            rtol=0,
+            atol=1e-13 * np.max(np.abs(window.channel(channel))),
+        )
+    d_lat = np.array([50.0, 110.0, 400.0])
+    stacked = channel_residuals(noisy, ROBOT, d_lat, 30.0)
+    assert stacked.shape == (3, len(window.t) - 1)
+    for row, value in zip(stacked, d_lat, strict=True):
+        # A batched matrix product rounds differently: ~1e-17 on residuals ~1e-2.
+        single = channel_residuals(noisy, ROBOT, value, 30.0)
+        np.testing.assert_allclose(row, single, rtol=0, atol=1e-15)
+
+
+# --- autocorrelation, bounds, spectra -------------------------------------------------------
+
+
+def test_sample_autocorrelation_matches_a_direct_sum():
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.standard_normal((3, 500)), axis=-1) + 5.0  # coloured, non-zero mean
+    lags = 40
+    r = sample_autocorrelation(x, lags)
+    assert r.shape == (3, lags + 1)
+    for row, series in zip(r, x, strict=True):
+        centred = series - series.mean()
+        direct = np.array([centred[: len(series) - k] @ centred[k:] for k in range(lags + 1)]) / (
+            centred @ centred
+        )
+        # Both are exact; FFT rounding is ~1e-16 relative to the lag-0 sum.
+        np.testing.assert_allclose(row, direct, rtol=0, atol=1e-12)
+    assert r[0, 0] == 1.0
+    # The largest lag a series allows (n = lags + 1) still has no circular wrap.
+    short = rng.standard_normal(8)
+    centred = short - short.mean()
+    assert sample_autocorrelation(short, 7)[7] == pytest.approx(
+        centred[0] * centred[7] / (centred @ centred), abs=1e-12
+    )
+
+
+def test_autocorrelation_bounds():
+    # 1.959963985 = Phi^-1(0.975), closed form to the digits quoted.
+    assert autocorrelation_bounds(2500) == pytest.approx(1.959963985 / 50.0, rel=1e-9)
+    # MATLAB's autocorr draws 2 standard errors: +-2 / sqrt(n).
+    assert autocorrelation_bounds(400, MATLAB_LEVEL) == pytest.approx(0.1, rel=1e-12)
+    for n, level, field in ((0, 0.95, "n"), (10, 1.0, "level"), (10, 0.0, "level")):
+        with pytest.raises(InputError, match=field):
+            autocorrelation_bounds(n, level)
+
+
+def test_magnitude_spectrum_reads_a_sine_amplitude():
+    for n in (720, 721):  # even (with a Nyquist bin) and odd
+        t = np.arange(n) * DT
+        frequency_bin = 50
+        f0 = frequency_bin / (n * DT)
+        x = 0.3 + 2.0 * np.sin(2 * np.pi * f0 * t)
+        frequency, magnitude = magnitude_spectrum(x, DT)
+        assert len(frequency) == n // 2 + 1
+        assert frequency[frequency_bin] == pytest.approx(f0, rel=1e-12)
+        # An integer number of periods: the sine is exactly one bin (rounding 1e-12).
+        assert magnitude[frequency_bin] == pytest.approx(2.0, rel=1e-12)
+        assert magnitude[0] == pytest.approx(0.3, rel=1e-12)
+        others = np.delete(magnitude, [0, frequency_bin])
+        np.testing.assert_allclose(others, 0.0, atol=1e-12)
+
+
+def test_welch_spectrum_integrates_to_the_variance():
+    rng = np.random.default_rng(4)
+    n, sd = 2**16, 0.01
+    x = sd * rng.standard_normal(n)
+    frequency, psd = spectrum(x, DT)
+    assert frequency[-1] == pytest.approx(36.0)  # Nyquist of 72 Hz
+    assert np.diff(frequency)[0] == pytest.approx(72.0 / 256)
+    # Each Hann segment's weighted mean square has relative variance
+    # 2 sum(w^4) / sum(w^2)^2 = 2 * 1.94 / 256 = 0.015; over >= 256 independent
+    # segments the relative sd is <= 0.008, so 4 % is 5 sd. White noise of
+    # variance s^2 has the flat one-sided density 2 s^2 dt.
+    df = frequency[1]
+    assert np.sum(psd) * df == pytest.approx(sd**2, rel=0.04)
+    # Per bin the average of ~500 half-overlapping Hann periodograms has a
+    # relative sd of ~0.06 (>= 256 independent segments); the median over 129
+    # bins errs by ~0.01 relative, and the skew of the nearly chi^2 bins moves
+    # the median below the mean by < 0.2 %: 10 % is a wide margin.
+    assert np.median(psd) == pytest.approx(2 * sd**2 * DT, rel=0.1)
+    two = spectrum(np.stack([x, 2 * x]), DT)[1]
+    np.testing.assert_allclose(two[1], 4 * two[0], rtol=1e-12)
+
+
+# --- Ljung-Box --------------------------------------------------------------------------------
+
+
+def test_ljung_box_on_white_noise_is_not_rejected_and_p_is_uniform():
+    rng = np.random.default_rng(3)
+    _, p = ljung_box(rng.standard_normal(2000), 30)
+    assert p > 0.05  # a fixed-seed white series (Q = 33.1 on 30 dof: p = 0.32)
+    # Under whiteness the p-values are ~U(0, 1). 400 series of 1000 samples,
+    # 10 lags: the chi^2 approximation errs far below the KS resolution at 400
+    # draws (~0.07), so a KS p-value below 1e-3 would mean a broken statistic.
+    _, p_values = ljung_box(rng.standard_normal((400, 1000)), 10)
+    assert p_values.shape == (400,)
+    assert scipy.stats.kstest(p_values, "uniform").pvalue > 1e-3
+
+
+def test_ljung_box_rejects_coloured_noise():
+    coloured = get_family("gaussian").noise(0.047, DT, 1500, rng=5)
+    # rho_1 = exp(-dt^2 / (4 sigma_h^2)) = 0.98: r_1 alone gives Q ~ 1500 * 0.96 ~ 1440
+    # on 30 dof, where chi^2_30 exceeds 1000 with probability ~ 1e-190.
+    q, p = ljung_box(coloured, 30)
+    assert q > 1000
+    assert p < 1e-6
+
+
+def test_ljung_box_statistic_matches_a_direct_loop_on_an_ar1():
+    rng = np.random.default_rng(8)
+    n, lags, phi = 800, 20, 0.3
+    x = scipy.signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n))
+    centred = x - x.mean()
+    total = 0.0
+    for k in range(1, lags + 1):
+        r_k = centred[: n - k] @ centred[k:] / (centred @ centred)
+        total += r_k**2 / (n - k)
+    q_direct = n * (n + 2) * total
+    q, p = ljung_box(x, lags)
+    # Same sum; only the FFT's rounding (~1e-16 per r_k) differs.
+    assert q == pytest.approx(q_direct, rel=1e-12)
+    assert p == pytest.approx(scipy.stats.chi2.sf(q_direct, lags), rel=1e-9)
+
+
+# --- sigma_h fit (eq. 7-6) --------------------------------------------------------------------
+
+
+def test_fit_recovers_sigma_h_of_long_gaussian_coloured_noise():
+    sigma_h, n, lags = 0.047, 200_000, 30
+    x = get_family("gaussian").noise(sigma_h, DT, n, rng=12)
+    fitted, curve = fit_sigma_h(x, DT, lags)
+    assert curve.shape == SIGMA_H_GRID.shape
+    assert fitted == SIGMA_H_GRID[np.argmin(curve)]
+    # Tolerance: the fit returns a grid point (step 0.001 s; the truth is on the
+    # grid, one step covers any rounding to a neighbour) plus 4 statistical sd.
+    # The sd follows from the delta method on the least squares of eq. 7-6:
+    # sd(sigma_hat) = sqrt(g' W g) / (g' g) with W the Bartlett covariance of
+    # r_1..r_30 and g = d rho / d sigma_h = rho tau^2 / (2 sigma_h^3) of the
+    # continuous form exp(-tau^2 / (4 sigma_h^2)); about 5.5e-4 s here.
+    rho = get_family("gaussian").autocorrelation(sigma_h, DT, 200)
+    tau = np.arange(1, lags + 1) * DT
+    g = np.exp(-(tau**2) / (4 * sigma_h**2)) * tau**2 / (2 * sigma_h**3)
+    sd = np.sqrt(g @ bartlett_covariance(rho, lags, n) @ g) / (g @ g)
+    assert 3e-4 < sd < 1e-3
+    assert abs(fitted - sigma_h) <= 0.001 + 4 * sd
+
+
+def test_fit_is_vectorised_and_takes_a_grid():
+    rng = np.random.default_rng(2)
+    x = np.stack([get_family("gaussian").noise(w, DT, 3000, rng=rng) for w in (0.03, 0.1)])
+    fitted, curves = fit_sigma_h(x, DT)
+    assert fitted.shape == (2,)
+    assert curves.shape == (2, len(SIGMA_H_GRID))
+    for row, value, curve in zip(x, fitted, curves, strict=True):
+        alone, alone_curve = fit_sigma_h(row, DT)
+        assert alone == value
+        np.testing.assert_array_equal(alone_curve, curve)
+    grid = np.array([0.02, 0.1, 0.5])
+    coarse, coarse_curve = fit_sigma_h(x[1], DT, grid=grid)
+    assert coarse == 0.1
+    # The coarse curve is the fine curve at the same sigma_h values (same formula).
+    np.testing.assert_allclose(coarse_curve, curves[1][[19, 99, 499]], rtol=1e-12)
+
+
+def test_sensor_noise_biases_the_thesis_fit_low():
+    # The thesis ignores the sensor noise (ch. 7-2-2). With it, the yaw residual
+    # is p[k] + n[k+1] - a n[k]: a white spike at lag 0 and -a sigma_n^2 at lag 1
+    # (a = Ad = 0.724) scale the autocorrelation down, so eq. 7-6 picks a
+    # narrower Gaussian. Fitting the thesis' curve to the population
+    # autocorrelation of the default simulation (sigma_c 0.01, sigma_n 0.005
+    # rad/s, truth sigma_h 0.047 s) gives 0.037 s. Measured with the thesis
+    # procedure on default simulated runs (truth d, seed 1): v1 0.040 s,
+    # v2 0.043 s; on their true process noise alone 0.052 s and 0.058 s (the
+    # single-run scatter of the fit is ~0.004 s). Seeds 1..8 give 0.031..0.043 s.
+    fits = {}
+    for series in ("v1", "v2"):
+        experiment = simulate_experiment(ROBOT, *TRUTH, series, rng=1)
+        measured = fit_sigma_h(channel_residuals(experiment, ROBOT, *TRUTH), DT)[0]
+        process = experiment.steady().truth_arrays["yaw_process_noise"]
+        fits[series] = (float(measured), float(fit_sigma_h(process, DT)[0]))
+    # Paired: the same process noise with and without the sensor noise. The
+    # population bias (0.010 s) is what separates them, not the scatter.
+    for measured, process in fits.values():
+        assert measured < process
+
+
+# --- table 7-1 ---------------------------------------------------------------------------------
+
+
+def test_average_per_series_is_the_thesis_arithmetic():
+    # Ten v1 runs at 0.051 s and five v2 runs at 0.041 s (table 7-1): the mean
+    # over all 15 runs is (10 * 0.051 + 5 * 0.041) / 15 = 0.047667 s. The
+    # thesis prints 0.047, the mean of the two series means is 0.046.
+    values = {f"v1_{i:02d}": 0.051 for i in range(10)} | {f"v2_{i:02d}": 0.041 for i in range(5)}
+    labels = {name: name[:2] for name in values}
+    table = average_per_series(values, labels)
+    # Means of at most 15 floats: summation rounding below 1e-16 * 15.
+    assert table["series"]["v1"] == pytest.approx(0.051, abs=1e-15)
+    assert table["series"]["v2"] == pytest.approx(0.041, abs=1e-15)
+    assert table["all"] == pytest.approx(0.715 / 15, abs=1e-15)
+    assert table["members"]["v2"] == [f"v2_{i:02d}" for i in range(5)]
+    unlabelled = average_per_series({"a": 0.01, "b": 0.03}, {"a": None, "b": None})
+    assert unlabelled["series"] == {"unlabelled": pytest.approx(0.02, abs=1e-15)}
+    with pytest.raises(InputError, match="experiments"):
+        average_per_series({}, {})
+
+
+def test_sigma_h_table_fits_each_experiment_and_averages_per_series():
+    experiments = simulate_series(ROBOT, *TRUTH, {"v1": 2, "v2": 1}, rng=21)
+    table = sigma_h_table(experiments, ROBOT, *TRUTH)
+    assert list(table["experiments"]) == ["v1_01", "v1_02", "v2_01"]
+    for experiment in experiments:
+        residuals = channel_residuals(experiment, ROBOT, *TRUTH)
+        assert table["experiments"][experiment.name] == fit_sigma_h(residuals, DT)[0]
+    values = table["experiments"]
+    # Grid values averaged: rounding of 2 or 3 summands, far below 1e-15.
+    assert table["series"]["v1"] == pytest.approx(
+        (values["v1_01"] + values["v1_02"]) / 2, abs=1e-15
+    )
+    assert table["series"]["v2"] == values["v2_01"]
+    assert table["all"] == pytest.approx(sum(values.values()) / 3, abs=1e-15)
+    assert table["members"] == {"v1": ["v1_01", "v1_02"], "v2": ["v2_01"]}
+    assert table["lags"] == 30
+
+
+def test_analyse_summarises_every_experiment_and_channel(noisy):
+    result = analyse([noisy], ROBOT, *TRUTH, ["yaw", "vx"], lags=20)
+    json.dumps(result)  # JSON-ready
+    row = result["experiments"]["v2"]["yaw"]
+    residuals = channel_residuals(noisy, ROBOT, *TRUTH)
+    q, p = ljung_box(residuals, 20)
+    assert row["n"] == len(residuals)
+    assert row["mean"] == pytest.approx(np.mean(residuals), rel=1e-12)
+    assert row["sd"] == pytest.approx(np.std(residuals, ddof=1), rel=1e-12)
+    assert (row["ljung_box_q"], row["ljung_box_p"]) == (pytest.approx(q), pytest.approx(p))
+    np.testing.assert_allclose(
+        row["autocorrelation"], sample_autocorrelation(residuals, 20)[1:6], rtol=1e-12
+    )
+    assert row["bound"] == autocorrelation_bounds(len(residuals))
+    assert row["sigma_h"] == fit_sigma_h(residuals, DT, 20)[0]
+    assert set(result["experiments"]["v2"]) == {"yaw", "vx"}
+    assert result["sigma_h"] == {"v2": row["sigma_h"], "all": row["sigma_h"]}
+    # Without the yaw channel the table is still the yaw fit (thesis table 7-1).
+    assert analyse([noisy], ROBOT, *TRUTH, ["vx"], lags=20)["sigma_h"] == result["sigma_h"]
+
+
+# --- bad input --------------------------------------------------------------------------------
+
+
+def test_window_shorter_than_the_lags_names_the_file_and_lag_count(tmp_path):
+    path = write_csv(simulate_experiment(ROBOT, *TRUTH, "v2", rng=1), tmp_path / "short.csv")
+    experiment = read_csv(path)
+    n = len(experiment.t)
+    for call in (
+        lambda lags: analyse([experiment], ROBOT, *TRUTH, ["yaw"], lags),
+        lambda lags: sigma_h_table([experiment], ROBOT, *TRUTH, lags),
+    ):
+        with pytest.raises(DataError, match=rf"{re.escape(str(path))}: lags: .*{n - 1} lags"):
+            call(n - 1)  # n samples give n - 1 residuals: one short of n - 1 lags
+        call(n - 2)  # the shortest window that works
+
+
+def test_constant_channel_names_the_file_and_channel(tmp_path):
+    t = np.arange(200) * DT
+    experiment = Experiment(
+        t=t,
+        yaw_rate=np.full_like(t, 0.25),
+        omega_r=np.full_like(t, 3.0),
+        omega_l=np.full_like(t, 2.0),
+        vx=np.sin(t),
+    )
+    path = write_csv(experiment, tmp_path / "stuck_imu.csv")
+    loaded = read_csv(path)
+    pattern = rf"{re.escape(str(path))}: yaw_rate: channel 'yaw' is constant"
+    with pytest.raises(DataError, match=pattern):
+        analyse([loaded], ROBOT, *TRUTH, ["yaw"], 30)
+    with pytest.raises(DataError, match=pattern):
+        sigma_h_table([loaded], ROBOT, *TRUTH)
+    # A channel the file does not have is named too.
+    with pytest.raises(DataError, match=rf"{re.escape(str(path))}: vy: .*'vy'"):
+        analyse([loaded], ROBOT, *TRUTH, ["vy"], 30)
+
+
+@pytest.mark.parametrize("lags", [0, -3, 1.5, True])
+def test_bad_lag_counts_are_rejected(noisy, lags):
+    x = np.random.default_rng(0).standard_normal(100)
+    for call in (
+        lambda: sample_autocorrelation(x, lags),
+        lambda: ljung_box(x, lags),
+        lambda: fit_sigma_h(x, DT, lags),
+        lambda: analyse([noisy], ROBOT, *TRUTH, ["yaw"], lags),
+        lambda: sigma_h_table([noisy], ROBOT, *TRUTH, lags),
+    ):
+        with pytest.raises(InputError, match="lags: number of lags must be an integer >= 1"):
+            call()
+
+
+def test_bad_arrays_and_arguments_are_rejected(noisy):
+    x = np.random.default_rng(0).standard_normal(100)
+    with pytest.raises(InputError, match=r"lags: 100 samples are too few for 100 lags"):
+        sample_autocorrelation(x, 100)
+    with pytest.raises(InputError, match="x: series is constant"):
+        ljung_box(np.full(50, 2.0), 5)
+    with pytest.raises(InputError, match="x: series holds non-finite"):
+        sample_autocorrelation(np.append(x, np.nan), 5)
+    with pytest.raises(InputError, match=r"dt: .*-0\.1"):
+        fit_sigma_h(x, -0.1)
+    with pytest.raises(InputError, match=r"grid: .*-0\.01"):
+        fit_sigma_h(x, DT, grid=[0.1, -0.01])
+    with pytest.raises(InputError, match=r"channels: .*'yaw_rate'"):
+        analyse([noisy], ROBOT, *TRUTH, ["yaw_rate"])
+    with pytest.raises(InputError, match=r"d_lat: .*-5"):
+        analyse([noisy], ROBOT, -5.0, 30.0)
+    with pytest.raises(InputError, match=r"name: .*'v2'"):
+        analyse([noisy, noisy], ROBOT, *TRUTH)
+    with pytest.raises(InputError, match="experiments"):
+        sigma_h_table([], ROBOT, *TRUTH)
+
+
+# --- command line -----------------------------------------------------------------------------
+
+
+def test_cli_residuals_json(simulated, capsys):
+    code = main(["residuals", *simulated, "--channels", "yaw,vx,vy", "--lags", "25", "--json"])
+    captured = capsys.readouterr()
+    assert code == 0
+    payload = json.loads(captured.out)
+    assert payload["d_lat"] == 110.0
+    assert payload["d_long"] == 30.0
+    assert payload["lags"] == 25
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    for channels in payload["experiments"].values():
+        assert set(channels) == {"yaw", "vx", "vy"}
+        for row in channels.values():
+            assert set(row) == {
+                "n",
+                "mean",
+                "sd",
+                "ljung_box_q",
+                "ljung_box_p",
+                "autocorrelation",
+                "bound",
+                "sigma_h",
+            }
+            assert len(row["autocorrelation"]) == 5
+            assert 0.0 < row["sigma_h"] <= 1.0
+    assert set(payload["sigma_h"]) == {"v1", "v2", "all"}
+    yaw = {name: rows["yaw"]["sigma_h"] for name, rows in payload["experiments"].items()}
+    assert payload["sigma_h"]["v1"] == yaw["v1_01"]
+    assert payload["sigma_h"]["all"] == pytest.approx((yaw["v1_01"] + yaw["v2_01"]) / 2)
+    assert "Ljung-Box" in captured.err
+
+
+def test_cli_residuals_text_goes_to_stdout(simulated, capsys):
+    code = main(["residuals", *simulated])
+    captured = capsys.readouterr()
+    assert code == 0
+    assert captured.err == ""
+    lines = captured.out.splitlines()
+    assert sum(line.startswith(("v1_01 ", "v2_01 ")) for line in lines) == 2
+    assert any(re.match(r"all\s+2\s+0\.\d{4}$", line) for line in lines)
+
+
+def test_cli_residuals_too_many_lags_is_bad_input(simulated, capsys):
+    code = main(["residuals", *simulated, "--lags", "100000", "--json"])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert captured.out == ""
+    assert "Traceback" not in captured.err
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("bayes-jackal: error: ")
+    assert simulated[0] in lines[0]
+    assert "100000 lags" in lines[0]
