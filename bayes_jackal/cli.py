@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,10 +19,13 @@ from . import __version__
 from .errors import InputError
 from .experiment import load_experiments, write_csv, write_netcdf
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
+from .inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from .kernels import FAMILIES
+from .likelihood import ENGINES, SENSOR_MODELS, ResidualLikelihood
 from .noise import analyse
 from .physics import CHANNELS
-from .robot import CONVERSIONS, RobotProfile, load_profile
+from .posterior import save_posterior, summarize
+from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
@@ -143,11 +148,119 @@ def cmd_residuals(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
     experiments = load_experiments(args.experiments)
-    channels = [c.strip() for c in args.channels.split(",")]
-    result = analyse(experiments, robot, args.d_lat, args.d_long, channels, args.lags)
+    result = analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
     _residual_table(result, out.say)
     out.result(result)
     return EXIT_OK
+
+
+def _channel_list(text: str) -> tuple[str, ...]:
+    """argparse type of ``--channels``: comma-separated, e.g. ``yaw,vx``."""
+    channels = tuple(c.strip() for c in text.split(",") if c.strip())
+    unknown = [c for c in channels if c not in CHANNELS]
+    if unknown or not channels:
+        raise argparse.ArgumentTypeError(f"unknown channel(s) {unknown}; use {','.join(CHANNELS)}")
+    return channels
+
+
+def _posterior_table(summary: dict, say: Callable[[str], None]) -> None:
+    say(
+        f"{'':16s} {'mean':>10s} {'sd':>10s} {'hdi_3%':>10s} {'hdi_97%':>10s} "
+        f"{'ess_tau':>8s} {'r_hat':>6s}"
+    )
+    for name, row in summary.items():
+        if isinstance(row, dict) and "mean" in row:
+            say(
+                f"{name:16s} {row['mean']:10.4g} {row['sd']:10.3g} {row['hdi_3%']:10.4g} "
+                f"{row['hdi_97%']:10.4g} {row.get('ess_autocorr', float('nan')):8.0f} "
+                f"{row['r_hat']:6.3f}"
+            )
+    ratio = summary["ratio"]
+    say(
+        f"corr(d_lat, d_long) = {summary['corr_d_lat_d_long']:.3f}; d_lat/d_long 94 % HDI "
+        f"[{ratio['hdi_3%']:.3f}, {ratio['hdi_97%']:.3f}] (thesis: {ratio['thesis']:.4f})"
+    )
+    taus = summary["autocorr_time"]
+    status = "converged" if summary["converged"] else "NOT CONVERGED"
+    say(
+        f"{status}: {summary['n_steps']} steps, max autocorrelation time "
+        f"{max(taus.values()):.0f} steps ({summary['n_steps'] / max(taus.values()):.0f} tau)"
+    )
+
+
+def _run_sample(args, experiments, robot, out_path: Path, say) -> dict:
+    likelihood = ResidualLikelihood(
+        experiments,
+        robot,
+        family=args.family,
+        channels=args.channels,
+        shared_noise=args.noise == "shared",
+        sensor=args.sensor_noise,
+        engine=args.engine,
+    )
+    settings = SamplerSettings(
+        walkers=args.walkers, max_steps=args.max_steps, progress=not args.no_progress
+    )
+    say(f"sampling {', '.join(e.name for e in experiments)} -> {out_path}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConvergenceWarning)
+        idata = sample_posterior(
+            likelihood,
+            settings,
+            seed=args.seed,
+            chain_file=out_path.with_suffix(".chain.h5"),
+            prior_overrides=_prior_overrides(args.prior),
+        )
+    save_posterior(idata, out_path)
+    summary = summarize(idata)
+    _posterior_table(summary, say)
+    for warning in caught:
+        if issubclass(warning.category, ConvergenceWarning):
+            print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
+    return summary
+
+
+def cmd_sample(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
+    robot = _robot(args)
+    experiments = load_experiments(args.experiments)
+    out_path = Path(args.out)
+    signal.signal(signal.SIGTERM, _interrupt)
+    if args.pooled or len(experiments) == 1:
+        result = _run_sample(args, experiments, robot, out_path, out.say)
+    else:
+        result = {
+            "experiments": {
+                e.name: _run_sample(
+                    args, [e], robot, out_path.with_name(f"{out_path.stem}.{e.name}.nc"), out.say
+                )
+                for e in experiments
+            }
+        }
+    out.result(result)
+    return EXIT_OK
+
+
+def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
+    """``--prior NAME LOW HIGH`` items as {name: (low, high)}, validated."""
+    overrides = {}
+    for name, low, high in items:
+        if name not in DEFAULT_PRIORS:
+            raise InputError(
+                f"unknown prior {name!r}; use one of {list(DEFAULT_PRIORS)}", field="--prior"
+            )
+        try:
+            overrides[name] = (float(low), float(high))
+        except ValueError:
+            raise InputError(
+                f"{name}: LOW and HIGH must be numbers, got {low!r} {high!r}", field="--prior"
+            ) from None
+    return overrides
+
+
+def _interrupt(signum, frame) -> None:
+    """SIGTERM handler: unwind like Ctrl-C so that the chain is flushed."""
+    raise KeyboardInterrupt
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -266,7 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
     res.add_argument("--d-long", type=float, default=30.0, help="d_long of the model [N s/m] (30)")
     res.add_argument(
         "--channels",
-        default="yaw",
+        type=_channel_list,
+        default=("yaw",),
         metavar="yaw,vx,vy",
         help="comma-separated channels to analyse (yaw)",
     )
@@ -275,6 +389,44 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_common(res)
     res.set_defaults(func=cmd_residuals)
+
+    sample = commands.add_parser("sample", help="posterior of damping and noise with emcee")
+    sample.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    sample.add_argument("--out", required=True, metavar="POSTERIOR.nc", help="posterior file")
+    sample.add_argument("--family", choices=list(FAMILIES), default="gaussian")
+    sample.add_argument(
+        "--channels", type=_channel_list, default=("yaw",), help="e.g. yaw,vx (default yaw)"
+    )
+    sample.add_argument(
+        "--sensor-noise",
+        choices=SENSOR_MODELS,
+        default="ma1",
+        help="sensor-noise footprint: ma1 (default) or a diagonal nugget",
+    )
+    sample.add_argument(
+        "--pooled", action="store_true", help="one posterior for all experiments (shared d)"
+    )
+    sample.add_argument(
+        "--noise",
+        choices=("shared", "per-experiment"),
+        default="shared",
+        help="with --pooled: noise parameters shared or per experiment",
+    )
+    sample.add_argument("--engine", choices=ENGINES, default="whittle")
+    sample.add_argument("--seed", type=int, default=None, help="seed: same seed, same chain")
+    sample.add_argument("--walkers", type=int, default=0, help="ensemble size (default 32+)")
+    sample.add_argument("--max-steps", type=int, default=20_000, help="step cap (20000)")
+    sample.add_argument(
+        "--prior",
+        nargs=3,
+        action="append",
+        default=[],
+        metavar=("NAME", "LOW", "HIGH"),
+        help="override a prior range, e.g. --prior d_lat 10 2000",
+    )
+    sample.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_common(sample)
+    sample.set_defaults(func=cmd_sample)
     return parser
 
 

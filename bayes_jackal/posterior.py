@@ -259,7 +259,10 @@ def summarize(idata: az.InferenceData) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         table = az.summary(
-            idata, var_names=[*parameter_variables(idata), "ratio"], hdi_prob=HDI_PROB
+            idata,
+            var_names=[*parameter_variables(idata), "ratio"],
+            hdi_prob=HDI_PROB,
+            round_to="none",
         )
     ess_autocorr = json.loads(attrs["ess_autocorr"])
     summary: dict = {}
