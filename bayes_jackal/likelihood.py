@@ -373,6 +373,10 @@ class ResidualLikelihood:
     engine : {"fast", "exact", "whittle"}
     steady : bool
         Use the steady-state window of each experiment.
+    fallback : bool
+        With the ``fast`` engine, evaluate parameter sets the spectral
+        method cannot certify (long memory) by the recursion (True), or give
+        them -inf (False: a quick, exact-where-defined scan of the prior).
     """
 
     experiments: list[Experiment]
@@ -383,6 +387,7 @@ class ResidualLikelihood:
     sensor: str = "ma1"
     engine: str = "fast"
     steady: bool = True
+    fallback: bool = True
     noise_groups: list[tuple[str, str]] = field(init=False)
     blocks: list[_Block] = field(init=False, repr=False)
 
@@ -495,8 +500,10 @@ class ResidualLikelihood:
                 continue
             loglike, converged = spectral_loglike(acov, residuals)
             if not converged.all():
-                loglike[~converged] = toeplitz_loglike(
-                    acov[~converged], residuals[~converged], FAST_TOLERANCE
+                loglike[~converged] = (
+                    toeplitz_loglike(acov[~converged], residuals[~converged], FAST_TOLERANCE)
+                    if self.fallback
+                    else -np.inf
                 )
             total += loglike.sum(axis=-1)
         return total

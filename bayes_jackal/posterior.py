@@ -8,7 +8,7 @@ Layout of a posterior (NetCDF through arviz, groups):
   ``ratio`` = d_lat / d_long, ``Ad`` (diagonal, along ``state``) and ``Bd``
   (``state`` x ``wheel``). Walkers are arviz chains.
 - ``sample_stats``: ``lp`` (log posterior in sampling coordinates) and
-  ``log_likelihood``.
+  ``log_likelihood_total`` (the log-likelihood of each draw).
 - ``observed_data``: ``residual_<channel>_<i>``, the one-step residuals of
   experiment i on its steady window at the posterior median of the damping.
 - ``constant_data``: the measured experiments, ``<field>_<i>``.
@@ -113,9 +113,12 @@ def build_inference_data(
     log_likelihood = np.swapaxes(lp - prior.log_density(chain), 0, 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
+        # Walkers are chains; a short run may keep fewer draws than walkers,
+        # which arviz flags as a possible transposition. The layout is right.
+        warnings.filterwarnings("ignore", message="More chains", category=UserWarning)
         idata = az.from_dict(
             posterior=posterior,
-            sample_stats={"lp": np.swapaxes(lp, 0, 1), "log_likelihood": log_likelihood},
+            sample_stats={"lp": np.swapaxes(lp, 0, 1), "log_likelihood_total": log_likelihood},
             observed_data=observed,
             constant_data=constant,
             coords=coords,

@@ -1,0 +1,275 @@
+"""Posterior sampling: priors, reproducibility, resuming, convergence, recovery, calibration."""
+
+import json
+import os
+import warnings
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal.inference import (
+    ConvergenceWarning,
+    LogPosterior,
+    Prior,
+    SamplerSettings,
+    sample_posterior,
+)
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.posterior import load_posterior, save_posterior, summarize
+from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+
+ROBOT = load_profile()
+TRUTH = {"d_lat": 110.0, "d_long": 30.0, "sigma_h": 0.047, "sigma_c": 0.01, "sigma_n": 0.005}
+#: A short run for the mechanics tests: far from converged, on purpose.
+SHORT = SamplerSettings(max_steps=120, check_every=40, design_points=256)
+
+
+@pytest.fixture(scope="module")
+def v2_run():
+    return simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=7)
+
+
+def _short_run(likelihood, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        return sample_posterior(likelihood, SHORT, **kwargs)
+
+
+def test_prior_is_uniform_in_damping_and_log_uniform_in_noise(v2_run):
+    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    prior = Prior.for_likelihood(likelihood, ROBOT)
+    assert prior.names == ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
+    np.testing.assert_array_equal(prior.log_uniform, [False, False, True, True, True])
+    # The density of z = log(theta) integrates to one over the box: for
+    # d ~ U(10, 1000) it is e^z / 990, for log-uniform ones 1 / log(high/low).
+    z = np.log([[110.0, 30.0, 0.047, 0.01, 0.005]])
+    expected = np.log(110.0 / 990) + np.log(30.0 / 990) - np.log(np.log(1000)) * 1
+    expected -= np.log(np.log(1e5)) + np.log(np.log(1e4))
+    assert prior.log_density(z)[0] == pytest.approx(expected, rel=1e-12)
+    draws = prior.to_natural(prior.draw(4096, np.random.default_rng(0)))
+    # Uniform draws of d_lat: the Kolmogorov-Smirnov p-value of a correct
+    # sampler is uniform; p > 1e-3 fails one time in a thousand.
+    assert scipy.stats.kstest(draws[:, 0], scipy.stats.uniform(10, 990).cdf).pvalue > 1e-3
+    assert (
+        scipy.stats.kstest(
+            np.log(draws[:, 2]), scipy.stats.uniform(np.log(1e-3), np.log(1e3)).cdf
+        ).pvalue
+        > 1e-3
+    )
+    log_posterior = LogPosterior(likelihood, prior)
+    outside = np.log([[5.0, 30.0, 0.047, 0.01, 0.005]])
+    assert log_posterior(outside)[0] == -np.inf
+    assert np.isfinite(log_posterior(z)[0])
+
+
+@pytest.mark.parametrize(
+    ("override", "pattern"),
+    [
+        ({"d_lat": (500.0, 100.0)}, r"priors\.d_lat: .*\[500\.0, 100\.0\]"),
+        ({"sigma_n": (0.0, 1.0)}, "excludes every value"),
+    ],
+)
+def test_priors_that_exclude_everything_are_rejected(v2_run, override, pattern):
+    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    with pytest.raises(InputError, match=pattern):
+        sample_posterior(likelihood, SHORT, prior_overrides=override)
+
+
+def test_same_seed_same_chain_and_another_seed_another(v2_run):
+    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    first = _short_run(likelihood, seed=11)
+    again = _short_run(likelihood, seed=11)
+    other = _short_run(likelihood, seed=12)
+    np.testing.assert_array_equal(first.posterior["d_lat"], again.posterior["d_lat"])
+    assert not np.array_equal(first.posterior["d_lat"], other.posterior["d_lat"])
+
+
+def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path):
+    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    reference = _short_run(likelihood, seed=5, chain_file=tmp_path / "reference.h5")
+
+    class Interrupted(ResidualLikelihood):
+        """Ctrl-C after a number of likelihood calls (the real likelihood otherwise)."""
+
+        calls = 0
+
+        def __call__(self, theta):
+            type(self).calls += 1 < len(theta) <= 16  # emcee half-ensembles
+            if type(self).calls > 100:
+                raise KeyboardInterrupt
+            return super().__call__(theta)
+
+    chain = tmp_path / "chain.h5"
+    with pytest.raises(KeyboardInterrupt):
+        _short_run(Interrupted([v2_run], ROBOT), seed=5, chain_file=chain)
+    import emcee
+
+    kept = emcee.backends.HDFBackend(str(chain), name="mcmc", read_only=True).iteration
+    assert 0 < kept < SHORT.max_steps  # the completed steps were written
+    resumed = _short_run(likelihood, seed=5, chain_file=chain)
+    assert int(resumed.posterior.attrs["n_steps"]) == SHORT.max_steps
+    # Resuming continues the same chain: identical to the uninterrupted run.
+    np.testing.assert_array_equal(resumed.posterior["d_lat"], reference.posterior["d_lat"])
+
+
+def test_a_chain_file_of_another_run_is_refused(v2_run, tmp_path):
+    chain = tmp_path / "chain.h5"
+    _short_run(ResidualLikelihood([v2_run], ROBOT), seed=1, chain_file=chain)
+    with pytest.raises(InputError, match="holds a chain of a different run"):
+        _short_run(ResidualLikelihood([v2_run], ROBOT, family="white"), seed=1, chain_file=chain)
+
+
+def test_a_run_that_hits_the_step_cap_warns_and_says_so(v2_run, tmp_path):
+    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    with pytest.warns(ConvergenceWarning, match="NOT CONVERGED: 120 steps"):
+        idata = sample_posterior(likelihood, SHORT, seed=2)
+    summary = summarize(idata)
+    assert summary["converged"] is False
+    assert summary["n_steps"] == 120
+    path = save_posterior(idata, tmp_path / "posterior.nc")
+    loaded = load_posterior(path)
+    assert int(loaded.posterior.attrs["converged"]) == 0
+    assert set(loaded.groups()) == {"posterior", "sample_stats", "observed_data", "constant_data"}
+    assert json.loads(loaded.posterior.attrs["experiments"])[0]["name"] == "v2"
+    np.testing.assert_array_equal(loaded.posterior["d_lat"], idata.posterior["d_lat"])
+    # The summary follows DESIGN §6's sample --json keys.
+    for key in ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "ratio"):
+        assert set(summary[key]) >= {
+            "mean",
+            "sd",
+            "hdi_3%",
+            "hdi_97%",
+            "ess_bulk",
+            "ess_tail",
+            "r_hat",
+        }
+    assert {"corr_d_lat_d_long", "autocorr_time", "n_steps"} <= set(summary)
+
+
+def test_loading_something_that_is_not_a_posterior_fails_clearly(tmp_path, v2_run):
+    from bayes_jackal.experiment import write_netcdf
+
+    experiment_file = write_netcdf(v2_run, tmp_path / "run.nc")
+    with pytest.raises(DataError, match="not a bayes_jackal posterior"):
+        load_posterior(experiment_file)
+    text = tmp_path / "notes.nc"
+    text.write_text("hello")
+    with pytest.raises(DataError, match="not a readable posterior file"):
+        load_posterior(text)
+    with pytest.raises(DataError, match="no such file"):
+        load_posterior(tmp_path / "missing.nc")
+
+
+# --- statistical tests: marked slow, run by .ci/run with `pytest -m slow` ---
+
+
+@pytest.fixture(scope="module")
+def thesis_like():
+    """One thesis-like v1 run (2,737 samples, 2,376 in the steady window)."""
+    return simulate_experiment(ROBOT, 110.0, 30.0, "v1", rng=20260)
+
+
+@pytest.fixture(scope="module")
+def yaw_posterior(thesis_like):
+    return sample_posterior(ResidualLikelihood([thesis_like], ROBOT), seed=1)
+
+
+@pytest.mark.slow
+def test_recovery_of_the_truth_with_converged_chains(yaw_posterior):
+    summary = summarize(yaw_posterior)
+    assert summary["converged"] is True
+    assert summary["n_steps"] > 50 * max(summary["autocorr_time"].values())
+    for name, truth in TRUTH.items():
+        row = summary[name]
+        assert row["hdi_3%"] <= truth <= row["hdi_97%"], (name, row)
+        assert row["ess_autocorr"] > 1000, (name, row)
+        assert row["ess_bulk"] > 1000, (name, row)
+        assert row["r_hat"] < 1.05, (name, row)
+
+
+@pytest.mark.slow
+def test_the_ridge_is_strong_with_yaw_alone_and_narrowed_by_vx(thesis_like, yaw_posterior):
+    both = sample_posterior(
+        ResidualLikelihood([thesis_like], ROBOT, channels=("yaw", "vx")), seed=1
+    )
+    yaw, with_vx = summarize(yaw_posterior), summarize(both)
+    assert yaw["corr_d_lat_d_long"] > 0.9
+    width = {
+        s: (r["d_long"]["hdi_97%"] - r["d_long"]["hdi_3%"])
+        for s, r in (("yaw", yaw), ("vx", with_vx))
+    }
+    # vx carries d_long on its own (its pole is -4 d_long / m): the d_long
+    # interval must shrink by more than half.
+    assert width["vx"] < 0.5 * width["yaw"]
+    assert with_vx["d_long"]["hdi_3%"] <= 30.0 <= with_vx["d_long"]["hdi_97%"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("family", ["gaussian", "exponential"])
+def test_fast_and_exact_engines_give_the_same_posterior(thesis_like, yaw_posterior, family):
+    # Reweight the fast engine's draws by exact / fast likelihood: the
+    # weighted medians must move by less than 0.1 posterior sd.
+    if family == "gaussian":
+        idata = yaw_posterior
+    else:
+        idata = sample_posterior(ResidualLikelihood([thesis_like], ROBOT, family=family), seed=1)
+    names = [
+        "d_lat",
+        "d_long",
+        "sigma_h" if family == "gaussian" else "width",
+        "sigma_c",
+        "sigma_n",
+    ]
+    draws = np.stack([idata.posterior[n].values.ravel() for n in names], axis=-1)
+    subset = draws[np.random.default_rng(0).choice(len(draws), 200, replace=False)]
+    exact = ResidualLikelihood([thesis_like], ROBOT, family=family, engine="exact")(subset)
+    fast = ResidualLikelihood([thesis_like], ROBOT, family=family, engine="fast")(subset)
+    log_weights = exact - fast
+    assert np.ptp(log_weights) < 1e-6
+    weights = np.exp(log_weights - log_weights.max())
+    for i, name in enumerate(names):
+        order = np.argsort(subset[:, i])
+        cumulative = np.cumsum(weights[order]) / weights.sum()
+        weighted = subset[order, i][np.searchsorted(cumulative, 0.5)]
+        shift = abs(weighted - np.median(subset[:, i])) / draws[:, i].std()
+        assert shift < 0.1, name
+
+
+#: Prior of the calibration test: the same box generates the truths and
+#: enters the inference, so 94 % HDIs must cover the truth 94 % of the time.
+CALIBRATION_PRIOR = {
+    "d_lat": (50.0, 500.0),
+    "d_long": (10.0, 150.0),
+    "sigma_h": (0.02, 0.1),
+    "sigma_c": (0.003, 0.03),
+    "sigma_n": (0.002, 0.01),
+}
+
+
+@pytest.mark.slow
+def test_hdi_coverage_is_calibrated_over_simulated_data_sets():
+    runs = int(os.environ.get("BAYES_JACKAL_COVERAGE_RUNS", "20"))
+    rng = np.random.default_rng(2026)
+    hits = {name: 0 for name in CALIBRATION_PRIOR}
+    for i in range(runs):
+        low, high = np.array(list(CALIBRATION_PRIOR.values())).T
+        u = rng.uniform(size=5)
+        truth = np.where(
+            [False, False, True, True, True], low * (high / low) ** u, low + u * (high - low)
+        )
+        noise = NoiseSettings(
+            width=truth[2], sigma_c=(0.005, 0.005, truth[3]), sigma_n=(0.003, 0.003, truth[4])
+        )
+        experiment = simulate_experiment(ROBOT, truth[0], truth[1], "v2", noise, rng)
+        idata = sample_posterior(
+            ResidualLikelihood([experiment], ROBOT), seed=i, prior_overrides=CALIBRATION_PRIOR
+        )
+        summary = summarize(idata)
+        for name, value in zip(CALIBRATION_PRIOR, truth, strict=True):
+            hits[name] += summary[name]["hdi_3%"] <= value <= summary[name]["hdi_97%"]
+    # Each count is Binomial(runs, 0.94) for a calibrated posterior; fail
+    # below its 0.1 % quantile (too narrow intervals). 20 runs: at least 15.
+    floor = scipy.stats.binom.ppf(0.001, runs, 0.94)
+    assert all(count >= floor for count in hits.values()), (hits, floor)
