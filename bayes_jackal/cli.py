@@ -188,28 +188,24 @@ def _posterior_table(summary: dict, say: Callable[[str], None]) -> None:
     )
 
 
-def _run_sample(args, experiments, robot, out_path: Path, say) -> dict:
-    likelihood = ResidualLikelihood(
-        experiments,
-        robot,
-        family=args.family,
-        channels=args.channels,
-        shared_noise=args.noise == "shared",
-        sensor=args.sensor_noise,
-        engine=args.engine,
-    )
-    settings = SamplerSettings(
-        walkers=args.walkers, max_steps=args.max_steps, progress=not args.no_progress
-    )
-    say(f"sampling {', '.join(e.name for e in experiments)} -> {out_path}")
+def _run_sample(
+    likelihood: ResidualLikelihood,
+    settings: SamplerSettings,
+    seed: int | None,
+    out_path: Path,
+    say: Callable[[str], None],
+    prior_overrides: dict | None = None,
+) -> dict:
+    """Sample, save the posterior (chain beside it), print and return the summary."""
+    say(f"sampling {', '.join(e.name for e in likelihood.experiments)} -> {out_path}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         idata = sample_posterior(
             likelihood,
             settings,
-            seed=args.seed,
+            seed=seed,
             chain_file=out_path.with_suffix(".chain.h5"),
-            prior_overrides=_prior_overrides(args.prior),
+            prior_overrides=prior_overrides,
         )
     save_posterior(idata, out_path)
     summary = summarize(idata)
@@ -225,15 +221,30 @@ def cmd_sample(args: argparse.Namespace) -> int:
     robot = _robot(args)
     experiments = load_experiments(args.experiments)
     out_path = Path(args.out)
+    settings = SamplerSettings(
+        walkers=args.walkers, max_steps=args.max_steps, progress=not args.no_progress
+    )
+    overrides = _prior_overrides(args.prior)
     signal.signal(signal.SIGTERM, _interrupt)
+
+    def run(group: list, path: Path) -> dict:
+        likelihood = ResidualLikelihood(
+            group,
+            robot,
+            family=args.family,
+            channels=args.channels,
+            shared_noise=args.noise == "shared",
+            sensor=args.sensor_noise,
+            engine=args.engine,
+        )
+        return _run_sample(likelihood, settings, args.seed, path, out.say, overrides)
+
     if args.pooled or len(experiments) == 1:
-        result = _run_sample(args, experiments, robot, out_path, out.say)
+        result = run(experiments, out_path)
     else:
         result = {
             "experiments": {
-                e.name: _run_sample(
-                    args, [e], robot, out_path.with_name(f"{out_path.stem}.{e.name}.nc"), out.say
-                )
+                e.name: run([e], out_path.with_name(f"{out_path.stem}.{e.name}.nc"))
                 for e in experiments
             }
         }
@@ -290,8 +301,20 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out.say(
         "\nThe simulation MSE has a valley along d_lat/d_long = const (the ridge of thesis "
         "fig. 5-4);\nthe one-step MSE is biased by the coloured process noise and the sensor "
-        "noise,\nwhich is why the package infers the noise with the damping (next: "
-        "`bayes-jackal sample`)."
+        "noise,\nso the package infers the noise together with the damping:\n"
+    )
+    posterior = _run_sample(
+        ResidualLikelihood(experiments, robot),
+        SamplerSettings(progress=True),
+        DEMO_SEED,
+        folder / "posterior.nc",
+        out.say,
+    )
+    (folder / "posterior.json").write_text(json.dumps(posterior, indent=2))
+    out.say(
+        f"\nTruth: d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} N s/m, "
+        f"sigma_h={NoiseSettings().width} s. Results in {folder}/: grid_*.png, grid.json, "
+        "posterior.nc (arviz InferenceData), posterior.json."
     )
     return EXIT_OK
 
@@ -432,7 +455,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``bayes-jackal``; return the exit code."""
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # usage errors (2) and --help/--version (0)
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
         return args.func(args)
     except InputError as exc:

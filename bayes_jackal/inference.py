@@ -404,7 +404,10 @@ def _run_until_converged(
     remaining = settings.max_steps - sampler.iteration
     tau = previous_tau
     if remaining > 0:
-        for _ in sampler.sample(start, iterations=remaining, progress=settings.progress):
+        progress = {"mininterval": 1.0, "desc": "emcee steps"}
+        for _ in sampler.sample(
+            start, iterations=remaining, progress=settings.progress, progress_kwargs=progress
+        ):
             if sampler.iteration % settings.check_every:
                 continue
             tau = sampler.get_autocorr_time(tol=0)

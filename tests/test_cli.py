@@ -204,6 +204,7 @@ def test_grid_experiment_file_given_as_profile(simulated, capsys):
     assert_bad_input(code, capsys.readouterr(), re.escape(simulated[0]))
 
 
+@pytest.mark.slow
 def test_demo_writes_experiments_figures_and_results(tmp_path, capsys):
     folder = tmp_path / "demo"
     assert main(["demo", "--out", str(folder)]) == 0
@@ -220,3 +221,55 @@ def test_demo_writes_experiments_figures_and_results(tmp_path, capsys):
     assert (results["simulation"]["d_lat"], results["simulation"]["d_long"]) == (110.0, 30.0)
     for method in ("onestep", "simulation"):
         assert (folder / f"grid_{method}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    posterior = json.loads((folder / "posterior.json").read_text())
+    assert posterior["converged"] is True
+    assert posterior["ratio"]["hdi_3%"] <= 110.0 / 30.0 <= posterior["ratio"]["hdi_97%"]
+    assert (folder / "posterior.nc").is_file()
+
+
+QUICK_SAMPLE = ["--max-steps", "80", "--seed", "3", "--no-progress"]
+
+
+def test_sample_writes_a_posterior_and_prints_the_contract_json(simulated, tmp_path, capsys):
+    out = tmp_path / "posterior.nc"
+    code = main(["sample", simulated[0], "--out", str(out), *QUICK_SAMPLE, "--json"])
+    captured = capsys.readouterr()
+    assert code == 0
+    payload = json.loads(captured.out)
+    for key in ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "ratio"):
+        assert {"mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat"} <= set(
+            payload[key]
+        )
+    assert {"corr_d_lat_d_long", "autocorr_time", "n_steps"} <= set(payload)
+    # 80 steps cannot converge: the run says so loudly, on stderr.
+    assert "WARNING: NOT CONVERGED" in captured.err
+    assert out.is_file() and out.with_suffix(".chain.h5").is_file()
+
+
+def test_sample_without_pooling_writes_one_posterior_per_experiment(simulated, tmp_path, capsys):
+    out = tmp_path / "post.nc"
+    code = main(["sample", *simulated, "--out", str(out), *QUICK_SAMPLE, "--json"])
+    payload = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    assert (tmp_path / "post.v1_01.nc").is_file() and (tmp_path / "post.v2_01.nc").is_file()
+    code = main(["sample", *simulated, "--out", str(out), "--pooled", *QUICK_SAMPLE, "--json"])
+    pooled = json.loads(capsys.readouterr().out)
+    assert code == 0 and "d_lat" in pooled and out.is_file()
+
+
+@pytest.mark.parametrize(
+    ("extra", "pattern"),
+    [
+        (["--prior", "d_lat", "500", "100"], r"priors\.d_lat: .*\[500\.0, 100\.0\]"),
+        (["--prior", "mass", "1", "2"], r"unknown prior 'mass'"),
+        (["--prior", "d_lat", "ten", "100"], r"must be numbers"),
+        (["--channels", "vx,roll"], r"unknown channel"),
+    ],
+)
+def test_sample_bad_input_exits_2(simulated, tmp_path, capsys, extra, pattern):
+    code = main(["sample", simulated[0], "--out", str(tmp_path / "p.nc"), *QUICK_SAMPLE, *extra])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "Traceback" not in captured.err
+    assert re.search(pattern, captured.err), captured.err
