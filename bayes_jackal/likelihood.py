@@ -37,7 +37,6 @@ Three engines evaluate log N(r; 0, Sigma), vectorised over parameter sets:
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -73,6 +72,8 @@ FAST_TOLERANCE = 1e-10
 #: Largest predictor coefficient or cepstral term past the series that the
 #: spectral engine accepts as converged.
 _SPECTRAL_TOLERANCE = 1e-10
+#: Predictor coefficients below this are dropped from the boundary terms.
+_PREDICTOR_TOLERANCE = 1e-14
 
 
 def residual_autocovariance(
@@ -180,16 +181,43 @@ def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) 
     return np.where(np.isfinite(loglike), loglike, -np.inf)
 
 
-@functools.lru_cache(maxsize=64)
-def _phase_shift(n: int, size: int) -> np.ndarray:
-    """exp(-2 pi i j n / size) at the rfft frequencies j (read-only)."""
-    shift = np.exp(-2j * np.pi * np.arange(size // 2 + 1) * n / size)
-    shift.setflags(write=False)
-    return shift
+@dataclass(frozen=True)
+class _Block:
+    """Residual series of one channel with one noise setting and one length.
+
+    Holds the regressors (E, n, 4) and, summed over the E series, their
+    cross-periodograms: on the n Fourier frequencies divided by n (Whittle),
+    and zero-padded to ``size`` >= 2n (the spectral engine), each (F, 16).
+    """
+
+    channel: str
+    noise_group: int
+    dt: float
+    regressors: np.ndarray = field(repr=False)
+    periodogram: np.ndarray = field(init=False, repr=False)
+    spectral_periodogram: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        n = self.regressors.shape[1]
+        whittle = sum(cross_periodogram(z) for z in self.regressors) / n
+        spectral = sum(cross_periodogram(z, self.size) for z in self.regressors)
+        object.__setattr__(self, "periodogram", whittle.reshape(-1, 16))
+        object.__setattr__(self, "spectral_periodogram", spectral.reshape(-1, 16))
+
+    def residuals(self, coefficients: np.ndarray) -> np.ndarray:
+        """Residual series Z c of every parameter set, shape (B, E, n)."""
+        return np.einsum("enk,bk->ben", self.regressors, coefficients)
+
+    @property
+    def size(self) -> int:
+        """FFT length of the spectral engine (zero padding >= 2n)."""
+        return scipy.fft.next_fast_len(2 * self.regressors.shape[1], real=True)
 
 
-def spectral_loglike(acov: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Exact Toeplitz Gaussian log-density from FFTs alone, for short-memory processes.
+def spectral_loglike(
+    acov: np.ndarray, block: _Block, coefficients: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact Toeplitz Gaussian log-density of a block's residuals, from FFTs alone.
 
     With S the spectrum of the autocovariance and c_k the cepstrum of log S:
 
@@ -201,29 +229,39 @@ def spectral_loglike(acov: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.nd
       autocorrelations have died out, a and v are the infinite-order
       predictor exp(-sum_{k>0} c_k z^-k) and v = exp(c_0) (Kolmogorov).
 
-    Members whose cepstrum has not decayed below 1e-10 by lag n/2 (long
-    memory: a wide kernel over tiny sensor noise) are flagged, not trusted;
-    the predictor exp(-C(z)) decays at the cepstrum's rate, so this also
-    bounds the predictor terms beyond the series.
+    |L(a)^T x|^2 is the energy of the linear convolution of a with the
+    reversed x (Parseval: sum_j |A_j|^2 |X_j|^2 on a zero-padded grid, where
+    |X_j|^2 = c^T P_j c with the block's cross-periodogram P, summed over its
+    series) less the convolution's tail; the tail and |L(a~)^T x|^2 involve
+    only the first and last m samples of each series, m the length of the
+    decayed predictor. So the cost per parameter set is O(N) plus O(E m^2),
+    with no transform of the series.
+
+    Parameter sets whose cepstrum has not decayed below 1e-10 by lag n/2
+    (long memory: a wide kernel over tiny sensor noise) are flagged, not
+    trusted; the predictor exp(-C(z)) decays at the cepstrum's rate.
 
     Parameters
     ----------
-    acov : ndarray, shape (B, K)
-        Autocovariance at lags 0..K-1, K >= n, covering its support.
-    x : ndarray, shape (B, E, n)
+    acov : ndarray, shape (B, n)
+        Autocovariance at lags 0..n-1, covering its support.
+    block : _Block
+        E series of length n as regressors Z, with their cross-periodogram.
+    coefficients : ndarray, shape (B, 4)
+        c of each parameter set: the residuals are Z c.
 
     Returns
     -------
-    loglike : ndarray, shape (B, E)
+    loglike : ndarray, shape (B,)
+        Summed over the block's series.
     converged : ndarray of bool, shape (B,)
     """
-    batch, lags = acov.shape
-    n = x.shape[-1]
-    size = scipy.fft.next_fast_len(2 * lags, real=True)
+    batch, n = acov.shape
+    count, size = block.regressors.shape[0], block.size
     half = size // 2
     symmetric = np.zeros((batch, size))
-    symmetric[:, :lags] = acov
-    symmetric[:, size - lags + 1 :] = acov[:, :0:-1]
+    symmetric[:, :n] = acov
+    symmetric[:, size - n + 1 :] = acov[:, :0:-1]
     spectrum = scipy.fft.rfft(symmetric).real
     positive = np.all(spectrum > 0, axis=-1)
     cepstrum = scipy.fft.irfft(np.log(np.where(positive[:, None], spectrum, 1.0)), size)
@@ -231,18 +269,32 @@ def spectral_loglike(acov: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.nd
     causal[:, 1:half] = cepstrum[:, 1:half]
     predictor = np.exp(-scipy.fft.rfft(causal))
     log_v = cepstrum[:, 0]
-    k = np.arange(1, half)
-    log_det = n * log_v + np.sum(k * cepstrum[:, 1:half] ** 2, axis=-1)
-    # a~ is a reversed and shifted: its transform is exp(-i w n) (conj(A) - 1).
-    shift = _phase_shift(n, size)
-    reversed_x = scipy.fft.rfft(x[..., ::-1], size)
-    forward = scipy.fft.irfft(reversed_x * predictor[:, None, :], size)[..., :n]
-    backward = scipy.fft.irfft(reversed_x * (shift * (predictor.conj() - 1.0))[:, None, :], size)[
-        ..., :n
-    ]
-    quadratic = (np.sum(forward**2, -1) - np.sum(backward**2, -1)) / np.exp(log_v)[:, None]
+    log_det = n * log_v + np.sum(np.arange(1, half) * cepstrum[:, 1:half] ** 2, axis=-1)
     converged = positive & (np.abs(cepstrum[:, n // 2 : half]).max(axis=-1) < _SPECTRAL_TOLERANCE)
-    return -0.5 * (log_det[:, None] + quadratic + n * _LOG_2PI), converged
+    # Full convolution energy by Parseval, summed over the block's series.
+    outer = (coefficients[:, :, None] * coefficients[:, None, :]).reshape(batch, 16)
+    energy = (outer @ block.spectral_periodogram.T) * np.abs(predictor) ** 2
+    full = energy @ _frequency_weights(size) / size
+    # Boundary terms, from the decayed predictor a[:m] of the trusted sets:
+    # the convolution tail sum_{k>=r} a_k x_{k-r} and |L(a~)^T x|_{r-1} are
+    # both lag-r correlations of a, r = 1..m-1, with the first m samples and
+    # with the reversed last m samples of each series.
+    a = scipy.fft.irfft(predictor, size)[:, :n]
+    trusted = np.abs(a[converged]) > _PREDICTOR_TOLERANCE
+    m = int(min(n, max(2, np.flatnonzero(trusted.any(axis=0))[-1] + 1 if trusted.size else 2)))
+    segments = np.concatenate(
+        [block.regressors[:, :m], block.regressors[:, n - m :][:, ::-1]], axis=0
+    )
+    edges = np.einsum("smk,bk->bsm", segments, coefficients)  # (B, 2E, m)
+    length = scipy.fft.next_fast_len(2 * m, real=True)
+    correlation = scipy.fft.irfft(
+        scipy.fft.rfft(a[:, :m], length)[:, None, :] * scipy.fft.rfft(edges, length).conj(),
+        length,
+    )
+    boundary = np.sum(correlation[..., 1:m] ** 2, axis=(1, 2))
+    quadratic = (full - boundary) / np.exp(log_v)
+    loglike = -0.5 * (count * log_det + quadratic + count * n * _LOG_2PI)
+    return loglike, converged
 
 
 def _frequency_weights(n: int) -> np.ndarray:
@@ -270,15 +322,14 @@ def expected_periodogram(acov: np.ndarray) -> np.ndarray:
     return 2.0 * scipy.fft.rfft(tapered, n).real - tapered[..., :1]
 
 
-def cross_periodogram(regressors: np.ndarray) -> np.ndarray:
-    """Real part of the regressors' cross-periodogram, shape (n // 2 + 1, 4, 4).
+def cross_periodogram(regressors: np.ndarray, size: int | None = None) -> np.ndarray:
+    """Re(Z_j^* Z_j^T) of the regressors' DFT on ``size`` points, shape (size // 2 + 1, 4, 4).
 
-    For any real coefficient vector c, the periodogram of r = Z c at
-    frequency j is c^T P_j c, with I_j = |DFT(r)_j|^2 / n.
+    For any real coefficient vector c, |DFT(Z c)_j|^2 = c^T P_j c. The
+    transform is zero-padded to ``size`` (default: the series' length n).
     """
-    n = regressors.shape[0]
-    spectra = scipy.fft.rfft(regressors, axis=0)
-    return (spectra[:, :, None].conj() * spectra[:, None, :]).real / n
+    spectra = scipy.fft.rfft(regressors, size, axis=0)
+    return (spectra[:, :, None].conj() * spectra[:, None, :]).real
 
 
 def debiased_whittle_loglike(
@@ -336,17 +387,6 @@ def residual_regressors(experiment: Experiment, channel: str, steady: bool = Tru
             field=channel,
         )
     return np.column_stack([y[1:], y[:-1], data.inputs[:-1]])
-
-
-@dataclass(frozen=True)
-class _Block:
-    """Residual series of one channel with one noise setting and one length."""
-
-    channel: str
-    noise_group: int
-    dt: float
-    regressors: np.ndarray  # (E, n, 4)
-    periodogram: np.ndarray = field(repr=False)  # (n // 2 + 1, 16), summed over E
 
 
 @dataclass
@@ -415,11 +455,10 @@ class ResidualLikelihood:
                 regressors = residual_regressors(experiment, channel, self.steady)
                 dt = round(experiment.dt, 12)
                 series.setdefault((channel, group, dt, len(regressors)), []).append(regressors)
-        blocks = []
-        for (channel, group, dt, _), members in series.items():
-            stacked = np.stack(members)
-            periodogram = sum(cross_periodogram(z) for z in stacked).reshape(-1, 16)
-            blocks.append(_Block(channel, group, dt, stacked, periodogram))
+        blocks = [
+            _Block(channel, group, dt, np.stack(members))
+            for (channel, group, dt, _), members in series.items()
+        ]
         return list(groups), blocks
 
     @property
@@ -494,16 +533,17 @@ class ResidualLikelihood:
                 periodogram = outer @ block.periodogram.T
                 total += debiased_whittle_loglike(acov, periodogram, count)
                 continue
-            residuals = np.einsum("enk,bk->ben", block.regressors, c)
             if self.engine == "exact":
-                total += toeplitz_loglike(acov, residuals).sum(axis=-1)
+                total += toeplitz_loglike(acov, block.residuals(c)).sum(axis=-1)
                 continue
-            loglike, converged = spectral_loglike(acov, residuals)
+            loglike, converged = spectral_loglike(acov, block, c)
             if not converged.all():
                 loglike[~converged] = (
-                    toeplitz_loglike(acov[~converged], residuals[~converged], FAST_TOLERANCE)
+                    toeplitz_loglike(
+                        acov[~converged], block.residuals(c[~converged]), FAST_TOLERANCE
+                    ).sum(axis=-1)
                     if self.fallback
                     else -np.inf
                 )
-            total += loglike.sum(axis=-1)
+            total += loglike
         return total
