@@ -34,8 +34,6 @@ __all__ = [
     "FAMILIES",
     "Family",
     "as_rng",
-    "autocorrelation",
-    "coloured_noise",
     "gaussian_kernel",
     "get_family",
 ]
@@ -214,9 +212,9 @@ class Family:
         -------
         ndarray, shape (n,) or (n, C)
         """
-        if self.name != "exponential":
-            return coloured_noise(self.taps(width, dt), n, scale, rng)
         scale = np.asarray(scale, float)
+        if self.name != "exponential":
+            return _coloured_noise(self.taps(width, dt), n, scale, rng)
         phi = float(np.exp(-dt / _check_widths(width, self.width_name)))
         white = as_rng(rng).standard_normal((n, *scale.shape))
         # AR(1) started in its stationary distribution: x[0] = white[0].
@@ -279,50 +277,10 @@ def gaussian_kernel(sigma_h: float, dt: float) -> np.ndarray:
     return FAMILIES["gaussian"].taps(float(_check_widths(sigma_h, "sigma_h")), dt)
 
 
-def autocorrelation(kernel: np.ndarray, lags: int) -> np.ndarray:
-    """Autocorrelation of white noise filtered by a unit-energy ``kernel``.
-
-    Parameters
-    ----------
-    kernel : ndarray, shape (L,)
-    lags : int
-        Number of lags to return (0..lags-1).
-
-    Returns
-    -------
-    ndarray, shape (lags,)
-        rho[l] = sum_j h[j] h[j + l]; zero past the kernel length.
-    """
-    full = np.correlate(kernel, kernel, mode="full")[len(kernel) - 1 :]
-    out = np.zeros(lags)
-    out[: min(lags, len(full))] = full[:lags]
-    return out
-
-
-def coloured_noise(
-    kernel: np.ndarray,
-    n: int,
-    scale: float | np.ndarray = 1.0,
-    rng: np.random.Generator | int | None = None,
+def _coloured_noise(
+    kernel: np.ndarray, n: int, scale: np.ndarray, rng: np.random.Generator | int | None
 ) -> np.ndarray:
-    """White Gaussian noise filtered by ``kernel``: stationary coloured noise.
-
-    Parameters
-    ----------
-    kernel : ndarray, shape (L,)
-        Unit-energy filter taps.
-    n : int
-        Number of samples.
-    scale : float or ndarray, shape (C,)
-        Standard deviation of the output, one per channel.
-    rng : numpy.random.Generator, int or None
-
-    Returns
-    -------
-    ndarray, shape (n,) or (n, C)
-        ``n`` samples per channel (columns when ``scale`` is an array).
-    """
-    scale = np.asarray(scale, float)
+    """``n`` samples of white Gaussian noise filtered by ``kernel``, times ``scale``."""
     white = as_rng(rng).standard_normal((n + len(kernel) - 1, *scale.shape))
     shaped_kernel = kernel.reshape(-1, *([1] * scale.ndim))
     return scale * scipy.signal.fftconvolve(white, shaped_kernel, mode="valid", axes=0)

@@ -89,14 +89,7 @@ def test_residual_autocovariance_is_the_process_plus_sensor_footprint():
     np.testing.assert_allclose(sample, model[:4], atol=5 * standard_error)
     assert model[1] < sigma_c**2 * family.autocorrelation(width, DT, 2)[1]  # -alpha sigma_n^2
     diagonal = residual_autocovariance(
-        family,
-        np.array([width]),
-        np.array([sigma_c]),
-        np.array([sigma_n]),
-        np.array([alpha]),
-        DT,
-        4,
-        sensor="diagonal",
+        family, *(np.array([v]) for v in (width, sigma_c, sigma_n, alpha)), DT, 4, "diagonal"
     )[0]
     assert diagonal[0] == pytest.approx(sigma_c**2 + sigma_n**2)
     assert diagonal[1] == pytest.approx(sigma_c**2 * family.autocorrelation(width, DT, 2)[1])
