@@ -210,9 +210,9 @@ def find_map(
     """
     prior = log_posterior.prior
     scan = replace(log_posterior.likelihood, engine="fast", fallback=False)
-    approximate = LogPosterior(scan, prior)
+    scan_posterior = LogPosterior(scan, prior)
     design = prior.draw(design_points, rng)
-    values = approximate(design)
+    values = scan_posterior(design)
     finite = np.isfinite(values)
     if not finite.any():
         raise InputError(
@@ -231,7 +231,7 @@ def find_map(
                 lambda z: -function(z)[0], start, method="L-BFGS-B", bounds=bounds
             )
 
-    best = max((maximise(approximate, start) for start in starts), key=lambda r: -r.fun)
+    best = max((maximise(scan_posterior, start) for start in starts), key=lambda r: -r.fun)
     polished = maximise(log_posterior, best.x)
     return polished.x if np.isfinite(polished.fun) else best.x
 

@@ -280,8 +280,8 @@ def spectral_loglike(
     # both lag-r correlations of a, r = 1..m-1, with the first m samples and
     # with the reversed last m samples of each series.
     a = scipy.fft.irfft(predictor, size)[:, :n]
-    trusted = np.abs(a[converged]) > _PREDICTOR_TOLERANCE
-    m = int(min(n, max(2, np.flatnonzero(trusted.any(axis=0))[-1] + 1 if trusted.size else 2)))
+    significant = np.any(np.abs(a[converged]) > _PREDICTOR_TOLERANCE, axis=0)  # a_0 = 1
+    m = max(2, int(np.flatnonzero(significant)[-1]) + 1) if converged.any() else 2
     segments = np.concatenate(
         [block.regressors[:, :m], block.regressors[:, n - m :][:, ::-1]], axis=0
     )
