@@ -193,11 +193,23 @@ def _truth_by_label(d_lat, d_long, noise: NoiseSettings) -> dict:
     return truth
 
 
+def _draws(idata, label: str) -> np.ndarray:
+    """All draws of a summary label such as ``d_lat`` or ``sigma_h[yaw]``."""
+    name, _, group = label.rstrip("]").partition("[")
+    values = idata.posterior[name]
+    return (values.sel(noise_group=group) if group else values).values.ravel()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("case", ["thesis", "stiff"])
 def test_recovery_of_the_truth_with_converged_chains(case, yaw_vx_posterior):
     # With yaw and vx both damping coefficients are identified (vx's pole is
-    # -4 d_long / m), so every parameter's 94 % HDI must hold its truth.
+    # -4 d_long / m). One data set, eight parameters: a calibrated posterior
+    # misses a 94 % HDI 6 % of the time per parameter (1 - 0.94^8 = 39 % for
+    # at least one), so the per-data-set check is: every truth inside its
+    # central 99.7 % interval (family-wise false alarm < 2.4 %) and at least
+    # 6 of 8 inside the 94 % HDI (fewer: probability 0.8 %). The 94 %
+    # statement itself is the coverage test's, over many data sets.
     if case == "thesis":
         truth, idata = _truth_by_label(110.0, 30.0, NoiseSettings()), yaw_vx_posterior
     else:
@@ -210,12 +222,16 @@ def test_recovery_of_the_truth_with_converged_chains(case, yaw_vx_posterior):
     summary = summarize(idata)
     assert summary["converged"] is True
     assert summary["n_steps"] > 50 * max(summary["autocorr_time"].values())
+    inside = 0
     for name, value in truth.items():
         row = summary[name]
-        assert row["hdi_3%"] <= value <= row["hdi_97%"], (name, row)
+        low, high = np.quantile(_draws(idata, name), [0.0015, 0.9985])
+        assert low <= value <= high, (name, value, low, high)
+        inside += row["hdi_3%"] <= value <= row["hdi_97%"]
         assert row["ess_autocorr"] > 1000, (name, row)
         assert row["ess_bulk"] > 1000, (name, row)
         assert row["r_hat"] < 1.05, (name, row)
+    assert inside >= 6, inside
 
 
 @pytest.mark.slow
