@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from . import __version__
+from .bags import read_bag, write_bag
 from .errors import InputError
 from .experiment import load_experiments, write_csv, write_netcdf
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
@@ -90,11 +91,58 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     writer, suffix = (write_csv, ".csv") if args.format == "csv" else (write_netcdf, ".nc")
     paths = [str(writer(e, Path(args.out) / f"{e.name}{suffix}")) for e in experiments]
+    if args.bag:
+        bag_suffix = ".bag" if args.bag == "ros1" else ".mcap"
+        paths += [
+            str(write_bag(e, Path(args.out) / f"{e.name}{bag_suffix}", robot, args.bag, args.seed))
+            for e in experiments
+        ]
     for path in paths:
         out.say(f"wrote {path}")
-    out.say(f"{len(paths)} simulated experiments (truth d_lat={args.d_lat}, d_long={args.d_long})")
+    out.say(
+        f"{len(experiments)} simulated experiments "
+        f"(truth d_lat={args.d_lat}, d_long={args.d_long})"
+    )
     out.result({"experiments": paths, "truth": experiments[0].truth if experiments else None})
     return EXIT_OK
+
+
+def cmd_ingest(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
+    robot = _robot(args)
+    folder = Path(args.out)
+    written, failed = {}, {}
+    out.say(
+        f"{'bag':24s} {'duration':>9s} {'imu Hz':>7s} {'pose Hz':>7s} "
+        f"{'steady window [s]':>18s} {'repairs':>7s}"
+    )
+    for bag in args.bags:
+        try:
+            experiment = read_bag(bag, robot, window=args.window, max_gap=args.max_gap)
+        except InputError as exc:  # one bad bag does not lose the others
+            failed[str(bag)] = str(exc)
+            print(f"bayes-jackal: error: {exc}", file=sys.stderr)
+            continue
+        path = write_netcdf(experiment, folder / f"{experiment.name}.nc")
+        provenance = experiment.provenance
+        start, stop = experiment.steady_window or (float("nan"), float("nan"))
+        written[experiment.name] = {
+            "file": str(path),
+            "duration": float(experiment.t[-1] - experiment.t[0]),
+            "rate": 1.0 / experiment.dt,
+            "pose_rate": provenance.get("pose_rate"),
+            "steady_window": experiment.steady_window,
+            "repairs": provenance.get("repairs", []),
+        }
+        row = written[experiment.name]
+        out.say(
+            f"{experiment.name:24s} {row['duration']:8.1f}s {row['rate']:7.1f} "
+            f"{row['pose_rate'] or float('nan'):7.1f} {start:8.2f} - {stop:7.2f} "
+            f"{len(row['repairs']):7d}"
+        )
+    out.say(f"{len(written)} of {len(args.bags)} bags ingested into {folder}/")
+    out.result({"experiments": written, "failed": failed})
+    return EXIT_BAD_INPUT if failed else EXIT_OK
 
 
 def cmd_grid(args: argparse.Namespace) -> int:
@@ -374,6 +422,9 @@ def build_parser() -> argparse.ArgumentParser:
         )
     sim.add_argument("--conversion", choices=CONVERSIONS, help="cmd_vel -> wheel speeds")
     sim.add_argument("--format", choices=("nc", "csv"), default="nc", help="file format (nc)")
+    sim.add_argument(
+        "--bag", choices=("ros1", "ros2"), help="also write each run as a ROS1 or ROS2 bag"
+    )
     _add_common(sim)
     sim.set_defaults(func=cmd_simulate)
 
@@ -395,6 +446,22 @@ def build_parser() -> argparse.ArgumentParser:
     grid.add_argument("--out", metavar="FILE.nc", help="save all MSE surfaces as NetCDF")
     _add_common(grid)
     grid.set_defaults(func=cmd_grid)
+
+    ingest = commands.add_parser("ingest", help="ROS1/ROS2 bags to experiment files")
+    ingest.add_argument("bags", nargs="+", metavar="BAG", help=".bag, .mcap, .db3 or bag folder")
+    ingest.add_argument("--out", required=True, help="output folder (one .nc per bag)")
+    ingest.add_argument(
+        "--window",
+        type=float,
+        nargs=2,
+        metavar=("T0", "T1"),
+        help="steady-state window [s from the first IMU stamp] instead of detecting it",
+    )
+    ingest.add_argument(
+        "--max-gap", type=float, default=0.25, help="longest tolerated dropout [s] (0.25)"
+    )
+    _add_common(ingest)
+    ingest.set_defaults(func=cmd_ingest)
 
     res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
     res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")

@@ -273,3 +273,24 @@ def test_sample_bad_input_exits_2(simulated, tmp_path, capsys, extra, pattern):
     assert code == 2
     assert "Traceback" not in captured.err
     assert re.search(pattern, captured.err), captured.err
+
+
+def test_simulate_bags_and_ingest_them_back(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path), "--seed", "4", *SMALL, "--bag", "ros2"]) == 0
+    bags = sorted(str(p) for p in tmp_path.glob("*.mcap"))
+    assert len(bags) == 2
+    capsys.readouterr()
+    broken = tmp_path / "broken.mcap"
+    broken.write_bytes(b"not a bag")
+    code = main(["ingest", *bags, str(broken), "--out", str(tmp_path / "exp"), "--json"])
+    captured = capsys.readouterr()
+    # One bad bag is reported and does not lose the others' results.
+    assert code == 2
+    payload = json.loads(captured.out)
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    assert list(payload["failed"]) == [str(broken)]
+    assert "broken.mcap" in captured.err and "Traceback" not in captured.err
+    ingested = read_netcdf(tmp_path / "exp" / "v2_01.nc")
+    simulated = read_netcdf(tmp_path / "v2_01.nc")
+    np.testing.assert_allclose(ingested.yaw_rate, simulated.yaw_rate[: len(ingested.t)], atol=1e-5)
+    assert ingested.provenance["sha256"]
