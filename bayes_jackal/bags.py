@@ -69,13 +69,14 @@ from scipy.integrate import cumulative_trapezoid
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import savgol_filter
+from tqdm import tqdm
 
 from ._files import atomic_path
 from .errors import DataError, InputError
 from .experiment import MIN_SAMPLES, Experiment
 from .kernels import as_rng
 from .robot import RobotProfile
-from .simulate import SERIES, command_profile
+from .simulate import Series, command_profile
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -196,6 +197,7 @@ def read_bag(
     robot: RobotProfile,
     window: tuple[float, float] | None = None,
     max_gap: float = 0.25,
+    progress: bool = False,
 ) -> Experiment:
     """Read a recorded run from a ROS bag (see the module text for the steps).
 
@@ -211,6 +213,8 @@ def read_bag(
     max_gap : float
         Longest tolerated gap between messages of one topic [s]; longer
         gaps split the run, backward stamp steps longer than this are errors.
+    progress : bool
+        Show a progress bar over the messages (on stderr).
 
     Returns
     -------
@@ -235,7 +239,7 @@ def read_bag(
     try:
         with AnyReader([path], default_typestore=typestore(format_name)) as reader:
             start = reader.start_time
-            streams = _collect(reader, robot, source, repairs)
+            streams = _collect(reader, robot, source, repairs, progress)
     except DataError:
         raise
     except _READ_ERRORS as exc:
@@ -325,7 +329,11 @@ def _sha256(path: Path) -> str:
 
 
 def _collect(
-    reader: AnyReader, robot: RobotProfile, source: str, repairs: list[str]
+    reader: AnyReader,
+    robot: RobotProfile,
+    source: str,
+    repairs: list[str],
+    progress: bool = False,
 ) -> dict[str, _Stream]:
     """Read the profile's topics into per-message rows (the only per-message loop)."""
     topics = reader.topics
@@ -364,8 +372,16 @@ def _collect(
     rows: dict[str, list] = {role: [] for role in roles.values()}
     connections = [c for c in reader.connections if c.topic in roles]
     last: tuple[str, int] | None = None
+    messages = tqdm(
+        reader.messages(connections=connections),
+        total=sum(topics[topic].msgcount for topic in roles),
+        desc=Path(source).name,
+        unit="msg",
+        mininterval=1.0,
+        disable=not progress,
+    )
     try:
-        for connection, time, raw in reader.messages(connections=connections):
+        for connection, time, raw in messages:
             role = roles[connection.topic]
             message = reader.deserialize(raw, connection.msgtype)
             stamp = 0 if role == "cmd_vel" else _stamp(message)
@@ -716,10 +732,11 @@ def bag_messages(
     missing = [
         k for k in ("vx_state", "vy_state", "yaw_state") if k not in experiment.truth_arrays
     ]
-    if missing or experiment.series not in SERIES:
+    command = (experiment.truth or {}).get("command", {})
+    if missing or not {"v", "w", "duration"} <= set(command):
         raise InputError(
-            f"needs a simulated experiment (truth arrays {missing} missing or series "
-            f"{experiment.series!r} unknown)",
+            f"needs a simulated experiment (truth arrays {missing} missing or no command "
+            f"in its truth: {command})",
             source=experiment.source,
         )
     right, left = robot.wheels.get("right", []), robot.wheels.get("left", [])
@@ -783,7 +800,7 @@ def bag_messages(
                 ),
             )
         )
-    _, v, w = command_profile(SERIES[experiment.series], experiment.dt)
+    _, v, w = command_profile(Series(**command), experiment.dt)
     for k in range(0, min(len(v), len(stamps)), 4):
         messages.append(
             BagMessage(

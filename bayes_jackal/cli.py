@@ -110,6 +110,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_ingest(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
+    unknown = [role for role, _ in args.topic if role not in robot.topics]
+    if unknown:
+        raise InputError(
+            f"unknown topic role(s) {unknown}; use {sorted(robot.topics)}", field="--topic"
+        )
+    robot = robot.replace(topics={**robot.topics, **dict(args.topic)})
     folder = Path(args.out)
     written, failed = {}, {}
     out.say(
@@ -118,7 +124,9 @@ def cmd_ingest(args: argparse.Namespace) -> int:
     )
     for bag in args.bags:
         try:
-            experiment = read_bag(bag, robot, window=args.window, max_gap=args.max_gap)
+            experiment = read_bag(
+                bag, robot, window=args.window, max_gap=args.max_gap, progress=not args.json
+            )
         except InputError as exc:  # one bad bag does not lose the others
             failed[str(bag)] = str(exc)
             print(f"bayes-jackal: error: {exc}", file=sys.stderr)
@@ -459,6 +467,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ingest.add_argument(
         "--max-gap", type=float, default=0.25, help="longest tolerated dropout [s] (0.25)"
+    )
+    ingest.add_argument(
+        "--topic",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("ROLE", "NAME"),
+        help="override a profile topic, e.g. --topic pose /vrpn_client_node/jackal/pose",
     )
     _add_common(ingest)
     ingest.set_defaults(func=cmd_ingest)

@@ -130,7 +130,7 @@ def simulate_experiment(
     robot: RobotProfile,
     d_lat: float,
     d_long: float,
-    series: str = "v1",
+    series: str | Series = "v1",
     noise: NoiseSettings | None = None,
     rng: np.random.Generator | int | None = None,
     name: str | None = None,
@@ -144,8 +144,9 @@ def simulate_experiment(
         Constants and sampling rate (dt = 1 / ``robot.rate``).
     d_lat, d_long : float
         True damping [N s/m].
-    series : {"v1", "v2"}
-        Command setting (table 2-2).
+    series : {"v1", "v2"} or Series
+        Command setting (table 2-2), or any :class:`Series` (labelled
+        ``"custom"``).
     noise : NoiseSettings, optional
         Process and sensor noise; the defaults of :class:`NoiseSettings`.
     rng : numpy.random.Generator, int or None
@@ -162,12 +163,16 @@ def simulate_experiment(
         parameters, ``truth_arrays`` the noise-free states and the process
         noise, ``steady_window`` the steady-state cornering window.
     """
-    if series not in SERIES:
+    if isinstance(series, Series):
+        command, label = series, "custom"
+    elif series in SERIES:
+        command, label = SERIES[series], series
+    else:
         raise InputError(f"unknown series {series!r}; use one of {list(SERIES)}", field="series")
     noise = NoiseSettings() if noise is None else noise
     rng = as_rng(rng)
     dt = robot.dt
-    t, v, w = command_profile(SERIES[series], dt)
+    t, v, w = command_profile(command, dt)
     omega_r, omega_l = wheel_speeds(robot, v, w, conversion)
     family = get_family(noise.family)
     process = family.noise(noise.width, dt, len(t), np.asarray(noise.sigma_c), rng)
@@ -182,8 +187,8 @@ def simulate_experiment(
         yaw_rate=measured[:, 2],
         omega_r=omega_r,
         omega_l=omega_l,
-        name=name or series,
-        series=series,
+        name=name or label,
+        series=label,
         steady_window=(REST + RAMP + SETTLE, float(t[-1]) - REST - RAMP),
         truth={
             "d_lat": float(d_lat),
@@ -194,7 +199,7 @@ def simulate_experiment(
             "sigma_c": dict(zip(CHANNELS, map(float, noise.sigma_c), strict=True)),
             "sigma_n": dict(zip(CHANNELS, map(float, noise.sigma_n), strict=True)),
             "conversion": conversion or robot.conversion,
-            "command": {"v": SERIES[series].v, "w": SERIES[series].w},
+            "command": {"v": command.v, "w": command.w, "duration": command.duration},
         },
         truth_arrays=truth_arrays,
         provenance={"simulated": True, "robot": robot.name, "profile": robot.source},

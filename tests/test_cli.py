@@ -294,3 +294,33 @@ def test_simulate_bags_and_ingest_them_back(tmp_path, capsys):
     simulated = read_netcdf(tmp_path / "v2_01.nc")
     np.testing.assert_allclose(ingested.yaw_rate, simulated.yaw_rate[: len(ingested.t)], atol=1e-5)
     assert ingested.provenance["sha256"]
+
+
+def test_ingest_topic_override(tmp_path, capsys):
+    assert (
+        main(
+            [
+                "simulate",
+                "--out",
+                str(tmp_path),
+                "--seed",
+                "4",
+                "--v1",
+                "0",
+                "--v2",
+                "1",
+                "--bag",
+                "ros1",
+            ]
+        )
+        == 0
+    )
+    bag = str(tmp_path / "v2_01.bag")
+    capsys.readouterr()
+    # Pointing the IMU role at a topic the bag lacks names that topic ...
+    code = main(["ingest", bag, "--out", str(tmp_path / "a"), "--topic", "imu", "/imu/raw"])
+    assert code == 2 and "'/imu/raw'" in capsys.readouterr().err
+    # ... an unknown role is refused, and the default names still work.
+    code = main(["ingest", bag, "--out", str(tmp_path / "b"), "--topic", "lidar", "/scan"])
+    assert code == 2 and "unknown topic role" in capsys.readouterr().err
+    assert main(["ingest", bag, "--out", str(tmp_path / "c"), "--topic", "imu", "/imu/data"]) == 0
