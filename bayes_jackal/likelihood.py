@@ -42,9 +42,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.fft
 
-from .errors import DataError, InputError
+from .errors import InputError
 from .experiment import Experiment
 from .kernels import Family, get_family
+from .noise import check_residual_window, residual_regressors
 from .physics import channel_coefficients
 from .robot import RobotProfile
 
@@ -55,7 +56,6 @@ __all__ = [
     "ResidualLikelihood",
     "debiased_whittle_loglike",
     "residual_autocovariance",
-    "residual_regressors",
     "spectral_loglike",
     "toeplitz_loglike",
 ]
@@ -363,32 +363,6 @@ def debiased_whittle_loglike(
     return np.where(valid, loglike, -np.inf)
 
 
-def residual_regressors(experiment: Experiment, channel: str, steady: bool = True) -> np.ndarray:
-    """Regressors Z = [y[k+1], y[k], u_r[k], u_l[k]] of one channel, shape (n, 4).
-
-    Raises
-    ------
-    DataError
-        When the window is too short or the measured channel is constant.
-    """
-    data = experiment.steady() if steady else experiment
-    y = data.channel(channel)
-    if len(y) - 1 < MIN_RESIDUALS:
-        raise DataError(
-            f"{len(y) - 1} one-step residuals in the {'steady-state ' if steady else ''}window; "
-            f"at least {MIN_RESIDUALS} are needed",
-            source=experiment.source,
-            field=channel,
-        )
-    if np.ptp(y) == 0:
-        raise DataError(
-            f"channel is constant ({y[0]!r}) in the window: it carries no information",
-            source=experiment.source,
-            field=channel,
-        )
-    return np.column_stack([y[1:], y[:-1], data.inputs[:-1]])
-
-
 @dataclass
 class ResidualLikelihood:
     """Log-likelihood of the one-step residuals of experiments and channels.
@@ -452,6 +426,7 @@ class ResidualLikelihood:
             for channel in self.channels:
                 key = (channel, "all" if self.shared_noise else experiment.name)
                 group = groups.setdefault(key, len(groups))
+                check_residual_window(experiment, channel, MIN_RESIDUALS, self.steady)
                 regressors = residual_regressors(experiment, channel, self.steady)
                 dt = round(experiment.dt, 12)
                 series.setdefault((channel, group, dt, len(regressors)), []).append(regressors)

@@ -43,9 +43,11 @@ __all__ = [
     "autocorrelation_bounds",
     "average_per_series",
     "channel_residuals",
+    "check_residual_window",
     "fit_sigma_h",
     "ljung_box",
     "magnitude_spectrum",
+    "residual_regressors",
     "sample_autocorrelation",
     "sigma_h_table",
     "spectrum",
@@ -132,11 +134,76 @@ def channel_residuals(
     InputError
         For an unknown channel or non-positive damping.
     """
+    dt = (experiment.steady() if steady else experiment).dt
+    alpha, input_row = channel_coefficients(robot, d_lat, d_long, channel, dt)
+    # eq. 7-3 for one channel of the diagonal model: Z (1, -alpha, -Bd[c, :])
+    coefficients = np.concatenate([np.ones((*alpha.shape, 1)), -alpha[..., None], -input_row], -1)
+    return coefficients @ residual_regressors(experiment, channel, steady).T
+
+
+def residual_regressors(experiment: Experiment, channel: str, steady: bool = True) -> np.ndarray:
+    """Regressors Z = [y[k+1], y[k], u_r[k], u_l[k]] of one channel, shape (N - 1, 4).
+
+    The one-step residual (eq. 7-3) is linear in them: w = Z (1, -Ad[c, c],
+    -Bd[c, 0], -Bd[c, 1]).
+
+    Parameters
+    ----------
+    experiment : Experiment
+    channel : {"yaw", "vx", "vy"}
+    steady : bool
+        The steady-state window (the whole experiment when it has none), or
+        every sample.
+    """
     window = experiment.steady() if steady else experiment
     y = window.channel(channel)
-    alpha, input_row = channel_coefficients(robot, d_lat, d_long, channel, window.dt)
-    # eq. 7-3, one channel of the diagonal model
-    return y[1:] - alpha[..., None] * y[:-1] - input_row @ window.inputs[:-1].T
+    return np.column_stack([y[1:], y[:-1], window.inputs[:-1]])
+
+
+def check_residual_window(
+    experiment: Experiment,
+    channel: str,
+    minimum: int,
+    steady: bool = True,
+    reason: str = "",
+    field: str | None = None,
+) -> None:
+    """Raise unless the window holds ``minimum`` residuals of a varying channel.
+
+    Parameters
+    ----------
+    experiment : Experiment
+    channel : {"yaw", "vx", "vy"}
+    minimum : int
+        Fewest one-step residuals the caller needs.
+    steady : bool
+        Check the steady-state window (or every sample).
+    reason : str
+        What needs them, appended to the message (e.g. " for 30 lags").
+    field : str, optional
+        Field the short-window error names; the channel by default.
+
+    Raises
+    ------
+    DataError
+        Naming the file, the field and the sample count, or the constant value.
+    """
+    window = experiment.steady() if steady else experiment
+    y = window.channel(channel)
+    span = "the steady-state window" if steady and experiment.steady_window else "the experiment"
+    if len(y) - 1 < minimum:
+        raise DataError(
+            f"{span} holds {len(y)} samples, {len(y) - 1} one-step residuals; at least "
+            f"{minimum} are needed{reason}",
+            source=experiment.source,
+            field=field or channel,
+        )
+    if np.ptp(y) == 0:
+        raise DataError(
+            f"channel {channel!r} is constant ({y[0]:g}) in {span}: it carries no information",
+            source=experiment.source,
+            field=CHANNEL_FIELDS[channel],
+        )
 
 
 def sample_autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
@@ -417,31 +484,16 @@ def _window_residuals(
     lags: int,
 ) -> tuple[np.ndarray, float]:
     """Steady-window residuals of one channel, checked for the analysis; and dt [s]."""
-    window = experiment.steady()
-    y = window.channel(channel)
-    where = {"source": experiment.source, "field": CHANNEL_FIELDS[channel]}
-    span = "the experiment" if experiment.steady_window is None else "the steady-state window"
-    if len(y) < lags + 2:
-        raise DataError(
-            f"{span} holds {len(y)} samples; {lags} lags need at least {lags + 2} "
-            f"({lags + 1} residuals)",
-            source=experiment.source,
-            field="lags",
-        )
-    if np.ptp(y) == 0:
-        raise DataError(
-            f"channel {channel!r} is constant ({y[0]:g}) in {span}; "
-            "its residuals cannot be analysed",
-            **where,
-        )
+    check_residual_window(experiment, channel, lags + 1, reason=f" for {lags} lags", field="lags")
     residuals = channel_residuals(experiment, robot, d_lat, d_long, channel)
     if np.ptp(residuals) == 0:
         raise DataError(
             f"the residuals of channel {channel!r} are constant ({residuals[0]:g}); "
             "the model explains the window exactly and there is no noise to analyse",
-            **where,
+            source=experiment.source,
+            field=CHANNEL_FIELDS[channel],
         )
-    return residuals, window.dt
+    return residuals, experiment.steady().dt
 
 
 def _check_experiments(experiments: Sequence[Experiment]) -> None:

@@ -28,8 +28,9 @@ from . import __version__
 from ._files import atomic_path
 from .errors import DataError
 from .experiment import REQUIRED
-from .likelihood import ResidualLikelihood, residual_regressors
-from .physics import CHANNELS, channel_coefficients, discrete_matrices
+from .likelihood import ResidualLikelihood
+from .noise import channel_residuals
+from .physics import CHANNELS, discrete_matrices
 
 with warnings.catch_warnings():
     # arviz 0.2x announces its 1.x refactor on import (DESIGN §4 pins arviz<1).
@@ -135,11 +136,9 @@ def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
     observed, constant = {}, {}
     for i, experiment in enumerate(likelihood.experiments):
         for channel in likelihood.channels:
-            alpha, row = channel_coefficients(
-                likelihood.robot, d_lat, d_long, channel, experiment.dt
+            observed[f"residual_{channel}_{i}"] = channel_residuals(
+                experiment, likelihood.robot, d_lat, d_long, channel, likelihood.steady
             )
-            regressors = residual_regressors(experiment, channel, likelihood.steady)
-            observed[f"residual_{channel}_{i}"] = regressors @ np.r_[1.0, -alpha, -row]
         for key in (*REQUIRED, "vx", "vy"):
             values = getattr(experiment, key)
             if values is not None:

@@ -169,12 +169,14 @@ def test_bad_input_is_rejected(experiments, tmp_path):
     tiny = Experiment(
         t, short.yaw_rate[:20], short.omega_r[:20], short.omega_l[:20], source="x.csv"
     )
-    with pytest.raises(DataError, match=r"x\.csv: yaw: 19 one-step residuals"):
+    with pytest.raises(
+        DataError, match=r"x\.csv: yaw: the experiment holds 20 samples, 19 one-step residuals"
+    ):
         ResidualLikelihood([tiny], ROBOT, steady=False)
     flat = Experiment(
         short.t, np.full_like(short.t, 0.3), short.omega_r, short.omega_l, source="flat.csv"
     )
-    with pytest.raises(DataError, match=r"flat\.csv: yaw: channel is constant"):
+    with pytest.raises(DataError, match=r"flat\.csv: yaw_rate: channel 'yaw' is constant"):
         ResidualLikelihood([flat], ROBOT, steady=False)
     with pytest.raises(DataError, match="'vx' is not in this experiment"):
         ResidualLikelihood([flat], ROBOT, channels=("vx",), steady=False)
