@@ -205,6 +205,7 @@ def test_grid_experiment_file_given_as_profile(simulated, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("demo")
 def test_demo_writes_experiments_figures_and_results(tmp_path, capsys):
     folder = tmp_path / "demo"
     assert main(["demo", "--out", str(folder)]) == 0

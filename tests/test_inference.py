@@ -201,6 +201,7 @@ def _draws(idata, label: str) -> np.ndarray:
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("thesis")
 @pytest.mark.parametrize("case", ["thesis", "stiff"])
 def test_recovery_of_the_truth_with_converged_chains(case, yaw_vx_posterior):
     # With yaw and vx both damping coefficients are identified (vx's pole is
@@ -235,6 +236,7 @@ def test_recovery_of_the_truth_with_converged_chains(case, yaw_vx_posterior):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("thesis")
 def test_the_ridge_is_strong_with_yaw_alone_and_narrowed_by_vx(yaw_posterior, yaw_vx_posterior):
     yaw, with_vx = summarize(yaw_posterior), summarize(yaw_vx_posterior)
     assert yaw["corr_d_lat_d_long"] > 0.9
@@ -250,6 +252,7 @@ def test_the_ridge_is_strong_with_yaw_alone_and_narrowed_by_vx(yaw_posterior, ya
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("thesis")
 @pytest.mark.parametrize("family", ["gaussian", "exponential"])
 def test_fast_and_exact_engines_give_the_same_posterior(thesis_like, yaw_posterior, family):
     # Reweight the fast engine's draws by exact / fast likelihood: the
@@ -292,6 +295,7 @@ CALIBRATION_PRIOR = {
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("coverage")
 def test_hdi_coverage_is_calibrated_over_simulated_data_sets():
     runs = int(os.environ.get("BAYES_JACKAL_COVERAGE_RUNS", "20"))
     rng = np.random.default_rng(2026)
