@@ -25,6 +25,7 @@ from .kernels import FAMILIES
 from .likelihood import ENGINES, SENSOR_MODELS, ResidualLikelihood
 from .noise import analyse
 from .physics import CHANNELS
+from .plots import plot_grid
 from .posterior import save_posterior, summarize
 from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
@@ -74,8 +75,6 @@ def _grid_table(result: GridResult, say: Callable[[str], None]) -> None:
 
 
 def _save_grid_plot(result: GridResult, path: str | Path) -> Path:
-    from .plots import plot_grid
-
     fig, _ = plot_grid(result)
     fig.savefig(path, dpi=120)
     return Path(path)

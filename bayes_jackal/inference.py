@@ -122,11 +122,6 @@ class Prior:
         """Natural units from sampling coordinates."""
         return np.exp(z)
 
-    @staticmethod
-    def to_sampling(theta: np.ndarray) -> np.ndarray:
-        """Sampling coordinates from natural units."""
-        return np.log(theta)
-
     def inside(self, z: np.ndarray) -> np.ndarray:
         """Whether each point lies in the prior's support."""
         return np.all((z >= self.z_low) & (z <= self.z_high), axis=-1)
