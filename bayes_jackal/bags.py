@@ -181,6 +181,14 @@ class _Stream:
     recv: np.ndarray
     values: np.ndarray
 
+    def take(self, index: np.ndarray) -> None:
+        """Keep (and order) the messages at ``index``: an index array or a mask."""
+        self.stamp, self.recv, self.values = (
+            self.stamp[index],
+            self.recv[index],
+            self.values[index],
+        )
+
 
 def typestore(format: str) -> Typestore:
     """The rosbags typestore of a bag format (``"ros1"``: Noetic, ``"ros2"``: Humble)."""
@@ -478,25 +486,17 @@ def _clean(
             field=stream.topic,
         )
     if (steps < 0).any():
-        order = np.argsort(stream.stamp, kind="stable")
-        stream.stamp, stream.recv, stream.values = (
-            stream.stamp[order],
-            stream.recv[order],
-            stream.values[order],
-        )
+        stream.take(np.argsort(stream.stamp, kind="stable"))
         repairs.append(f"{stream.topic}: {(steps < 0).sum()} out-of-order stamps; sorted")
     repeated = np.flatnonzero(np.diff(stream.stamp) == 0) + 1
     if repeated.size:
         keep = np.ones(len(stream.stamp), bool)
         keep[repeated] = False
-        stream.stamp, stream.recv, stream.values = (
-            stream.stamp[keep],
-            stream.recv[keep],
-            stream.values[keep],
-        )
+        first_repeat = stream.stamp[repeated[0] - 1]
+        stream.take(keep)
         repairs.append(
             f"{stream.topic}: {repeated.size} duplicate stamps (first at "
-            f"{where(stream.stamp[repeated[0] - 1])}); kept the first message of each"
+            f"{where(first_repeat)}); kept the first message of each"
         )
     if len(stream.stamp) < MIN_SAMPLES:
         raise DataError(

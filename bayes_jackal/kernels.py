@@ -122,7 +122,8 @@ class Family:
         width = _check_widths(width if self.has_width else 1.0, self.width_name or "width")
         if self.name == "exponential":
             phi = np.exp(-dt / width)[..., None]
-            length = int(np.ceil(np.log(1e-16) / (2 * np.log(np.exp(-dt / width.max()))))) + 1
+            # phi^(2 L) = 1e-16 for the slowest decay: L = ln(1e16) tau / (2 dt).
+            length = int(np.ceil(np.log(1e16) * width.max() / (2 * dt))) + 1
             taps = phi ** np.arange(length)
         else:
             taps = _TAPS[self.name](width, dt)
