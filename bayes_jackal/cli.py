@@ -517,7 +517,9 @@ def build_parser() -> argparse.ArgumentParser:
         default="shared",
         help="with --pooled: noise parameters shared or per experiment",
     )
-    sample.add_argument("--engine", choices=ENGINES, default="whittle")
+    sample.add_argument(
+        "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
+    )
     sample.add_argument("--seed", type=int, default=None, help="seed: same seed, same chain")
     sample.add_argument("--walkers", type=int, default=0, help="ensemble size (default 32+)")
     sample.add_argument("--max-steps", type=int, default=20_000, help="step cap (20000)")
