@@ -18,7 +18,9 @@ from pathlib import Path
 from . import __version__
 from .bags import read_bag, write_bag
 from .errors import InputError
+from .evidence import Comparison, compare_families
 from .experiment import load_experiments, write_csv, write_netcdf
+from .export import export_prior, write_prior
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
 from .inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from .kernels import FAMILIES
@@ -26,7 +28,7 @@ from .likelihood import ENGINES, SENSOR_MODELS, ResidualLikelihood
 from .noise import analyse
 from .physics import CHANNELS
 from .plots import plot_grid
-from .posterior import save_posterior, summarize
+from .posterior import load_posterior, save_posterior, summarize
 from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
 
@@ -209,13 +211,23 @@ def cmd_residuals(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _channel_list(text: str) -> tuple[str, ...]:
-    """argparse type of ``--channels``: comma-separated, e.g. ``yaw,vx``."""
-    channels = tuple(c.strip() for c in text.split(",") if c.strip())
-    unknown = [c for c in channels if c not in CHANNELS]
-    if unknown or not channels:
-        raise argparse.ArgumentTypeError(f"unknown channel(s) {unknown}; use {','.join(CHANNELS)}")
-    return channels
+def _name_list(allowed, what: str) -> Callable[[str], tuple[str, ...]]:
+    """argparse type of a comma-separated list of names, e.g. ``--channels yaw,vx``."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        names = tuple(name.strip() for name in text.split(",") if name.strip())
+        unknown = [name for name in names if name not in allowed]
+        if unknown or not names:
+            raise argparse.ArgumentTypeError(
+                f"unknown {what} {unknown or text!r}; use some of {','.join(allowed)}"
+            )
+        return names
+
+    return parse
+
+
+_channel_list = _name_list(CHANNELS, "channel(s)")
+_family_list = _name_list(tuple(FAMILIES), "families")
 
 
 def _posterior_table(summary: dict, say: Callable[[str], None]) -> None:
@@ -271,39 +283,141 @@ def _run_sample(
     return summary
 
 
+def _sampler_settings(args: argparse.Namespace) -> SamplerSettings:
+    return SamplerSettings(
+        walkers=args.walkers, max_steps=args.max_steps, progress=not args.no_progress
+    )
+
+
+def _likelihood_options(args: argparse.Namespace) -> dict:
+    """ResidualLikelihood keywords from the shared modelling flags."""
+    return {
+        "channels": args.channels,
+        "shared_noise": args.noise == "shared",
+        "sensor": args.sensor_noise,
+        "engine": args.engine,
+    }
+
+
+def _data_sets(args: argparse.Namespace, experiments: list) -> dict[str, list]:
+    """One pooled data set, or one per experiment (keyed by experiment name)."""
+    if args.pooled or len(experiments) == 1:
+        return {"pooled" if len(experiments) > 1 else experiments[0].name: experiments}
+    return {e.name: [e] for e in experiments}
+
+
 def cmd_sample(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
     experiments = load_experiments(args.experiments)
     out_path = Path(args.out)
-    settings = SamplerSettings(
-        walkers=args.walkers, max_steps=args.max_steps, progress=not args.no_progress
-    )
+    settings = _sampler_settings(args)
     overrides = _prior_overrides(args.prior)
     signal.signal(signal.SIGTERM, _interrupt)
+    data_sets = _data_sets(args, experiments)
 
     def run(group: list, path: Path) -> dict:
         likelihood = ResidualLikelihood(
-            group,
-            robot,
-            family=args.family,
-            channels=args.channels,
-            shared_noise=args.noise == "shared",
-            sensor=args.sensor_noise,
-            engine=args.engine,
+            group, robot, family=args.family, **_likelihood_options(args)
         )
         return _run_sample(likelihood, settings, args.seed, path, out.say, overrides)
 
-    if args.pooled or len(experiments) == 1:
+    if len(data_sets) == 1:
         result = run(experiments, out_path)
     else:
         result = {
             "experiments": {
-                e.name: run([e], out_path.with_name(f"{out_path.stem}.{e.name}.nc"))
-                for e in experiments
+                name: run(group, out_path.with_name(f"{out_path.stem}.{name}.nc"))
+                for name, group in data_sets.items()
             }
         }
     out.result(result)
+    return EXIT_OK
+
+
+def _comparison_table(comparison: Comparison, say: Callable[[str], None]) -> None:
+    result = comparison.to_dict()
+    say(
+        f"{'family':16s} {'log Z':>12s} {'+-':>6s} {'lnB best':>9s} {'lnB white':>10s}  "
+        "width mean [94 % HDI] (s)"
+    )
+    for name, row in result["families"].items():
+        widths = "; ".join(
+            f"{label} {w['mean']:.4g} [{w['hdi_3%']:.4g}, {w['hdi_97%']:.4g}]"
+            for label, w in (row["width"] or {}).items()
+            if label != "hdi_prob"
+        )
+        versus_white = row["log_bayes_factor_vs_white"]
+        say(
+            f"{name:16s} {row['log_evidence']:12.2f} {row['log_evidence_err']:6.3f} "
+            f"{row['log_bayes_factor_vs_best']:9.2f} "
+            f"{'' if versus_white is None else f'{versus_white:10.2f}':>10s}  {widths or '-'}"
+            + ("" if row["converged"] else "  NOT CONVERGED")
+        )
+        if "log_evidence_nested" in row:
+            say(
+                f"{'':16s} {row['log_evidence_nested']:12.2f} "
+                f"{row['log_evidence_nested_err']:6.3f}  (nested sampling)"
+            )
+    say(f"best: {result['best']}. Verdict: {result['verdict_text']}")
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
+    robot = _robot(args)
+    experiments = load_experiments(args.experiments)
+    folder = Path(args.out) if args.out else None
+    overrides = _prior_overrides(args.prior)
+    signal.signal(signal.SIGTERM, _interrupt)
+    results = {}
+    for name, group in _data_sets(args, experiments).items():
+        out.say(f"comparing {', '.join(args.families)} on {name} (bridge sampling)")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ConvergenceWarning)
+            comparison = compare_families(
+                group,
+                robot,
+                args.families,
+                _sampler_settings(args),
+                args.seed,
+                overrides,
+                lambda family, e: out.say(
+                    f"  {family}: log Z = {e.log_evidence:.2f} +- {e.error:.2f}"
+                ),
+                cross_check=args.nested,
+                **_likelihood_options(args),
+            )
+        for warning in caught:
+            if issubclass(warning.category, ConvergenceWarning):
+                print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
+        _comparison_table(comparison, out.say)
+        results[name] = comparison.to_dict()
+        if folder is not None:
+            for family, idata in comparison.posteriors.items():
+                save_posterior(idata, folder / f"{name}.{family}.nc")
+            (folder / f"{name}.compare.json").write_text(json.dumps(results[name], indent=2))
+            out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
+    out.result(results.popitem()[1] if len(results) == 1 else {"experiments": results})
+    return EXIT_OK
+
+
+def cmd_export_prior(args: argparse.Namespace) -> int:
+    out = _Reporter(False)
+    idata = load_posterior(args.posterior)
+    prior = export_prior(idata, args.order, source=args.posterior)
+    path = write_prior(prior, args.out)
+    noise = prior["noise"]
+    size = len(prior["generalised_coordinates"]["precision"])
+    out.say(
+        f"wrote {path}: {noise['family']} noise on {', '.join(noise['channels'])}, "
+        f"embedding order {args.order} ({size} x {size} precision), "
+        f"{prior['draws']['count']} posterior draws"
+    )
+    if not prior["converged"]:
+        print(
+            f"bayes-jackal: WARNING: {args.posterior} is NOT CONVERGED; the prior inherits that",
+            file=sys.stderr,
+        )
     return EXIT_OK
 
 
@@ -380,6 +494,43 @@ def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None
     )
     if json_flag:
         parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _add_model_flags(parser: argparse.ArgumentParser) -> None:
+    """Flags shared by sample and compare: channels, noise model, pooling, sampler."""
+    parser.add_argument(
+        "--channels", type=_channel_list, default=("yaw",), help="e.g. yaw,vx (default yaw)"
+    )
+    parser.add_argument(
+        "--sensor-noise",
+        choices=SENSOR_MODELS,
+        default="ma1",
+        help="sensor-noise footprint: ma1 (default) or a diagonal nugget",
+    )
+    parser.add_argument(
+        "--pooled", action="store_true", help="one posterior for all experiments (shared d)"
+    )
+    parser.add_argument(
+        "--noise",
+        choices=("shared", "per-experiment"),
+        default="shared",
+        help="with --pooled: noise parameters shared or per experiment",
+    )
+    parser.add_argument(
+        "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
+    )
+    parser.add_argument("--seed", type=int, default=None, help="seed: same seed, same chain")
+    parser.add_argument("--walkers", type=int, default=0, help="ensemble size (default 32+)")
+    parser.add_argument("--max-steps", type=int, default=20_000, help="step cap (20000)")
+    parser.add_argument(
+        "--prior",
+        nargs=3,
+        action="append",
+        default=[],
+        metavar=("NAME", "LOW", "HIGH"),
+        help="override a prior range, e.g. --prior d_lat 10 2000",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -499,41 +650,37 @@ def build_parser() -> argparse.ArgumentParser:
     sample.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
     sample.add_argument("--out", required=True, metavar="POSTERIOR.nc", help="posterior file")
     sample.add_argument("--family", choices=list(FAMILIES), default="gaussian")
-    sample.add_argument(
-        "--channels", type=_channel_list, default=("yaw",), help="e.g. yaw,vx (default yaw)"
-    )
-    sample.add_argument(
-        "--sensor-noise",
-        choices=SENSOR_MODELS,
-        default="ma1",
-        help="sensor-noise footprint: ma1 (default) or a diagonal nugget",
-    )
-    sample.add_argument(
-        "--pooled", action="store_true", help="one posterior for all experiments (shared d)"
-    )
-    sample.add_argument(
-        "--noise",
-        choices=("shared", "per-experiment"),
-        default="shared",
-        help="with --pooled: noise parameters shared or per experiment",
-    )
-    sample.add_argument(
-        "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
-    )
-    sample.add_argument("--seed", type=int, default=None, help="seed: same seed, same chain")
-    sample.add_argument("--walkers", type=int, default=0, help="ensemble size (default 32+)")
-    sample.add_argument("--max-steps", type=int, default=20_000, help="step cap (20000)")
-    sample.add_argument(
-        "--prior",
-        nargs=3,
-        action="append",
-        default=[],
-        metavar=("NAME", "LOW", "HIGH"),
-        help="override a prior range, e.g. --prior d_lat 10 2000",
-    )
-    sample.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_model_flags(sample)
     _add_common(sample)
     sample.set_defaults(func=cmd_sample)
+
+    compare = commands.add_parser("compare", help="noise-filter families ranked by evidence")
+    compare.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    compare.add_argument(
+        "--families",
+        type=_family_list,
+        default=tuple(FAMILIES),
+        metavar="white,gaussian,...",
+        help=f"comma-separated families ({','.join(FAMILIES)})",
+    )
+    compare.add_argument("--out", metavar="DIR", help="save each family's posterior here")
+    compare.add_argument(
+        "--nested",
+        action="store_true",
+        help="cross-check each evidence by nested sampling (dynesty; slow)",
+    )
+    _add_model_flags(compare)
+    _add_common(compare)
+    compare.set_defaults(func=cmd_compare)
+
+    export = commands.add_parser("export-prior", help="Active Inference (DEM) prior as JSON")
+    export.add_argument("posterior", metavar="POSTERIOR.nc", help="posterior file from sample")
+    export.add_argument("--out", required=True, metavar="prior.json", help="output JSON")
+    export.add_argument(
+        "--order", type=int, default=2, help="embedding order P of generalised coordinates (2)"
+    )
+    _add_common(export, json_flag=False)
+    export.set_defaults(func=cmd_export_prior)
     return parser
 
 

@@ -126,11 +126,16 @@ class Prior:
         """Whether each point lies in the prior's support."""
         return np.all((z >= self.z_low) & (z <= self.z_high), axis=-1)
 
-    def draw(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` prior draws in z from a scrambled Sobol design, shape (n, P)."""
-        u = scipy.stats.qmc.Sobol(len(self.names), scramble=True, seed=rng).random(n)
+    def from_unit(self, u: np.ndarray) -> np.ndarray:
+        """z of the prior quantiles ``u`` in [0, 1]^P: maps uniform draws to prior draws."""
         uniform = np.log(self.low + u * (self.high - self.low))
         return np.where(self.log_uniform, self.z_low + u * (self.z_high - self.z_low), uniform)
+
+    def draw(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` prior draws in z from a scrambled Sobol design, shape (n, P)."""
+        return self.from_unit(
+            scipy.stats.qmc.Sobol(len(self.names), scramble=True, seed=rng).random(n)
+        )
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ from .experiment import REQUIRED
 from .likelihood import ResidualLikelihood
 from .noise import channel_residuals
 from .physics import CHANNELS, discrete_matrices
+from .robot import RobotProfile, load_profile
 
 with warnings.catch_warnings():
     # arviz 0.2x announces its 1.x refactor on import (DESIGN §4 pins arviz<1).
@@ -42,7 +43,9 @@ __all__ = [
     "az",
     "build_inference_data",
     "load_posterior",
+    "parameter_draws",
     "parameter_variables",
+    "posterior_robot",
     "save_posterior",
     "summarize",
 ]
@@ -146,6 +149,22 @@ def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
     return observed, constant
 
 
+#: Robot-profile fields a posterior keeps, enough to rebuild its model.
+_ROBOT_CONSTANTS = (
+    "name",
+    "mass",
+    "yaw_inertia",
+    "half_wheelbase",
+    "half_track",
+    "wheel_radius",
+    "wheel_separation",
+    "wheel_separation_multiplier",
+    "conversion",
+    "rate",
+    "source",
+)
+
+
 def _attributes(likelihood: ResidualLikelihood, prior, diagnostics: dict) -> dict:
     robot = likelihood.robot
     experiments = [
@@ -179,19 +198,7 @@ def _attributes(likelihood: ResidualLikelihood, prior, diagnostics: dict) -> dic
                 strict=True,
             )
         },
-        "robot": {
-            key: getattr(robot, key)
-            for key in (
-                "name",
-                "mass",
-                "yaw_inertia",
-                "half_wheelbase",
-                "half_track",
-                "wheel_radius",
-                "rate",
-                "source",
-            )
-        },
+        "robot": {key: getattr(robot, key) for key in _ROBOT_CONSTANTS},
         "experiments": experiments,
         **diagnostics,
     }
@@ -211,6 +218,36 @@ def parameter_variables(idata: az.InferenceData) -> list[str]:
     """The sampled parameters' variable names (d_lat, d_long, then the noise)."""
     skip = {"ratio", "Ad", "Bd"}
     return [name for name in idata.posterior.data_vars if name not in skip]
+
+
+def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
+    """The chain of a posterior in parameter-vector order, and its log posterior.
+
+    Returns
+    -------
+    draws : ndarray, shape (draws, walkers, P)
+        Parameters in natural units, ordered as the ``parameter_names``
+        attribute (d_lat, d_long, then each noise group's parameters).
+    lp : ndarray, shape (draws, walkers)
+        Log posterior in sampling coordinates (z = log theta).
+    """
+    posterior = idata.posterior
+    names = json.loads(posterior.attrs["parameter_names"])
+    bases = [name.split("[")[0] for name in names]
+    per_group = len(dict.fromkeys(bases[2:]))
+    columns = []
+    for j, base in enumerate(bases):
+        variable = posterior[base]
+        if "noise_group" in variable.dims:
+            variable = variable.isel(noise_group=(j - 2) // per_group)
+        columns.append(variable.transpose("draw", "chain").values)
+    return np.stack(columns, axis=-1), idata.sample_stats["lp"].transpose("draw", "chain").values
+
+
+def posterior_robot(idata: az.InferenceData) -> RobotProfile:
+    """The robot profile a posterior was sampled with (its constants, validated)."""
+    stored = json.loads(idata.posterior.attrs["robot"])
+    return load_profile().replace(**{k: v for k, v in stored.items() if k in _ROBOT_CONSTANTS})
 
 
 def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:

@@ -333,3 +333,63 @@ def test_ingest_topic_override(tmp_path, capsys):
     code = main(["ingest", bag, "--out", str(tmp_path / "b"), "--topic", "lidar", "/scan"])
     assert code == 2 and "unknown topic role" in capsys.readouterr().err
     assert main(["ingest", bag, "--out", str(tmp_path / "c"), "--topic", "imu", "/imu/data"]) == 0
+
+
+QUICK_COMPARE = [
+    "--families",
+    "white,gaussian",
+    "--max-steps",
+    "300",
+    "--seed",
+    "2",
+    "--no-progress",
+]
+
+
+def test_compare_prints_the_contract_json_and_keeps_posteriors(simulated, tmp_path, capsys):
+    folder = tmp_path / "compare"
+    code = main(["compare", simulated[0], *QUICK_COMPARE, "--out", str(folder), "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    payload = json.loads(captured.out)
+    assert set(payload["families"]) == {"white", "gaussian"}
+    for row in payload["families"].values():
+        assert {"log_evidence", "log_evidence_err", "log_bayes_factor_vs_white"} <= set(row)
+        assert np.isfinite(row["log_evidence"]) and row["log_evidence_err"] > 0
+    gaussian = payload["families"]["gaussian"]
+    assert gaussian["log_bayes_factor_vs_white"] == pytest.approx(
+        gaussian["log_evidence"] - payload["families"]["white"]["log_evidence"]
+    )
+    assert payload["families"]["white"]["width"] is None
+    assert gaussian["width"]["sigma_h"]["hdi_3%"] < gaussian["width"]["sigma_h"]["hdi_97%"]
+    assert payload["best"] in payload["families"]
+    assert payload["verdict"] in ("coloured", "not coloured", "inconclusive")
+    assert payload["verdict_text"].startswith(payload["verdict"])
+    # The simulated runs carry Gaussian-coloured noise (sigma_h = 0.047 s):
+    # even a short chain puts gaussian hundreds of nats ahead of white.
+    assert payload["verdict"] == "coloured"
+    assert "Verdict: coloured" in captured.err
+    assert (folder / "v1_01.gaussian.nc").is_file() and (folder / "v1_01.compare.json").is_file()
+
+
+def test_compare_several_experiments_without_pooling(simulated, capsys):
+    code = main(["compare", *simulated, *QUICK_COMPARE, "--families", "white", "--json"])
+    payload = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+
+
+@pytest.mark.parametrize(
+    ("extra", "pattern"),
+    [
+        (["--families", "white,pink"], r"unknown families \['pink'\]"),
+        (["--families", "white,white"], r"families must be distinct"),
+        (["--prior", "sigma_h", "1", "0.1"], r"priors\.sigma_h"),
+    ],
+)
+def test_compare_bad_input_exits_2(simulated, capsys, extra, pattern):
+    code = main(["compare", simulated[0], *QUICK_COMPARE, *extra])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "Traceback" not in captured.err
+    assert re.search(pattern, captured.err), captured.err

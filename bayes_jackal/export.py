@@ -1,0 +1,271 @@
+"""Priors for Active Inference (DEM) filters, exported from a posterior (DESIGN §4).
+
+A DEM filter needs the model (A, B, C = I, or its discrete Ad, Bd at the
+sample time dt) and the precision of the process noise in generalised
+coordinates: the noise and its first P time derivatives. For a stationary
+noise of autocorrelation rho, the covariance of (w, w', ..., w^(P)) is
+sigma^2 V with
+
+    V[i, j] = (-1)^i rho^(i+j)(0)       (zero when i + j is odd),
+
+and independent channels give the precision
+
+    Pi = sum_c inv(V_c) kron e_c e_c' / s_c^2  ( = inv(V) kron inv(Sigma_w)
+                                                 when all V_c are equal),
+
+ordered derivative-major: row i * n_channels + c is derivative i of channel c.
+V exists up to order P only when rho has 2P derivatives at 0, i.e. when the
+noise is P times mean-square differentiable:
+
+- ``gaussian``: rho(t) = exp(-t^2 / (4 sigma_h^2)), every order:
+  rho^(2m)(0) = (-1)^m (2m)! / (m! (4 sigma_h^2)^m), so rho''(0) =
+  -1 / (2 sigma_h^2) and rho''''(0) = 3 / (4 sigma_h^4).
+- ``triangular`` (half-base w): order 1, rho''(0) = -3 / w^2.
+- ``exponential``, ``moving-average``, ``white``: order 0 only (rho has a
+  corner at 0: their noise has no derivative).
+
+These are the continuous-time autocorrelations of which the sampled
+kernels' discrete ones are the samples (exactly so in the limit dt -> 0).
+Everything is averaged over posterior draws, so the exported precision
+carries the uncertainty of the widths, the noise levels and the damping.
+
+The process noise of the fitted model is per step: x[k+1] = Ad x[k] + Bd
+u[k] + w[k] with sd sigma_c. Held constant over a step, a continuous-time
+noise w~ in dx/dt = A x + B u + w~ gives w[k] = w~ (Ad - 1) / A, so
+s_c = sigma_c A / (Ad - 1) [channel units / s] is its sd; ``Pi`` uses s_c.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import scipy.special
+
+from . import __version__
+from ._files import atomic_path
+from .errors import InputError
+from .kernels import get_family
+from .physics import CHANNELS, continuous_matrices, discrete_matrices
+from .posterior import az, parameter_draws, posterior_robot, summarize
+
+__all__ = [
+    "PRIOR_FORMAT",
+    "autocorrelation_derivatives",
+    "export_prior",
+    "temporal_covariance",
+    "write_prior",
+]
+
+PRIOR_FORMAT = "bayes_jackal.prior/1"
+#: Highest embedding order with a defined V, per family (see the module doc).
+MAX_ORDER = {
+    "gaussian": None,
+    "triangular": 1,
+    "exponential": 0,
+    "moving-average": 0,
+    "white": 0,
+}
+#: Posterior draws written beside the averaged matrices.
+MAX_DRAWS = 1000
+
+
+def _check_order(family: str, order: int) -> None:
+    limit = MAX_ORDER[get_family(family).name]
+    if not isinstance(order, (int, np.integer)) or order < 0:
+        raise InputError(f"embedding order must be an integer >= 0, got {order!r}", field="order")
+    if limit is not None and order > limit:
+        raise InputError(
+            f"the {family} family's autocorrelation has no derivative of order {2 * order} at "
+            f"lag 0 (its noise is not differentiable): generalised coordinates exist up to "
+            f"order {limit}, got {order}",
+            field="order",
+        )
+
+
+def autocorrelation_derivatives(family: str, width: np.ndarray, order: int) -> np.ndarray:
+    """rho^(n)(0) for n = 0 .. 2 ``order`` of a family's continuous autocorrelation.
+
+    Parameters
+    ----------
+    family : str
+    width : array_like
+        Kernel width [s] (sigma_h of the Gaussian); ignored for white noise.
+    order : int
+        Embedding order P.
+
+    Returns
+    -------
+    ndarray, shape (..., 2 P + 1)
+        Derivatives [1/s^n]; the odd ones are zero (rho is even).
+
+    Raises
+    ------
+    InputError
+        When the family's noise is not P times differentiable.
+    """
+    _check_order(family, order)
+    width = np.asarray(width, float)
+    n = np.arange(2 * order + 1)
+    m = n // 2
+    if family == "gaussian":
+        # eq. 7-5's kernel exp(-t^2 / (2 s^2)) has rho(t) = exp(-t^2 / (4 s^2)).
+        log_size = scipy.special.gammaln(2 * m + 1) - scipy.special.gammaln(m + 1)
+        even = (-1.0) ** m * np.exp(log_size) / (4 * width[..., None] ** 2) ** m
+    else:
+        even = np.where(m == 0, 1.0, -3.0 / width[..., None] ** 2)  # triangular, m <= 1
+    return np.where(n % 2 == 0, even, 0.0)
+
+
+def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarray:
+    """V[i, j] = (-1)^i rho^(i+j)(0), the covariance of (w, w', .., w^(P)) / sigma^2.
+
+    Returns
+    -------
+    ndarray, shape (..., P + 1, P + 1)
+    """
+    derivatives = autocorrelation_derivatives(family, width, order)
+    i, j = np.indices((order + 1, order + 1))
+    return (-1.0) ** i * derivatives[..., i + j]
+
+
+def _stats(row: dict) -> dict:
+    return {key: row[key] for key in ("mean", "sd", "hdi_3%", "hdi_97%")}
+
+
+def _thinned(count: int, limit: int) -> np.ndarray:
+    """Evenly spaced indices of at most ``limit`` out of ``count`` draws."""
+    return np.unique(np.linspace(0, count - 1, min(count, limit)).astype(int))
+
+
+def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = None) -> dict:
+    """The Active Inference prior of a posterior, as a JSON-ready dict.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A posterior written by ``bayes-jackal sample`` (shared noise: one
+        noise group per channel).
+    order : int
+        Embedding order P of the generalised coordinates (P + 1 of them).
+    source : str, optional
+        Where the posterior was read from.
+
+    Returns
+    -------
+    dict
+        The schema ``bayes_jackal.prior/1`` (README, "Active Inference prior").
+
+    Raises
+    ------
+    InputError
+        For an order the family cannot give, or noise per experiment.
+    """
+    attrs = idata.posterior.attrs
+    family = str(attrs["family"])
+    channels = json.loads(attrs["channels"])
+    names = json.loads(attrs["parameter_names"])
+    _check_order(family, order)
+    width_name = get_family(family).width_name
+    per_group = 3 if width_name else 2
+    if (len(names) - 2) // per_group != len(channels):
+        raise InputError(
+            "noise parameters per experiment have no single prior: sample with shared noise",
+            source=source,
+            field="shared_noise",
+        )
+    robot = posterior_robot(idata)
+    dts = {round(e["dt"], 12) for e in json.loads(attrs["experiments"])}
+    if len(dts) != 1:
+        raise InputError(f"experiments differ in sample time: {sorted(dts)} s", source=source)
+    dt = dts.pop()
+    draws, _ = parameter_draws(idata)
+    draws = draws.reshape(-1, len(names))
+    d = draws[:, :2]
+    A_draws, _ = continuous_matrices(robot, d[:, 0], d[:, 1])
+    Ad_draws, _ = discrete_matrices(robot, d[:, 0], d[:, 1], dt)
+    index = [CHANNELS.index(c) for c in channels]
+    # Per-step sd sigma_c -> continuous-time sd s_c = sigma_c A / (Ad - 1).
+    pole = A_draws[:, index, index]
+    gain = pole / (Ad_draws[:, index, index] - 1.0)
+    noise = draws[:, 2:].reshape(len(draws), len(channels), per_group)
+    widths = noise[..., 0] if width_name else np.ones(noise.shape[:2])
+    continuous_sd = noise[..., -2] * gain
+    V = temporal_covariance(family, widths, order)  # (draws, channels, P+1, P+1)
+    S = np.linalg.inv(V)
+    n = len(channels)
+    precision = np.einsum("dcij,ce->dicje", S / continuous_sd[..., None, None] ** 2, np.eye(n))
+    precision = precision.reshape(len(draws), (order + 1) * n, (order + 1) * n)
+    mean_d = d.mean(axis=0)
+    A, B = continuous_matrices(robot, *mean_d)
+    Ad, Bd = discrete_matrices(robot, *mean_d, dt)
+    summary = summarize(idata)
+    kept = _thinned(len(draws), MAX_DRAWS)
+    label = (lambda base, c: base) if n == 1 else (lambda base, c: f"{base}[{c}]")
+    noise_stats = {
+        label(base, c): _stats(summary[label(base, c)])
+        for c in channels
+        for base in ([width_name] if width_name else []) + ["sigma_c", "sigma_n"]
+    }
+    continuous_stats = {
+        c: {"mean": float(continuous_sd[:, k].mean()), "sd": float(continuous_sd[:, k].std())}
+        for k, c in enumerate(channels)
+    }
+    return {
+        "format": PRIOR_FORMAT,
+        "bayes_jackal_version": __version__,
+        "source": source,
+        "converged": bool(attrs["converged"]),
+        "experiments": [e["name"] for e in json.loads(attrs["experiments"])],
+        "robot": json.loads(attrs["robot"]),
+        "dt": dt,
+        "states": list(CHANNELS),
+        "inputs": ["omega_r", "omega_l"],
+        "model": {
+            "at": "posterior mean of (d_lat, d_long)",
+            "A": A.tolist(),
+            "B": B.tolist(),
+            "C": np.eye(len(CHANNELS)).tolist(),
+            "Ad": Ad.tolist(),
+            "Bd": Bd.tolist(),
+        },
+        "damping": {
+            "names": ["d_lat", "d_long"],
+            "units": "N s/m",
+            "mean": mean_d.tolist(),
+            "covariance": np.cov(d.T).tolist(),
+            "d_lat": _stats(summary["d_lat"]),
+            "d_long": _stats(summary["d_long"]),
+            "ratio": _stats(summary["ratio"]),
+        },
+        "noise": {
+            "family": family,
+            "width_name": width_name,
+            "channels": channels,
+            "parameters": noise_stats,
+            "process_sd_continuous": continuous_stats,
+            "sensor": str(attrs["sensor"]),
+        },
+        "generalised_coordinates": {
+            "order": order,
+            "channels": channels,
+            "layout": "derivative-major: row i * len(channels) + c is derivative i of channel c",
+            "temporal_covariance": V.mean(axis=0).tolist(),
+            "temporal_precision": S.mean(axis=0).tolist(),
+            "noise_covariance": np.diag((continuous_sd**2).mean(axis=0)).tolist(),
+            "precision": precision.mean(axis=0).tolist(),
+        },
+        "draws": {
+            "count": len(kept),
+            **{name: draws[kept, j].tolist() for j, name in enumerate(names)},
+        },
+    }
+
+
+def write_prior(prior: dict, path: str | Path) -> Path:
+    """Write an exported prior as JSON, atomically."""
+    path = Path(path)
+    with atomic_path(path) as temporary:
+        temporary.write_text(json.dumps(prior, indent=1))
+    return path

@@ -1,0 +1,204 @@
+"""Evidence: bridge sampling and nested sampling against a closed form, and each other."""
+
+from __future__ import annotations
+
+import emcee
+import numpy as np
+import pytest
+import scipy.special
+
+from bayes_jackal import InputError, load_profile
+from bayes_jackal.evidence import (
+    Comparison,
+    Evidence,
+    bridge_sampling,
+    compare_families,
+    evidence_strength,
+    nested_sampling,
+)
+from bayes_jackal.inference import LogPosterior, Prior
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+
+ROBOT = load_profile()
+
+
+class WhiteOneStepRegression:
+    """White-noise one-step residuals of the yaw rate, linear in their coefficients.
+
+    y[k+1] = a y[k] + b (omega_r - omega_l)[k] + e[k], e ~ N(0, sigma^2): the
+    thesis' eq. 7-3 residual with (Ad, Bd) as free coefficients. With a and
+    b uniform on a box that holds the posterior and sigma log-uniform, the
+    evidence has a closed form (:meth:`log_evidence`).
+    """
+
+    def __init__(self, experiment, sigma_range=(1e-4, 1.0)):
+        yaw = experiment.yaw_rate
+        self.y = yaw[1:]
+        self.x = np.column_stack([yaw[:-1], (experiment.omega_r - experiment.omega_l)[:-1]])
+        self.fit, *_ = np.linalg.lstsq(self.x, self.y, rcond=None)
+        gram = self.x.T @ self.x
+        sd = np.sqrt(np.diag(np.linalg.inv(gram)) * self.rss / len(self.y))
+        # 12 posterior sds either side: the box truncates 4e-33 of the mass,
+        # and stays positive for the sampler's log coordinates.
+        low, high = self.fit - 12 * sd, self.fit + 12 * sd
+        self.prior = Prior(
+            ("a", "b", "sigma"),
+            np.array([*low, sigma_range[0]]),
+            np.array([*high, sigma_range[1]]),
+            np.array([False, False, True]),
+        )
+
+    @property
+    def rss(self) -> float:
+        return float(np.sum((self.y - self.x @ self.fit) ** 2))
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        theta = np.atleast_2d(theta)
+        residuals = self.y - theta[:, :2] @ self.x.T
+        sigma = theta[:, 2]
+        n = len(self.y)
+        return (
+            -0.5 * np.sum(residuals**2, axis=1) / sigma**2
+            - n * np.log(sigma)
+            - 0.5 * n * np.log(2 * np.pi)
+        )
+
+    def log_evidence(self) -> float:
+        """log Z in closed form.
+
+        Integrating the Gaussian in (a, b) gives (2 pi sigma^2)^(k/2)
+        det(X'X)^(-1/2) exp(-RSS / (2 sigma^2)) times the box's density; the
+        remaining integral over the log-uniform sigma is an incomplete gamma
+        function in u = RSS / (2 sigma^2), with m = N - k.
+        """
+        n, k = self.x.shape
+        m = n - k
+        low, high = self.prior.low, self.prior.high
+        volume = np.prod(high[:2] - low[:2])
+        u_low, u_high = self.rss / (2 * high[2] ** 2), self.rss / (2 * low[2] ** 2)
+        mass = scipy.special.gammainc(m / 2, u_high) - scipy.special.gammainc(m / 2, u_low)
+        return float(
+            -np.log(volume)
+            - np.log(np.log(high[2] / low[2]))
+            - 0.5 * m * np.log(2 * np.pi)
+            - 0.5 * np.linalg.slogdet(self.x.T @ self.x)[1]
+            + np.log(0.5)
+            - 0.5 * m * np.log(self.rss / 2)
+            + scipy.special.gammaln(m / 2)
+            + np.log(mass)
+        )
+
+
+@pytest.fixture(scope="module")
+def white_regression():
+    noise = NoiseSettings(family="white", sigma_n=(0.0, 0.0, 0.0))
+    return WhiteOneStepRegression(simulate_experiment(ROBOT, 110.0, 30.0, "v2", noise, rng=11))
+
+
+def _emcee_chain(log_posterior, centre, seed, steps=2000, walkers=24):
+    """A real emcee chain (burn-in and thinning as the package does)."""
+    rng = np.random.default_rng(seed)
+    start = centre + 1e-4 * rng.standard_normal((walkers, len(centre)))
+    sampler = emcee.EnsembleSampler(walkers, len(centre), log_posterior, vectorize=True)
+    moves_state = np.random.RandomState(seed).get_state()
+    sampler.run_mcmc(emcee.State(start, random_state=moves_state), steps)
+    tau = np.max(sampler.get_autocorr_time(tol=0))
+    discard, thin = int(5 * tau), max(1, int(tau / 2))
+    return sampler.get_chain(discard=discard, thin=thin), sampler.get_log_prob(
+        discard=discard, thin=thin
+    )
+
+
+def test_bridge_sampling_matches_the_closed_form_within_its_error(white_regression):
+    model = white_regression
+    log_posterior = LogPosterior(model, model.prior)
+    centre = np.log([*model.fit, np.sqrt(model.rss / len(model.y))])
+    exact = model.log_evidence()
+    z_scores = []
+    for seed in range(4):
+        chain, lp = _emcee_chain(log_posterior, centre, seed)
+        estimate = bridge_sampling(log_posterior, chain, lp, rng=seed)
+        assert estimate.error < 0.05
+        z_scores.append((estimate.log_evidence - exact) / estimate.error)
+    # A calibrated error makes each z ~ N(0, 1): |z| < 4 fails with
+    # probability 6e-5 per run; the mean of 4 has sd 0.5, |mean| < 2 (4 sd).
+    assert np.all(np.abs(z_scores) < 4), z_scores
+    assert abs(np.mean(z_scores)) < 2, z_scores
+
+
+def test_bridge_sampling_recomputes_the_density_when_not_given(white_regression):
+    model = white_regression
+    log_posterior = LogPosterior(model, model.prior)
+    centre = np.log([*model.fit, np.sqrt(model.rss / len(model.y))])
+    chain, lp = _emcee_chain(log_posterior, centre, 0, steps=600)
+    given = bridge_sampling(log_posterior, chain, lp, rng=1)
+    recomputed = bridge_sampling(log_posterior, chain, None, rng=1)
+    assert recomputed.log_evidence == pytest.approx(given.log_evidence, abs=1e-9)
+
+
+def test_nested_sampling_matches_the_closed_form_within_its_error(white_regression):
+    model = white_regression
+    estimate = nested_sampling(model, model.prior, rng=3, live_points=300)
+    # dynesty's error is the sd of log Z; 4 sd fails once in 16,000 runs.
+    assert abs(estimate.log_evidence - model.log_evidence()) < 4 * estimate.error
+    assert estimate.error < 0.5
+
+
+def test_bridge_sampling_rejects_a_short_or_misshapen_chain():
+    with pytest.raises(InputError, match="draws >= 8"):
+        bridge_sampling(lambda z: -np.sum(z**2, axis=1), np.zeros((4, 8, 2)))
+    with pytest.raises(InputError, match="draws >= 8"):
+        bridge_sampling(lambda z: -np.sum(z**2, axis=1), np.zeros((40, 2)))
+
+
+def test_kass_raftery_words():
+    assert evidence_strength(0.5) == "not worth more than a bare mention"
+    assert evidence_strength(-2.0) == "positive"
+    assert evidence_strength(4.0) == "strong"
+    assert evidence_strength(30.0) == "very strong"
+
+
+@pytest.mark.parametrize(
+    ("white", "coloured", "label"),
+    [
+        ((100.0, 0.1), (120.0, 0.1), "coloured"),
+        ((100.0, 0.1), (101.5, 0.1), "inconclusive"),
+        # 4 nats but an error of 1 each: 4 - 2 * 1.41 < 3 stays inconclusive.
+        ((100.0, 1.0), (104.0, 1.0), "inconclusive"),
+        ((100.0, 0.1), (98.0, 0.1), "not coloured"),
+    ],
+)
+def test_verdict_rules(white, coloured, label):
+    comparison = Comparison(
+        ["run"],
+        {
+            "white": Evidence(*white, "test"),
+            "gaussian": Evidence(*coloured, "test"),
+        },
+        {},
+    )
+    assert comparison.verdict()[0] == label
+
+
+def test_unknown_or_repeated_families_are_refused():
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=1)
+    for families in (("gaussian", "pink"), ("white", "white"), ()):
+        with pytest.raises(InputError, match="families"):
+            compare_families([run], ROBOT, families)
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("evidence")
+def test_bridge_and_nested_sampling_agree_on_coloured_noise():
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=4)
+    comparison = compare_families([run], ROBOT, ("gaussian",), seed=2)
+    bridge = comparison.evidence["gaussian"]
+    likelihood = ResidualLikelihood([run], ROBOT, family="gaussian")
+    nested = nested_sampling(
+        likelihood, Prior.for_likelihood(likelihood, ROBOT), rng=5, live_points=300, dlogz=0.5
+    )
+    # Independent estimates: their difference has sd sqrt(e1^2 + e2^2); 3 sd.
+    assert abs(bridge.log_evidence - nested.log_evidence) < 3 * np.hypot(
+        bridge.error, nested.error
+    )

@@ -1,0 +1,189 @@
+"""Active Inference export: generalised-coordinate covariances and the prior file."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import scipy.integrate
+import scipy.signal
+
+from bayes_jackal import InputError, load_profile
+from bayes_jackal.cli import main
+from bayes_jackal.export import (
+    PRIOR_FORMAT,
+    autocorrelation_derivatives,
+    export_prior,
+    temporal_covariance,
+)
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.physics import continuous_matrices, discrete_matrices
+from bayes_jackal.posterior import save_posterior
+from bayes_jackal.simulate import simulate_experiment
+
+ROBOT = load_profile()
+SHORT = SamplerSettings(max_steps=120, check_every=40, design_points=256)
+
+
+def test_gaussian_covariance_is_the_closed_form():
+    s = np.array([0.02, 0.047, 0.3])
+    V = temporal_covariance("gaussian", s, 2)
+    # rho(t) = exp(-t^2 / (4 s^2)): rho''(0) = -1/(2 s^2), rho''''(0) = 3/(4 s^4).
+    second, fourth = -1 / (2 * s**2), 3 / (4 * s**4)
+    expected = np.zeros((3, 3, 3))
+    expected[:, 0, 0] = 1
+    expected[:, 0, 2] = expected[:, 2, 0] = second
+    expected[:, 1, 1] = -second
+    expected[:, 2, 2] = fourth
+    np.testing.assert_allclose(V, expected, rtol=1e-12)
+    # Order 4: rho^(6)(0) = -15/(8 s^6) and rho^(8)(0) = 105/(16 s^8).
+    derivatives = autocorrelation_derivatives("gaussian", 0.1, 4)
+    np.testing.assert_allclose(derivatives[::2], [1, -50, 7500, -1.875e6, 6.5625e8], rtol=1e-12)
+    np.testing.assert_array_equal(derivatives[1::2], 0)
+
+
+@pytest.mark.parametrize(
+    ("family", "kernel", "reach"),
+    [
+        ("gaussian", lambda t, w: np.exp(-(t**2) / (2 * w**2)), 12.0),
+        ("triangular", lambda t, w: np.clip(1 - np.abs(t) / w, 0, None), 1.0),
+    ],
+)
+def test_second_derivative_is_minus_the_kernel_slope_energy(family, kernel, reach):
+    # rho''(0) = -int k'(t)^2 dt / int k(t)^2 dt for the kernel k: an
+    # independent quadrature of the kernels' derivatives.
+    w = 0.08
+    h = 1e-7
+
+    def slope(t):
+        return (kernel(t + h, w) - kernel(t - h, w)) / (2 * h)
+
+    limits = (-reach * w, reach * w)
+    energy = scipy.integrate.quad(lambda t: kernel(t, w) ** 2, *limits, points=[0])[0]
+    slope_energy = scipy.integrate.quad(lambda t: slope(t) ** 2, *limits, points=[0])[0]
+    rho2 = autocorrelation_derivatives(family, w, 1)[2]
+    assert rho2 == pytest.approx(-slope_energy / energy, rel=1e-6)
+
+
+def test_simulated_smooth_noise_has_the_exported_covariance():
+    # Unit-variance noise through an (untruncated, +-8 s) Gaussian kernel at
+    # dt = s/40; central differences give w' and w''. Their discretisation
+    # bias is ~(dt/s)^2 / 2 = 3e-4. 400,000 samples span 10,000 kernel
+    # widths: the variance estimates have relative sd of a few per cent,
+    # so 12 % is over 4 sd.
+    s, dt, n = 0.05, 0.05 / 40, 400_000
+    rng = np.random.default_rng(8)
+    t = np.arange(-8 * s, 8 * s + dt / 2, dt)
+    taps = np.exp(-(t**2) / (2 * s**2))
+    taps /= np.sqrt(np.sum(taps**2))
+    w = scipy.signal.fftconvolve(rng.standard_normal(n + len(t)), taps, mode="valid")
+    coordinates = np.stack(
+        [w[1:-1], (w[2:] - w[:-2]) / (2 * dt), (w[2:] - 2 * w[1:-1] + w[:-2]) / dt**2]
+    )
+    empirical = np.cov(coordinates)
+    V = temporal_covariance("gaussian", s, 2)
+    scale = np.sqrt(np.outer(np.diag(V), np.diag(V)))
+    np.testing.assert_allclose(empirical[V != 0], V[V != 0], rtol=0.12)
+    # Odd pairs are uncorrelated: |correlation| below 0.05 (> 4 sd of ~0.01).
+    assert np.all(np.abs((empirical / scale)[V == 0]) < 0.05)
+
+
+@pytest.mark.parametrize(
+    ("family", "order", "pattern"),
+    [
+        ("exponential", 1, "exponential family.*up to order 0"),
+        ("moving-average", 2, "up to order 0"),
+        ("white", 1, "up to order 0"),
+        ("triangular", 2, "up to order 1"),
+        ("gaussian", -1, "integer >= 0"),
+    ],
+)
+def test_orders_a_family_cannot_give_are_refused(family, order, pattern):
+    with pytest.raises(InputError, match=pattern):
+        temporal_covariance(family, 0.1, order)
+
+
+@pytest.fixture(scope="module")
+def yaw_vx_posterior():
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
+    likelihood = ResidualLikelihood([run], ROBOT, channels=("yaw", "vx"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        return sample_posterior(likelihood, SHORT, seed=1)
+
+
+def test_exported_precision_is_the_draw_average_of_kronecker_products(yaw_vx_posterior):
+    prior = export_prior(yaw_vx_posterior, order=2)
+    assert prior["format"] == PRIOR_FORMAT
+    channels = prior["noise"]["channels"]
+    assert channels == ["yaw", "vx"]
+    post = yaw_vx_posterior.posterior
+    d_lat, d_long = post["d_lat"].values.ravel(), post["d_long"].values.ravel()
+    sigma_h = post["sigma_h"].transpose("chain", "draw", "noise_group").values.reshape(-1, 2)
+    sigma_c = post["sigma_c"].transpose("chain", "draw", "noise_group").values.reshape(-1, 2)
+    # The obviously-right reference: one draw at a time, np.kron of
+    # inv(V_c) with e_c e_c' / s_c^2, s_c the continuous-time sd.
+    total = np.zeros((6, 6))
+    for k in range(len(d_lat)):
+        A, _ = continuous_matrices(ROBOT, d_lat[k], d_long[k])
+        Ad, _ = discrete_matrices(ROBOT, d_lat[k], d_long[k], ROBOT.dt)
+        for c, channel in enumerate(channels):
+            i = ["vx", "vy", "yaw"].index(channel)
+            s_c = sigma_c[k, c] * A[i, i] / (Ad[i, i] - 1)
+            unit = np.zeros((2, 2))
+            unit[c, c] = 1 / s_c**2
+            total += np.kron(
+                np.linalg.inv(temporal_covariance("gaussian", sigma_h[k, c], 2)), unit
+            )
+    np.testing.assert_allclose(
+        prior["generalised_coordinates"]["precision"], total / len(d_lat), rtol=1e-10
+    )
+    # The model is at the posterior mean of the damping; C = I.
+    A, B = continuous_matrices(ROBOT, d_lat.mean(), d_long.mean())
+    np.testing.assert_allclose(prior["model"]["A"], A, rtol=1e-12)
+    np.testing.assert_allclose(prior["model"]["B"], B, rtol=1e-12)
+    np.testing.assert_array_equal(prior["model"]["C"], np.eye(3))
+    np.testing.assert_allclose(prior["damping"]["mean"], [d_lat.mean(), d_long.mean()])
+    np.testing.assert_allclose(prior["damping"]["covariance"], np.cov(d_lat, d_long))
+    assert prior["draws"]["count"] == min(len(d_lat), 1000)
+    assert set(prior["noise"]["parameters"]) == {
+        f"{base}[{c}]" for base in ("sigma_h", "sigma_c", "sigma_n") for c in ("yaw", "vx")
+    }
+
+
+def test_export_prior_command_writes_versioned_json(yaw_vx_posterior, tmp_path, capsys):
+    posterior = save_posterior(yaw_vx_posterior, tmp_path / "posterior.nc")
+    before = posterior.read_bytes()
+    out = tmp_path / "prior.json"
+    code = main(["export-prior", str(posterior), "--out", str(out), "--order", "3"])
+    captured = capsys.readouterr()
+    assert code == 0
+    prior = json.loads(out.read_text())
+    assert prior["format"] == PRIOR_FORMAT
+    assert prior["generalised_coordinates"]["order"] == 3
+    assert np.shape(prior["generalised_coordinates"]["precision"]) == (8, 8)
+    # The short chain did not converge: the file and the terminal say so.
+    assert prior["converged"] is False
+    assert "NOT CONVERGED" in captured.err
+    assert posterior.read_bytes() == before
+
+
+def test_export_prior_bad_input(yaw_vx_posterior, tmp_path, capsys):
+    posterior = save_posterior(yaw_vx_posterior, tmp_path / "posterior.nc")
+    code = main(["export-prior", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "p.json")])
+    assert code == 2
+    assert "missing.nc" in capsys.readouterr().err
+    not_posterior = tmp_path / "notes.nc"
+    not_posterior.write_text("hello")
+    code = main(["export-prior", str(not_posterior), "--out", str(tmp_path / "p.json")])
+    assert code == 2
+    assert "notes.nc" in capsys.readouterr().err
+    code = main(
+        ["export-prior", str(posterior), "--out", str(tmp_path / "p.json"), "--order", "-2"]
+    )
+    assert code == 2
+    assert "order" in capsys.readouterr().err
+    assert not (tmp_path / "p.json").exists()
