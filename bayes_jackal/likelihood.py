@@ -44,7 +44,7 @@ import scipy.fft
 
 from .errors import InputError
 from .experiment import Experiment
-from .kernels import Family, get_family
+from .kernels import Family, as_rng, get_family
 from .noise import check_residual_window, residual_regressors
 from .physics import channel_coefficients
 from .robot import RobotProfile
@@ -56,6 +56,7 @@ __all__ = [
     "ResidualLikelihood",
     "debiased_whittle_loglike",
     "residual_autocovariance",
+    "sample_stationary",
     "spectral_loglike",
     "toeplitz_loglike",
 ]
@@ -112,6 +113,37 @@ def residual_autocovariance(
     else:
         acov[:, 0] += sigma_n**2
     return acov
+
+
+def sample_stationary(
+    acov: np.ndarray, rng: np.random.Generator | int | None = None
+) -> np.ndarray:
+    """Draws of stationary Gaussian series with the given autocovariances.
+
+    Circulant embedding (Dietrich & Newsam 1997): the autocovariance,
+    mirrored to length m = 2n - 2, is the first row of a circulant matrix
+    whose eigenvalues are its FFT; scaling complex white noise by their
+    square roots and transforming back gives a series with exactly that
+    covariance. Eigenvalues below zero (a short, not positive-definite
+    embedding) are clipped, an approximation only for long-memory series.
+
+    Parameters
+    ----------
+    acov : ndarray, shape (B, n)
+        Autocovariance at lags 0..n-1, n >= 2.
+    rng : numpy.random.Generator, int or None
+
+    Returns
+    -------
+    ndarray, shape (B, n)
+    """
+    acov = np.atleast_2d(acov)
+    circulant = np.concatenate([acov, acov[:, -2:0:-1]], axis=1)
+    m = circulant.shape[1]
+    eigenvalues = np.clip(np.fft.fft(circulant, axis=1).real, 0.0, None)
+    rng = as_rng(rng)
+    white = rng.standard_normal(circulant.shape) + 1j * rng.standard_normal(circulant.shape)
+    return np.fft.fft(np.sqrt(eigenvalues / m) * white, axis=1).real[:, : acov.shape[1]]
 
 
 def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) -> np.ndarray:

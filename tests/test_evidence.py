@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import emcee
 import numpy as np
 import pytest
@@ -16,7 +18,7 @@ from bayes_jackal.evidence import (
     evidence_strength,
     nested_sampling,
 )
-from bayes_jackal.inference import LogPosterior, Prior
+from bayes_jackal.inference import ConvergenceWarning, LogPosterior, Prior, SamplerSettings
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 
@@ -202,3 +204,46 @@ def test_bridge_and_nested_sampling_agree_on_coloured_noise():
     assert abs(bridge.log_evidence - nested.log_evidence) < 3 * np.hypot(
         bridge.error, nested.error
     )
+
+
+#: The family test's noise: widths of 0.15 s (11 samples) over sensor noise
+#: 10x below the process noise let the families' autocorrelation shapes show.
+DISTINCT = {"width": 0.15, "sigma_c": (0.005, 0.005, 0.02), "sigma_n": (0.003, 0.003, 0.002)}
+#: Chains capped at 1,000 steps (~10 tau): bridge sampling counts their
+#: autocorrelation, and the margins below are tens of nats.
+CAPPED = SamplerSettings(max_steps=1000, autocorr_multiple=10, design_points=512)
+
+
+def _compare(noise: NoiseSettings, seed: int) -> Comparison:
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        return compare_families([run], ROBOT, settings=CAPPED, seed=seed)
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("evidence")
+@pytest.mark.parametrize("family", ["gaussian", "exponential", "triangular", "moving-average"])
+def test_the_true_family_has_the_highest_evidence(family):
+    comparison = _compare(NoiseSettings(family=family, **DISTINCT), seed=5)
+    assert comparison.best == family, comparison.to_dict()["families"]
+    runner_up = max(
+        (name for name in comparison.evidence if name != family),
+        key=lambda name: comparison.evidence[name].log_evidence,
+    )
+    value, error = comparison.log_bayes_factor(family, runner_up)
+    # Measured margins over the runner-up: tens to hundreds of nats.
+    assert value - 3 * error > 3, (runner_up, value, error)
+    assert comparison.verdict()[0] == "coloured"
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("evidence-white")
+@pytest.mark.parametrize("seed", [5, 6])
+def test_white_noise_is_never_called_coloured(seed):
+    # Every coloured family contains white noise; the Occam factor of its
+    # width favours white by only ~1-2 nats, so 'inconclusive' is allowed.
+    comparison = _compare(NoiseSettings(family="white"), seed)
+    assert comparison.verdict()[0] in ("not coloured", "inconclusive")
+    coloured = max(v.log_evidence for k, v in comparison.evidence.items() if k != "white")
+    assert coloured - comparison.evidence["white"].log_evidence < 3

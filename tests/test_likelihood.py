@@ -12,6 +12,7 @@ from bayes_jackal.likelihood import (
     ResidualLikelihood,
     debiased_whittle_loglike,
     residual_autocovariance,
+    sample_stationary,
     toeplitz_loglike,
 )
 from bayes_jackal.simulate import simulate_experiment, simulate_series
@@ -180,3 +181,17 @@ def test_bad_input_is_rejected(experiments, tmp_path):
         ResidualLikelihood([flat], ROBOT, steady=False)
     with pytest.raises(DataError, match="'vx' is not in this experiment"):
         ResidualLikelihood([flat], ROBOT, channels=("vx",), steady=False)
+
+
+def test_stationary_draws_have_the_autocovariance_of_a_dense_cholesky():
+    # Gaussian-coloured residual plus MA(1) sensor noise, 40 lags.
+    family = FAMILIES["gaussian"]
+    one = np.ones(1)
+    acov = residual_autocovariance(family, 0.05 * one, 0.01 * one, 0.005 * one, 0.7 * one, DT, 40)
+    draws = sample_stationary(np.repeat(acov, 20_000, axis=0), rng=4)
+    # The reference: the dense Toeplitz covariance. Each sample covariance
+    # of 20,000 draws has sd <= sqrt(2 / 20000) acov[0] = 0.01 acov[0]: 5 sd.
+    dense = scipy.linalg.toeplitz(acov[0])
+    np.testing.assert_allclose(np.cov(draws.T), dense, atol=0.05 * acov[0, 0])
+    # The grand mean has variance sum(dense) / 40^2 / 20000.
+    assert abs(draws.mean()) < 5 * np.sqrt(dense.sum() / 40**2 / 20_000)
