@@ -29,6 +29,7 @@ from .noise import analyse
 from .physics import CHANNELS
 from .plots import plot_grid
 from .posterior import load_posterior, save_posterior, summarize
+from .report import FIGURE_FORMATS, write_report
 from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
 
@@ -496,6 +497,13 @@ def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None
         parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    out = _Reporter(False)
+    path = write_report(args.posteriors, args.out, args.formats)
+    out.say(f"wrote {path} and its figures in {path.parent / (path.stem + '_figures')}/")
+    return EXIT_OK
+
+
 def _add_model_flags(parser: argparse.ArgumentParser) -> None:
     """Flags shared by sample and compare: channels, noise model, pooling, sampler."""
     parser.add_argument(
@@ -681,6 +689,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_common(export, json_flag=False)
     export.set_defaults(func=cmd_export_prior)
+
+    report = commands.add_parser("report", help="HTML report with figures of posteriors")
+    report.add_argument(
+        "posteriors", nargs="+", metavar="POSTERIOR.nc", help="posterior files or folders"
+    )
+    report.add_argument("--out", required=True, metavar="report.html", help="output HTML")
+    report.add_argument(
+        "--formats",
+        type=_name_list(FIGURE_FORMATS, "figure formats"),
+        default=FIGURE_FORMATS,
+        metavar="png,svg",
+        help="figure files written beside the report (png,svg)",
+    )
+    report.set_defaults(func=cmd_report)
     return parser
 
 

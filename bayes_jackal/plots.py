@@ -6,14 +6,34 @@ nothing here opens a window or depends on a display.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from .gridsearch import GridResult
+from .noise import autocorrelation_bounds, sample_autocorrelation, spectrum
+from .physics import CHANNELS
+from .posterior import (
+    THESIS_RATIO,
+    model_states,
+    parameter_draws,
+    posterior_experiments,
+    predictive_residuals,
+)
 
-__all__ = ["plot_grid"]
+__all__ = [
+    "plot_autocorrelation",
+    "plot_damping",
+    "plot_grid",
+    "plot_model_fit",
+    "plot_residuals",
+    "plot_sigma_h",
+    "plot_spectrum",
+    "plot_traces",
+]
 
 
 def _figure(ax: Axes | None, **figure_options) -> tuple[Figure, Axes]:
@@ -58,4 +78,242 @@ def plot_grid(
     ax.set_xlabel("d_long [N s/m]")
     ax.set_ylabel("d_lat [N s/m]")
     ax.legend(loc="lower right", fontsize="small", facecolor="0.75")
+    return fig, ax
+
+
+#: Credible band drawn around posterior-predictive medians (the HDI mass).
+BAND = (3.0, 97.0)
+_UNITS = {"vx": "m/s", "vy": "m/s", "yaw": "rad/s"}
+_DATA_COLOUR, _MODEL_COLOUR = "0.25", "tab:red"
+
+
+def _figures(axes, rows: int, **figure_options) -> tuple[Figure, np.ndarray]:
+    """A figure with ``rows`` stacked axes, or the figure of the given ones."""
+    if axes is not None:
+        axes = np.atleast_1d(axes)
+        return axes[0].figure, axes
+    fig = Figure(layout="constrained", **figure_options)
+    return fig, np.atleast_1d(fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0])
+
+
+def _shade_window(ax: Axes, experiment) -> None:
+    if experiment.steady_window is not None:
+        ax.axvspan(*experiment.steady_window, color="tab:blue", alpha=0.07, lw=0)
+
+
+def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray]:
+    """Measured vx, vy, yaw rate against the model at the posterior (thesis figs. 5-5, 5-13..5-16).
+
+    The model runs without process noise from the measured initial state,
+    driven by the measured wheel speeds; the band spans the central 94 % of
+    50 posterior draws of the damping. The steady window is shaded.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A posterior written by ``bayes-jackal sample``.
+    index : int
+        Experiment of the posterior.
+    axes : sequence of 3 matplotlib.axes.Axes, optional
+
+    Returns
+    -------
+    fig, axes
+    """
+    experiment = posterior_experiments(idata)[index]
+    states = model_states(idata, index)
+    fig, axes = _figures(axes, 3, figsize=(7.0, 6.0))
+    low, median, high = np.percentile(states, [BAND[0], 50.0, BAND[1]], axis=0)
+    for i, (ax, channel) in enumerate(zip(axes, CHANNELS, strict=True)):
+        _shade_window(ax, experiment)
+        measured = experiment.channel(channel) if channel in experiment.channels else None
+        if measured is not None:
+            ax.plot(experiment.t, measured, color=_DATA_COLOUR, lw=0.6, label="measured")
+        ax.fill_between(experiment.t, low[:, i], high[:, i], color=_MODEL_COLOUR, alpha=0.3)
+        ax.plot(experiment.t, median[:, i], color=_MODEL_COLOUR, lw=1.2, label="model (94 % band)")
+        ax.set_ylabel(f"{channel} [{_UNITS[channel]}]")
+    axes[0].legend(loc="lower right", fontsize="small")
+    axes[0].set_title(f"{experiment.name}: model at the posterior against the data")
+    axes[-1].set_xlabel("t [s]")
+    return fig, axes
+
+
+def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray]:
+    """One-step residuals (eq. 7-3) at the posterior median, per channel (thesis figs. 7-1..7-6).
+
+    Returns
+    -------
+    fig, axes
+    """
+    experiment = posterior_experiments(idata)[index]
+    channels = _channels(idata)
+    fig, axes = _figures(axes, len(channels), figsize=(7.0, 1.0 + 1.8 * len(channels)))
+    for ax, channel in zip(axes, channels, strict=True):
+        residuals = idata.observed_data[f"residual_{channel}_{index}"].values
+        start = experiment.steady_window[0] if experiment.steady_window else experiment.t[0]
+        t = start + experiment.dt * np.arange(1, len(residuals) + 1)
+        ax.plot(t, residuals, color=_DATA_COLOUR, lw=0.6)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylabel(f"{channel} residual [{_UNITS[channel]}]")
+    axes[0].set_title(f"{experiment.name}: one-step residuals (eq. 7-3)")
+    axes[-1].set_xlabel("t [s]")
+    return fig, axes
+
+
+def _channels(idata) -> list[str]:
+    return json.loads(idata.posterior.attrs["channels"])
+
+
+def plot_autocorrelation(
+    idata, index: int = 0, channel: str = "yaw", lags: int = 30, ax: Axes | None = None, rng=0
+) -> tuple[Figure, Axes]:
+    """Residual autocorrelation with its white-noise bounds and the fitted filter's band.
+
+    Thesis figs. 7-12, 7-22..7-24 with the posterior added: the band spans
+    the central 94 % of the sample autocorrelations of 200 posterior-predictive
+    residual series (:func:`bayes_jackal.posterior.predictive_residuals`),
+    so it holds both the parameter uncertainty and the sampling noise of
+    an autocorrelation estimate. Bounds: +-1.96 / sqrt(n).
+
+    Returns
+    -------
+    fig, ax
+    """
+    fig, ax = _figure(ax, figsize=(6.0, 3.6))
+    residuals = idata.observed_data[f"residual_{channel}_{index}"].values
+    predicted = sample_autocorrelation(predictive_residuals(idata, index, channel, rng=rng), lags)
+    lag = np.arange(lags + 1)
+    low, median, high = np.percentile(predicted, [BAND[0], 50.0, BAND[1]], axis=0)
+    ax.fill_between(lag, low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %")
+    ax.plot(lag, median, color=_MODEL_COLOUR, lw=1)
+    ax.plot(
+        lag,
+        sample_autocorrelation(residuals, lags),
+        "o-",
+        color=_DATA_COLOUR,
+        ms=3,
+        lw=0.8,
+        label="residuals",
+    )
+    bound = autocorrelation_bounds(len(residuals))
+    ax.axhspan(-bound, bound, color="tab:blue", alpha=0.12, label="white-noise 95 % bounds")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("lag [samples]")
+    ax.set_ylabel("autocorrelation")
+    ax.set_title(f"{_experiment_name(idata, index)}: {channel} residual autocorrelation")
+    ax.legend(fontsize="small")
+    return fig, ax
+
+
+def plot_spectrum(
+    idata, index: int = 0, channel: str = "yaw", ax: Axes | None = None, rng=0
+) -> tuple[Figure, Axes]:
+    """Welch PSD of the residuals against the fitted filter's (thesis figs. 7-7..7-9).
+
+    The band spans the central 94 % of the Welch estimates of 200
+    posterior-predictive residual series, estimated exactly as the data's.
+
+    Returns
+    -------
+    fig, ax
+    """
+    fig, ax = _figure(ax, figsize=(6.0, 3.6))
+    dt = posterior_experiments(idata)[index].dt
+    residuals = idata.observed_data[f"residual_{channel}_{index}"].values
+    frequency, observed = spectrum(residuals, dt)
+    _, predicted = spectrum(predictive_residuals(idata, index, channel, rng=rng), dt)
+    low, median, high = np.percentile(predicted[:, 1:], [BAND[0], 50.0, BAND[1]], axis=0)
+    ax.fill_between(
+        frequency[1:], low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %"
+    )
+    ax.loglog(frequency[1:], median, color=_MODEL_COLOUR, lw=1)
+    ax.loglog(frequency[1:], observed[1:], color=_DATA_COLOUR, lw=0.8, label="residuals")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(f"PSD [({_UNITS[channel]})²/Hz]")
+    ax.set_title(f"{_experiment_name(idata, index)}: {channel} residual spectrum")
+    ax.legend(fontsize="small")
+    return fig, ax
+
+
+def _experiment_name(idata, index: int) -> str:
+    return json.loads(idata.posterior.attrs["experiments"])[index]["name"]
+
+
+def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
+    """Every walker's kept draws of every sampled parameter (after burn-in, thinned).
+
+    Returns
+    -------
+    fig, axes
+    """
+    draws, _ = parameter_draws(idata)
+    names = json.loads(idata.posterior.attrs["parameter_names"])
+    fig, axes = _figures(axes, len(names), figsize=(7.0, 1.0 + 1.2 * len(names)))
+    for ax, name, values in zip(axes, names, np.moveaxis(draws, -1, 0), strict=True):
+        ax.plot(values, lw=0.4, alpha=0.5)
+        ax.set_ylabel(name, fontsize="small")
+        if not name.startswith(("d_lat", "d_long")):
+            ax.set_yscale("log")
+    axes[0].set_title("walkers (kept draws)")
+    axes[-1].set_xlabel("draw")
+    return fig, axes
+
+
+def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
+    """Posterior draws of (d_long, d_lat) with the ridge and the thesis' ratio.
+
+    Returns
+    -------
+    fig, ax
+    """
+    fig, ax = _figure(ax, figsize=(5.5, 4.5))
+    d_lat = idata.posterior["d_lat"].values.ravel()
+    d_long = idata.posterior["d_long"].values.ravel()
+    ratio = float(np.median(d_lat / d_long))
+    ax.plot(d_long, d_lat, ".", ms=2, alpha=0.3, color="tab:blue", label="posterior draws")
+    span = np.array([d_long.min(), d_long.max()]) * np.array([0.9, 1.1])
+    ax.plot(
+        span, ratio * span, color=_MODEL_COLOUR, lw=1, label=f"ridge d_lat = {ratio:.3f} d_long"
+    )
+    ax.plot(span, THESIS_RATIO * span, "k--", lw=0.8, label="thesis 11/3")
+    truth = _truth(idata)
+    if truth:
+        ax.plot(truth["d_long"], truth["d_lat"], "k*", ms=12, label="truth (simulated)")
+    ax.set_xlabel("d_long [N s/m]")
+    ax.set_ylabel("d_lat [N s/m]")
+    ax.legend(fontsize="small")
+    return fig, ax
+
+
+def _truth(idata) -> dict | None:
+    """The shared truth of simulated experiments, when every one has it."""
+    truths = [e.get("truth") for e in json.loads(idata.posterior.attrs["experiments"])]
+    return truths[0] if truths and all(truths) else None
+
+
+#: Thesis table 7-1: sigma_h of the yaw residuals [s].
+THESIS_SIGMA_H = {"v1": 0.051, "v2": 0.041, "all 15": 0.047}
+
+
+def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
+    """Posterior of the Gaussian filter width sigma_h beside the thesis' table 7-1.
+
+    Returns
+    -------
+    fig, ax
+    """
+    fig, ax = _figure(ax, figsize=(6.0, 3.4))
+    variable = idata.posterior["sigma_h"]
+    groups = variable["noise_group"].values if "noise_group" in variable.dims else [None]
+    for group in groups:
+        values = (variable if group is None else variable.sel(noise_group=group)).values.ravel()
+        ax.hist(values, bins=60, density=True, alpha=0.6, label=f"posterior {group or ''}".strip())
+    for (label, value), style in zip(THESIS_SIGMA_H.items(), (":", "-.", "--"), strict=True):
+        ax.axvline(value, color="k", ls=style, lw=1, label=f"thesis {label}: {value} s")
+    truth = _truth(idata)
+    if truth and truth.get("sigma_h"):
+        ax.axvline(truth["sigma_h"], color=_MODEL_COLOUR, lw=1.5, label="truth (simulated)")
+    ax.set_xlabel("sigma_h [s]")
+    ax.set_ylabel("density")
+    ax.legend(fontsize="small")
     return fig, ax

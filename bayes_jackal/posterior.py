@@ -27,10 +27,11 @@ import numpy as np
 from . import __version__
 from ._files import atomic_path
 from .errors import DataError
-from .experiment import REQUIRED
-from .likelihood import ResidualLikelihood
+from .experiment import REQUIRED, Experiment
+from .kernels import get_family
+from .likelihood import ResidualLikelihood, residual_autocovariance, sample_stationary
 from .noise import channel_residuals
-from .physics import CHANNELS, discrete_matrices
+from .physics import CHANNELS, channel_coefficients, discrete_matrices, simulate
 from .robot import RobotProfile, load_profile
 
 with warnings.catch_warnings():
@@ -43,9 +44,13 @@ __all__ = [
     "az",
     "build_inference_data",
     "load_posterior",
+    "model_states",
     "parameter_draws",
     "parameter_variables",
+    "posterior_experiments",
+    "posterior_likelihood",
     "posterior_robot",
+    "predictive_residuals",
     "save_posterior",
     "summarize",
 ]
@@ -248,6 +253,118 @@ def posterior_robot(idata: az.InferenceData) -> RobotProfile:
     """The robot profile a posterior was sampled with (its constants, validated)."""
     stored = json.loads(idata.posterior.attrs["robot"])
     return load_profile().replace(**{k: v for k, v in stored.items() if k in _ROBOT_CONSTANTS})
+
+
+def posterior_experiments(idata: az.InferenceData) -> list[Experiment]:
+    """The measured experiments a posterior was sampled from, with names and windows."""
+    data = idata.constant_data
+    experiments = []
+    for i, meta in enumerate(json.loads(idata.posterior.attrs["experiments"])):
+        arrays = {
+            key: data[f"{key}_{i}"].values
+            for key in (*REQUIRED, "vx", "vy")
+            if f"{key}_{i}" in data
+        }
+        window = meta.get("steady_window")
+        experiments.append(
+            Experiment(
+                **arrays,
+                name=meta["name"],
+                series=meta.get("series"),
+                steady_window=None if window is None else tuple(window),
+                truth=meta.get("truth"),
+                source=meta.get("source") or "<memory>",
+            )
+        )
+    return experiments
+
+
+def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
+    """The likelihood a posterior was sampled with, rebuilt from its file."""
+    attrs = idata.posterior.attrs
+    return ResidualLikelihood(
+        posterior_experiments(idata),
+        posterior_robot(idata),
+        family=str(attrs["family"]),
+        channels=tuple(json.loads(attrs["channels"])),
+        shared_noise=bool(attrs["shared_noise"]),
+        sensor=str(attrs["sensor"]),
+        engine=str(attrs["engine"]),
+        steady=bool(attrs["steady"]),
+    )
+
+
+def _thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
+    """At most ``count`` evenly spaced posterior draws, shape (count, P)."""
+    draws, _ = parameter_draws(idata)
+    draws = draws.reshape(-1, draws.shape[-1])
+    return draws[np.unique(np.linspace(0, len(draws) - 1, min(count, len(draws))).astype(int))]
+
+
+def predictive_residuals(
+    idata: az.InferenceData,
+    index: int,
+    channel: str,
+    count: int = 200,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
+    """Posterior-predictive one-step residuals of one experiment and channel.
+
+    For each of ``count`` posterior draws, one series as long as the observed
+    residuals, drawn exactly from the model's residual covariance
+    (:func:`bayes_jackal.likelihood.sample_stationary`): what the fitted
+    noise filter says the residuals should look like.
+
+    Returns
+    -------
+    ndarray, shape (count, n)
+    """
+    likelihood = posterior_likelihood(idata)
+    experiment = likelihood.experiments[index]
+    theta = _thinned_draws(idata, count)
+    key = (channel, "all" if likelihood.shared_noise else experiment.name)
+    width, sigma_c, sigma_n = likelihood.noise_parameters(
+        theta, likelihood.noise_groups.index(key)
+    )
+    alpha, _ = channel_coefficients(
+        likelihood.robot, theta[:, 0], theta[:, 1], channel, experiment.dt
+    )
+    n = idata.observed_data[f"residual_{channel}_{index}"].size
+    acov = residual_autocovariance(
+        get_family(likelihood.family),
+        width,
+        sigma_c,
+        sigma_n,
+        alpha,
+        experiment.dt,
+        n,
+        likelihood.sensor,
+    )
+    return sample_stationary(acov, rng)
+
+
+def model_states(idata: az.InferenceData, index: int, count: int = 50) -> np.ndarray:
+    """The model's states over one experiment at ``count`` posterior draws of the damping.
+
+    The deterministic model (no process noise) driven by the measured wheel
+    speeds from the measured initial state, as in thesis figs. 5-5, 5-13..5-16.
+
+    Returns
+    -------
+    ndarray, shape (count, N, 3)
+        (vx, vy, yaw rate) at each sample.
+    """
+    experiment = posterior_experiments(idata)[index]
+    theta = _thinned_draws(idata, count)
+    x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
+    return simulate(
+        posterior_robot(idata),
+        theta[:, 0],
+        theta[:, 1],
+        experiment.inputs,
+        np.array([*x0, experiment.yaw_rate[0]]),
+        dt=experiment.dt,
+    )
 
 
 def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:

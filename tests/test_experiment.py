@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -396,3 +398,13 @@ def test_failed_netcdf_write_leaves_no_file(tmp_path, monkeypatch):
         write_netcdf(full_experiment(), target)
     assert target.read_bytes() == b"previous content"
     assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]
+
+
+def test_written_files_get_the_umask_permissions_not_owner_only(tmp_path):
+    previous = os.umask(0o022)
+    try:
+        path = write_netcdf(full_experiment(), tmp_path / "out.nc")
+    finally:
+        os.umask(previous)
+    # A report or experiment is shared: 0644 under the common umask 022.
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644

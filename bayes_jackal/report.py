@@ -1,0 +1,382 @@
+"""Self-contained HTML reports of posteriors, with every figure also saved for papers.
+
+One report covers one or more posterior files. Per file: a red banner when
+the chain did not converge; the data's provenance (simulated data are
+labelled with their truth); the summary table with its diagnostics; and the
+figures of :mod:`bayes_jackal.plots`: model against data, residuals,
+residual autocorrelation and spectrum with the fitted filter's
+posterior-predictive band (per experiment and channel), walker traces, the
+(d_long, d_lat) ridge and sigma_h beside thesis table 7-1. Posteriors that
+carry an evidence (``bayes-jackal compare --out``) add an evidence table per
+data set. Figures are embedded as PNG and written beside the report as PNG
+and SVG.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime
+import html
+import io
+import json
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from . import __version__, plots
+from ._files import atomic_path
+from .errors import InputError
+from .posterior import az, load_posterior, summarize
+
+__all__ = ["FIGURE_FORMATS", "collect_posteriors", "render_report", "write_report"]
+
+FIGURE_FORMATS = ("png", "svg")
+#: Resolution of the embedded and saved PNGs [dots per inch].
+DPI = 130
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
+h1 { font-size: 1.6em; } h2 { margin-top: 2em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+th:first-child, td:first-child { text-align: left; }
+.not-converged { color: #b00020; border: 2px solid #b00020; padding: 0.6em 1em;
+  font-weight: bold; font-size: 1.1em; }
+.simulated { background: #eef4fb; padding: 0.5em 1em; }
+figure { display: inline-block; margin: 0.5em; vertical-align: top; }
+figure img { max-width: 100%; } figcaption { font-size: 0.85em; color: #555; }
+"""
+
+# Records, for a test in a real browser, that every image decoded and no
+# script error happened; harmless for a reader.
+_SELF_CHECK = """
+window.reportErrors = [];
+window.addEventListener('error', function (e) {
+  window.reportErrors.push(String(e.message || (e.target && e.target.src) || e));
+}, true);
+window.addEventListener('load', function () {
+  var images = Array.prototype.slice.call(document.images);
+  var broken = images.filter(function (i) { return !(i.complete && i.naturalWidth > 0); });
+  document.body.setAttribute('data-images', images.length);
+  document.body.setAttribute('data-images-broken', broken.length);
+  document.body.setAttribute('data-errors', window.reportErrors.length);
+});
+"""
+
+
+def collect_posteriors(paths: list[str | Path]) -> list[Path]:
+    """Posterior files from paths and folders (a folder's ``*.nc`` files, sorted).
+
+    Raises
+    ------
+    InputError
+        For a missing path or a folder without ``.nc`` files.
+    """
+    files: list[Path] = []
+    for path in map(Path, paths):
+        if path.is_dir():
+            found = sorted(path.glob("*.nc"))
+            if not found:
+                raise InputError("folder holds no posterior files (*.nc)", source=str(path))
+            files += found
+        elif path.exists():
+            files.append(path)
+        else:
+            raise InputError("no such file or folder", source=str(path))
+    if not files:
+        raise InputError("no posterior files given", field="POSTERIOR")
+    return files
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-") or "figure"
+
+
+class _Figures:
+    """Renders figures to embedded PNG and saves them as PNG/SVG files."""
+
+    def __init__(self, folder: Path, formats: tuple[str, ...]):
+        unknown = [f for f in formats if f not in FIGURE_FORMATS]
+        if unknown:
+            raise InputError(
+                f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}", field="formats"
+            )
+        self.folder, self.formats, self.saved = folder, formats, []
+
+    def html(self, name: str, caption: str, draw: Callable[[], tuple[Figure, object]]) -> str:
+        fig, _ = draw()
+        for suffix in self.formats:
+            path = self.folder / f"{_slug(name)}.{suffix}"
+            with atomic_path(path) as temporary:
+                fig.savefig(temporary, format=suffix, dpi=DPI)
+            self.saved.append(path)
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=DPI)
+        data = base64.b64encode(buffer.getvalue()).decode("ascii")
+        return (
+            f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+        )
+
+
+def _number(value) -> str:
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return "-"
+    return f"{value:.4g}" if isinstance(value, float) else html.escape(str(value))
+
+
+def _table(header: list[str], rows: list[list]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{_number(v)}</td>" for v in row) + "</tr>" for row in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _truth_value(truth: dict | None, label: str, channels: list[str]):
+    """The simulated truth of a summary row (e.g. ``sigma_c[yaw]``), when known."""
+    if not truth:
+        return None
+    base, _, group = label.partition("[")
+    group = group.rstrip("]") or (channels[0] if len(channels) == 1 else "")
+    if base in ("width", "sigma_h"):
+        return truth.get("width")
+    if base == "ratio":
+        return truth["d_lat"] / truth["d_long"]
+    value = truth.get(base)
+    return value.get(group) if isinstance(value, dict) else value
+
+
+def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:
+    summary = summarize(idata)
+    channels = summary["channels"]
+    rows = [
+        [
+            label,
+            row["mean"],
+            row["sd"],
+            row["hdi_3%"],
+            row["hdi_97%"],
+            row.get("ess_autocorr"),
+            row["ess_bulk"],
+            row["r_hat"],
+            _truth_value(truth, label, channels),
+        ]
+        for label, row in summary.items()
+        if isinstance(row, dict) and "mean" in row
+    ]
+    table = _table(
+        [
+            "parameter",
+            "mean",
+            "sd",
+            "hdi 3%",
+            "hdi 97%",
+            "ESS (tau)",
+            "ESS bulk",
+            "R-hat",
+            "truth",
+        ],
+        rows,
+    )
+    attrs = idata.posterior.attrs
+    taus = summary["autocorr_time"]
+    diagnostics = (
+        f"<p>{summary['n_steps']} steps of {attrs['walkers']} walkers; longest "
+        f"autocorrelation time {max(taus.values()):.0f} steps "
+        f"({summary['n_steps'] / max(taus.values()):.0f} tau; converged when > "
+        f"{json.loads(attrs['settings'])['autocorr_multiple']:g} and stable); acceptance "
+        f"{float(attrs['acceptance_fraction']):.2f}; corr(d_lat, d_long) = "
+        f"{summary['corr_d_lat_d_long']:.3f}; thesis ratio 11/3 = 3.667. R-hat over walkers "
+        "is a secondary check: emcee's walkers are not independent chains.</p>"
+    )
+    return table + diagnostics
+
+
+def _evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
+    """Evidence tables, one per data set, from posteriors that carry one."""
+    data_sets: dict[tuple, list] = {}
+    for path, idata in posteriors:
+        attrs = idata.posterior.attrs
+        if "evidence" in attrs:
+            names = tuple(e["name"] for e in json.loads(attrs["experiments"]))
+            data_sets.setdefault(names, []).append((path, attrs))
+    parts = []
+    for names, members in data_sets.items():
+        evidence = {str(a["family"]): json.loads(a["evidence"]) for _, a in members}
+        best = max(evidence.values(), key=lambda e: e["log_evidence"])["log_evidence"]
+        white = evidence.get("white", {}).get("log_evidence")
+        rows = [
+            [
+                family,
+                e["log_evidence"],
+                e["log_evidence_err"],
+                e["log_evidence"] - best,
+                None if white is None else e["log_evidence"] - white,
+            ]
+            for family, e in sorted(evidence.items(), key=lambda item: -item[1]["log_evidence"])
+        ]
+        parts.append(
+            f"<h3>{html.escape(', '.join(names))}</h3>"
+            + _table(["family", "log Z", "error", "ln B vs best", "ln B vs white"], rows)
+        )
+    if not parts:
+        return ""
+    return (
+        "<h2>Evidence</h2><p>Log evidence by bridge sampling; ln B on Kass &amp; Raftery's "
+        "scale: &lt; 1 not worth a mention, 1-3 positive, 3-5 strong, &gt; 5 very strong.</p>"
+        + "".join(parts)
+    )
+
+
+def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, lags: int) -> str:
+    attrs = idata.posterior.attrs
+    experiments = json.loads(attrs["experiments"])
+    channels = json.loads(attrs["channels"])
+    family = str(attrs["family"])
+    title = f"{path.name}: {family} noise on {', '.join(channels)}"
+    truths = [e.get("truth") for e in experiments]
+    truth = truths[0] if truths and all(truths) else None
+    parts = [f"<section><h2>{html.escape(title)}</h2>"]
+    if not bool(attrs["converged"]):
+        parts.append(
+            '<div class="not-converged">NOT CONVERGED: the chain stopped at '
+            f"{attrs['n_steps']} steps, fewer than the convergence criterion needs. Treat "
+            "every number below as preliminary; resume the run with more steps.</div>"
+        )
+    names = ", ".join(e["name"] for e in experiments)
+    parts.append(
+        f"<p>Experiments ({len(experiments)}{', pooled' if len(experiments) > 1 else ''})"
+        f": {html.escape(names)}. Sensor noise {attrs['sensor']}, engine "
+        f"{attrs['engine']}.</p>"
+    )
+    if truth:
+        parts.append(
+            '<p class="simulated">SIMULATED data with known truth: d_lat = '
+            f"{truth['d_lat']:g}, d_long = {truth['d_long']:g} N s/m, {truth['family']} noise "
+            f"of width {truth['width']:g} s.</p>"
+        )
+    parts.append(_summary_section(idata, truth))
+    prefix = path.stem
+    parts.append(
+        figures.html(
+            f"{prefix}-damping",
+            "posterior of (d_long, d_lat) and the ridge",
+            lambda: plots.plot_damping(idata),
+        )
+    )
+    if family == "gaussian":
+        parts.append(
+            figures.html(
+                f"{prefix}-sigma_h",
+                "sigma_h beside thesis table 7-1",
+                lambda: plots.plot_sigma_h(idata),
+            )
+        )
+    parts.append(
+        figures.html(f"{prefix}-traces", "walker traces", lambda: plots.plot_traces(idata))
+    )
+    for i, experiment in enumerate(experiments):
+        name = experiment["name"]
+        parts.append(f"<h3>{html.escape(name)}</h3>")
+        parts.append(
+            figures.html(
+                f"{prefix}-{name}-model",
+                f"{name}: model against data",
+                lambda i=i: plots.plot_model_fit(idata, i),
+            )
+        )
+        parts.append(
+            figures.html(
+                f"{prefix}-{name}-residuals",
+                f"{name}: residuals",
+                lambda i=i: plots.plot_residuals(idata, i),
+            )
+        )
+        for channel in channels:
+            parts.append(
+                figures.html(
+                    f"{prefix}-{name}-{channel}-acf",
+                    f"{name}: {channel} autocorrelation",
+                    lambda i=i, c=channel: plots.plot_autocorrelation(idata, i, c, lags),
+                )
+            )
+            parts.append(
+                figures.html(
+                    f"{prefix}-{name}-{channel}-psd",
+                    f"{name}: {channel} spectrum",
+                    lambda i=i, c=channel: plots.plot_spectrum(idata, i, c),
+                )
+            )
+    parts.append("</section>")
+    return "".join(parts)
+
+
+def render_report(
+    posteriors: list[tuple[Path, az.InferenceData]], figures: _Figures, lags: int = 30
+) -> str:
+    """The HTML text of a report on loaded posteriors."""
+    created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    body = [
+        "<h1>bayes_jackal report</h1>",
+        f"<p>bayes_jackal {__version__}, {created}; posteriors: "
+        f"{html.escape(', '.join(str(p) for p, _ in posteriors))}. Figures as PNG and SVG in "
+        f"<code>{html.escape(figures.folder.name)}/</code>.</p>",
+    ]
+    stale = [p.name for p, idata in posteriors if not bool(idata.posterior.attrs["converged"])]
+    if stale:
+        body.append(
+            f'<div class="not-converged">NOT CONVERGED: {html.escape(", ".join(stale))}. '
+            "See the sections below.</div>"
+        )
+    body.append(_evidence_section(posteriors))
+    body += [_posterior_section(path, idata, figures, lags) for path, idata in posteriors]
+    return (
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+        "<title>bayes_jackal report</title>"
+        f"<style>{_STYLE}</style><script>{_SELF_CHECK}</script></head>"
+        f"<body>{''.join(body)}</body></html>"
+    )
+
+
+def write_report(
+    paths: list[str | Path],
+    out: str | Path,
+    formats: tuple[str, ...] = FIGURE_FORMATS,
+    lags: int = 30,
+) -> Path:
+    """Write the HTML report of posterior files, and its figures beside it.
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Posterior files (``bayes-jackal sample`` or ``compare --out``) or
+        folders of them.
+    out : str or Path
+        The HTML file; figures go to ``<out stem>_figures/``.
+    formats : tuple of str
+        Figure files to write, from ``("png", "svg")``.
+    lags : int
+        Lags of the autocorrelation figures.
+
+    Returns
+    -------
+    Path
+        The report.
+
+    Raises
+    ------
+    InputError
+        For missing files, empty folders, and files that are not posteriors.
+    """
+    out = Path(out)
+    posteriors = [(path, load_posterior(path)) for path in collect_posteriors(paths)]
+    figures = _Figures(out.parent / f"{out.stem}_figures", formats)
+    figures.folder.mkdir(parents=True, exist_ok=True)
+    text = render_report(posteriors, figures, lags)
+    with atomic_path(out) as temporary:
+        temporary.write_text(text, encoding="utf-8")
+    return out

@@ -1,0 +1,174 @@
+"""HTML reports: content, figure files, bad input, and rendering in a real browser."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import warnings
+from pathlib import Path
+
+import pytest
+
+from bayes_jackal import load_profile
+from bayes_jackal.cli import main
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.posterior import save_posterior
+from bayes_jackal.simulate import simulate_experiment
+
+ROBOT = load_profile()
+SHORT = SamplerSettings(max_steps=160, check_every=40, design_points=256)
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+#: Flags for headless Chromium as root in a sandbox without network.
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--enable-logging=stderr",
+    "--v=0",
+    "--virtual-time-budget=20000",
+]
+
+
+@pytest.fixture(scope="module")
+def posteriors(tmp_path_factory) -> dict[str, Path]:
+    """A short (unconverged) yaw+vx posterior, and the same marked converged."""
+    folder = tmp_path_factory.mktemp("posteriors")
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
+    likelihood = ResidualLikelihood([run], ROBOT, channels=("yaw", "vx"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        idata = sample_posterior(likelihood, SHORT, seed=1)
+    short = save_posterior(idata, folder / "short.nc")
+    idata.posterior.attrs["converged"] = 1
+    return {"short": short, "converged": save_posterior(idata, folder / "converged.nc")}
+
+
+def _report(paths, out: Path, *extra) -> tuple[int, str]:
+    code = main(["report", *map(str, paths), "--out", str(out), *extra])
+    return code, out.read_text() if out.exists() else ""
+
+
+def test_report_embeds_every_figure_and_saves_png_and_svg(posteriors, tmp_path, capsys):
+    code, text = _report([posteriors["converged"]], tmp_path / "report.html")
+    assert code == 0
+    images = re.findall(r'<img alt="[^"]*" src="data:image/png;base64,', text)
+    # damping, sigma_h, traces; model and residuals; acf and psd of 2 channels.
+    assert len(images) == 3 + 2 + 2 * 2
+    figures = tmp_path / "report_figures"
+    pngs, svgs = sorted(figures.glob("*.png")), sorted(figures.glob("*.svg"))
+    assert len(pngs) == len(svgs) == len(images)
+    assert all(p.read_bytes().startswith(b"\x89PNG") for p in pngs)
+    assert all(b"<svg" in p.read_bytes()[:2000] for p in svgs)
+    assert "NOT CONVERGED" not in text
+    assert "SIMULATED data with known truth" in text
+    for label in ("d_lat", "sigma_h[yaw]", "sigma_c[vx]", "ratio", "R-hat", "ESS (tau)"):
+        assert label in text
+
+
+def test_an_unconverged_posterior_says_so_at_the_top_in_red(posteriors, tmp_path):
+    code, text = _report([posteriors["short"]], tmp_path / "report.html", "--formats", "png")
+    assert code == 0
+    banner = text.index('<div class="not-converged">NOT CONVERGED')
+    assert banner < text.index("<section>")
+    assert re.search(r"\.not-converged \{ color: #b00020", text)
+    assert not list((tmp_path / "report_figures").glob("*.svg"))
+
+
+def test_an_evidence_table_appears_for_compared_families(posteriors, tmp_path):
+    # compare --out stores each family's evidence in its posterior's attributes.
+    simulated = tmp_path / "runs"
+    assert (
+        main(["simulate", "--out", str(simulated), "--seed", "2", "--v1", "0", "--v2", "1"]) == 0
+    )
+    folder = tmp_path / "compare"
+    arguments = ["--families", "white,gaussian", "--max-steps", "300", "--no-progress"]
+    assert main(["compare", str(simulated / "v2_01.nc"), *arguments, "--out", str(folder)]) == 0
+    code, text = _report([folder], tmp_path / "report.html", "--formats", "png")
+    assert code == 0
+    evidence = json.loads((folder / "v2_01.compare.json").read_text())
+    assert "<h2>Evidence</h2>" in text
+    assert f"{evidence['families']['gaussian']['log_evidence']:.4g}" in text
+
+
+@pytest.mark.parametrize(
+    ("make", "pattern"),
+    [
+        (lambda d: d / "absent.nc", r"absent\.nc: no such file"),
+        (lambda d: (d / "empty").mkdir() or d / "empty", r"empty: folder holds no posterior"),
+        (
+            lambda d: (d / "notes.nc").write_text("not netcdf") and d / "notes.nc",
+            r"notes\.nc: not a readable posterior",
+        ),
+    ],
+)
+def test_report_bad_input_exits_2_naming_the_file(tmp_path, capsys, make, pattern):
+    code, _ = _report([make(tmp_path)], tmp_path / "out" / "report.html")
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "Traceback" not in captured.err
+    assert re.search(pattern, captured.err), captured.err
+    assert not (tmp_path / "out" / "report.html").exists()
+
+
+def test_an_experiment_file_is_not_a_posterior(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path), "--seed", "2", "--v1", "0", "--v2", "1"]) == 0
+    code, _ = _report([tmp_path / "v2_01.nc"], tmp_path / "report.html")
+    assert code == 2
+    assert "v2_01.nc: not a bayes_jackal posterior" in capsys.readouterr().err
+
+
+def render(page: Path, tmp_path: Path) -> tuple[dict[str, int], list[str]]:
+    """Load a page in headless Chromium: the self-check's counts and console errors."""
+    result = subprocess.run(
+        [
+            CHROMIUM,
+            *CHROMIUM_FLAGS,
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--dump-dom",
+            page.resolve().as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    body = re.search(r"<body([^>]*)>", result.stdout)
+    assert body, result.stdout[:500]
+    counts = {k: int(v) for k, v in re.findall(r'data-([a-z-]+)="(\d+)"', body.group(1))}
+    console = [line for line in result.stderr.splitlines() if ":CONSOLE" in line]
+    return counts, console
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian package chromium is not installed")
+def test_the_report_renders_in_chromium_with_every_figure_loaded(posteriors, tmp_path):
+    page = tmp_path / "report.html"
+    assert (
+        _report([posteriors["short"], posteriors["converged"]], page, "--formats", "png")[0] == 0
+    )
+    counts, console = render(page, tmp_path)
+    assert counts == {"images": 18, "images-broken": 0, "errors": 0}, counts
+    assert console == []
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian package chromium is not installed")
+def test_the_browser_check_catches_a_broken_figure_and_a_script_error(tmp_path):
+    # The check above can fail: a page with a missing image and a bad script.
+    from bayes_jackal.report import _SELF_CHECK
+
+    page = tmp_path / "broken.html"
+    page.write_text(
+        f"<html><head><script>{_SELF_CHECK}</script></head><body>"
+        '<img src="missing.png"><script>no_such_function()</script></body></html>'
+    )
+    counts, console = render(page, tmp_path)
+    assert counts["images-broken"] == 1 and counts["errors"] >= 1
+    assert any("no_such_function" in line for line in console)
