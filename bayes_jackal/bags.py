@@ -853,7 +853,16 @@ def _quaternion(store: Typestore, heading: float) -> object:
     )
 
 
-def write_messages(messages: list[BagMessage], path: str | Path, format: str = "ros2") -> Path:
+#: Chunk compressions of ROS1 bags (rosbags' writer).
+ROS1_COMPRESSIONS = {"bz2": Writer1.CompressionFormat.BZ2, "lz4": Writer1.CompressionFormat.LZ4}
+
+
+def write_messages(
+    messages: list[BagMessage],
+    path: str | Path,
+    format: str = "ros2",
+    compression: str | None = None,
+) -> Path:
     """Write messages as a bag, atomically (a temporary file moved into place).
 
     Parameters
@@ -866,6 +875,8 @@ def write_messages(messages: list[BagMessage], path: str | Path, format: str = "
         ``.bag`` for ``"ros1"``; ``.mcap`` or ``.db3`` for ``"ros2"`` (a
         single storage file, which rosbags reads without the bag directory).
     format : {"ros1", "ros2"}
+    compression : {"bz2", "lz4"}, optional
+        Chunk compression of a ROS1 bag (bz2 shrinks a simulated run ~4x).
 
     Returns
     -------
@@ -873,6 +884,12 @@ def write_messages(messages: list[BagMessage], path: str | Path, format: str = "
     """
     path = Path(path)
     store = typestore(format)
+    if compression is not None and (format != "ros1" or compression not in ROS1_COMPRESSIONS):
+        raise InputError(
+            f"compression {compression!r} needs format ros1 and one of "
+            f"{sorted(ROS1_COMPRESSIONS)}",
+            field="compression",
+        )
     if format == "ros1" and path.suffix != ".bag":
         raise InputError(f"a ROS1 bag must end in .bag, got {path.name!r}", field="path")
     if format == "ros2" and path.suffix not in _ROS2_PLUGINS:
@@ -882,7 +899,10 @@ def write_messages(messages: list[BagMessage], path: str | Path, format: str = "
     with atomic_path(path) as temporary:
         if format == "ros1":
             temporary.unlink()
-            with Writer1(temporary) as writer:
+            writer = Writer1(temporary)
+            if compression is not None:
+                writer.set_compression(ROS1_COMPRESSIONS[compression])
+            with writer:
                 _write_all(writer, messages, store, store.serialize_ros1)
         else:
             with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.") as folder:
@@ -915,6 +935,7 @@ def write_bag(
     robot: RobotProfile,
     format: str = "ros2",
     rng: np.random.Generator | int | None = None,
+    compression: str | None = None,
 ) -> Path:
     """Write a simulated experiment as a realistic bag (:func:`bag_messages`).
 
@@ -929,9 +950,12 @@ def write_bag(
     format : {"ros1", "ros2"}
     rng : numpy.random.Generator, int or None
         Chooses the duplicated pose messages.
+    compression : {"bz2", "lz4"}, optional
+        Chunk compression of a ROS1 bag.
 
     Returns
     -------
     Path
     """
-    return write_messages(bag_messages(experiment, robot, format, rng), path, format)
+    messages = bag_messages(experiment, robot, format, rng)
+    return write_messages(messages, path, format, compression)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import sys
 import warnings
@@ -17,6 +18,7 @@ from pathlib import Path
 
 from . import __version__
 from .bags import read_bag, write_bag
+from .demo import DEMO_TRUTH, run_demo
 from .errors import InputError
 from .evidence import Comparison, compare_families
 from .experiment import load_experiments, write_csv, write_netcdf
@@ -27,18 +29,13 @@ from .kernels import FAMILIES
 from .likelihood import ENGINES, SENSOR_MODELS, ResidualLikelihood
 from .noise import analyse
 from .physics import CHANNELS
-from .plots import plot_grid
+from .plots import save_grid_plot
 from .posterior import load_posterior, save_posterior, summarize
 from .report import FIGURE_FORMATS, write_report
 from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
-
-#: Truth and grids of the demo: the thesis' optimum (ch. 5) and ranges.
-DEMO_TRUTH = {"d_lat": 110.0, "d_long": 30.0}
-DEMO_COUNTS = {"v1": 2, "v2": 1}
-DEMO_SEED = 2026
 
 
 class _Reporter:
@@ -75,12 +72,6 @@ def _grid_table(result: GridResult, say: Callable[[str], None]) -> None:
             f"{label:12s} {runs:5d} {s['d_lat']:8g} {s['d_long']:8g} "
             f"{s['d_lat'] / s['d_long']:7.3f} {s['mse']:11.4g}"
         )
-
-
-def _save_grid_plot(result: GridResult, path: str | Path) -> Path:
-    fig, _ = plot_grid(result)
-    fig.savefig(path, dpi=120)
-    return Path(path)
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -170,7 +161,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
     )
     _grid_table(result, out.say)
     if args.plot:
-        out.say(f"wrote {_save_grid_plot(result, args.plot)}")
+        out.say(f"wrote {save_grid_plot(result, args.plot)}")
     if args.out:
         out.say(f"wrote {result.to_netcdf(args.out)}")
     out.result(result.summary())
@@ -386,6 +377,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                     f"  {family}: log Z = {e.log_evidence:.2f} +- {e.error:.2f}"
                 ),
                 cross_check=args.nested,
+                processes=args.processes,
                 **_likelihood_options(args),
             )
         for warning in caught:
@@ -446,45 +438,17 @@ def _interrupt(signum, frame) -> None:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     out = _Reporter(False)
-    folder = Path(args.out)
-    robot = load_profile()
-    out.say(
-        f"bayes-jackal {__version__} demo: SIMULATED thesis-like experiments "
-        f"(truth d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} N s/m, "
-        f"Gaussian process noise sigma_h={NoiseSettings().width} s), written to {folder}/"
-    )
-    experiments = simulate_series(robot, **DEMO_TRUTH, counts=DEMO_COUNTS, rng=DEMO_SEED)
-    for experiment in experiments:
-        write_netcdf(experiment, folder / "experiments" / f"{experiment.name}.nc")
-    searches = {
-        "onestep": damping_grid(1, 1000, 1),  # ch. 9-1-2, at the full resolution
-        "simulation": damping_grid(10, 1000, 10),  # ch. 5, the thesis' grid
-    }
-    summaries = {}
-    for method, values in searches.items():
-        out.say()
-        result = grid_search(experiments, robot, values, values, method=method)
-        _grid_table(result, out.say)
-        out.say(f"wrote {_save_grid_plot(result, folder / f'grid_{method}.png')}")
-        summaries[method] = result.summary()
-    (folder / "grid.json").write_text(json.dumps({"truth": DEMO_TRUTH, **summaries}, indent=2))
-    out.say(
-        "\nThe simulation MSE has a valley along d_lat/d_long = const (the ridge of thesis "
-        "fig. 5-4);\nthe one-step MSE is biased by the coloured process noise and the sensor "
-        "noise,\nso the package infers the noise together with the damping:\n"
-    )
-    posterior = _run_sample(
-        ResidualLikelihood(experiments, robot),
-        SamplerSettings(progress=True),
-        DEMO_SEED,
-        folder / "posterior.nc",
-        out.say,
-    )
-    (folder / "posterior.json").write_text(json.dumps(posterior, indent=2))
+    signal.signal(signal.SIGTERM, _interrupt)
+    result = run_demo(args.out, out.say, progress=not args.no_progress)
+    out.say("\nGaussian-noise posterior (pooled):")
+    _posterior_table(result["posterior"], out.say)
+    out.say(f"Is the noise coloured? {result['comparison']['verdict_text']}")
+    files = result["files"]
     out.say(
         f"\nTruth: d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} N s/m, "
-        f"sigma_h={NoiseSettings().width} s. Results in {folder}/: grid_*.png, grid.json, "
-        "posterior.nc (arviz InferenceData), posterior.json."
+        f"sigma_h={NoiseSettings().width} s.\nOpen {files['report']} in a browser. Also "
+        f"written: {files['prior']} (Active Inference prior), {files['posterior']}, "
+        "posteriors/, experiments/, grid_*.png, *.json."
     )
     return EXIT_OK
 
@@ -551,8 +515,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    demo = commands.add_parser("demo", help="simulate, grid-search and report on embedded data")
+    demo = commands.add_parser(
+        "demo", help="ingest the shipped simulated bags, infer, compare, export, report"
+    )
     demo.add_argument("--out", default="bayes-jackal-demo", help="output folder")
+    demo.add_argument("--no-progress", action="store_true", help="no progress bars")
     demo.set_defaults(func=cmd_demo)
 
     sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
@@ -672,6 +639,12 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"comma-separated families ({','.join(FAMILIES)})",
     )
     compare.add_argument("--out", metavar="DIR", help="save each family's posterior here")
+    compare.add_argument(
+        "--processes",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="families sampled at once, one per process (default: the number of cores)",
+    )
     compare.add_argument(
         "--nested",
         action="store_true",

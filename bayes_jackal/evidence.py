@@ -21,7 +21,12 @@ bare mention, 1-3 positive, 3-5 strong, above 5 very strong.
 
 from __future__ import annotations
 
+import concurrent.futures
+import contextlib
+import dataclasses
 import json
+import multiprocessing
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -32,7 +37,13 @@ import scipy.stats
 
 from .errors import InputError
 from .experiment import Experiment
-from .inference import LogPosterior, Prior, SamplerSettings, sample_posterior
+from .inference import (
+    ConvergenceWarning,
+    LogPosterior,
+    Prior,
+    SamplerSettings,
+    sample_posterior,
+)
 from .kernels import FAMILIES, as_rng, get_family
 from .likelihood import ResidualLikelihood
 from .posterior import HDI_PROB, az, parameter_draws, summarize
@@ -316,6 +327,38 @@ def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
     } | {"hdi_prob": HDI_PROB}
 
 
+@dataclass(frozen=True)
+class _FamilyRun:
+    """Everything one family's posterior and evidence need (picklable for a process)."""
+
+    experiments: list[Experiment]
+    robot: RobotProfile
+    settings: SamplerSettings | None
+    seed: int | None
+    prior_overrides: dict | None
+    cross_check: bool
+    likelihood_options: dict
+
+    def __call__(self, index: int, family: str):
+        """(family, evidence, posterior, nested evidence or None, convergence warnings)."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ConvergenceWarning)
+            likelihood = ResidualLikelihood(
+                self.experiments, self.robot, family=family, **self.likelihood_options
+            )
+            prior = Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
+            idata = sample_posterior(
+                likelihood, self.settings, self.seed, prior_overrides=self.prior_overrides
+            )
+            draws, lp = parameter_draws(idata)
+            rng = np.random.default_rng(None if self.seed is None else [self.seed, index])
+            evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
+            idata.posterior.attrs["evidence"] = json.dumps(evidence.to_dict())
+            nested = nested_sampling(likelihood, prior, rng) if self.cross_check else None
+        messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
+        return family, evidence, idata, nested, messages
+
+
 def compare_families(
     experiments: list[Experiment],
     robot: RobotProfile,
@@ -325,6 +368,7 @@ def compare_families(
     prior_overrides: dict | None = None,
     on_family: Callable[[str, Evidence], None] | None = None,
     cross_check: bool = False,
+    processes: int = 1,
     **likelihood_options,
 ) -> Comparison:
     """Sample each family's posterior and estimate its evidence by bridge sampling.
@@ -337,14 +381,18 @@ def compare_families(
     families : tuple of str
         Names from :data:`bayes_jackal.kernels.FAMILIES`.
     settings : SamplerSettings, optional
+        Progress bars are off when ``processes`` > 1.
     seed : int, optional
-        Seeds every family's chain and the bridge's proposal draws.
+        Seeds every family's chain and the bridge's proposal draws; the
+        results do not depend on ``processes``.
     prior_overrides : dict, optional
         As in :func:`bayes_jackal.inference.sample_posterior`.
     on_family : callable, optional
         Called with (family, evidence) as each family finishes.
     cross_check : bool
         Also estimate each evidence by :func:`nested_sampling` (slow).
+    processes : int
+        Families sampled at once, each in its own process (one per core).
     **likelihood_options
         ``channels``, ``shared_noise``, ``sensor``, ``engine`` of
         :class:`ResidualLikelihood`.
@@ -353,6 +401,8 @@ def compare_families(
     -------
     Comparison
         Each posterior carries its evidence in the ``evidence`` attribute.
+        Families that hit the step cap re-issue their
+        :class:`~bayes_jackal.inference.ConvergenceWarning` here.
     """
     unknown = [name for name in families if name not in FAMILIES]
     if unknown or not families or len(set(families)) != len(families):
@@ -360,18 +410,37 @@ def compare_families(
             f"families must be distinct names from {list(FAMILIES)}, got {list(families)}",
             field="families",
         )
+    if processes < 1:
+        raise InputError(f"processes must be >= 1, got {processes}", field="processes")
+    parallel = processes > 1 and len(families) > 1
+    if parallel and settings is not None and settings.progress:
+        settings = dataclasses.replace(settings, progress=False)
+    run = _FamilyRun(
+        experiments, robot, settings, seed, prior_overrides, cross_check, likelihood_options
+    )
     comparison = Comparison([e.name for e in experiments], {}, {})
-    for i, family in enumerate(families):
-        likelihood = ResidualLikelihood(experiments, robot, family=family, **likelihood_options)
-        prior = Prior.for_likelihood(likelihood, robot, prior_overrides)
-        idata = sample_posterior(likelihood, settings, seed, prior_overrides=prior_overrides)
-        draws, lp = parameter_draws(idata)
-        rng = np.random.default_rng(None if seed is None else [seed, i])
-        evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
-        idata.posterior.attrs["evidence"] = json.dumps(evidence.to_dict())
-        comparison.evidence[family], comparison.posteriors[family] = evidence, idata
-        if cross_check:
-            comparison.nested[family] = nested_sampling(likelihood, prior, rng)
-        if on_family is not None:
-            on_family(family, evidence)
+    with contextlib.ExitStack() as stack:
+        if parallel:
+            pool = stack.enter_context(
+                concurrent.futures.ProcessPoolExecutor(
+                    min(processes, len(families)), mp_context=multiprocessing.get_context("spawn")
+                )
+            )
+            futures = [pool.submit(run, i, family) for i, family in enumerate(families)]
+            finished = (future.result() for future in concurrent.futures.as_completed(futures))
+        else:
+            finished = (run(i, family) for i, family in enumerate(families))
+        for family, evidence, idata, nested, messages in finished:
+            comparison.evidence[family], comparison.posteriors[family] = evidence, idata
+            if nested is not None:
+                comparison.nested[family] = nested
+            for message in messages:
+                warnings.warn(ConvergenceWarning(f"{family}: {message}"), stacklevel=2)
+            if on_family is not None:
+                on_family(family, evidence)
+    order = {family: i for i, family in enumerate(families)}
+    for results in (comparison.evidence, comparison.posteriors, comparison.nested):
+        ordered = sorted(results.items(), key=lambda item: order[item[0]])
+        results.clear()
+        results.update(ordered)
     return comparison

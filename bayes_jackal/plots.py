@@ -7,6 +7,7 @@ nothing here opens a window or depends on a display.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -33,6 +34,7 @@ __all__ = [
     "plot_sigma_h",
     "plot_spectrum",
     "plot_traces",
+    "save_grid_plot",
 ]
 
 
@@ -79,6 +81,13 @@ def plot_grid(
     ax.set_ylabel("d_lat [N s/m]")
     ax.legend(loc="lower right", fontsize="small", facecolor="0.75")
     return fig, ax
+
+
+def save_grid_plot(result: GridResult, path: str | Path, dpi: int = 120) -> Path:
+    """Save :func:`plot_grid` of the total surface (png, svg, pdf by the suffix)."""
+    fig, _ = plot_grid(result)
+    fig.savefig(path, dpi=dpi)
+    return Path(path)
 
 
 #: Credible band drawn around posterior-predictive medians (the HDI mass).
@@ -250,7 +259,7 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     names = json.loads(idata.posterior.attrs["parameter_names"])
     fig, axes = _figures(axes, len(names), figsize=(7.0, 1.0 + 1.2 * len(names)))
     for ax, name, values in zip(axes, names, np.moveaxis(draws, -1, 0), strict=True):
-        ax.plot(values, lw=0.4, alpha=0.5)
+        ax.plot(values, lw=0.4, alpha=0.5, rasterized=True)
         ax.set_ylabel(name, fontsize="small")
         if not name.startswith(("d_lat", "d_long")):
             ax.set_yscale("log")
@@ -270,7 +279,16 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
     d_lat = idata.posterior["d_lat"].values.ravel()
     d_long = idata.posterior["d_long"].values.ravel()
     ratio = float(np.median(d_lat / d_long))
-    ax.plot(d_long, d_lat, ".", ms=2, alpha=0.3, color="tab:blue", label="posterior draws")
+    ax.plot(
+        d_long,
+        d_lat,
+        ".",
+        ms=2,
+        alpha=0.3,
+        color="tab:blue",
+        label="posterior draws",
+        rasterized=True,
+    )
     span = np.array([d_long.min(), d_long.max()]) * np.array([0.9, 1.1])
     ax.plot(
         span, ratio * span, color=_MODEL_COLOUR, lw=1, label=f"ridge d_lat = {ratio:.3f} d_long"

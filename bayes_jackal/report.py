@@ -108,14 +108,18 @@ class _Figures:
 
     def html(self, name: str, caption: str, draw: Callable[[], tuple[Figure, object]]) -> str:
         fig, _ = draw()
+        rendered = {}
+        for suffix in ("png", *self.formats):
+            if suffix not in rendered:
+                buffer = io.BytesIO()
+                fig.savefig(buffer, format=suffix, dpi=DPI)
+                rendered[suffix] = buffer.getvalue()
         for suffix in self.formats:
             path = self.folder / f"{_slug(name)}.{suffix}"
             with atomic_path(path) as temporary:
-                fig.savefig(temporary, format=suffix, dpi=DPI)
+                temporary.write_bytes(rendered[suffix])
             self.saved.append(path)
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=DPI)
-        data = base64.b64encode(buffer.getvalue()).decode("ascii")
+        data = base64.b64encode(rendered["png"]).decode("ascii")
         return (
             f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
             f"<figcaption>{html.escape(caption)}</figcaption></figure>"

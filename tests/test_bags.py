@@ -308,3 +308,17 @@ def test_no_overlap_between_imu_and_pose(messages, tmp_path):
             batch[i] = BagMessage(m.topic, m.msgtype, m.time + 100 * NS, m.message)
     batch.sort(key=lambda m: m.time)
     _write_bad(batch, tmp_path / "overlap.mcap", "no overlap", POSE)
+
+
+def test_a_bz2_compressed_ros1_bag_reads_back_the_same_run(simulated, bags, tmp_path):
+    compressed = write_bag(
+        simulated, tmp_path / "run.bag", ROBOT, "ros1", rng=3, compression="bz2"
+    )
+    assert compressed.stat().st_size < bags["run.bag"].stat().st_size / 2
+    plain, packed = read_bag(bags["run.bag"], ROBOT), _read_unchanged(compressed)
+    for key in ("t", "yaw_rate", "omega_r", "omega_l", "vx", "vy"):
+        np.testing.assert_array_equal(getattr(packed, key), getattr(plain, key))
+    with pytest.raises(InputError, match="compression 'zip'"):
+        write_bag(simulated, tmp_path / "x.bag", ROBOT, "ros1", compression="zip")
+    with pytest.raises(InputError, match="needs format ros1"):
+        write_bag(simulated, tmp_path / "x.mcap", ROBOT, "ros2", compression="bz2")

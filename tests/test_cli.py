@@ -207,16 +207,12 @@ def test_grid_experiment_file_given_as_profile(simulated, capsys):
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("demo")
-def test_demo_writes_experiments_figures_and_results(tmp_path, capsys):
+def test_demo_runs_the_pipeline_on_the_shipped_bags(tmp_path, capsys):
     folder = tmp_path / "demo"
-    assert main(["demo", "--out", str(folder)]) == 0
+    assert main(["demo", "--out", str(folder), "--no-progress"]) == 0
     out = capsys.readouterr().out
-    assert "SIMULATED" in out
-    assert sorted(p.name for p in (folder / "experiments").iterdir()) == [
-        "v1_01.nc",
-        "v1_02.nc",
-        "v2_01.nc",
-    ]
+    assert "SIMULATED" in out and "ROS1 bags" in out
+    assert sorted(p.name for p in (folder / "experiments").iterdir()) == ["v1_01.nc", "v2_01.nc"]
     results = json.loads((folder / "grid.json").read_text())
     assert results["truth"] == {"d_lat": 110.0, "d_long": 30.0}
     # The thesis' simulation grid (step 10) finds the demo's truth (fixed seed).
@@ -226,7 +222,15 @@ def test_demo_writes_experiments_figures_and_results(tmp_path, capsys):
     posterior = json.loads((folder / "posterior.json").read_text())
     assert posterior["converged"] is True
     assert posterior["ratio"]["hdi_3%"] <= 110.0 / 30.0 <= posterior["ratio"]["hdi_97%"]
-    assert (folder / "posterior.nc").is_file()
+    assert posterior["sigma_h"]["hdi_3%"] <= 0.047 <= posterior["sigma_h"]["hdi_97%"]
+    comparison = json.loads((folder / "compare.json").read_text())
+    assert comparison["best"] == "gaussian" and comparison["verdict"] == "coloured"
+    prior = json.loads((folder / "prior.json").read_text())
+    assert prior["format"] == "bayes_jackal.prior/1" and prior["converged"] is True
+    report = (folder / "report.html").read_text()
+    assert report.count("data:image/png;base64,") >= 10
+    assert "<h2>Evidence</h2>" in report and "NOT CONVERGED" not in report
+    assert "Is the noise coloured? coloured" in out
 
 
 QUICK_SAMPLE = ["--max-steps", "80", "--seed", "3", "--no-progress"]
