@@ -48,7 +48,7 @@ from ._files import atomic_path
 from .errors import InputError
 from .kernels import get_family
 from .physics import CHANNELS, continuous_matrices, discrete_matrices
-from .posterior import az, parameter_draws, posterior_robot, summarize
+from .posterior import az, parameter_draws, posterior_robot, summarize, thinned_indices
 
 __all__ = [
     "PRIOR_FORMAT",
@@ -134,11 +134,6 @@ def _stats(row: dict) -> dict:
     return {key: row[key] for key in ("mean", "sd", "hdi_3%", "hdi_97%")}
 
 
-def _thinned(count: int, limit: int) -> np.ndarray:
-    """Evenly spaced indices of at most ``limit`` out of ``count`` draws."""
-    return np.unique(np.linspace(0, count - 1, min(count, limit)).astype(int))
-
-
 def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = None) -> dict:
     """The Active Inference prior of a posterior, as a JSON-ready dict.
 
@@ -201,7 +196,7 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     A, B = continuous_matrices(robot, *mean_d)
     Ad, Bd = discrete_matrices(robot, *mean_d, dt)
     summary = summarize(idata)
-    kept = _thinned(len(draws), MAX_DRAWS)
+    kept = thinned_indices(len(draws), MAX_DRAWS)
     label = (lambda base, c: base) if n == 1 else (lambda base, c: f"{base}[{c}]")
     noise_stats = {
         label(base, c): _stats(summary[label(base, c)])

@@ -53,6 +53,7 @@ __all__ = [
     "predictive_residuals",
     "save_posterior",
     "summarize",
+    "thinned_indices",
 ]
 
 FORMAT = "bayes_jackal.posterior/1"
@@ -294,11 +295,16 @@ def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
     )
 
 
+def thinned_indices(count: int, limit: int) -> np.ndarray:
+    """Evenly spaced indices of at most ``limit`` out of ``count`` draws."""
+    return np.unique(np.linspace(0, count - 1, min(count, limit)).astype(int))
+
+
 def _thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
     """At most ``count`` evenly spaced posterior draws, shape (count, P)."""
     draws, _ = parameter_draws(idata)
     draws = draws.reshape(-1, draws.shape[-1])
-    return draws[np.unique(np.linspace(0, len(draws) - 1, min(count, len(draws))).astype(int))]
+    return draws[thinned_indices(len(draws), count)]
 
 
 def predictive_residuals(

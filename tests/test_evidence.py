@@ -197,7 +197,7 @@ def test_bridge_and_nested_sampling_agree_on_coloured_noise():
     bridge = comparison.evidence["gaussian"]
     likelihood = ResidualLikelihood([run], ROBOT, family="gaussian")
     nested = nested_sampling(
-        likelihood, Prior.for_likelihood(likelihood, ROBOT), rng=5, live_points=300, dlogz=0.5
+        likelihood, Prior.for_likelihood(likelihood, ROBOT), rng=5, live_points=200, dlogz=0.5
     )
     # Independent estimates: their difference has sd sqrt(e1^2 + e2^2); 3 sd.
     assert abs(bridge.log_evidence - nested.log_evidence) < 3 * np.hypot(
@@ -210,9 +210,9 @@ def test_bridge_and_nested_sampling_agree_on_coloured_noise():
 #: (At 10x, the moving-average kernel's spectral nulls sit so far below the
 #: floor that its likelihood needs the slow recursion: minutes per family.)
 DISTINCT = {"width": 0.15, "sigma_c": (0.005, 0.005, 0.02), "sigma_n": (0.003, 0.003, 0.004)}
-#: Chains capped at 1,000 steps (~10 tau): bridge sampling counts their
+#: Chains capped at 600 steps (~10 tau): bridge sampling counts their
 #: autocorrelation, and the margins below are tens of nats.
-CAPPED = SamplerSettings(max_steps=1000, autocorr_multiple=10, design_points=512)
+CAPPED = SamplerSettings(max_steps=600, autocorr_multiple=10, design_points=512)
 
 
 def _compare(noise: NoiseSettings, seed: int) -> Comparison:
