@@ -143,7 +143,8 @@ def bridge_sampling(
     -------
     Evidence
         The error is the square root of the relative mean square error of
-        Z (Fruehwirth-Schnatter 2004, eq. 15), with the chain's part scaled
+        Z (Fruehwirth-Schnatter 2004; the error measure of Gronau et al.
+        2017), with the chain's part scaled
         by the integrated autocorrelation time of the bridge function.
     """
     chain = np.asarray(chain, float)
