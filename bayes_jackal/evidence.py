@@ -364,6 +364,7 @@ class _FamilyRun:
     prior_overrides: dict | None
     cross_check: bool
     likelihood_options: dict
+    lines: int = 1
 
     def __call__(self, index: int, family: str):
         """(family, evidence, posterior, nested evidence or None, convergence warnings)."""
@@ -373,8 +374,14 @@ class _FamilyRun:
                 self.experiments, self.robot, family=family, **self.likelihood_options
             )
             prior = Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
+            # One labelled progress line per family (processes share the terminal).
+            settings = dataclasses.replace(
+                self.settings or SamplerSettings(),
+                progress_label=f"{family:>14s}",
+                progress_line=index % self.lines,
+            )
             idata = sample_posterior(
-                likelihood, self.settings, self.seed, prior_overrides=self.prior_overrides
+                likelihood, settings, self.seed, prior_overrides=self.prior_overrides
             )
             draws, lp = parameter_draws(idata)
             rng = np.random.default_rng(None if self.seed is None else [self.seed, index])
@@ -407,7 +414,8 @@ def compare_families(
     families : tuple of str
         Names from :data:`bayes_jackal.kernels.FAMILIES`.
     settings : SamplerSettings, optional
-        Progress bars are off when ``processes`` > 1.
+        With progress on, each family's bar is labelled and, with several
+        processes, kept on a line of its own.
     seed : int, optional
         Seeds every family's chain and the bridge's proposal draws; the
         results do not depend on ``processes``.
@@ -439,17 +447,23 @@ def compare_families(
     if processes < 1:
         raise InputError(f"processes must be >= 1, got {processes}", field="processes")
     parallel = processes > 1 and len(families) > 1
-    if parallel and settings is not None and settings.progress:
-        settings = dataclasses.replace(settings, progress=False)
+    workers = min(processes, len(families)) if parallel else 1
     run = _FamilyRun(
-        experiments, robot, settings, seed, prior_overrides, cross_check, likelihood_options
+        experiments,
+        robot,
+        settings,
+        seed,
+        prior_overrides,
+        cross_check,
+        likelihood_options,
+        workers,
     )
     comparison = Comparison([e.name for e in experiments], {}, {})
     with contextlib.ExitStack() as stack:
         if parallel:
             pool = stack.enter_context(
                 concurrent.futures.ProcessPoolExecutor(
-                    min(processes, len(families)), mp_context=multiprocessing.get_context("spawn")
+                    workers, mp_context=multiprocessing.get_context("spawn")
                 )
             )
             # With more families than processes every core stays busy; with as

@@ -175,6 +175,10 @@ class SamplerSettings:
         Prior draws that seed the MAP search.
     progress : bool
         Show emcee's progress bar (on stderr).
+    progress_label : str
+        The bar's label.
+    progress_line : int
+        The bar's line on the terminal (one per process sampling at once).
     """
 
     walkers: int = 0
@@ -184,6 +188,8 @@ class SamplerSettings:
     tau_rtol: float = 0.01
     design_points: int = 1024
     progress: bool = False
+    progress_label: str = "emcee steps"
+    progress_line: int = 0
 
     def n_walkers(self, ndim: int) -> int:
         walkers = self.walkers or max(32, 4 * ndim)
@@ -431,7 +437,11 @@ def _run_until_converged(
     remaining = settings.max_steps - sampler.iteration
     tau = previous_tau
     if remaining > 0:
-        progress = {"mininterval": 1.0, "desc": "emcee steps"}
+        progress = {
+            "mininterval": 1.0,
+            "desc": settings.progress_label,
+            "position": settings.progress_line,
+        }
         for _ in sampler.sample(
             start, iterations=remaining, progress=settings.progress, progress_kwargs=progress
         ):
