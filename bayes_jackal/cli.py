@@ -364,6 +364,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     results = {}
     for name, group in _data_sets(args, experiments).items():
         out.say(f"comparing {', '.join(args.families)} on {name} (bridge sampling)")
+
+        def finished(family, evidence, idata, name=name) -> None:
+            out.say(f"  {family}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+            if folder is not None:  # saved at once: an interruption keeps it
+                save_posterior(idata, folder / f"{name}.{family}.nc")
+
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ConvergenceWarning)
             comparison = compare_families(
@@ -373,9 +379,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 _sampler_settings(args),
                 args.seed,
                 overrides,
-                lambda family, e: out.say(
-                    f"  {family}: log Z = {e.log_evidence:.2f} +- {e.error:.2f}"
-                ),
+                finished,
                 cross_check=args.nested,
                 processes=args.processes,
                 **_likelihood_options(args),
@@ -386,8 +390,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
         _comparison_table(comparison, out.say)
         results[name] = comparison.to_dict()
         if folder is not None:
-            for family, idata in comparison.posteriors.items():
-                save_posterior(idata, folder / f"{name}.{family}.nc")
             (folder / f"{name}.compare.json").write_text(json.dumps(results[name], indent=2))
             out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
     out.result(results.popitem()[1] if len(results) == 1 else {"experiments": results})

@@ -147,7 +147,7 @@ def run_demo(folder: str | Path, say: Callable[[str], None], progress: bool = Tr
         DEMO_FAMILIES,
         SamplerSettings(walkers=DEMO_WALKERS, progress=progress),
         DEMO_SEED,
-        on_family=lambda family, e: say(
+        on_family=lambda family, e, _: say(
             f"  {family}: log evidence {e.log_evidence:.2f} +- {e.error:.3f}"
         ),
         processes=os.cpu_count() or 1,

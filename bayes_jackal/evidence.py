@@ -399,7 +399,7 @@ def compare_families(
     settings: SamplerSettings | None = None,
     seed: int | None = None,
     prior_overrides: dict | None = None,
-    on_family: Callable[[str, Evidence], None] | None = None,
+    on_family: Callable[[str, Evidence, az.InferenceData], None] | None = None,
     cross_check: bool = False,
     processes: int = 1,
     **likelihood_options,
@@ -422,7 +422,8 @@ def compare_families(
     prior_overrides : dict, optional
         As in :func:`bayes_jackal.inference.sample_posterior`.
     on_family : callable, optional
-        Called with (family, evidence) as each family finishes.
+        Called with (family, evidence, posterior) as each family finishes,
+        e.g. to save it at once.
     cross_check : bool
         Also estimate each evidence by :func:`nested_sampling` (slow).
     processes : int
@@ -485,7 +486,7 @@ def compare_families(
             for message in messages:
                 warnings.warn(ConvergenceWarning(f"{family}: {message}"), stacklevel=2)
             if on_family is not None:
-                on_family(family, evidence)
+                on_family(family, evidence, idata)
     order = {family: i for i, family in enumerate(families)}
     for results in (comparison.evidence, comparison.posteriors, comparison.nested):
         ordered = sorted(results.items(), key=lambda item: order[item[0]])

@@ -43,7 +43,7 @@ def main() -> None:
     _, baseline = timed(lambda: sample_posterior(likelihood, seed=1))
     print(f"baseline, the gaussian posterior alone: {baseline:6.1f} s")
 
-    def report(family, evidence):
+    def report(family, evidence, _):
         print(f"  {family:15s} log Z = {evidence.log_evidence:10.2f} +- {evidence.error:.3f}")
 
     processes = os.cpu_count() or 1

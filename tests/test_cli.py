@@ -397,3 +397,25 @@ def test_compare_bad_input_exits_2(simulated, capsys, extra, pattern):
     assert code == 2
     assert "Traceback" not in captured.err
     assert re.search(pattern, captured.err), captured.err
+
+
+def test_compare_keeps_each_family_as_it_finishes_when_interrupted(
+    simulated, tmp_path, capsys, monkeypatch
+):
+    import bayes_jackal.cli as cli
+
+    saved = []
+
+    def save_then_interrupt(idata, path):
+        saved.append(cli_save(idata, path))
+        raise KeyboardInterrupt  # Ctrl-C right after the first family
+
+    cli_save = cli.save_posterior
+    monkeypatch.setattr(cli, "save_posterior", save_then_interrupt)
+    folder = tmp_path / "compare"
+    code = main(
+        ["compare", simulated[0], *QUICK_COMPARE, "--processes", "1", "--out", str(folder)]
+    )
+    assert code == 130
+    assert [p.name for p in saved] == ["v1_01.white.nc"]
+    assert sorted(p.name for p in folder.iterdir()) == ["v1_01.white.nc"]
