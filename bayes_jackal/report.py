@@ -216,10 +216,10 @@ def _evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
         rows = [
             [
                 family,
-                e["log_evidence"],
-                e["log_evidence_err"],
-                e["log_evidence"] - best,
-                None if white is None else e["log_evidence"] - white,
+                f"{e['log_evidence']:.2f}",
+                f"{e['log_evidence_err']:.3f}",
+                f"{e['log_evidence'] - best:.2f}",
+                "-" if white is None else f"{e['log_evidence'] - white:.2f}",
             ]
             for family, e in sorted(evidence.items(), key=lambda item: -item[1]["log_evidence"])
         ]

@@ -95,7 +95,7 @@ def test_an_evidence_table_appears_for_compared_families(posteriors, tmp_path):
     assert code == 0
     evidence = json.loads((folder / "v2_01.compare.json").read_text())
     assert "<h2>Evidence</h2>" in text
-    assert f"{evidence['families']['gaussian']['log_evidence']:.4g}" in text
+    assert f"<td>{evidence['families']['gaussian']['log_evidence']:.2f}</td>" in text
 
 
 @pytest.mark.parametrize(
