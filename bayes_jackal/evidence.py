@@ -282,7 +282,7 @@ class Comparison:
             return "inconclusive", "white noise and a coloured family must both be compared"
         rival = max(coloured, key=lambda name: self.evidence[name].log_evidence)
         value, error = self.log_bayes_factor(rival, "white")
-        words = f"ln B = {value:.1f} +- {error:.1f}, {evidence_strength(value)}"
+        words = f"ln B = {value:.1f} +- {error:.2f}, {evidence_strength(value)}"
         if value - 2 * error > COLOURED_LOG_BF:
             return "coloured", f"coloured: {rival} over white, {words}"
         if value + 2 * error < -WHITE_LOG_BF:
