@@ -20,7 +20,7 @@ from . import __version__
 from .bags import read_bag, write_bag
 from .demo import DEMO_TRUTH, run_demo
 from .errors import InputError
-from .evidence import Comparison, compare_families
+from .evidence import compare_families
 from .experiment import load_experiments, write_csv, write_netcdf
 from .export import export_prior, write_prior
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
@@ -327,8 +327,7 @@ def cmd_sample(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _comparison_table(comparison: Comparison, say: Callable[[str], None]) -> None:
-    result = comparison.to_dict()
+def _comparison_table(result: dict, say: Callable[[str], None]) -> None:
     say(
         f"{'family':16s} {'log Z':>12s} {'+-':>6s} {'lnB best':>9s} {'lnB white':>10s}  "
         "width mean [94 % HDI] (s)"
@@ -387,8 +386,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         for warning in caught:
             if issubclass(warning.category, ConvergenceWarning):
                 print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
-        _comparison_table(comparison, out.say)
         results[name] = comparison.to_dict()
+        _comparison_table(results[name], out.say)
         if folder is not None:
             (folder / f"{name}.compare.json").write_text(json.dumps(results[name], indent=2))
             out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")

@@ -47,7 +47,7 @@ from .inference import (
 )
 from .kernels import FAMILIES, as_rng, get_family
 from .likelihood import ResidualLikelihood
-from .posterior import HDI_PROB, az, parameter_draws, summarize
+from .posterior import HDI_PROB, az, interval, parameter_draws, summarize
 from .robot import RobotProfile
 
 __all__ = [
@@ -321,11 +321,8 @@ def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
     if width_name is None:
         return None
     summary = summarize(idata)
-    keys = ("mean", "sd", "hdi_3%", "hdi_97%")
     return {
-        label: {key: row[key] for key in keys}
-        for label, row in summary.items()
-        if label.split("[")[0] == width_name
+        label: interval(row) for label, row in summary.items() if label.split("[")[0] == width_name
     } | {"hdi_prob": HDI_PROB}
 
 
@@ -459,7 +456,7 @@ def compare_families(
         likelihood_options,
         workers,
     )
-    comparison = Comparison([e.name for e in experiments], {}, {})
+    results = {}
     with contextlib.ExitStack() as stack:
         if parallel:
             pool = stack.enter_context(
@@ -480,16 +477,15 @@ def compare_families(
         else:
             finished = (run(i, family) for i, family in enumerate(families))
         for family, evidence, idata, nested, messages in finished:
-            comparison.evidence[family], comparison.posteriors[family] = evidence, idata
-            if nested is not None:
-                comparison.nested[family] = nested
+            results[family] = evidence, idata, nested
             for message in messages:
                 warnings.warn(ConvergenceWarning(f"{family}: {message}"), stacklevel=2)
             if on_family is not None:
                 on_family(family, evidence, idata)
-    order = {family: i for i, family in enumerate(families)}
-    for results in (comparison.evidence, comparison.posteriors, comparison.nested):
-        ordered = sorted(results.items(), key=lambda item: order[item[0]])
-        results.clear()
-        results.update(ordered)
-    return comparison
+    ordered = [(family, *results[family]) for family in families]
+    return Comparison(
+        [e.name for e in experiments],
+        {family: evidence for family, evidence, _, _ in ordered},
+        {family: idata for family, _, idata, _ in ordered},
+        {family: nested for family, _, _, nested in ordered if nested is not None},
+    )

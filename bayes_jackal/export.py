@@ -48,7 +48,14 @@ from ._files import atomic_path
 from .errors import InputError
 from .kernels import get_family
 from .physics import CHANNELS, continuous_matrices, discrete_matrices
-from .posterior import az, parameter_draws, posterior_robot, summarize, thinned_indices
+from .posterior import (
+    az,
+    interval,
+    parameter_draws,
+    posterior_likelihood,
+    summarize,
+    thinned_indices,
+)
 
 __all__ = [
     "PRIOR_FORMAT",
@@ -130,10 +137,6 @@ def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarra
     return (-1.0) ** i * derivatives[..., i + j]
 
 
-def _stats(row: dict) -> dict:
-    return {key: row[key] for key in ("mean", "sd", "hdi_3%", "hdi_97%")}
-
-
 def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = None) -> dict:
     """The Active Inference prior of a posterior, as a JSON-ready dict.
 
@@ -163,14 +166,14 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     names = json.loads(attrs["parameter_names"])
     _check_order(family, order)
     width_name = get_family(family).width_name
-    per_group = 3 if width_name else 2
-    if (len(names) - 2) // per_group != len(channels):
+    likelihood = posterior_likelihood(idata)
+    if len(likelihood.noise_groups) != len(channels):
         raise InputError(
             "noise parameters per experiment have no single prior: sample with shared noise",
             source=source,
             field="shared_noise",
         )
-    robot = posterior_robot(idata)
+    robot = likelihood.robot
     dts = {round(e["dt"], 12) for e in json.loads(attrs["experiments"])}
     if len(dts) != 1:
         raise InputError(f"experiments differ in sample time: {sorted(dts)} s", source=source)
@@ -184,10 +187,12 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     # Per-step sd sigma_c -> continuous-time sd s_c = sigma_c A / (Ad - 1).
     pole = A_draws[:, index, index]
     gain = pole / (Ad_draws[:, index, index] - 1.0)
-    noise = draws[:, 2:].reshape(len(draws), len(channels), per_group)
-    widths = noise[..., 0] if width_name else np.ones(noise.shape[:2])
-    continuous_sd = noise[..., -2] * gain
-    V = temporal_covariance(family, widths, order)  # (draws, channels, P+1, P+1)
+    # Shared noise: group c is channel c; white noise has unit widths.
+    width, sigma_c, _ = np.stack(
+        [likelihood.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
+    )
+    continuous_sd = sigma_c * gain
+    V = temporal_covariance(family, width, order)  # (draws, channels, P+1, P+1)
     S = np.linalg.inv(V)
     n = len(channels)
     precision = np.einsum("dcij,ce->dicje", S / continuous_sd[..., None, None] ** 2, np.eye(n))
@@ -199,7 +204,7 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     kept = thinned_indices(len(draws), MAX_DRAWS)
     label = (lambda base, c: base) if n == 1 else (lambda base, c: f"{base}[{c}]")
     noise_stats = {
-        label(base, c): _stats(summary[label(base, c)])
+        label(base, c): interval(summary[label(base, c)])
         for c in channels
         for base in ([width_name] if width_name else []) + ["sigma_c", "sigma_n"]
     }
@@ -230,9 +235,9 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
             "units": "N s/m",
             "mean": mean_d.tolist(),
             "covariance": np.cov(d.T).tolist(),
-            "d_lat": _stats(summary["d_lat"]),
-            "d_long": _stats(summary["d_long"]),
-            "ratio": _stats(summary["ratio"]),
+            "d_lat": interval(summary["d_lat"]),
+            "d_long": interval(summary["d_long"]),
+            "ratio": interval(summary["ratio"]),
         },
         "noise": {
             "family": family,

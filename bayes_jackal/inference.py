@@ -262,10 +262,9 @@ def _sweep_widths(
     for column, name in enumerate(prior.names):
         if not name.startswith(("sigma_h", "width")):
             continue
-        grid = np.repeat(z[None], points, axis=0)
-        grid[:, column] = np.linspace(prior.z_low[column], prior.z_high[column], points)
-        values = function(np.vstack([z, grid]))
-        z = np.vstack([z, grid])[np.argmax(values)]
+        candidates = np.repeat(z[None], points + 1, axis=0)
+        candidates[1:, column] = np.linspace(prior.z_low[column], prior.z_high[column], points)
+        z = candidates[np.argmax(function(candidates))]
     return z
 
 

@@ -22,6 +22,7 @@ from .posterior import (
     model_states,
     parameter_draws,
     posterior_experiments,
+    posterior_truth,
     predictive_residuals,
 )
 
@@ -174,7 +175,13 @@ def _channels(idata) -> list[str]:
 
 
 def plot_autocorrelation(
-    idata, index: int = 0, channel: str = "yaw", lags: int = 30, ax: Axes | None = None, rng=0
+    idata,
+    index: int = 0,
+    channel: str = "yaw",
+    lags: int = 30,
+    ax: Axes | None = None,
+    rng=0,
+    predictive: np.ndarray | None = None,
 ) -> tuple[Figure, Axes]:
     """Residual autocorrelation with its white-noise bounds and the fitted filter's band.
 
@@ -182,7 +189,9 @@ def plot_autocorrelation(
     the central 94 % of the sample autocorrelations of 200 posterior-predictive
     residual series (:func:`bayes_jackal.posterior.predictive_residuals`),
     so it holds both the parameter uncertainty and the sampling noise of
-    an autocorrelation estimate. Bounds: +-1.96 / sqrt(n).
+    an autocorrelation estimate. Bounds: +-1.96 / sqrt(n). ``predictive``
+    passes those series when already drawn (:func:`plot_spectrum` uses the
+    same); else they are drawn with ``rng``.
 
     Returns
     -------
@@ -190,7 +199,7 @@ def plot_autocorrelation(
     """
     fig, ax = _figure(ax, figsize=(6.0, 3.6))
     residuals = idata.observed_data[f"residual_{channel}_{index}"].values
-    predicted = sample_autocorrelation(predictive_residuals(idata, index, channel, rng=rng), lags)
+    predicted = sample_autocorrelation(_predictive(idata, index, channel, rng, predictive), lags)
     lag = np.arange(lags + 1)
     low, median, high = np.percentile(predicted, [BAND[0], 50.0, BAND[1]], axis=0)
     ax.fill_between(lag, low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %")
@@ -209,28 +218,34 @@ def plot_autocorrelation(
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xlabel("lag [samples]")
     ax.set_ylabel("autocorrelation")
-    ax.set_title(f"{_experiment_name(idata, index)}: {channel} residual autocorrelation")
+    ax.set_title(f"{_experiment(idata, index)['name']}: {channel} residual autocorrelation")
     ax.legend(fontsize="small")
     return fig, ax
 
 
 def plot_spectrum(
-    idata, index: int = 0, channel: str = "yaw", ax: Axes | None = None, rng=0
+    idata,
+    index: int = 0,
+    channel: str = "yaw",
+    ax: Axes | None = None,
+    rng=0,
+    predictive: np.ndarray | None = None,
 ) -> tuple[Figure, Axes]:
     """Welch PSD of the residuals against the fitted filter's (thesis figs. 7-7..7-9).
 
     The band spans the central 94 % of the Welch estimates of 200
-    posterior-predictive residual series, estimated exactly as the data's.
+    posterior-predictive residual series, estimated exactly as the data's
+    (``predictive`` and ``rng`` as in :func:`plot_autocorrelation`).
 
     Returns
     -------
     fig, ax
     """
     fig, ax = _figure(ax, figsize=(6.0, 3.6))
-    dt = posterior_experiments(idata)[index].dt
+    dt = _experiment(idata, index)["dt"]
     residuals = idata.observed_data[f"residual_{channel}_{index}"].values
     frequency, observed = spectrum(residuals, dt)
-    _, predicted = spectrum(predictive_residuals(idata, index, channel, rng=rng), dt)
+    _, predicted = spectrum(_predictive(idata, index, channel, rng, predictive), dt)
     low, median, high = np.percentile(predicted[:, 1:], [BAND[0], 50.0, BAND[1]], axis=0)
     ax.fill_between(
         frequency[1:], low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %"
@@ -239,13 +254,20 @@ def plot_spectrum(
     ax.loglog(frequency[1:], observed[1:], color=_DATA_COLOUR, lw=0.8, label="residuals")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"PSD [({_UNITS[channel]})²/Hz]")
-    ax.set_title(f"{_experiment_name(idata, index)}: {channel} residual spectrum")
+    ax.set_title(f"{_experiment(idata, index)['name']}: {channel} residual spectrum")
     ax.legend(fontsize="small")
     return fig, ax
 
 
-def _experiment_name(idata, index: int) -> str:
-    return json.loads(idata.posterior.attrs["experiments"])[index]["name"]
+def _predictive(idata, index, channel, rng, predictive) -> np.ndarray:
+    if predictive is None:
+        return predictive_residuals(idata, index, channel, rng=rng)
+    return predictive
+
+
+def _experiment(idata, index: int) -> dict:
+    """The stored description (name, dt, window, truth) of one experiment."""
+    return json.loads(idata.posterior.attrs["experiments"])[index]
 
 
 def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
@@ -294,19 +316,13 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
         span, ratio * span, color=_MODEL_COLOUR, lw=1, label=f"ridge d_lat = {ratio:.3f} d_long"
     )
     ax.plot(span, THESIS_RATIO * span, "k--", lw=0.8, label="thesis 11/3")
-    truth = _truth(idata)
+    truth = posterior_truth(idata)
     if truth:
         ax.plot(truth["d_long"], truth["d_lat"], "k*", ms=12, label="truth (simulated)")
     ax.set_xlabel("d_long [N s/m]")
     ax.set_ylabel("d_lat [N s/m]")
     ax.legend(fontsize="small")
     return fig, ax
-
-
-def _truth(idata) -> dict | None:
-    """The shared truth of simulated experiments, when every one has it."""
-    truths = [e.get("truth") for e in json.loads(idata.posterior.attrs["experiments"])]
-    return truths[0] if truths and all(truths) else None
 
 
 #: Thesis table 7-1: sigma_h of the yaw residuals [s].
@@ -328,7 +344,7 @@ def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
         ax.hist(values, bins=60, density=True, alpha=0.6, label=f"posterior {group or ''}".strip())
     for (label, value), style in zip(THESIS_SIGMA_H.items(), (":", "-.", "--"), strict=True):
         ax.axvline(value, color="k", ls=style, lw=1, label=f"thesis {label}: {value} s")
-    truth = _truth(idata)
+    truth = posterior_truth(idata)
     if truth and truth.get("sigma_h"):
         ax.axvline(truth["sigma_h"], color=_MODEL_COLOUR, lw=1.5, label="truth (simulated)")
     ax.set_xlabel("sigma_h [s]")

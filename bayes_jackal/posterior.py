@@ -41,8 +41,10 @@ with warnings.catch_warnings():
 
 __all__ = [
     "FORMAT",
+    "INTERVAL_FIELDS",
     "az",
     "build_inference_data",
+    "interval",
     "load_posterior",
     "model_states",
     "parameter_draws",
@@ -50,6 +52,7 @@ __all__ = [
     "posterior_experiments",
     "posterior_likelihood",
     "posterior_robot",
+    "posterior_truth",
     "predictive_residuals",
     "save_posterior",
     "summarize",
@@ -62,6 +65,8 @@ THESIS_RATIO = 11.0 / 3.0
 #: Credible mass of the reported highest-density intervals (arviz's default).
 HDI_PROB = 0.94
 _SUMMARY_FIELDS = ("mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat")
+#: The fields of a summary row that describe the posterior itself.
+INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
 
 
 def _noise_variables(likelihood: ResidualLikelihood, draws: np.ndarray) -> tuple[dict, dict]:
@@ -248,6 +253,17 @@ def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
             variable = variable.isel(noise_group=(j - 2) // per_group)
         columns.append(variable.transpose("draw", "chain").values)
     return np.stack(columns, axis=-1), idata.sample_stats["lp"].transpose("draw", "chain").values
+
+
+def interval(row: dict) -> dict:
+    """Mean, sd and 94 % HDI of a :func:`summarize` row."""
+    return {key: row[key] for key in INTERVAL_FIELDS}
+
+
+def posterior_truth(idata: az.InferenceData) -> dict | None:
+    """The shared truth of simulated experiments, when every one has it."""
+    truths = [e.get("truth") for e in json.loads(idata.posterior.attrs["experiments"])]
+    return truths[0] if truths and all(truths) else None
 
 
 def posterior_robot(idata: az.InferenceData) -> RobotProfile:

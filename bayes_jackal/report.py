@@ -29,7 +29,7 @@ from matplotlib.figure import Figure
 from . import __version__, plots
 from ._files import atomic_path
 from .errors import InputError
-from .posterior import az, load_posterior, summarize
+from .posterior import az, load_posterior, posterior_truth, predictive_residuals, summarize
 
 __all__ = ["FIGURE_FORMATS", "collect_posteriors", "render_report", "write_report"]
 
@@ -104,7 +104,7 @@ class _Figures:
             raise InputError(
                 f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}", field="formats"
             )
-        self.folder, self.formats, self.saved = folder, formats, []
+        self.folder, self.formats = folder, formats
 
     def html(self, name: str, caption: str, draw: Callable[[], tuple[Figure, object]]) -> str:
         fig, _ = draw()
@@ -118,7 +118,6 @@ class _Figures:
             path = self.folder / f"{_slug(name)}.{suffix}"
             with atomic_path(path) as temporary:
                 temporary.write_bytes(rendered[suffix])
-            self.saved.append(path)
         data = base64.b64encode(rendered["png"]).decode("ascii")
         return (
             f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
@@ -242,8 +241,7 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
     channels = json.loads(attrs["channels"])
     family = str(attrs["family"])
     title = f"{path.name}: {family} noise on {', '.join(channels)}"
-    truths = [e.get("truth") for e in experiments]
-    truth = truths[0] if truths and all(truths) else None
+    truth = posterior_truth(idata)
     parts = [f"<section><h2>{html.escape(title)}</h2>"]
     if not bool(attrs["converged"]):
         parts.append(
@@ -301,18 +299,22 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
             )
         )
         for channel in channels:
+            # One set of posterior-predictive series serves both figures.
+            draws = predictive_residuals(idata, i, channel, rng=0)
             parts.append(
                 figures.html(
                     f"{prefix}-{name}-{channel}-acf",
                     f"{name}: {channel} autocorrelation",
-                    lambda i=i, c=channel: plots.plot_autocorrelation(idata, i, c, lags),
+                    lambda i=i, c=channel, p=draws: plots.plot_autocorrelation(
+                        idata, i, c, lags, predictive=p
+                    ),
                 )
             )
             parts.append(
                 figures.html(
                     f"{prefix}-{name}-{channel}-psd",
                     f"{name}: {channel} spectrum",
-                    lambda i=i, c=channel: plots.plot_spectrum(idata, i, c),
+                    lambda i=i, c=channel, p=draws: plots.plot_spectrum(idata, i, c, predictive=p),
                 )
             )
     parts.append("</section>")
