@@ -26,6 +26,8 @@ Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
    earlier than the one before it (in recording order) is a clock jump and an
    error; smaller backward steps are out-of-order delivery and are sorted.
    Messages repeating an earlier stamp are dropped (the first is kept).
+   This rule is :func:`bayes_jackal.stamps.sort_stamps`, shared with the
+   CSV and MATLAB readers.
 3. The run is the time range that the IMU, pose and joint-state topics all
    cover (no overlap is an error). Time zero is the first IMU stamp.
 4. A gap longer than ``max_gap`` in any of those topics splits the run; the
@@ -69,14 +71,15 @@ from scipy.integrate import cumulative_trapezoid
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import savgol_filter
-from tqdm import tqdm
 
 from ._files import atomic_path
 from .errors import DataError, InputError
 from .experiment import MIN_SAMPLES, Experiment
 from .kernels import as_rng
+from .progress import Progress
 from .robot import RobotProfile
 from .simulate import Series, command_profile
+from .stamps import longest_run, sort_stamps
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -87,6 +90,7 @@ __all__ = [
     "bag_messages",
     "detect_steady",
     "read_bag",
+    "steady_smoothing",
     "typestore",
     "write_bag",
     "write_messages",
@@ -380,14 +384,12 @@ def _collect(
     rows: dict[str, list] = {role: [] for role in roles.values()}
     connections = [c for c in reader.connections if c.topic in roles]
     last: tuple[str, int] | None = None
-    messages = tqdm(
-        reader.messages(connections=connections),
-        total=sum(topics[topic].msgcount for topic in roles),
-        desc=Path(source).name,
+    messages = Progress(
+        sum(topics[topic].msgcount for topic in roles),
+        Path(source).name,
         unit="msg",
-        mininterval=1.0,
-        disable=not progress,
-    )
+        enabled=progress,
+    ).wrap(reader.messages(connections=connections))
     try:
         for connection, time, raw in messages:
             role = roles[connection.topic]
@@ -466,7 +468,7 @@ def _clean(
     where: Callable[[float], str],
     repairs: list[str],
 ) -> None:
-    """Reject non-finite values and clock jumps; sort and de-duplicate stamps."""
+    """Reject non-finite values; sort and de-duplicate stamps (:func:`sort_stamps`)."""
     bad = np.flatnonzero(~np.isfinite(stream.values).all(axis=1))
     if bad.size:
         raise DataError(
@@ -475,29 +477,17 @@ def _clean(
             source=source,
             field=stream.topic,
         )
-    steps = np.diff(stream.stamp)
-    jumps = np.flatnonzero(steps < -max_gap * 1e9)
-    if jumps.size:
-        i = jumps[0] + 1
-        raise DataError(
-            f"timestamps go backwards by {-steps[i - 1] * 1e-9:.3f} s at message {i} "
-            f"({where(stream.stamp[i])}; more than max_gap {max_gap} s: a clock jump)",
-            source=source,
-            field=stream.topic,
-        )
-    if (steps < 0).any():
-        stream.take(np.argsort(stream.stamp, kind="stable"))
-        repairs.append(f"{stream.topic}: {(steps < 0).sum()} out-of-order stamps; sorted")
-    repeated = np.flatnonzero(np.diff(stream.stamp) == 0) + 1
-    if repeated.size:
-        keep = np.ones(len(stream.stamp), bool)
-        keep[repeated] = False
-        first_repeat = stream.stamp[repeated[0] - 1]
-        stream.take(keep)
-        repairs.append(
-            f"{stream.topic}: {repeated.size} duplicate stamps (first at "
-            f"{where(first_repeat)}); kept the first message of each"
-        )
+    order, sorted_repairs = sort_stamps(
+        stream.stamp,
+        max_backstep=max_gap * 1e9,
+        where=lambda i: f"message {i}, {where(stream.stamp[i])}",
+        source=source,
+        field=stream.topic,
+        label=stream.topic,
+        unit=1e-9,
+    )
+    stream.take(order)
+    repairs.extend(sorted_repairs)
     if len(stream.stamp) < MIN_SAMPLES:
         raise DataError(
             f"only {len(stream.stamp)} distinct stamps; at least {MIN_SAMPLES} are needed",
@@ -552,7 +542,7 @@ def _cut_dropouts(
             )
         after = np.clip(np.searchsorted(times, grid, side="right"), 1, len(times) - 1)
         good &= (times[after] - times[after - 1] <= max_gap) | (grid == times[after - 1])
-    start, stop = _longest_run(good)
+    start, stop = longest_run(good)
     if stop - start < 1 or grid[stop - 1] - grid[start] < MIN_DURATION:
         raise DataError(
             f"no gap-free stretch of {MIN_DURATION} s: dropouts longer than max_gap "
@@ -565,16 +555,6 @@ def _cut_dropouts(
             f"(the longest gap-free stretch; was {grid[0]:.3f} .. {grid[-1]:.3f} s)"
         )
     return grid[start:stop]
-
-
-def _longest_run(mask: np.ndarray) -> tuple[int, int]:
-    """Start and stop index of the longest run of True in ``mask`` ((0, 0) if none)."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    if not starts.size:
-        return 0, 0
-    longest = int(np.argmax(stops - starts))
-    return int(starts[longest]), int(stops[longest])
 
 
 def _body_velocity(
@@ -606,6 +586,31 @@ def _body_velocity(
     vx = cos * world[0] + sin * world[1]
     vy = -sin * world[0] + cos * world[1]
     return (uniform, vx), (uniform, vy), 1.0 / step
+
+
+def steady_smoothing(
+    t: np.ndarray, yaw_rate: np.ndarray, inputs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Wheel speeds and yaw rate smoothed as by the steady rule (:data:`STEADY_SMOOTHING`).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Uniform sample times [s].
+    yaw_rate : ndarray, shape (N,)
+        Yaw rate [rad/s].
+    inputs : ndarray, shape (N, 2)
+        Wheel speeds [rad/s].
+
+    Returns
+    -------
+    inputs, yaw_rate : ndarray, shapes (N, 2) and (N,)
+        Smoothed, same units (edges padded with the end values).
+    """
+    size = max(1, round(STEADY_SMOOTHING / (t[1] - t[0])))
+    u = uniform_filter1d(np.asarray(inputs, float), size, axis=0, mode="nearest")
+    r = uniform_filter1d(np.asarray(yaw_rate, float), size, mode="nearest")
+    return u, r
 
 
 def detect_steady(
@@ -641,15 +646,13 @@ def detect_steady(
     (float, float) or None
         Start and end [s], or None when the run has no steady stretch.
     """
-    size = max(1, round(STEADY_SMOOTHING / (t[1] - t[0])))
-    u = uniform_filter1d(np.asarray(inputs, float), size, axis=0, mode="nearest")
-    r = uniform_filter1d(np.asarray(yaw_rate, float), size, mode="nearest")
+    u, r = steady_smoothing(t, yaw_rate, inputs)
     speed = np.abs(u).max(axis=1)
     if not speed.max() > 0:
         return None
     level = np.median(u[speed >= 0.5 * speed.max()], axis=0)
     constant = (np.abs(u - level) <= STEADY_INPUT_TOLERANCE * np.abs(level).max()).all(axis=1)
-    start, stop = _longest_run(constant)
+    start, stop = longest_run(constant)
     if stop - start < 2:
         return None
     settled = np.median(r[start:stop])

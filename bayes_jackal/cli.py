@@ -17,16 +17,24 @@ from collections.abc import Callable
 from pathlib import Path
 
 from . import __version__
-from .bags import read_bag, write_bag
+from ._files import write_json
+from .bags import write_bag
+from .criticism import criticise
 from .demo import DEMO_TRUTH, run_demo
 from .errors import InputError
 from .evidence import compare_families
-from .experiment import load_experiments, write_csv, write_netcdf
+from .experiment import ROLES, check_column_roles, load_experiments, write_csv, write_netcdf
 from .export import export_prior, write_prior
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
 from .inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from .kernels import FAMILIES
-from .likelihood import ENGINES, SENSOR_MODELS, ResidualLikelihood
+from .likelihood import (
+    DEFAULT_CHANNEL_ORDER,
+    ENGINES,
+    SENSOR_MODELS,
+    ResidualLikelihood,
+    resolve_channels,
+)
 from .noise import analyse
 from .physics import CHANNELS
 from .plots import save_grid_plot
@@ -34,6 +42,7 @@ from .posterior import load_posterior, save_posterior, summarize
 from .report import FIGURE_FORMATS, write_report
 from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
+from .workflow import DEFAULT_FAMILIES, analyse_logs, ingest_logs
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -100,42 +109,45 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_ingest(args: argparse.Namespace) -> int:
-    out = _Reporter(args.json)
+def _robot_with_topics(args: argparse.Namespace) -> RobotProfile:
+    """The profile with ``--topic ROLE NAME`` overrides applied."""
     robot = _robot(args)
     unknown = [role for role, _ in args.topic if role not in robot.topics]
     if unknown:
         raise InputError(
             f"unknown topic role(s) {unknown}; use {sorted(robot.topics)}", field="--topic"
         )
-    robot = robot.replace(topics={**robot.topics, **dict(args.topic)})
+    return robot.replace(topics={**robot.topics, **dict(args.topic)})
+
+
+def cmd_ingest(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
     folder = Path(args.out)
-    written, failed = {}, {}
+    experiments, failed = ingest_logs(
+        args.bags,
+        _robot_with_topics(args),
+        folder,
+        window=args.window,
+        max_gap=args.max_gap,
+        progress=not args.json,
+    )
+    for reason in failed.values():
+        print(f"bayes-jackal: error: {reason}", file=sys.stderr)
     out.say(
         f"{'bag':24s} {'duration':>9s} {'imu Hz':>7s} {'pose Hz':>7s} "
         f"{'steady window [s]':>18s} {'repairs':>7s}"
     )
-    for bag in args.bags:
-        try:
-            experiment = read_bag(
-                bag, robot, window=args.window, max_gap=args.max_gap, progress=not args.json
-            )
-        except InputError as exc:  # one bad bag does not lose the others
-            failed[str(bag)] = str(exc)
-            print(f"bayes-jackal: error: {exc}", file=sys.stderr)
-            continue
-        path = write_netcdf(experiment, folder / f"{experiment.name}.nc")
-        provenance = experiment.provenance
+    written = {}
+    for experiment in experiments:
         start, stop = experiment.steady_window or (float("nan"), float("nan"))
-        written[experiment.name] = {
-            "file": str(path),
+        row = written[experiment.name] = {
+            "file": str(folder / f"{experiment.name}.nc"),
             "duration": float(experiment.t[-1] - experiment.t[0]),
             "rate": 1.0 / experiment.dt,
-            "pose_rate": provenance.get("pose_rate"),
+            "pose_rate": experiment.provenance.get("pose_rate"),
             "steady_window": experiment.steady_window,
-            "repairs": provenance.get("repairs", []),
+            "repairs": experiment.provenance.get("repairs", []),
         }
-        row = written[experiment.name]
         out.say(
             f"{experiment.name:24s} {row['duration']:8.1f}s {row['rate']:7.1f} "
             f"{row['pose_rate'] or float('nan'):7.1f} {start:8.2f} - {stop:7.2f} "
@@ -149,7 +161,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 def cmd_grid(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
-    experiments = load_experiments(args.experiments)
+    experiments = _load(args)
     result = grid_search(
         experiments,
         robot,
@@ -196,7 +208,7 @@ def _residual_table(result: dict, say: Callable[[str], None]) -> None:
 def cmd_residuals(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
-    experiments = load_experiments(args.experiments)
+    experiments = _load(args)
     result = analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
     _residual_table(result, out.say)
     out.result(result)
@@ -256,7 +268,10 @@ def _run_sample(
     prior_overrides: dict | None = None,
 ) -> dict:
     """Sample, save the posterior (chain beside it), print and return the summary."""
-    say(f"sampling {', '.join(e.name for e in likelihood.experiments)} -> {out_path}")
+    say(
+        f"sampling {', '.join(e.name for e in likelihood.experiments)} on channels "
+        f"{', '.join(likelihood.channels)} -> {out_path}"
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         idata = sample_posterior(
@@ -272,7 +287,15 @@ def _run_sample(
     for warning in caught:
         if issubclass(warning.category, ConvergenceWarning):
             print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
+    _print_criticism(summary["warnings"])
     return summary
+
+
+def _print_criticism(findings: list[dict]) -> None:
+    """Model-criticism warnings on stderr, as ConvergenceWarning (compare: with the family)."""
+    for finding in findings:
+        family = f"{finding['family']}: " if "family" in finding else ""
+        print(f"bayes-jackal: WARNING: {family}{finding['message']}", file=sys.stderr)
 
 
 def _sampler_settings(args: argparse.Namespace) -> SamplerSettings:
@@ -301,7 +324,7 @@ def _data_sets(args: argparse.Namespace, experiments: list) -> dict[str, list]:
 def cmd_sample(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
-    experiments = load_experiments(args.experiments)
+    experiments = _load(args)
     out_path = Path(args.out)
     settings = _sampler_settings(args)
     overrides = _prior_overrides(args.prior)
@@ -356,17 +379,22 @@ def _comparison_table(result: dict, say: Callable[[str], None]) -> None:
 def cmd_compare(args: argparse.Namespace) -> int:
     out = _Reporter(args.json)
     robot = _robot(args)
-    experiments = load_experiments(args.experiments)
+    experiments = _load(args)
     folder = Path(args.out) if args.out else None
     overrides = _prior_overrides(args.prior)
     signal.signal(signal.SIGTERM, _interrupt)
     results = {}
     for name, group in _data_sets(args, experiments).items():
-        out.say(f"comparing {', '.join(args.families)} on {name} (bridge sampling)")
+        channels = resolve_channels(group, args.channels)
+        out.say(
+            f"comparing {', '.join(args.families)} on {name}, channels {', '.join(channels)} "
+            "(bridge sampling)"
+        )
 
         def finished(family, evidence, idata, name=name) -> None:
             out.say(f"  {family}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
             if folder is not None:  # saved at once: an interruption keeps it
+                criticise(idata)  # cached in its attrs: the file carries it
                 save_posterior(idata, folder / f"{name}.{family}.nc")
 
         with warnings.catch_warnings(record=True) as caught:
@@ -381,15 +409,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 finished,
                 cross_check=args.nested,
                 processes=args.processes,
-                **_likelihood_options(args),
+                **_likelihood_options(args) | {"channels": channels},
             )
         for warning in caught:
             if issubclass(warning.category, ConvergenceWarning):
                 print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
-        results[name] = comparison.to_dict()
+        results[name] = comparison.to_dict() | {"channels": list(channels)}
         _comparison_table(results[name], out.say)
+        _print_criticism(results[name]["warnings"])
         if folder is not None:
-            (folder / f"{name}.compare.json").write_text(json.dumps(results[name], indent=2))
+            write_json(folder / f"{name}.compare.json", results[name])
             out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
     out.result(results.popitem()[1] if len(results) == 1 else {"experiments": results})
     return EXIT_OK
@@ -437,21 +466,61 @@ def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
-def cmd_demo(args: argparse.Namespace) -> int:
-    out = _Reporter(False)
-    signal.signal(signal.SIGTERM, _interrupt)
-    result = run_demo(args.out, out.say, progress=not args.no_progress)
-    out.say("\nGaussian-noise posterior (pooled):")
+def _analysis_text(result: dict, out: _Reporter) -> int:
+    """Print what analyse_logs found; warnings and bad inputs on stderr; the exit code."""
+    out.say(
+        f"\n{result['best']}-noise posterior (the best family by evidence), pooled over "
+        f"{len(result['experiments'])} experiment(s), channels {', '.join(result['channels'])}:"
+    )
     _posterior_table(result["posterior"], out.say)
     out.say(f"Is the noise coloured? {result['comparison']['verdict_text']}")
     files = result["files"]
     out.say(
-        f"\nTruth: d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} N s/m, "
-        f"sigma_h={NoiseSettings().width} s.\nOpen {files['report']} in a browser. Also "
-        f"written: {files['prior']} (Active Inference prior), {files['posterior']}, "
-        "posteriors/, experiments/, grid_*.png, *.json."
+        f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "
+        f"Inference prior), {files['posterior']}, posteriors/, experiments/, grid_*.png, *.json."
     )
-    return EXIT_OK
+    _print_criticism(result["warnings"])
+    for reason in result["failed"].values():
+        print(f"bayes-jackal: error: {reason}", file=sys.stderr)
+    out.result(result)
+    return EXIT_BAD_INPUT if result["failed"] else EXIT_OK
+
+
+def cmd_analyse(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
+    robot = _robot_with_topics(args)
+    signal.signal(signal.SIGTERM, _interrupt)
+    options = _likelihood_options(args)
+    result = analyse_logs(
+        args.inputs,
+        args.out,
+        robot=robot,
+        families=args.families,
+        channels=options.pop("channels"),
+        settings=_sampler_settings(args),
+        seed=args.seed,
+        processes=args.processes,
+        prior_overrides=_prior_overrides(args.prior),
+        likelihood_options=options,
+        window=args.window,
+        max_gap=args.max_gap,
+        read_options=_read_options(args),
+        say=out.say,
+    )
+    return _analysis_text(result, out)
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    out = _Reporter(args.json)
+    signal.signal(signal.SIGTERM, _interrupt)
+    result = run_demo(args.out, out.say, progress=not args.no_progress)
+    out.say(
+        f"Truth (simulated): d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} "
+        f"N s/m, sigma_h={NoiseSettings().width} s. The bags' vx and vy are derived from "
+        "noise-free motion-capture poses by a smoothing derivative: they carry no sensor "
+        "noise (sigma_n at its prior bound) and a wider kernel (sigma_h) than the simulator's."
+    )
+    return _analysis_text(result, out)
 
 
 def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None:
@@ -469,10 +538,71 @@ def cmd_report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _add_model_flags(parser: argparse.ArgumentParser) -> None:
-    """Flags shared by sample and compare: channels, noise model, pooling, sampler."""
+def _add_input_flags(parser: argparse.ArgumentParser) -> None:
+    """Flags of reading experiment files (CSV, MATLAB): column names and the rate."""
     parser.add_argument(
-        "--channels", type=_channel_list, default=("yaw",), help="e.g. yaw,vx (default yaw)"
+        "--column",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("ROLE", "NAME"),
+        help=f"the file's column for a role ({', '.join(ROLES)}), e.g. --column yaw_rate gyro_z",
+    )
+    parser.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="declared sampling rate [Hz] (default: detected from the time stamps)",
+    )
+
+
+def _read_options(args: argparse.Namespace) -> dict:
+    """Keywords of load_experiment(s) from the input flags."""
+    return {"columns": check_column_roles(dict(args.column), field="--column"), "rate": args.rate}
+
+
+def _load(args: argparse.Namespace) -> list:
+    """The experiments named on the command line, read with the input flags."""
+    return load_experiments(args.experiments, **_read_options(args))
+
+
+def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = 0.25) -> None:
+    """Flags of reading bags, shared by ingest and analyse: window, gaps, topics."""
+    parser.add_argument(
+        "--window",
+        type=float,
+        nargs=2,
+        metavar=("T0", "T1"),
+        help="steady-state window [s; in bags from the first IMU stamp] instead of detecting it",
+    )
+    parser.add_argument(
+        "--max-gap",
+        type=float,
+        default=max_gap,
+        help="longest tolerated dropout [s] "
+        + (f"({max_gap:g})" if max_gap else "(bags 0.25, experiment files 5 sample steps)"),
+    )
+    parser.add_argument(
+        "--topic",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("ROLE", "NAME"),
+        help="override a profile topic, e.g. --topic pose /vrpn_client_node/jackal/pose",
+    )
+
+
+def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -> None:
+    """Flags of sample, compare and analyse: channels, noise model, pooling, sampler, priors.
+
+    ``pooling=False`` (analyse, always pooled) leaves out ``--pooled``.
+    """
+    parser.add_argument(
+        "--channels",
+        type=_channel_list,
+        default=None,
+        help="comma-separated subset of "
+        f"{','.join(DEFAULT_CHANNEL_ORDER)} (default: every one all experiments measure)",
     )
     parser.add_argument(
         "--sensor-noise",
@@ -480,14 +610,15 @@ def _add_model_flags(parser: argparse.ArgumentParser) -> None:
         default="ma1",
         help="sensor-noise footprint: ma1 (default) or a diagonal nugget",
     )
-    parser.add_argument(
-        "--pooled", action="store_true", help="one posterior for all experiments (shared d)"
-    )
+    if pooling:
+        parser.add_argument(
+            "--pooled", action="store_true", help="one posterior for all experiments (shared d)"
+        )
     parser.add_argument(
         "--noise",
         choices=("shared", "per-experiment"),
         default="shared",
-        help="with --pooled: noise parameters shared or per experiment",
+        help="pooled: noise parameters shared or per experiment",
     )
     parser.add_argument(
         "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
@@ -516,11 +647,41 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    analysis = commands.add_parser(
+        "analyse", help="the whole analysis of your logs: ingest, grids, compare, prior, report"
+    )
+    analysis.add_argument(
+        "inputs",
+        nargs="+",
+        metavar="BAG|EXP",
+        help="bags (.bag, .mcap, .db3, bag folders) and experiment files (.csv, .mat, .nc)",
+    )
+    analysis.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    analysis.add_argument(
+        "--families",
+        type=_family_list,
+        default=DEFAULT_FAMILIES,
+        metavar="white,gaussian,...",
+        help=f"noise families to compare ({','.join(DEFAULT_FAMILIES)})",
+    )
+    analysis.add_argument(
+        "--processes",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="families sampled at once (default: the number of cores)",
+    )
+    _add_bag_flags(analysis, max_gap=None)
+    _add_input_flags(analysis)
+    _add_model_flags(analysis, pooling=False)
+    _add_common(analysis)
+    analysis.set_defaults(func=cmd_analyse)
+
     demo = commands.add_parser(
-        "demo", help="ingest the shipped simulated bags, infer, compare, export, report"
+        "demo", help="analyse on the shipped simulated bags (embedded default data)"
     )
     demo.add_argument("--out", default="bayes-jackal-demo", help="output folder")
-    demo.add_argument("--no-progress", action="store_true", help="no progress bars")
+    demo.add_argument("--no-progress", action="store_true", help="no progress display")
+    demo.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     demo.set_defaults(func=cmd_demo)
 
     sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
@@ -563,7 +724,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.set_defaults(func=cmd_simulate)
 
     grid = commands.add_parser("grid", help="thesis grid search over (d_lat, d_long)")
-    grid.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    grid.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
     grid.add_argument("--method", choices=METHODS, default="onestep")
     for name in ("d-lat", "d-long"):
         grid.add_argument(
@@ -578,35 +739,19 @@ def build_parser() -> argparse.ArgumentParser:
     grid.add_argument("--discretisation", choices=("zoh", "euler"), default="zoh")
     grid.add_argument("--plot", metavar="FILE", help="save the MSE surface (png, svg, pdf)")
     grid.add_argument("--out", metavar="FILE.nc", help="save all MSE surfaces as NetCDF")
+    _add_input_flags(grid)
     _add_common(grid)
     grid.set_defaults(func=cmd_grid)
 
     ingest = commands.add_parser("ingest", help="ROS1/ROS2 bags to experiment files")
     ingest.add_argument("bags", nargs="+", metavar="BAG", help=".bag, .mcap, .db3 or bag folder")
     ingest.add_argument("--out", required=True, help="output folder (one .nc per bag)")
-    ingest.add_argument(
-        "--window",
-        type=float,
-        nargs=2,
-        metavar=("T0", "T1"),
-        help="steady-state window [s from the first IMU stamp] instead of detecting it",
-    )
-    ingest.add_argument(
-        "--max-gap", type=float, default=0.25, help="longest tolerated dropout [s] (0.25)"
-    )
-    ingest.add_argument(
-        "--topic",
-        nargs=2,
-        action="append",
-        default=[],
-        metavar=("ROLE", "NAME"),
-        help="override a profile topic, e.g. --topic pose /vrpn_client_node/jackal/pose",
-    )
+    _add_bag_flags(ingest)
     _add_common(ingest)
     ingest.set_defaults(func=cmd_ingest)
 
     res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
-    res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
     res.add_argument("--d-lat", type=float, default=110.0, help="d_lat of the model [N s/m] (110)")
     res.add_argument("--d-long", type=float, default=30.0, help="d_long of the model [N s/m] (30)")
     res.add_argument(
@@ -619,19 +764,25 @@ def build_parser() -> argparse.ArgumentParser:
     res.add_argument(
         "--lags", type=int, default=30, help="lags of the Ljung-Box test and sigma_h fit (30)"
     )
+    _add_input_flags(res)
     _add_common(res)
     res.set_defaults(func=cmd_residuals)
 
     sample = commands.add_parser("sample", help="posterior of damping and noise with emcee")
-    sample.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    sample.add_argument(
+        "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
+    )
     sample.add_argument("--out", required=True, metavar="POSTERIOR.nc", help="posterior file")
     sample.add_argument("--family", choices=list(FAMILIES), default="gaussian")
+    _add_input_flags(sample)
     _add_model_flags(sample)
     _add_common(sample)
     sample.set_defaults(func=cmd_sample)
 
     compare = commands.add_parser("compare", help="noise-filter families ranked by evidence")
-    compare.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv or .nc")
+    compare.add_argument(
+        "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
+    )
     compare.add_argument(
         "--families",
         type=_family_list,
@@ -651,6 +802,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="cross-check each evidence by nested sampling (dynesty; slow)",
     )
+    _add_input_flags(compare)
     _add_model_flags(compare)
     _add_common(compare)
     compare.set_defaults(func=cmd_compare)

@@ -290,7 +290,12 @@ class Comparison:
         return "inconclusive", f"inconclusive: {rival} against white, {words}"
 
     def to_dict(self) -> dict:
-        """The ``compare --json`` object (DESIGN §6)."""
+        """The ``compare --json`` object (DESIGN §6).
+
+        Each family carries its model-criticism ``warnings``
+        (:func:`bayes_jackal.criticism.criticise`); the top-level ``warnings``
+        lists them all, each with its ``family``.
+        """
         families = {}
         for name, evidence in self.evidence.items():
             entry = evidence.to_dict()
@@ -300,6 +305,7 @@ class Comparison:
             )
             entry["width"] = _width_summary(self.posteriors[name], name)
             entry["converged"] = bool(self.posteriors[name].posterior.attrs["converged"])
+            entry["warnings"] = summarize(self.posteriors[name])["warnings"]
             if name in self.nested:
                 entry["log_evidence_nested"] = self.nested[name].log_evidence
                 entry["log_evidence_nested_err"] = self.nested[name].error
@@ -312,6 +318,11 @@ class Comparison:
             "log_bayes_factor_vs_white": families[self.best]["log_bayes_factor_vs_white"],
             "verdict": label,
             "verdict_text": sentence,
+            "warnings": [
+                {"family": name} | warning
+                for name, entry in families.items()
+                for warning in entry["warnings"]
+            ],
         }
 
 
@@ -427,7 +438,9 @@ def compare_families(
         Families sampled at once, each in its own process (one per core).
     **likelihood_options
         ``channels``, ``shared_noise``, ``sensor``, ``engine`` of
-        :class:`ResidualLikelihood`.
+        :class:`ResidualLikelihood`. Without ``channels`` (or with None)
+        every family sees every channel measured in all experiments
+        (:func:`~bayes_jackal.likelihood.resolve_channels`).
 
     Returns
     -------

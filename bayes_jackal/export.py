@@ -30,7 +30,10 @@ Everything is averaged over posterior draws, so the exported precision
 carries the uncertainty of the widths, the noise levels and the damping.
 
 The process noise of the fitted model is per step: x[k+1] = Ad x[k] + Bd
-u[k] + w[k] with sd sigma_c. Held constant over a step, a continuous-time
+u[k] + w[k] with sd sigma_c. White noise with the diagonal sensor term
+cannot tell process from sensor noise; its sigma_c is the total sd
+(``noise.sigma_c_is = "total"``, no sigma_n), and Pi treats all of it as
+process noise. Held constant over a step, a continuous-time
 noise w~ in dx/dt = A x + B u + w~ gives w[k] = w~ (Ad - 1) / A, so
 s_c = sigma_c A / (Ad - 1) [channel units / s] is its sd; ``Pi`` uses s_c.
 """
@@ -44,7 +47,7 @@ import numpy as np
 import scipy.special
 
 from . import __version__
-from ._files import atomic_path
+from ._files import write_json
 from .errors import InputError
 from .kernels import get_family
 from .physics import CHANNELS, continuous_matrices, discrete_matrices
@@ -206,7 +209,7 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     noise_stats = {
         label(base, c): interval(summary[label(base, c)])
         for c in channels
-        for base in ([width_name] if width_name else []) + ["sigma_c", "sigma_n"]
+        for base in likelihood.noise_parameter_names
     }
     continuous_stats = {
         c: {"mean": float(continuous_sd[:, k].mean()), "sd": float(continuous_sd[:, k].std())}
@@ -244,6 +247,7 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
             "width_name": width_name,
             "channels": channels,
             "parameters": noise_stats,
+            "sigma_c_is": "process" if "sigma_n" in likelihood.noise_parameter_names else "total",
             "process_sd_continuous": continuous_stats,
             "sensor": str(attrs["sensor"]),
         },
@@ -265,7 +269,4 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
 
 def write_prior(prior: dict, path: str | Path) -> Path:
     """Write an exported prior as JSON, atomically."""
-    path = Path(path)
-    with atomic_path(path) as temporary:
-        temporary.write_text(json.dumps(prior, indent=1))
-    return path
+    return write_json(path, prior, indent=1)

@@ -11,7 +11,12 @@ Families (thesis 7-4-1):
 
 - ``white``: h = delta; no width.
 - ``gaussian``: the thesis' filter (eq. 7-5), h(t) ~ exp(-t^2 / (2 sigma_h^2))
-  at t = k dt, truncated at |t| <= 3 sigma_h; width sigma_h [s].
+  at t = k dt, truncated at |t| <= 3 sigma_h; width sigma_h [s]. With
+  K = floor(3 sigma_h / dt), the taps |k| <= K are whole and the two at
+  |k| = K + 1 are weighted by the fraction 3 sigma_h / dt - K, so that h
+  varies continuously with sigma_h (a hard truncation makes the likelihood
+  jump by nats whenever a tap enters) and is exactly the thesis' filter
+  wherever 3 sigma_h / dt is whole.
 - ``exponential``: first-order low-pass, AR(1) / Ornstein-Uhlenbeck,
   rho[l] = phi^l with phi = exp(-dt / tau); width tau [s].
 - ``triangular``: h(t) ~ 1 - |t| / w for |t| < w; width w [s] (half-base).
@@ -59,10 +64,12 @@ def _check_widths(width, name: str) -> np.ndarray:
 
 
 def _gaussian_taps(width: np.ndarray, dt: float) -> np.ndarray:
-    half = np.floor(GAUSSIAN_TRUNCATION * width / dt)
-    k = np.arange(-int(half.max()), int(half.max()) + 1)
-    inside = np.abs(k) <= half[..., None]
-    return np.where(inside, np.exp(-((k * dt) ** 2) / (2.0 * width[..., None] ** 2)), 0.0)
+    # Taps |k| <= K = floor(reach) in full, |k| = K + 1 times the fraction
+    # reach - K: continuous in the width, eq. 7-5 itself where reach is whole.
+    reach = (GAUSSIAN_TRUNCATION * width / dt)[..., None]
+    k = np.arange(-int(reach.max()) - 1, int(reach.max()) + 2)
+    weight = np.clip(reach + 1.0 - np.abs(k), 0.0, 1.0)
+    return weight * np.exp(-((k * dt) ** 2) / (2.0 * width[..., None] ** 2))
 
 
 def _triangular_taps(width: np.ndarray, dt: float) -> np.ndarray:
@@ -263,6 +270,14 @@ def gaussian_kernel(sigma_h: float, dt: float) -> np.ndarray:
     for sigma_h >> dt; the taps are normalised to sum(h^2) = 1 exactly, so
     the kernel degrades to a single tap (white noise) for sigma_h << dt.
 
+    With K = floor(3 sigma_h / dt) and f = 3 sigma_h / dt - K, the taps
+    |k| <= K are eq. 7-5's and the two edge taps |k| = K + 1 are eq. 7-5's
+    times f (before normalisation), as the moving-average family weights
+    its last tap. So the kernel is continuous in sigma_h: a tap enters at
+    zero height rather than at exp(-4.5) ~ 1.1 % of the peak. Where
+    3 sigma_h / dt is whole, f = 0 and the kernel is the thesis' filter
+    itself; elsewhere the edge taps are below 1.1 % f of the peak.
+
     Parameters
     ----------
     sigma_h : float
@@ -272,10 +287,11 @@ def gaussian_kernel(sigma_h: float, dt: float) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (2 K + 1,)
-        Taps for k = -K..K, K = floor(3 sigma_h / dt).
+    ndarray, shape (2 K + 1,) or (2 K + 3,)
+        Taps for k = -K..K, and the edge taps k = +-(K + 1) where they are
+        non-zero (f > 0, and no underflow for sigma_h << dt).
     """
-    return FAMILIES["gaussian"].taps(float(_check_widths(sigma_h, "sigma_h")), dt)
+    return np.trim_zeros(FAMILIES["gaussian"].taps(float(_check_widths(sigma_h, "sigma_h")), dt))
 
 
 def _coloured_noise(

@@ -12,7 +12,9 @@ stationary Gaussian series with Toeplitz covariance
     Sigma = sigma_c^2 R(width) + sigma_n^2 M(alpha),
     M = tridiag(-alpha, 1 + alpha^2, -alpha)      ("ma1", the default)
 
-or M = I ("diagonal", for data without sensor noise). The residual is linear
+or M = I ("diagonal", for data without sensor noise). White noise with the
+diagonal term, (sigma_c^2 + sigma_n^2) I, has one variance: there sigma_c is
+the total sd and sigma_n is not a parameter. The residual is linear
 in c = (1, -alpha, -beta_r, -beta_l): r = Z c with the regressors
 Z = [y[k+1], y[k], u_r[k], u_l[k]].
 
@@ -37,12 +39,13 @@ Three engines evaluate log N(r; 0, Sigma), vectorised over parameter sets:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.fft
 
-from .errors import InputError
+from .errors import DataError, InputError
 from .experiment import Experiment
 from .kernels import Family, as_rng, get_family
 from .noise import check_residual_window, residual_regressors
@@ -50,12 +53,14 @@ from .physics import channel_coefficients
 from .robot import RobotProfile
 
 __all__ = [
+    "DEFAULT_CHANNEL_ORDER",
     "ENGINES",
     "FAST_TOLERANCE",
     "SENSOR_MODELS",
     "ResidualLikelihood",
     "debiased_whittle_loglike",
     "residual_autocovariance",
+    "resolve_channels",
     "sample_stationary",
     "spectral_loglike",
     "toeplitz_loglike",
@@ -63,6 +68,8 @@ __all__ = [
 
 SENSOR_MODELS = ("ma1", "diagonal")
 ENGINES = ("fast", "exact", "whittle")
+#: Order of the default channels: the thesis' yaw rate, then vx and vy.
+DEFAULT_CHANNEL_ORDER = ("yaw", "vx", "vy")
 #: Fewest residuals a channel must have to enter the likelihood.
 MIN_RESIDUALS = 32
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -395,12 +402,58 @@ def debiased_whittle_loglike(
     return np.where(valid, loglike, -np.inf)
 
 
+def resolve_channels(
+    experiments: list[Experiment], channels: Sequence[str] | None = None
+) -> tuple[str, ...]:
+    """The channels a likelihood uses: those given, or every one all experiments measure.
+
+    Parameters
+    ----------
+    experiments : list of Experiment
+    channels : sequence of {"yaw", "vx", "vy"}, optional
+        Distinct channel names; None selects every channel measured in all
+        experiments, yaw first (the thesis' channel), then vx, vy. Yaw is
+        always measured, so the default is never empty.
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    InputError
+        For no, unknown or repeated channel names.
+    DataError
+        When an experiment does not measure a requested channel, naming its
+        file and the channels it has.
+    """
+    if channels is None:
+        return tuple(c for c in DEFAULT_CHANNEL_ORDER if all(c in e.channels for e in experiments))
+    channels = tuple(channels)
+    unknown = [c for c in channels if c not in DEFAULT_CHANNEL_ORDER]
+    if not channels or unknown or len(set(channels)) != len(channels):
+        raise InputError(
+            f"channels must be distinct names among {DEFAULT_CHANNEL_ORDER}, got {channels}",
+            field="channels",
+        )
+    for experiment in experiments:
+        missing = [c for c in channels if c not in experiment.channels]
+        if missing:
+            raise DataError(
+                f"channel(s) {missing} not measured; this experiment has "
+                f"{list(experiment.channels)}: choose among them with channels (--channels)",
+                source=experiment.source,
+                field="channels",
+            )
+    return channels
+
+
 @dataclass
 class ResidualLikelihood:
     """Log-likelihood of the one-step residuals of experiments and channels.
 
     The damping (d_lat, d_long) is shared; each channel has its own noise
-    parameters (width, sigma_c, sigma_n), shared across experiments
+    parameters (:attr:`noise_parameter_names`), shared across experiments
     (``shared_noise=True``) or separate per experiment. Log-likelihoods of
     experiments add: series are never concatenated.
 
@@ -410,8 +463,10 @@ class ResidualLikelihood:
     robot : RobotProfile
     family : str
         Process-noise family name.
-    channels : tuple of str
-        Channels among ``yaw``, ``vx``, ``vy``.
+    channels : tuple of str, optional
+        Channels among ``yaw``, ``vx``, ``vy``; None (default): every channel
+        measured in all experiments (:func:`resolve_channels`). Resolved to
+        a tuple on construction.
     shared_noise : bool
         One noise setting per channel for all experiments, or one per
         experiment and channel.
@@ -428,7 +483,7 @@ class ResidualLikelihood:
     experiments: list[Experiment]
     robot: RobotProfile
     family: str = "gaussian"
-    channels: tuple[str, ...] = ("yaw",)
+    channels: tuple[str, ...] | None = None
     shared_noise: bool = True
     sensor: str = "ma1"
     engine: str = "fast"
@@ -447,8 +502,7 @@ class ResidualLikelihood:
                 raise InputError(f"unknown {name} {value!r}; use one of {allowed}", field=name)
         if not self.experiments:
             raise InputError("no experiments given", field="experiments")
-        if not self.channels or len(set(self.channels)) != len(self.channels):
-            raise InputError(f"channels must be distinct, got {self.channels}", field="channels")
+        self.channels = resolve_channels(self.experiments, self.channels)
         self.noise_groups, self.blocks = self._build_blocks()
 
     def _build_blocks(self) -> tuple[list[tuple[str, str]], list[_Block]]:
@@ -469,21 +523,30 @@ class ResidualLikelihood:
         return list(groups), blocks
 
     @property
+    def noise_parameter_names(self) -> list[str]:
+        """Base names of one group's noise parameters: (width,) sigma_c(, sigma_n).
+
+        White noise with the diagonal sensor term has the covariance
+        (sigma_c^2 + sigma_n^2) I: one variance, which two parameters would
+        split along a flat ridge that the data cannot inform. That model
+        has one sd, ``sigma_c``: the total sd of the residual.
+        """
+        width = [self._family.width_name] if self._family.has_width else []
+        one_sd = not self._family.has_width and self.sensor == "diagonal"
+        return [*width, "sigma_c", *([] if one_sd else ["sigma_n"])]
+
+    @property
     def n_noise_parameters(self) -> int:
-        """Noise parameters per group: (width,) sigma_c, sigma_n."""
-        return 3 if self._family.has_width else 2
+        """Noise parameters per group (see :attr:`noise_parameter_names`)."""
+        return len(self.noise_parameter_names)
 
     @property
     def parameter_names(self) -> list[str]:
         """Names in parameter-vector order: d_lat, d_long, then each group's noise."""
         names = ["d_lat", "d_long"]
-        noise = ([self._family.width_name] if self._family.has_width else []) + [
-            "sigma_c",
-            "sigma_n",
-        ]
         for channel, experiment in self.noise_groups:
             suffix = self.group_label(channel, experiment)
-            names += [f"{name}{suffix}" for name in noise]
+            names += [f"{name}{suffix}" for name in self.noise_parameter_names]
         return names
 
     def group_label(self, channel: str, experiment: str) -> str:
@@ -500,11 +563,17 @@ class ResidualLikelihood:
         return sum(block.regressors.shape[0] * block.regressors.shape[1] for block in self.blocks)
 
     def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:
-        """(width, sigma_c, sigma_n) of one noise group, each shape (B,)."""
+        """(width, sigma_c, sigma_n) of one noise group, each shape (B,).
+
+        White noise has unit width (ignored); where sigma_n is not a
+        parameter (white noise with the diagonal term) it is zero, and
+        sigma_c is the total sd.
+        """
         start = 2 + group * self.n_noise_parameters
-        values = theta[:, start : start + self.n_noise_parameters]
-        width = values[:, 0] if self._family.has_width else np.ones(len(theta))
-        return width, values[:, -2], values[:, -1]
+        columns = theta[:, start : start + self.n_noise_parameters].T
+        values = dict(zip(self.noise_parameter_names, columns, strict=True))
+        width = values.get(self._family.width_name, np.ones(len(theta)))
+        return width, values["sigma_c"], values.get("sigma_n", np.zeros(len(theta)))
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Log-likelihood of each parameter vector.

@@ -14,6 +14,7 @@ from matplotlib.axes import Axes
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
+from .criticism import criticise
 from .gridsearch import GridResult
 from .noise import autocorrelation_bounds, sample_autocorrelation, spectrum
 from .physics import CHANNELS
@@ -28,6 +29,7 @@ from .posterior import (
 
 __all__ = [
     "plot_autocorrelation",
+    "plot_criticism",
     "plot_damping",
     "plot_grid",
     "plot_model_fit",
@@ -351,3 +353,58 @@ def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
     ax.set_ylabel("density")
     ax.legend(fontsize="small")
     return fig, ax
+
+
+def plot_criticism(idata, axes=None) -> tuple[Figure, np.ndarray]:
+    """Model criticism: the residual-input test and the residual-ACF p-values.
+
+    One row per channel. Left: MATLAB ``resid``'s independence test, the
+    cross-correlation of each experiment's residuals with the wheel-speed
+    sum (solid) and difference (dotted) in units of its standard error,
+    z(k) = r(k) / sd, with the per-lag 99 % band (+-2.58) and the level of
+    the warning over all lags (dashed). Right: the posterior-predictive
+    p-values of the residual autocorrelation statistics per experiment; the
+    shaded zones (each tail's Bonferroni level, 0.005 for 5 statistics) hold
+    the flagged ones. The numbers are
+    :func:`bayes_jackal.criticism.criticise`'s.
+
+    Parameters
+    ----------
+    axes : ndarray of Axes, shape (channels, 2), optional
+
+    Returns
+    -------
+    fig, axes
+    """
+    criticism = criticise(idata)["criticism"]
+    channels = _channels(idata)
+    if axes is None:
+        fig = Figure(layout="constrained", figsize=(9.0, 2.6 * len(channels) + 0.4))
+        axes = fig.subplots(len(channels), 2, squeeze=False)
+    else:
+        axes = np.asarray(axes).reshape(len(channels), 2)
+        fig = axes[0, 0].figure
+    for row, channel in zip(axes, channels, strict=True):
+        left, right = row
+        for number, rows in enumerate(criticism["residual_input"].values()):
+            test = rows[channel]
+            lag = np.arange(-test["lags"], test["lags"] + 1)
+            for z, style in zip(test["z"].values(), ("-", ":"), strict=False):
+                left.plot(lag, z, style, color=f"C{number % 10}", lw=0.9)
+            left.axhline(test["threshold"], color="k", ls="--", lw=0.8)
+            left.axhline(-test["threshold"], color="k", ls="--", lw=0.8)
+        left.axhspan(-test["band"], test["band"], color="tab:blue", alpha=0.12)
+        left.set_ylabel(f"{channel}: z(k)")
+        tests = criticism["predictive_acf"]
+        for number, rows in enumerate(tests.values()):
+            values = rows[channel]
+            right.plot(values["statistics"], values["p_values"], "o", color=f"C{number % 10}")
+        tail = values["tail_level"]
+        right.axhspan(0.0, tail, color=_MODEL_COLOUR, alpha=0.2)
+        right.axhspan(1.0 - tail, 1.0, color=_MODEL_COLOUR, alpha=0.2)
+        right.set_ylim(-0.02, 1.02)
+        right.set_ylabel("p-value")
+    axes[0, 0].set_title("residual-input cross-correlation (99 % band)", fontsize="medium")
+    axes[0, 1].set_title("posterior-predictive p-values of the residual ACF", fontsize="medium")
+    axes[-1, 0].set_xlabel("lag k [samples] (input leads for k > 0)")
+    return fig, axes

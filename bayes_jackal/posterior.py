@@ -3,8 +3,10 @@
 Layout of a posterior (NetCDF through arviz, groups):
 
 - ``posterior``: ``d_lat``, ``d_long`` [N s/m]; the noise parameters
-  (``sigma_h`` or ``width`` [s], ``sigma_c``, ``sigma_n`` [channel units]),
-  scalars when one noise group, else along ``noise_group``; derived
+  (``sigma_h`` or ``width`` [s], ``sigma_c``, ``sigma_n`` [channel units];
+  white noise with the diagonal sensor term has no ``sigma_n``, its
+  ``sigma_c`` is the total sd), scalars when one noise group, else along
+  ``noise_group``; derived
   ``ratio`` = d_lat / d_long, ``Ad`` (diagonal, along ``state``) and ``Bd``
   (``state`` x ``wheel``). Walkers are arviz chains.
 - ``sample_stats``: ``lp`` (log posterior in sampling coordinates) and
@@ -13,7 +15,8 @@ Layout of a posterior (NetCDF through arviz, groups):
   experiment i on its steady window at the posterior median of the damping.
 - ``constant_data``: the measured experiments, ``<field>_<i>``.
 - ``attrs`` of ``posterior``: format, model settings, priors, robot,
-  experiments and convergence diagnostics (dicts as JSON strings).
+  experiments (each with its provenance: source file, time base and
+  repairs) and convergence diagnostics (dicts as JSON strings).
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ __all__ = [
     "build_inference_data",
     "interval",
     "load_posterior",
+    "model_autocovariance",
     "model_states",
     "parameter_draws",
     "parameter_variables",
@@ -56,6 +60,7 @@ __all__ = [
     "predictive_residuals",
     "save_posterior",
     "summarize",
+    "thinned_draws",
     "thinned_indices",
 ]
 
@@ -71,8 +76,8 @@ INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
 
 def _noise_variables(likelihood: ResidualLikelihood, draws: np.ndarray) -> tuple[dict, dict]:
     """Noise parameters as variables: scalars for one group, else along noise_group."""
-    per_group = likelihood.n_noise_parameters
-    bases = [name.split("[")[0] for name in likelihood.parameter_names[2 : 2 + per_group]]
+    bases = likelihood.noise_parameter_names
+    per_group = len(bases)
     groups = len(likelihood.noise_groups)
     variables, dims = {}, {}
     for i, base in enumerate(bases):
@@ -186,6 +191,7 @@ def _attributes(likelihood: ResidualLikelihood, prior, diagnostics: dict) -> dic
             "steady_window": e.steady_window,
             "dt": e.dt,
             "truth": e.truth,
+            "provenance": e.provenance,
         }
         for e in likelihood.experiments
     ]
@@ -290,6 +296,7 @@ def posterior_experiments(idata: az.InferenceData) -> list[Experiment]:
                 series=meta.get("series"),
                 steady_window=None if window is None else tuple(window),
                 truth=meta.get("truth"),
+                provenance=meta.get("provenance") or {},
                 source=meta.get("source") or "<memory>",
             )
         )
@@ -316,11 +323,53 @@ def thinned_indices(count: int, limit: int) -> np.ndarray:
     return np.unique(np.linspace(0, count - 1, min(count, limit)).astype(int))
 
 
-def _thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
-    """At most ``count`` evenly spaced posterior draws, shape (count, P)."""
+def thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
+    """At most ``count`` evenly spaced posterior draws in natural units, shape (count, P)."""
     draws, _ = parameter_draws(idata)
     draws = draws.reshape(-1, draws.shape[-1])
     return draws[thinned_indices(len(draws), count)]
+
+
+def model_autocovariance(
+    likelihood: ResidualLikelihood, index: int, channel: str, theta: np.ndarray, n: int
+) -> np.ndarray:
+    """The model's autocovariance of one experiment's one-step residuals in one channel.
+
+    Parameters
+    ----------
+    likelihood : ResidualLikelihood
+        As rebuilt by :func:`posterior_likelihood`.
+    index : int
+        Experiment index.
+    channel : {"yaw", "vx", "vy"}
+    theta : ndarray, shape (B, P)
+        Parameter vectors in natural units (``parameter_names`` order).
+    n : int
+        Number of lags.
+
+    Returns
+    -------
+    ndarray, shape (B, n)
+        Autocovariance at lags 0..n-1 [channel unit squared].
+    """
+    experiment = likelihood.experiments[index]
+    key = (channel, "all" if likelihood.shared_noise else experiment.name)
+    width, sigma_c, sigma_n = likelihood.noise_parameters(
+        theta, likelihood.noise_groups.index(key)
+    )
+    alpha, _ = channel_coefficients(
+        likelihood.robot, theta[:, 0], theta[:, 1], channel, experiment.dt
+    )
+    return residual_autocovariance(
+        get_family(likelihood.family),
+        width,
+        sigma_c,
+        sigma_n,
+        alpha,
+        experiment.dt,
+        n,
+        likelihood.sensor,
+    )
 
 
 def predictive_residuals(
@@ -341,27 +390,9 @@ def predictive_residuals(
     -------
     ndarray, shape (count, n)
     """
-    likelihood = posterior_likelihood(idata)
-    experiment = likelihood.experiments[index]
-    theta = _thinned_draws(idata, count)
-    key = (channel, "all" if likelihood.shared_noise else experiment.name)
-    width, sigma_c, sigma_n = likelihood.noise_parameters(
-        theta, likelihood.noise_groups.index(key)
-    )
-    alpha, _ = channel_coefficients(
-        likelihood.robot, theta[:, 0], theta[:, 1], channel, experiment.dt
-    )
+    theta = thinned_draws(idata, count)
     n = idata.observed_data[f"residual_{channel}_{index}"].size
-    acov = residual_autocovariance(
-        get_family(likelihood.family),
-        width,
-        sigma_c,
-        sigma_n,
-        alpha,
-        experiment.dt,
-        n,
-        likelihood.sensor,
-    )
+    acov = model_autocovariance(posterior_likelihood(idata), index, channel, theta, n)
     return sample_stationary(acov, rng)
 
 
@@ -377,7 +408,7 @@ def model_states(idata: az.InferenceData, index: int, count: int = 50) -> np.nda
         (vx, vy, yaw rate) at each sample.
     """
     experiment = posterior_experiments(idata)[index]
-    theta = _thinned_draws(idata, count)
+    theta = thinned_draws(idata, count)
     x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
     return simulate(
         posterior_robot(idata),
@@ -431,8 +462,12 @@ def summarize(idata: az.InferenceData) -> dict:
     ``ess_autocorr``, the ESS implied by the integrated autocorrelation time
     (the primary one for emcee); plus ``corr_d_lat_d_long``,
     ``autocorr_time``, ``n_steps``, ``converged``, and under ``ratio`` the
-    thesis' 3 2/3.
+    thesis' 3 2/3. ``warnings`` lists the model-criticism warnings (dicts
+    with ``kind`` and ``message``) and ``criticism`` their numbers
+    (:func:`bayes_jackal.criticism.criticise`).
     """
+    from .criticism import criticise  # criticism builds on this module
+
     attrs = idata.posterior.attrs
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
@@ -457,4 +492,4 @@ def summarize(idata: az.InferenceData) -> dict:
     summary["converged"] = bool(attrs["converged"])
     summary["family"] = str(attrs["family"])
     summary["channels"] = json.loads(attrs["channels"])
-    return summary
+    return summary | criticise(idata)

@@ -29,7 +29,15 @@ from matplotlib.figure import Figure
 from . import __version__, plots
 from ._files import atomic_path
 from .errors import InputError
-from .posterior import az, load_posterior, posterior_truth, predictive_residuals, summarize
+from .physics import CHANNELS, discrete_matrices
+from .posterior import (
+    az,
+    load_posterior,
+    posterior_robot,
+    posterior_truth,
+    predictive_residuals,
+    summarize,
+)
 
 __all__ = ["FIGURE_FORMATS", "collect_posteriors", "render_report", "write_report"]
 
@@ -46,6 +54,7 @@ th:first-child, td:first-child { text-align: left; }
 .not-converged { color: #b00020; border: 2px solid #b00020; padding: 0.6em 1em;
   font-weight: bold; font-size: 1.1em; }
 .simulated { background: #eef4fb; padding: 0.5em 1em; }
+.warnings li { color: #8a4b00; }
 figure { display: inline-block; margin: 0.5em; vertical-align: top; }
 figure img { max-width: 100%; } figcaption { font-size: 0.85em; color: #555; }
 """
@@ -153,6 +162,24 @@ def _truth_value(truth: dict | None, label: str, channels: list[str]):
     return value.get(group) if isinstance(value, dict) else value
 
 
+def _model_truth(idata: az.InferenceData, truth: dict | None) -> dict | None:
+    """The truth in the model's terms.
+
+    With one total sd (white noise, diagonal sensor term) sigma_c stands for
+    the residual's lag-0 sd at the truth, sqrt(sigma_c^2 + sigma_n^2 (1 + Ad^2)):
+    process noise plus the sensor noise's footprint n[k+1] - Ad n[k].
+    """
+    if not truth or "sigma_n" in idata.posterior.data_vars:
+        return truth
+    dt = json.loads(idata.posterior.attrs["experiments"])[0]["dt"]
+    Ad, _ = discrete_matrices(posterior_robot(idata), truth["d_lat"], truth["d_long"], dt)
+    total = {
+        c: float(np.hypot(truth["sigma_c"][c], truth["sigma_n"][c] * np.hypot(1.0, Ad[i, i])))
+        for i, c in enumerate(CHANNELS)
+    }
+    return truth | {"sigma_c": total}
+
+
 def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:
     summary = summarize(idata)
     channels = summary["channels"]
@@ -235,6 +262,78 @@ def _evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
     )
 
 
+def _criticism_section(idata: az.InferenceData, figures: _Figures, prefix: str) -> str:
+    """Model criticism: the warnings, the numbers behind them, and their figure."""
+    summary = summarize(idata)
+    found, criticism = summary["warnings"], summary["criticism"]
+    items = "".join(
+        f"<li><b>{html.escape(w['kind'])}</b>: {html.escape(w['message'])}</li>" for w in found
+    )
+    listing = (
+        f'<ul class="warnings">{items}</ul>'
+        if found
+        else "<p>No warnings: every check passed.</p>"
+    )
+    steady = _table(
+        ["experiment", "window [s]", "wheel speeds off median", "yaw-rate drift"],
+        [
+            [name, row["duration"], _percent(row["input_deviation"]), _percent(row["yaw_drift"])]
+            for name, row in criticism["steadiness"].items()
+        ],
+    )
+    return (
+        "<h3>Model criticism</h3>"
+        + listing
+        + "<p>Steadiness of the analysed windows (tolerances as for the detected window: "
+        "wheel speeds 5 %, yaw-rate drift 10 %; - where the wheels stand still):</p>"
+        + steady
+        + "<p>Residual-input cross-correlation over the whole run at the posterior median "
+        "(MATLAB <code>resid</code>; band from the model's residual autocorrelation), and "
+        "posterior-predictive p-values of the residual autocorrelation (flagged at a "
+        "family-wise 5 % per experiment and channel: Bonferroni over both tails of its "
+        "statistics; - where a short run has no such statistic):</p>"
+        + _criticism_table(criticism)
+        + figures.html(
+            f"{prefix}-criticism",
+            "model criticism: residual-input cross-correlation and ACF p-values",
+            lambda: plots.plot_criticism(idata),
+        )
+    )
+
+
+def _percent(value: float | None) -> str | None:
+    return None if value is None else f"{100 * value:.1f} %"
+
+
+def _criticism_table(criticism: dict) -> str:
+    """Residual-input test and predictive p-values, one row per experiment and channel.
+
+    The p-value columns are the union of every row's statistics (a short run
+    has fewer lags): a row without one shows "-".
+    """
+    tests = criticism["predictive_acf"]
+    p_values = {
+        (name, channel): dict(zip(row["statistics"], row["p_values"], strict=True))
+        for name, rows in tests.items()
+        for channel, row in rows.items()
+    }
+    statistics = list(dict.fromkeys(s for values in p_values.values() for s in values))
+    return _table(
+        ["experiment", "channel", "max |z| residual-input", "99 % level", *statistics],
+        [
+            [
+                name,
+                channel,
+                row["max_abs_z"],
+                row["threshold"],
+                *(p_values[name, channel].get(s) for s in statistics),
+            ]
+            for name, rows in criticism["residual_input"].items()
+            for channel, row in rows.items()
+        ],
+    )
+
+
 def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, lags: int) -> str:
     attrs = idata.posterior.attrs
     experiments = json.loads(attrs["experiments"])
@@ -253,7 +352,14 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
     parts.append(
         f"<p>Experiments ({len(experiments)}{', pooled' if len(experiments) > 1 else ''})"
         f": {html.escape(names)}. Sensor noise {attrs['sensor']}, engine "
-        f"{attrs['engine']}.</p>"
+        f"{attrs['engine']}."
+        + (
+            ""
+            if "sigma_n" in idata.posterior.data_vars
+            else " White noise with the diagonal sensor term has one variance: sigma_c is "
+            "the total sd (process and sensor noise together)."
+        )
+        + "</p>"
     )
     if truth:
         parts.append(
@@ -261,8 +367,9 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
             f"{truth['d_lat']:g}, d_long = {truth['d_long']:g} N s/m, {truth['family']} noise "
             f"of width {truth['width']:g} s.</p>"
         )
-    parts.append(_summary_section(idata, truth))
+    parts.append(_summary_section(idata, _model_truth(idata, truth)))
     prefix = path.stem
+    parts.append(_criticism_section(idata, figures, prefix))
     parts.append(
         figures.html(
             f"{prefix}-damping",

@@ -60,8 +60,10 @@ def main() -> None:
     }
     summary = summarize(comparison.posteriors["gaussian"])
     ratio = summary["ratio"]
+    # One sigma_h per channel (sigma_h[yaw], ...) when the bag has vx and vy too.
+    widths = ", ".join(f"{k} {v['mean']:.4f}" for k, v in summary.items() if k[:7] == "sigma_h")
     print(
-        f"gaussian: sigma_h {summary['sigma_h']['mean']:.4f} s, d_lat/d_long "
+        f"gaussian on {', '.join(summary['channels'])}: {widths} s, d_lat/d_long "
         f"[{ratio['hdi_3%']:.3f}, {ratio['hdi_97%']:.3f}] (94 % HDI), converged "
         f"{summary['converged']}"
     )

@@ -205,34 +205,6 @@ def test_grid_experiment_file_given_as_profile(simulated, capsys):
     assert_bad_input(code, capsys.readouterr(), re.escape(simulated[0]))
 
 
-@pytest.mark.slow
-@pytest.mark.xdist_group("demo")
-def test_demo_runs_the_pipeline_on_the_shipped_bags(tmp_path, capsys):
-    folder = tmp_path / "demo"
-    assert main(["demo", "--out", str(folder), "--no-progress"]) == 0
-    out = capsys.readouterr().out
-    assert "SIMULATED" in out and "ROS1 bags" in out
-    assert sorted(p.name for p in (folder / "experiments").iterdir()) == ["v1_01.nc", "v2_01.nc"]
-    results = json.loads((folder / "grid.json").read_text())
-    assert results["truth"] == {"d_lat": 110.0, "d_long": 30.0}
-    # The thesis' simulation grid (step 10) finds the demo's truth (fixed seed).
-    assert (results["simulation"]["d_lat"], results["simulation"]["d_long"]) == (110.0, 30.0)
-    for method in ("onestep", "simulation"):
-        assert (folder / f"grid_{method}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    posterior = json.loads((folder / "posterior.json").read_text())
-    assert posterior["converged"] is True
-    assert posterior["ratio"]["hdi_3%"] <= 110.0 / 30.0 <= posterior["ratio"]["hdi_97%"]
-    assert posterior["sigma_h"]["hdi_3%"] <= 0.047 <= posterior["sigma_h"]["hdi_97%"]
-    comparison = json.loads((folder / "compare.json").read_text())
-    assert comparison["best"] == "gaussian" and comparison["verdict"] == "coloured"
-    prior = json.loads((folder / "prior.json").read_text())
-    assert prior["format"] == "bayes_jackal.prior/1" and prior["converged"] is True
-    report = (folder / "report.html").read_text()
-    assert report.count("data:image/png;base64,") >= 10
-    assert "<h2>Evidence</h2>" in report and "NOT CONVERGED" not in report
-    assert "Is the noise coloured? coloured" in out
-
-
 QUICK_SAMPLE = ["--max-steps", "80", "--seed", "3", "--no-progress"]
 
 
@@ -242,7 +214,11 @@ def test_sample_writes_a_posterior_and_prints_the_contract_json(simulated, tmp_p
     captured = capsys.readouterr()
     assert code == 0
     payload = json.loads(captured.out)
-    for key in ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "ratio"):
+    # By default every channel the experiment measures, each with its noise.
+    assert payload["channels"] == ["yaw", "vx", "vy"]
+    assert "on channels yaw, vx, vy" in captured.err
+    noise = [f"{name}[{c}]" for c in ("yaw", "vx", "vy") for name in ("sigma_h", "sigma_c")]
+    for key in ("d_lat", "d_long", *noise, "ratio"):
         assert {"mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat"} <= set(
             payload[key]
         )
@@ -261,12 +237,16 @@ def test_sample_defaults_to_the_library_engine(simulated, tmp_path):
 
 def test_sample_without_pooling_writes_one_posterior_per_experiment(simulated, tmp_path, capsys):
     out = tmp_path / "post.nc"
-    code = main(["sample", *simulated, "--out", str(out), *QUICK_SAMPLE, "--json"])
+    yaw = ["--channels", "yaw"]  # narrowed: quicker, and checks the flag
+    code = main(["sample", *simulated, "--out", str(out), *QUICK_SAMPLE, *yaw, "--json"])
     payload = json.loads(capsys.readouterr().out)
     assert code == 0
     assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    assert payload["experiments"]["v1_01"]["channels"] == ["yaw"]
     assert (tmp_path / "post.v1_01.nc").is_file() and (tmp_path / "post.v2_01.nc").is_file()
-    code = main(["sample", *simulated, "--out", str(out), "--pooled", *QUICK_SAMPLE, "--json"])
+    code = main(
+        ["sample", *simulated, "--out", str(out), "--pooled", *QUICK_SAMPLE, *yaw, "--json"]
+    )
     pooled = json.loads(capsys.readouterr().out)
     assert code == 0 and "d_lat" in pooled and out.is_file()
 
@@ -309,6 +289,25 @@ def test_simulate_bags_and_ingest_them_back(tmp_path, capsys):
     assert ingested.provenance["sha256"]
 
 
+def test_ingest_refuses_a_second_bag_of_the_same_name(tmp_path, capsys):
+    # a/v2_01.bag and b/v2_01.bag both become v2_01.nc: the second would
+    # overwrite the first's experiment file.
+    for folder, seed in (("a", "4"), ("b", "5")):
+        one_run = ["--v1", "0", "--v2", "1", "--bag", "ros1"]
+        assert main(["simulate", "--out", str(tmp_path / folder), "--seed", seed, *one_run]) == 0
+    first, second = (str(tmp_path / folder / "v2_01.bag") for folder in "ab")
+    capsys.readouterr()
+    code = main(["ingest", first, second, "--out", str(tmp_path / "exp"), "--json"])
+    captured = capsys.readouterr()
+    assert code == 2 and "Traceback" not in captured.err
+    payload = json.loads(captured.out)
+    assert list(payload["experiments"]) == ["v2_01"] and list(payload["failed"]) == [second]
+    assert f"error: {second}: its experiment name 'v2_01' is that of {first}" in captured.err
+    kept = read_netcdf(tmp_path / "exp" / "v2_01.nc")
+    simulated = read_netcdf(tmp_path / "a" / "v2_01.nc")
+    np.testing.assert_allclose(kept.yaw_rate, simulated.yaw_rate[: len(kept.t)], atol=1e-5)
+
+
 def test_ingest_topic_override(tmp_path, capsys):
     assert (
         main(
@@ -339,7 +338,10 @@ def test_ingest_topic_override(tmp_path, capsys):
     assert main(["ingest", bag, "--out", str(tmp_path / "c"), "--topic", "imu", "/imu/data"]) == 0
 
 
+#: Yaw alone keeps these mechanics tests quick (three channels: ~3x the time).
 QUICK_COMPARE = [
+    "--channels",
+    "yaw",
     "--families",
     "white,gaussian",
     "--max-steps",
@@ -357,6 +359,7 @@ def test_compare_prints_the_contract_json_and_keeps_posteriors(simulated, tmp_pa
     assert code == 0, captured.err
     payload = json.loads(captured.out)
     assert set(payload["families"]) == {"white", "gaussian"}
+    assert payload["channels"] == ["yaw"] and "channels yaw (bridge" in captured.err
     for row in payload["families"].values():
         assert {"log_evidence", "log_evidence_err", "log_bayes_factor_vs_white"} <= set(row)
         assert np.isfinite(row["log_evidence"]) and row["log_evidence_err"] > 0

@@ -7,16 +7,20 @@ import re
 import stat
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
+import scipy.io
 import xarray as xr
 
-from bayes_jackal.errors import DataError
+from bayes_jackal.cli import main
+from bayes_jackal.errors import DataError, InputError
 from bayes_jackal.experiment import (
     Experiment,
     load_experiment,
     load_experiments,
     read_csv,
+    read_mat,
     read_netcdf,
     write_csv,
     write_netcdf,
@@ -24,6 +28,7 @@ from bayes_jackal.experiment import (
 
 DT = 0.1
 N = 40
+CHANNEL_KEYS = ("yaw_rate", "omega_r", "omega_l", "vx", "vy")
 
 
 def make_experiment(velocities: bool = True, **extra: object) -> Experiment:
@@ -74,7 +79,8 @@ def test_read_csv_any_column_order_and_extra_columns(tmp_path):
     rows = [f"{i},{5 - i},{0.02 * i},{DT * i:.1f},{10 + i},{0.3 * i}" for i in range(5)]
     path.write_text(csv_text("note, omega_l ,vy,t,omega_r,yaw_rate", rows))
     experiment = read_csv(path)
-    np.testing.assert_array_equal(experiment.t, [0.0, 0.1, 0.2, 0.3, 0.4])
+    # The reader returns the uniform clock t0 + k dt (bayes_jackal.stamps).
+    np.testing.assert_array_equal(experiment.t, DT * np.arange(5))
     np.testing.assert_array_equal(experiment.omega_l, 5.0 - np.arange(5))
     np.testing.assert_array_equal(experiment.omega_r, 10.0 + np.arange(5))
     np.testing.assert_allclose(experiment.yaw_rate, 0.3 * np.arange(5))
@@ -190,19 +196,10 @@ def replace_cell(rows: list[str], row: int, column: int, value: str) -> list[str
             r"-inf at line 7 ",
         ),
         (
-            csv_text(HEADER, replace_cell(good_rows(), 2, 0, "0.1")),
+            csv_text(HEADER, replace_cell(good_rows(), 2, 0, "0.02")),
             "t",
-            r"time does not increase at line 4: 0\.1 -> 0\.1 s$",
-        ),
-        (
-            csv_text(HEADER, replace_cell(good_rows(), 2, 0, "0.05")),
-            "t",
-            r"time does not increase at line 4",
-        ),
-        (
-            csv_text(HEADER, [f"{DT * i:.1f},0,0,0" for i in (0, 1, 2, 4, 5, 6, 7)]),
-            "t",
-            r"not uniformly sampled at line 5: step 0\.2 s",
+            r"not uniformly sampled at line 4: t = 0\.02 s follows 0 s by 0\.02 s, less than "
+            r"half the 0\.1 s step; no uniform clock fits.*declare it \(--rate HZ",
         ),
     ],
     ids=[
@@ -213,9 +210,7 @@ def replace_cell(rows: list[str], row: int, column: int, value: str) -> list[str
         "nan",
         "inf",
         "minus-inf",
-        "repeated-time",
-        "decreasing-time",
-        "dropout",
+        "irregular-time",
     ],
 )
 def test_bad_csv_names_file_column_and_line(tmp_path, text, field, pattern):
@@ -408,3 +403,204 @@ def test_written_files_get_the_umask_permissions_not_owner_only(tmp_path):
         os.umask(previous)
     # A report or experiment is shared: 0644 under the common umask 022.
     assert stat.S_IMODE(path.stat().st_mode) == 0o644
+
+
+# --- stamps repaired by the readers (rules: bayes_jackal.stamps) -------------
+
+
+def test_csv_repeated_stamp_and_dropout_are_repaired_and_listed(tmp_path):
+    path = tmp_path / "repaired.csv"
+    rows = [f"{DT * i:.1f},{0.01 * i},{10 + i},{5 - i}" for i in (0, 1, 2, 2, 3, 5, 6, 7, 8)]
+    path.write_text(csv_text(HEADER, rows))
+    experiment = read_csv(path)
+    np.testing.assert_allclose(experiment.t, DT * np.arange(9), rtol=0, atol=1e-15)
+    # Line 5 repeats line 4's stamp (dropped); tick 4 is missing (interpolated).
+    np.testing.assert_allclose(experiment.omega_r, 10 + np.arange(9))
+    assert experiment.provenance["repairs"] == [
+        "t: 1 duplicate stamps (first at line 5); kept the first message of each",
+        "t: 1 gap of at most 2 steps filled with 1 linearly interpolated samples (the first "
+        "after line 6, t = 0.3 s)",
+    ]
+    assert experiment.provenance["time_base"]["rate"] == 10.0
+
+
+# --- column mapping ----------------------------------------------------------
+
+ODD = "stamp,gyro_z,right,left"
+MAPPING = {"t": "stamp", "yaw_rate": "gyro_z", "omega_r": "right", "omega_l": "left"}
+
+
+def test_csv_with_columns_named_otherwise(tmp_path):
+    path = tmp_path / "odd.csv"
+    path.write_text(csv_text(ODD, good_rows()))
+    experiment = read_csv(path, columns=MAPPING)
+    np.testing.assert_array_equal(experiment.omega_l, 5.0 - np.arange(6))
+    np.testing.assert_allclose(experiment.yaw_rate, 0.01 * np.arange(6))
+    assert experiment.provenance["columns"] == MAPPING
+    with pytest.raises(DataError, match=r"t: missing column\(s\) \['t', 'yaw_rate', .*--column"):
+        read_csv(path)
+
+
+def test_unknown_column_role_is_an_input_error(tmp_path):
+    path = tmp_path / "odd.csv"
+    path.write_text(csv_text(ODD, good_rows()))
+    with pytest.raises(InputError, match=r"^columns: unknown column role\(s\) \['gyro'\]"):
+        read_csv(path, columns={"gyro": "gyro_z"})
+    with pytest.raises(InputError, match=r"unknown column role\(s\) \['gyro'\]"):
+        load_experiments([path], columns={"gyro": "gyro_z"})
+
+
+def test_missing_mapped_column_names_file_and_column(tmp_path):
+    path = tmp_path / "odd.csv"
+    path.write_text(csv_text(ODD, good_rows()))
+    with pytest.raises(
+        DataError,
+        match=rf"^{re.escape(str(path))}: yaw_z: column 'yaw_z' \(mapped to yaw_rate\) is not in",
+    ):
+        read_csv(path, columns={**MAPPING, "yaw_rate": "yaw_z"})
+
+
+def test_a_column_mapped_to_a_role_is_not_read_for_the_role_of_its_name(tmp_path):
+    # yaw_rate is read from the column "vx"; the role vx is then unmeasured,
+    # not read from the same column.
+    path = tmp_path / "gyro_in_vx.csv"
+    path.write_text(csv_text("t,vx,omega_r,omega_l", good_rows()))
+    experiment = read_csv(path, columns={"yaw_rate": "vx"})
+    np.testing.assert_allclose(experiment.yaw_rate, 0.01 * np.arange(6))
+    assert experiment.vx is None and experiment.vy is None
+    assert experiment.provenance["columns"] == {
+        "t": "t",
+        "yaw_rate": "vx",
+        "omega_r": "omega_r",
+        "omega_l": "omega_l",
+    }
+    # A required role whose column is taken by another is missing, and said so.
+    with pytest.raises(
+        DataError, match=r"missing column\(s\) \['omega_l'\].*'omega_l' is mapped to omega_r"
+    ):
+        read_csv(path, columns={"yaw_rate": "vx", "omega_r": "omega_l"})
+
+
+def test_a_column_mapped_to_two_roles_is_an_input_error(tmp_path):
+    path = tmp_path / "odd.csv"
+    path.write_text(csv_text(ODD, good_rows()))
+    pattern = r"^columns: column 'gyro_z' is mapped to two roles, yaw_rate and vx"
+    with pytest.raises(InputError, match=pattern):
+        read_csv(path, columns={**MAPPING, "vx": "gyro_z"})
+    with pytest.raises(InputError, match=pattern):
+        load_experiments([path], columns={**MAPPING, "vx": "gyro_z"})
+
+
+# --- MATLAB files ------------------------------------------------------------
+
+
+def test_mat_round_trip_top_level_and_struct(tmp_path):
+    original = make_experiment(name="x")
+    flat = tmp_path / "flat.mat"
+    scipy.io.savemat(flat, {k: getattr(original, k) for k in ("t", *CHANNEL_KEYS)})
+    nested = tmp_path / "nested.mat"
+    log = {"time": original.t[:, None], "imu": {"gz": original.yaw_rate}, "note": "run 3"}
+    log |= {"wr": original.omega_r, "wl": original.omega_l}
+    scipy.io.savemat(nested, {"log": log})
+    mapping = {
+        "t": "log.time",
+        "yaw_rate": "log.imu.gz",
+        "omega_r": "log.wr",
+        "omega_l": "log.wl",
+    }
+    for path, columns in ((flat, None), (nested, mapping)):
+        back = load_experiment(path, columns=columns)
+        assert back.name == path.stem and back.provenance["format"] == "mat"
+        assert back.provenance["repairs"] == []
+        for key in ("t", "yaw_rate", "omega_r", "omega_l"):
+            np.testing.assert_allclose(getattr(back, key), getattr(original, key), atol=1e-15)
+    assert (
+        load_experiment(flat).vx is not None
+        and load_experiment(nested, columns=mapping).vx is None
+    )
+
+
+def _write_mat73(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """A MATLAB v7.3 file as MATLAB writes it: HDF5 after a 512-byte text header."""
+    with h5py.File(path, "w", userblock_size=512) as file:
+        for key, value in arrays.items():
+            dataset = file.create_dataset(key, data=np.asarray(value, float)[None, :])
+            dataset.attrs["MATLAB_class"] = np.bytes_("double")
+        file.create_dataset("label", data=np.frombuffer(b"run", np.uint8).astype(np.uint16))
+        file["label"].attrs["MATLAB_class"] = np.bytes_("char")
+    with open(path, "r+b") as stream:
+        stream.write(
+            b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: test HDF5 schema 1.00 ."
+        )
+        stream.seek(124)
+        stream.write(b"\x00\x02IM")
+
+
+def test_mat_v73_via_h5py(tmp_path):
+    original = make_experiment()
+    path = tmp_path / "v73.mat"
+    _write_mat73(
+        path,
+        {
+            "stamp": original.t,
+            "gyro_z": original.yaw_rate,
+            "right": original.omega_r,
+            "left": original.omega_l,
+        },
+    )
+    with pytest.raises(NotImplementedError):  # scipy.io sees a real v7.3 file
+        scipy.io.loadmat(path)
+    back = read_mat(path, columns=MAPPING)
+    np.testing.assert_allclose(back.yaw_rate, original.yaw_rate)
+    np.testing.assert_allclose(back.t, original.t, atol=1e-15)
+
+
+def test_mat_errors_name_file_variable_and_index(tmp_path):
+    t = DT * np.arange(6)
+    bad = tmp_path / "bad.mat"
+    yaw = np.zeros(6)
+    yaw[3] = np.nan
+    scipy.io.savemat(bad, {"t": t, "yaw_rate": yaw, "omega_r": np.ones(6), "omega_l": np.ones(6)})
+    with pytest.raises(DataError, match=rf"^{re.escape(str(bad))}: yaw_rate: nan at index 4 "):
+        read_mat(bad)
+    matrix = tmp_path / "matrix.mat"
+    scipy.io.savemat(matrix, {"t": t, "yaw_rate": np.ones((6, 2)), "omega_r": t, "omega_l": t})
+    with pytest.raises(DataError, match=r"yaw_rate: variable 'yaw_rate' \(yaw_rate\) has shape"):
+        read_mat(matrix)
+    text = tmp_path / "text.mat"
+    text.write_text("not matlab")
+    with pytest.raises(DataError, match=rf"^{re.escape(str(text))}: not a readable MATLAB file"):
+        read_mat(text)
+    with pytest.raises(DataError, match=r"no such file"):
+        read_mat(tmp_path / "absent.mat")
+
+
+# --- command-line input flags -------------------------------------------------
+
+
+def test_cli_column_and_rate_flags(tmp_path, capsys):
+    path = tmp_path / "odd.csv"
+    path.write_text(csv_text(ODD, good_rows(40)))
+    flags = [f for role, name in MAPPING.items() for f in ("--column", role, name)]
+    grid = ["--d-lat", "50", "60", "10", "--d-long", "10", "20", "10"]
+    assert main(["grid", str(path), *flags, *grid, "--rate", "10"]) == 0
+    capsys.readouterr()
+    for extra, pattern in (
+        (["--column", "gyro", "gyro_z"], r"--column: unknown column role\(s\) \['gyro'\]"),
+        (["--column", "yaw_rate", "yaw_z"], r"yaw_z: column 'yaw_z' \(mapped to yaw_rate\)"),
+        (["--rate", "25"], r"t: time is not uniformly sampled at line .*declared 25 Hz"),
+        (["--rate", "-1"], r"rate: must be a positive number of Hz"),
+    ):
+        code = main(["grid", str(path), *flags, *extra, *grid])
+        err = capsys.readouterr().err
+        assert code == 2, err
+        assert re.search(pattern, err) and "Traceback" not in err, err
+
+
+def test_declared_rate_against_an_experiment_file(tmp_path):
+    path = write_netcdf(make_experiment(), tmp_path / "run.nc")
+    assert load_experiment(path, rate=10.0).dt == pytest.approx(DT)
+    with pytest.raises(
+        DataError, match=r"t: the declared rate 25 Hz contradicts the file's 10 Hz"
+    ):
+        load_experiment(path, rate=25.0)

@@ -156,6 +156,43 @@ def test_exported_precision_is_the_draw_average_of_kronecker_products(yaw_vx_pos
     }
 
 
+@pytest.fixture(scope="module")
+def white_diagonal_posterior():
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
+    likelihood = ResidualLikelihood(
+        [run], ROBOT, family="white", sensor="diagonal", channels=("yaw", "vx")
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        return sample_posterior(likelihood, SHORT, seed=1)
+
+
+def test_white_noise_with_the_diagonal_term_exports_one_total_sd(
+    white_diagonal_posterior, yaw_vx_posterior
+):
+    # That model has one variance per channel: sigma_c is the total sd, and
+    # there is no sigma_n anywhere in the posterior or the prior.
+    assert "sigma_n" not in white_diagonal_posterior.posterior
+    prior = export_prior(white_diagonal_posterior, order=0)
+    noise = prior["noise"]
+    assert noise["sigma_c_is"] == "total"
+    assert set(noise["parameters"]) == {"sigma_c[yaw]", "sigma_c[vx]"}
+    assert set(prior["draws"]) == {"count", "d_lat", "d_long", "sigma_c[yaw]", "sigma_c[vx]"}
+    # Pi = diag(1 / s_c^2) averaged over draws, s_c = sigma_c A / (Ad - 1), V = 1.
+    post = white_diagonal_posterior.posterior
+    d_lat, d_long = post["d_lat"].values.ravel(), post["d_long"].values.ravel()
+    sigma_c = post["sigma_c"].transpose("chain", "draw", "noise_group").values.reshape(-1, 2)
+    A, _ = continuous_matrices(ROBOT, d_lat, d_long)
+    Ad, _ = discrete_matrices(ROBOT, d_lat, d_long, ROBOT.dt)
+    index = [2, 0]  # yaw, vx
+    pole = A[:, index, index]
+    s_c = sigma_c * pole / (Ad[:, index, index] - 1)
+    np.testing.assert_allclose(
+        prior["generalised_coordinates"]["precision"], np.diag((1 / s_c**2).mean(axis=0))
+    )
+    assert export_prior(yaw_vx_posterior, order=0)["noise"]["sigma_c_is"] == "process"
+
+
 def test_export_prior_command_writes_versioned_json(yaw_vx_posterior, tmp_path, capsys):
     posterior = save_posterior(yaw_vx_posterior, tmp_path / "posterior.nc")
     before = posterior.read_bytes()

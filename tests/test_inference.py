@@ -3,6 +3,7 @@
 import json
 import os
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,12 +19,17 @@ from bayes_jackal.inference import (
     sample_posterior,
 )
 from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.noise_profile import profile_starts
 from bayes_jackal.posterior import load_posterior, save_posterior, summarize
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 
 ROBOT = load_profile()
 #: A short run for the mechanics tests: far from converged, on purpose.
 SHORT = SamplerSettings(max_steps=120, check_every=40, design_points=256)
+#: The yaw channel alone, the thesis' channel: these tests' layouts and
+#: statistics are about it (the default, every channel, is tested in
+#: tests/test_recovery_real.py).
+YAW = ("yaw",)
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +44,7 @@ def _short_run(likelihood, **kwargs):
 
 
 def test_prior_is_uniform_in_damping_and_log_uniform_in_noise(v2_run):
-    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     prior = Prior.for_likelihood(likelihood, ROBOT)
     assert prior.names == ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
     np.testing.assert_array_equal(prior.log_uniform, [False, False, True, True, True])
@@ -69,16 +75,22 @@ def test_prior_is_uniform_in_damping_and_log_uniform_in_noise(v2_run):
     [
         ({"d_lat": (500.0, 100.0)}, r"priors\.d_lat: .*\[500\.0, 100\.0\]"),
         ({"sigma_n": (0.0, 1.0)}, "excludes every value"),
+        # Noise sd of 1e-160 (variance 1e-320, at the edge of float range)
+        # against residuals of ~1e-2: every likelihood term overflows to -inf.
+        (
+            {"sigma_c": (1e-170, 1e-160), "sigma_n": (1e-170, 1e-160)},
+            "priors: the log-posterior is -inf at every start",
+        ),
     ],
 )
 def test_priors_that_exclude_everything_are_rejected(v2_run, override, pattern):
-    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     with pytest.raises(InputError, match=pattern):
         sample_posterior(likelihood, SHORT, prior_overrides=override)
 
 
 def test_same_seed_same_chain_and_another_seed_another(v2_run):
-    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     first = _short_run(likelihood, seed=11)
     again = _short_run(likelihood, seed=11)
     other = _short_run(likelihood, seed=12)
@@ -87,7 +99,7 @@ def test_same_seed_same_chain_and_another_seed_another(v2_run):
 
 
 def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path):
-    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     reference = _short_run(likelihood, seed=5, chain_file=tmp_path / "reference.h5")
 
     class Interrupted(ResidualLikelihood):
@@ -103,7 +115,7 @@ def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path):
 
     chain = tmp_path / "chain.h5"
     with pytest.raises(KeyboardInterrupt):
-        _short_run(Interrupted([v2_run], ROBOT), seed=5, chain_file=chain)
+        _short_run(Interrupted([v2_run], ROBOT, channels=YAW), seed=5, chain_file=chain)
     import emcee
 
     kept = emcee.backends.HDFBackend(str(chain), name="mcmc", read_only=True).iteration
@@ -116,13 +128,17 @@ def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path):
 
 def test_a_chain_file_of_another_run_is_refused(v2_run, tmp_path):
     chain = tmp_path / "chain.h5"
-    _short_run(ResidualLikelihood([v2_run], ROBOT), seed=1, chain_file=chain)
+    _short_run(ResidualLikelihood([v2_run], ROBOT, channels=YAW), seed=1, chain_file=chain)
     with pytest.raises(InputError, match="holds a chain of a different run"):
-        _short_run(ResidualLikelihood([v2_run], ROBOT, family="white"), seed=1, chain_file=chain)
+        _short_run(
+            ResidualLikelihood([v2_run], ROBOT, family="white", channels=YAW),
+            seed=1,
+            chain_file=chain,
+        )
 
 
 def test_a_run_that_hits_the_step_cap_warns_and_says_so(v2_run, tmp_path):
-    likelihood = ResidualLikelihood([v2_run], ROBOT)
+    likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     with pytest.warns(ConvergenceWarning, match="NOT CONVERGED: 120 steps"):
         idata = sample_posterior(likelihood, SHORT, seed=2)
     summary = summarize(idata)
@@ -173,7 +189,7 @@ def thesis_like():
 
 @pytest.fixture(scope="module")
 def yaw_posterior(thesis_like):
-    return sample_posterior(ResidualLikelihood([thesis_like], ROBOT), seed=1)
+    return sample_posterior(ResidualLikelihood([thesis_like], ROBOT, channels=YAW), seed=1)
 
 
 @pytest.fixture(scope="module")
@@ -261,7 +277,9 @@ def test_fast_and_exact_engines_give_the_same_posterior(thesis_like, yaw_posteri
     if family == "gaussian":
         idata = yaw_posterior
     else:
-        idata = sample_posterior(ResidualLikelihood([thesis_like], ROBOT, family=family), seed=1)
+        idata = sample_posterior(
+            ResidualLikelihood([thesis_like], ROBOT, family=family, channels=YAW), seed=1
+        )
     names = [
         "d_lat",
         "d_long",
@@ -271,8 +289,12 @@ def test_fast_and_exact_engines_give_the_same_posterior(thesis_like, yaw_posteri
     ]
     draws = np.stack([idata.posterior[n].values.ravel() for n in names], axis=-1)
     subset = draws[np.random.default_rng(0).choice(len(draws), 200, replace=False)]
-    exact = ResidualLikelihood([thesis_like], ROBOT, family=family, engine="exact")(subset)
-    fast = ResidualLikelihood([thesis_like], ROBOT, family=family, engine="fast")(subset)
+    exact, fast = (
+        ResidualLikelihood([thesis_like], ROBOT, family=family, channels=YAW, engine=engine)(
+            subset
+        )
+        for engine in ("exact", "fast")
+    )
     log_weights = exact - fast
     assert np.ptp(log_weights) < 1e-6
     weights = np.exp(log_weights - log_weights.max())
@@ -312,7 +334,9 @@ def test_hdi_coverage_is_calibrated_over_simulated_data_sets():
         )
         experiment = simulate_experiment(ROBOT, truth[0], truth[1], "v2", noise, rng)
         idata = sample_posterior(
-            ResidualLikelihood([experiment], ROBOT), seed=i, prior_overrides=CALIBRATION_PRIOR
+            ResidualLikelihood([experiment], ROBOT, channels=YAW),
+            seed=i,
+            prior_overrides=CALIBRATION_PRIOR,
         )
         summary = summarize(idata)
         for name, value in zip(CALIBRATION_PRIOR, truth, strict=True):
@@ -335,10 +359,94 @@ def test_map_search_finds_the_moving_average_width_past_its_local_optima():
         sigma_n=(0.003, 0.003, 0.002),
     )
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise=noise, rng=3)
-    likelihood = ResidualLikelihood([run], ROBOT, family="moving-average")
+    likelihood = ResidualLikelihood([run], ROBOT, family="moving-average", channels=YAW)
     log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, ROBOT))
     found = np.exp(find_map(log_posterior, np.random.default_rng(0), 1024))
     truth = np.array([110.0, 30.0, 0.15, 0.02, 0.002])
     # The width's posterior sd here is ~1 ms; the neighbouring optima lie 50 ms away.
     assert found[2] == pytest.approx(0.15, abs=0.01)
     assert likelihood(found[None])[0] >= likelihood(truth[None])[0]
+
+
+#: Noise of tests/test_recovery_real.py's thesis-like runs: process-noise sd
+#: per step and sensor-noise sd (m/s for vx, vy; rad/s for yaw).
+SIGMA_C = {"vx": 0.005, "vy": 0.005, "yaw": 0.02}
+SIGMA_N = {"vx": 0.003, "vy": 0.003, "yaw": 0.004}
+
+
+@pytest.mark.parametrize(
+    ("d_lat", "d_long", "sigma_h", "seed"), [(110.0, 30.0, 0.047, 11), (300.0, 60.0, 0.1, 12)]
+)
+def test_map_search_finds_the_global_basin_with_every_channel(
+    thesis_like_simulator, d_lat, d_long, sigma_h, seed
+):
+    # With little wheel-speed ripple (0.5 %) the input carries little signal
+    # and every channel's noise must be right at once: a Sobol design over
+    # the whole 11-D box (damping + 3 x 3 noise parameters) followed by local
+    # searches ended 542 nats below the truth's log-posterior on the first
+    # run (d_lat 53, d_long 12, vx's noise taken for 0.04 m/s of sensor
+    # noise). The MAP maximises the posterior, so its log-posterior is at
+    # least the truth's; 1 nat covers L-BFGS-B's stopping tolerance (a
+    # relative 2e-9 of ~3e4 nats).
+    run = thesis_like_simulator(
+        ROBOT,
+        d_lat=d_lat,
+        d_long=d_long,
+        sigma_h=sigma_h,
+        sigma_c=SIGMA_C,
+        sigma_n=SIGMA_N,
+        ripple=0.005,
+        rng=np.random.default_rng(seed),
+    )
+    likelihood = ResidualLikelihood([run], ROBOT)
+    assert likelihood.channels == ("yaw", "vx", "vy")
+    log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, ROBOT))
+    truth = {"d_lat": d_lat, "d_long": d_long}
+    for channel in likelihood.channels:
+        truth |= {
+            f"sigma_h[{channel}]": sigma_h,
+            f"sigma_c[{channel}]": SIGMA_C[channel],
+            f"sigma_n[{channel}]": SIGMA_N[channel],
+        }
+    at_truth = log_posterior(np.log([truth[name] for name in likelihood.parameter_names]))[0]
+    found = find_map(log_posterior, np.random.default_rng(1))
+    assert log_posterior(found)[0] >= at_truth - 1.0
+
+
+@pytest.mark.parametrize(
+    ("family", "sensor"), [("gaussian", "ma1"), ("exponential", "diagonal"), ("white", "diagonal")]
+)
+def test_the_noise_profile_is_the_whittle_likelihood_at_its_best_scale(
+    v2_run, thesis_like, family, sensor
+):
+    # The profile evaluates the debiased Whittle likelihood through the
+    # linearity of its expected periodogram and a closed-form sigma_c; the
+    # likelihood's own Whittle engine, which transforms every autocovariance,
+    # is the independent reference (agreement to rounding, ~1e-9 relative).
+    # Two runs of different lengths: each channel's group sums two blocks.
+    likelihood = ResidualLikelihood(
+        [v2_run, thesis_like], ROBOT, family=family, sensor=sensor, channels=("yaw", "vx")
+    )
+    assert len(likelihood.blocks) == 2 * len(likelihood.noise_groups)
+    prior = Prior.for_likelihood(likelihood, ROBOT)
+    theta, profile = profile_starts(
+        likelihood,
+        prior.low,
+        prior.high,
+        damping_points=16,
+        starts=3,
+        rng=np.random.default_rng(0),
+    )
+    assert np.all(np.diff(profile) <= 0)
+    assert prior.inside(np.log(theta)).all()
+    whittle = replace(likelihood, engine="whittle")
+    np.testing.assert_allclose(whittle(theta), profile, rtol=1e-9)
+    # Each group's scale is the best one: scaling its sigma_c and sigma_n
+    # together by 1 +- 1e-3 lowers the Whittle likelihood.
+    for channel in likelihood.channels:
+        sds = [
+            name.startswith(("sigma_c", "sigma_n")) and name.endswith(f"[{channel}]")
+            for name in likelihood.parameter_names
+        ]
+        for factor in (1 - 1e-3, 1 + 1e-3):
+            assert np.all(whittle(theta * np.where(sds, factor, 1.0)) < profile)

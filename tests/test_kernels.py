@@ -7,7 +7,8 @@ from bayes_jackal import InputError
 from bayes_jackal.kernels import FAMILIES, gaussian_kernel, get_family
 
 DT = 1.0 / 72.0
-WIDTHS = np.array([0.004, 0.047, 0.1, 0.5])
+#: Widths [s] below one sample, at a whole Gaussian tap count (3 w / dt = 10) and between.
+WIDTHS = np.array([0.004, 10 * DT / 3, 0.047, 0.1, 0.5])
 FINITE = ["white", "gaussian", "triangular", "moving-average"]
 
 
@@ -28,20 +29,43 @@ def bartlett_sd(rho: np.ndarray, lag: int, n: int) -> float:
     return float(np.sqrt(np.sum(terms**2) / n))
 
 
-def test_gaussian_kernel_is_eq_7_5_normalised_to_unit_energy():
-    sigma_h = 0.047
+def eq_7_5(sigma_h: float, k: np.ndarray) -> np.ndarray:
+    """The thesis' Gaussian filter (eq. 7-5) at t = k dt, with its analytic prefactor."""
+    t = k * DT
+    return np.sqrt(DT / (sigma_h * np.sqrt(np.pi))) * np.exp(-(t**2) / (2 * sigma_h**2))
+
+
+def test_gaussian_kernel_is_eq_7_5_where_its_tap_count_is_whole():
+    # 3 sigma_h / dt = 10: taps k = -10..10, exactly the thesis' truncation.
+    sigma_h = 10 * DT / 3
     kernel = gaussian_kernel(sigma_h, DT)
     assert np.sum(kernel**2) == pytest.approx(1.0, rel=1e-14)
-    half = len(kernel) // 2
-    assert half == int(3 * sigma_h / DT)  # truncated at +-3 sigma_h
-    t = np.arange(-half, half + 1) * DT
-    eq_7_5 = np.sqrt(DT / (sigma_h * np.sqrt(np.pi))) * np.exp(-(t**2) / (2 * sigma_h**2))
+    # In floating point 3 sigma_h / dt is 10 + 2e-15, so the edge taps |k| = 11
+    # may be present with weight 2e-15: zero to 1e-16.
+    assert len(kernel) in (21, 23)
+    k = np.arange(len(kernel)) - len(kernel) // 2
+    expected = np.where(np.abs(k) <= 10, eq_7_5(sigma_h, k), 0.0)
     # The analytic prefactor misses only the truncated tail, erfc(3) ~ 2.2e-5 of the energy.
-    np.testing.assert_allclose(kernel, eq_7_5, rtol=2e-5)
-    # For sigma_h << dt the sampled kernel is a single tap: white noise.
-    np.testing.assert_array_equal(gaussian_kernel(0.001, DT), [1.0])
+    np.testing.assert_allclose(kernel, expected, rtol=2e-5, atol=1e-16)
     with pytest.raises(InputError, match="sigma_h"):
         gaussian_kernel(-0.1, DT)
+
+
+def test_gaussian_kernel_weights_its_edge_taps_by_the_fractional_tap_count():
+    # Table 7-1's 0.047 s: 3 sigma_h / dt = 10.152. Taps |k| <= 10 are eq. 7-5;
+    # the two at |k| = 11 are eq. 7-5 times 0.152, so that a tap enters at zero
+    # height as sigma_h grows, not at exp(-4.5) of the peak (which made the
+    # likelihood jump: tests/test_likelihood.py).
+    sigma_h = 0.047
+    fraction = 3 * sigma_h / DT - 10
+    kernel = gaussian_kernel(sigma_h, DT)
+    assert len(kernel) == 23
+    k = np.arange(-11, 12)
+    expected = eq_7_5(sigma_h, k) * np.where(np.abs(k) == 11, fraction, 1.0)
+    np.testing.assert_allclose(kernel, expected, rtol=2e-5)
+    # For sigma_h << dt the kernel is one tap (white noise): at 0.001 s the
+    # edge taps are 0.22 exp(-96) ~ 1e-43 of it.
+    np.testing.assert_allclose(gaussian_kernel(0.001, DT), [0.0, 1.0, 0.0], rtol=0, atol=1e-40)
 
 
 def test_gaussian_autocorrelation_approaches_the_continuous_form():
@@ -98,22 +122,15 @@ def _largest_step(name: str, points: int) -> tuple[float, np.ndarray, np.ndarray
     return steps.max(), steps, widths
 
 
-@pytest.mark.parametrize("name", ["moving-average", "triangular"])
+@pytest.mark.parametrize("name", ["moving-average", "triangular", "gaussian"])
 def test_autocorrelation_is_continuous_in_the_width(name):
     # A continuous rho(width) has steps that shrink with the grid spacing
-    # (10x finer grid: ~10x smaller steps); a jump would not shrink.
+    # (10x finer grid: ~10x smaller steps); a jump would not shrink. The
+    # grid 0.02..0.2 s crosses 39 Gaussian tap boundaries (3 w / dt whole)
+    # and 13 of the others (w / dt whole).
     coarse, _, _ = _largest_step(name, 2001)
     fine, _, _ = _largest_step(name, 20001)
     assert fine < coarse / 5
-
-
-def test_gaussian_jumps_only_where_its_truncation_gains_a_tap():
-    # The thesis' +-3 sigma_h truncation adds a tap of relative height
-    # exp(-4.5) ~ 0.011 whenever 3 sigma_h / dt crosses an integer.
-    _, steps, widths = _largest_step("gaussian", 20001)
-    taps_gained = np.diff(np.floor(3 * widths / DT)) > 0
-    assert steps[taps_gained].max() < 0.01
-    assert steps[~taps_gained].max() < steps[taps_gained].min()
 
 
 @pytest.mark.parametrize("name", list(FAMILIES))

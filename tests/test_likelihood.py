@@ -3,10 +3,13 @@
 import numpy as np
 import pytest
 import scipy.linalg
+import scipy.optimize
+import scipy.special
 import scipy.stats
 
 from bayes_jackal import DataError, InputError, load_profile
 from bayes_jackal.experiment import Experiment
+from bayes_jackal.inference import sample_posterior
 from bayes_jackal.kernels import FAMILIES
 from bayes_jackal.likelihood import (
     ResidualLikelihood,
@@ -15,11 +18,16 @@ from bayes_jackal.likelihood import (
     sample_stationary,
     toeplitz_loglike,
 )
-from bayes_jackal.simulate import simulate_experiment, simulate_series
+from bayes_jackal.noise import channel_residuals
+from bayes_jackal.physics import channel_coefficients
+from bayes_jackal.posterior import summarize
+from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
 TRUTH = np.array([[110.0, 30.0, 0.047, 0.01, 0.005]])
+#: The yaw channel alone: the layout of TRUTH (the default is every channel).
+YAW = ("yaw",)
 
 
 @pytest.fixture(scope="module")
@@ -99,8 +107,10 @@ def test_residual_autocovariance_is_the_process_plus_sensor_footprint():
 @pytest.mark.parametrize("engine", ["whittle", "exact"])
 def test_pooled_shared_noise_is_the_sum_over_experiments(experiments, engine):
     points = np.vstack([TRUTH, [[300.0, 80.0, 0.03, 0.02, 0.004]]])
-    pooled = ResidualLikelihood(experiments, ROBOT, engine=engine)(points)
-    separate = sum(ResidualLikelihood([e], ROBOT, engine=engine)(points) for e in experiments)
+    pooled = ResidualLikelihood(experiments, ROBOT, channels=YAW, engine=engine)(points)
+    separate = sum(
+        ResidualLikelihood([e], ROBOT, channels=YAW, engine=engine)(points) for e in experiments
+    )
     np.testing.assert_allclose(pooled, separate, rtol=1e-12)
 
 
@@ -110,8 +120,8 @@ def test_engines_agree_at_the_truth_up_to_a_near_constant(experiments):
     rng = np.random.default_rng(3)
     points = TRUTH * np.exp(0.05 * rng.standard_normal((16, 5)))
     single = [experiments[0]]
-    exact = ResidualLikelihood(single, ROBOT, engine="exact")(points)
-    whittle = ResidualLikelihood(single, ROBOT, engine="whittle")(points)
+    exact = ResidualLikelihood(single, ROBOT, channels=YAW, engine="exact")(points)
+    whittle = ResidualLikelihood(single, ROBOT, channels=YAW, engine="whittle")(points)
     spread = exact - whittle
     assert np.ptp(exact) > 50  # the points differ a lot in likelihood ...
     assert np.std(spread) < 0.5  # ... and the engines by a near-constant
@@ -129,7 +139,9 @@ def test_parameter_layout_for_channels_and_per_experiment_noise(experiments):
         "sigma_c[vx]",
         "sigma_n[vx]",
     ]
-    separate = ResidualLikelihood(experiments[:2], ROBOT, family="white", shared_noise=False)
+    separate = ResidualLikelihood(
+        experiments[:2], ROBOT, family="white", channels=YAW, shared_noise=False
+    )
     assert separate.parameter_names == [
         "d_lat",
         "d_long",
@@ -141,8 +153,9 @@ def test_parameter_layout_for_channels_and_per_experiment_noise(experiments):
     # Per-experiment noise equals the sum of single-experiment likelihoods
     # with each experiment's own noise values.
     theta = np.array([[110.0, 30.0, 0.01, 0.005, 0.02, 0.004]])
-    first = ResidualLikelihood([experiments[0]], ROBOT, family="white")(theta[:, [0, 1, 2, 3]])
-    second = ResidualLikelihood([experiments[1]], ROBOT, family="white")(theta[:, [0, 1, 4, 5]])
+    first = ResidualLikelihood([experiments[0]], ROBOT, family="white", channels=YAW)
+    second = ResidualLikelihood([experiments[1]], ROBOT, family="white", channels=YAW)
+    first, second = first(theta[:, [0, 1, 2, 3]]), second(theta[:, [0, 1, 4, 5]])
     np.testing.assert_allclose(separate(theta), first + second, rtol=1e-12)
 
 
@@ -150,7 +163,7 @@ def test_truth_beats_the_prior_edge_of_the_ridge_with_the_ma1_sensor_model(exper
     # DESIGN §4: with a diagonal nugget the ridge runs to the prior edge; the
     # MA(1) footprint of the sensor noise keeps the truth ahead.
     edge = np.array([[1000.0, 1000.0 / 3.667, 0.047, 0.01, 0.005]])
-    likelihood = ResidualLikelihood([experiments[0]], ROBOT)
+    likelihood = ResidualLikelihood([experiments[0]], ROBOT, channels=YAW)
     assert likelihood(TRUTH)[0] > likelihood(edge)[0]
 
 
@@ -179,8 +192,20 @@ def test_bad_input_is_rejected(experiments, tmp_path):
     )
     with pytest.raises(DataError, match=r"flat\.csv: yaw_rate: channel 'yaw' is constant"):
         ResidualLikelihood([flat], ROBOT, steady=False)
-    with pytest.raises(DataError, match="'vx' is not in this experiment"):
+    with pytest.raises(DataError, match=r"flat\.csv: channels: .*\['vx'\] not measured"):
         ResidualLikelihood([flat], ROBOT, channels=("vx",), steady=False)
+    with pytest.raises(InputError, match="channels must be distinct names among"):
+        ResidualLikelihood(experiments, ROBOT, channels=("yaw", "roll"))
+
+
+def test_default_channels_are_those_every_experiment_measures(experiments):
+    assert ResidualLikelihood(experiments, ROBOT).channels == ("yaw", "vx", "vy")
+    # An experiment without vx, vy (a yaw-rate-only log) narrows the default.
+    first = experiments[0]
+    yaw_only = Experiment(first.t, first.yaw_rate, first.omega_r, first.omega_l, name="imu")
+    likelihood = ResidualLikelihood([first, yaw_only], ROBOT)
+    assert likelihood.channels == ("yaw",)
+    assert likelihood.noise_groups == [("yaw", "all")]
 
 
 def test_stationary_draws_have_the_autocovariance_of_a_dense_cholesky():
@@ -195,3 +220,145 @@ def test_stationary_draws_have_the_autocovariance_of_a_dense_cholesky():
     np.testing.assert_allclose(np.cov(draws.T), dense, atol=0.05 * acov[0, 0])
     # The grand mean has variance sum(dense) / 40^2 / 20000.
     assert abs(draws.mean()) < 5 * np.sqrt(dense.sum() / 40**2 / 20_000)
+
+
+# --- the Gaussian family is continuous in sigma_h -----------------------------------------------
+
+
+def _truncated_gaussian(sigma_h: float) -> np.ndarray:
+    """The old kernel: eq. 7-5 cut hard at |k| <= floor(3 sigma_h / dt)."""
+    k = np.arange(-int(3 * sigma_h / DT), int(3 * sigma_h / DT) + 1)
+    return np.exp(-((k * DT) ** 2) / (2 * sigma_h**2))
+
+
+def _edge_weighted_gaussian(sigma_h: float) -> np.ndarray:
+    """eq. 7-5 with the taps |k| = K + 1 weighted by the fraction of 3 sigma_h / dt past K."""
+    reach = 3 * sigma_h / DT
+    k = np.arange(-int(reach) - 1, int(reach) + 2)
+    weight = np.where(np.abs(k) <= int(reach), 1.0, reach - int(reach))
+    return weight * np.exp(-((k * DT) ** 2) / (2 * sigma_h**2))
+
+
+def _reference_loglike(experiment, kernel, widths, sigma_c, sigma_n, d_lat, d_long):
+    """log N(r; 0, Sigma) of the yaw residuals, one kernel width at a time, by Levinson."""
+    r = channel_residuals(experiment, ROBOT, d_lat, d_long, "yaw")
+    alpha = float(channel_coefficients(ROBOT, d_lat, d_long, "yaw", DT)[0])
+    acov = np.zeros((len(widths), len(r)))
+    for row, sigma_h in zip(acov, widths, strict=True):
+        h = kernel(sigma_h)
+        rho = np.correlate(h, h, mode="full")[len(h) - 1 :] / (h @ h)
+        row[: len(rho)] = sigma_c**2 * rho
+    acov[:, :2] += sigma_n**2 * np.array([1 + alpha**2, -alpha])
+    return toeplitz_loglike(acov, np.broadcast_to(r, (len(widths), 1, len(r))))[:, 0]
+
+
+def _boundary_step_ratios(loglike: np.ndarray, points: int) -> np.ndarray:
+    """Per window: the step across the tap boundary over the largest other step."""
+    steps = np.abs(np.diff(loglike.reshape(-1, points), axis=1))
+    middle = points // 2 - 1
+    return steps[:, middle] / np.delete(steps, middle, axis=1).max(axis=1)
+
+
+def test_gaussian_loglike_is_continuous_across_tap_boundaries(experiments):
+    # Windows of 10 widths 1e-5 s apart around sigma_h = K dt / 3, where the
+    # hard +-3 sigma_h truncation gained a tap (K = 9..12, 0.042-0.056 s,
+    # around the truth 0.047). A continuous log-likelihood changes across the
+    # boundary by its derivative times the step, as between the other
+    # neighbours: the ratio stays near 1 (1.5 allows for the kink where a tap
+    # becomes whole). The old kernel jumps by 0.06-1.4 nats there, 5-14 times
+    # the smooth step on this 2,300-residual run, so the check fails for it.
+    points, theta_rest = 10, (0.01, 0.005, 110.0, 30.0)
+    widths = np.concatenate(
+        [K * DT / 3 + 1e-5 * (np.arange(points) - (points - 1) / 2) for K in (9, 10, 11, 12)]
+    )
+    taps_gained = np.diff(np.floor(3 * widths / DT).reshape(4, points), axis=1)
+    assert np.all(taps_gained[:, points // 2 - 1] == 1) and taps_gained.sum() == 4
+    experiment = experiments[0]
+    old = _reference_loglike(experiment, _truncated_gaussian, widths, *theta_rest)
+    assert np.all(_boundary_step_ratios(old, points) > 4)
+    # The reference with the edge-weighted kernel written here is what the
+    # package computes, with both exact engines ...
+    new = _reference_loglike(experiment, _edge_weighted_gaussian, widths, *theta_rest)
+    theta = np.column_stack(
+        [np.full_like(widths, 110.0), np.full_like(widths, 30.0), widths]
+        + [np.full_like(widths, v) for v in (0.01, 0.005)]
+    )
+    for engine in ("fast", "exact"):
+        loglike = ResidualLikelihood([experiment], ROBOT, channels=YAW, engine=engine)(theta)
+        np.testing.assert_allclose(loglike, new, rtol=0, atol=1e-6)
+        # ... and it is continuous.
+        assert np.all(_boundary_step_ratios(loglike, points) < 1.5)
+
+
+# --- no parameter the data cannot inform ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("family", "sensor", "noise"),
+    [
+        ("white", "diagonal", ["sigma_c"]),
+        ("white", "ma1", ["sigma_c", "sigma_n"]),
+        ("gaussian", "diagonal", ["sigma_h", "sigma_c", "sigma_n"]),
+        ("exponential", "ma1", ["width", "sigma_c", "sigma_n"]),
+    ],
+)
+def test_noise_parameters_per_family_and_sensor_model(experiments, family, sensor, noise):
+    likelihood = ResidualLikelihood(
+        experiments[:1], ROBOT, family=family, sensor=sensor, channels=YAW
+    )
+    assert likelihood.noise_parameter_names == noise
+    assert likelihood.parameter_names == ["d_lat", "d_long", *noise]
+
+
+@pytest.mark.parametrize("engine", ["fast", "exact"])
+def test_white_noise_with_the_diagonal_term_has_one_total_sd(experiments, engine):
+    # Covariance (sigma_c^2 + sigma_n^2) I: one sd, the total. The reference:
+    # white Gaussian residuals of that sd, summed independently with scipy.
+    likelihood = ResidualLikelihood(
+        experiments[:1], ROBOT, family="white", sensor="diagonal", channels=YAW, engine=engine
+    )
+    theta = np.array([[110.0, 30.0, 0.011], [300.0, 80.0, 0.02], [50.0, 40.0, 0.005]])
+    _, sigma_c, sigma_n = likelihood.noise_parameters(theta, 0)
+    np.testing.assert_array_equal(sigma_c, theta[:, 2])
+    np.testing.assert_array_equal(sigma_n, 0.0)
+    residuals = [
+        channel_residuals(experiments[0], ROBOT, d_lat, d_long) for d_lat, d_long, _ in theta
+    ]
+    expected = [
+        scipy.stats.norm.logpdf(r, 0, sd).sum()
+        for r, sd in zip(residuals, theta[:, 2], strict=True)
+    ]
+    np.testing.assert_allclose(likelihood(theta), expected, rtol=1e-10)
+
+
+@pytest.mark.slow
+def test_white_noise_with_the_diagonal_term_samples_its_one_sd_quickly():
+    # White residuals of sd 0.02 rad/s without sensor noise: the model is
+    # exact. Under the log-uniform prior (Jeffreys) with the damping
+    # marginalised (locally linear, 2 coefficients), sigma^2 | data is
+    # inverse-gamma((N - 2) / 2, RSS_min / 2): the closed form of sigma's
+    # posterior mean and sd.
+    noise = NoiseSettings(family="white", sigma_c=(0.005, 0.005, 0.02), sigma_n=(0.0, 0.0, 0.0))
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=7)
+    likelihood = ResidualLikelihood([run], ROBOT, family="white", sensor="diagonal", channels=YAW)
+    idata = sample_posterior(likelihood, seed=1)
+    summary = summarize(idata)
+    assert summary["converged"]
+    # Two parameters for one variance made a flat ridge: tau 210 and 10,500
+    # steps on this run; with one sd tau is ~12 (1,100 steps).
+    assert max(summary["autocorr_time"].values()) < 30
+    rss = scipy.optimize.minimize(
+        lambda z: np.sum(channel_residuals(run, ROBOT, *np.exp(z)) ** 2),
+        np.log([110.0, 30.0]),
+        method="Nelder-Mead",
+        options={"xatol": 1e-8, "fatol": 1e-14},
+    ).fun
+    a, b = (likelihood.n_residuals - 2) / 2, rss / 2
+    mean = np.sqrt(b) * np.exp(scipy.special.gammaln(a - 0.5) - scipy.special.gammaln(a))
+    sd = np.sqrt(b / (a - 1) - mean**2)
+    row = summary["sigma_c"]
+    # Monte Carlo error of the chain's mean and sd: sd / sqrt(ESS) and
+    # sd / sqrt(2 ESS); 5 of them.
+    ess = row["ess_autocorr"]
+    assert abs(row["mean"] - mean) < 5 * sd / np.sqrt(ess)
+    assert row["sd"] == pytest.approx(sd, rel=5 / np.sqrt(2 * ess))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import json
 import re
 import shutil
@@ -16,6 +17,7 @@ from bayes_jackal.cli import main
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.posterior import save_posterior
+from bayes_jackal.report import _criticism_table
 from bayes_jackal.simulate import simulate_experiment
 
 ROBOT = load_profile()
@@ -60,8 +62,8 @@ def test_report_embeds_every_figure_and_saves_png_and_svg(posteriors, tmp_path, 
     code, text = _report([posteriors["converged"]], tmp_path / "report.html")
     assert code == 0
     images = re.findall(r'<img alt="[^"]*" src="data:image/png;base64,', text)
-    # damping, sigma_h, traces; model and residuals; acf and psd of 2 channels.
-    assert len(images) == 3 + 2 + 2 * 2
+    # damping, sigma_h, traces, criticism; model and residuals; acf and psd of 2 channels.
+    assert len(images) == 4 + 2 + 2 * 2
     figures = tmp_path / "report_figures"
     pngs, svgs = sorted(figures.glob("*.png")), sorted(figures.glob("*.svg"))
     assert len(pngs) == len(svgs) == len(images)
@@ -70,6 +72,8 @@ def test_report_embeds_every_figure_and_saves_png_and_svg(posteriors, tmp_path, 
     assert "NOT CONVERGED" not in text
     assert "SIMULATED data with known truth" in text
     for label in ("d_lat", "sigma_h[yaw]", "sigma_c[vx]", "ratio", "R-hat", "ESS (tau)"):
+        assert label in text
+    for label in ("<h3>Model criticism</h3>", "max |z| residual-input", "acf[1]", "Q[1..30]"):
         assert label in text
 
 
@@ -96,6 +100,60 @@ def test_an_evidence_table_appears_for_compared_families(posteriors, tmp_path):
     evidence = json.loads((folder / "v2_01.compare.json").read_text())
     assert "<h2>Evidence</h2>" in text
     assert f"<td>{evidence['families']['gaussian']['log_evidence']:.2f}</td>" in text
+    # White noise cannot produce the residuals' colour: the criticism says so.
+    assert "predictive-acf" in {w["kind"] for w in evidence["families"]["white"]["warnings"]}
+    for warning in evidence["warnings"]:
+        assert html.escape(warning["message"]) in text
+
+
+def test_the_criticism_table_aligns_runs_with_different_statistics():
+    # A 15-sample run has lags 1, 2, 5 and Q[1..7] only; the long run has all
+    # five statistics. Every row has one cell per column, "-" where it lacks one.
+    tests = {
+        "long": {
+            "yaw": {
+                "statistics": ["acf[1]", "acf[2]", "acf[5]", "acf[10]", "Q[1..30]"],
+                "p_values": [0.1, 0.2, 0.3, 0.4, 0.5],
+            }
+        },
+        "short": {
+            "yaw": {
+                "statistics": ["acf[1]", "acf[2]", "acf[5]", "Q[1..7]"],
+                "p_values": [0.6, 0.7, 0.8, 0.9],
+            }
+        },
+    }
+    residual = {name: {"yaw": {"max_abs_z": 1.0, "threshold": 3.9}} for name in tests}
+    table = _criticism_table({"predictive_acf": tests, "residual_input": residual})
+    header = re.findall(r"<th>(.*?)</th>", table)
+    rows = [re.findall(r"<td>(.*?)</td>", row) for row in re.findall(r"<tr>(.*?)</tr>", table)[1:]]
+    assert header[4:] == ["acf[1]", "acf[2]", "acf[5]", "acf[10]", "Q[1..30]", "Q[1..7]"]
+    assert [dict(zip(header, row, strict=True)) for row in rows] == [
+        {
+            "experiment": "long",
+            "channel": "yaw",
+            "max |z| residual-input": "1",
+            "99 % level": "3.9",
+            "acf[1]": "0.1",
+            "acf[2]": "0.2",
+            "acf[5]": "0.3",
+            "acf[10]": "0.4",
+            "Q[1..30]": "0.5",
+            "Q[1..7]": "-",
+        },
+        {
+            "experiment": "short",
+            "channel": "yaw",
+            "max |z| residual-input": "1",
+            "99 % level": "3.9",
+            "acf[1]": "0.6",
+            "acf[2]": "0.7",
+            "acf[5]": "0.8",
+            "acf[10]": "-",
+            "Q[1..30]": "-",
+            "Q[1..7]": "0.9",
+        },
+    ]
 
 
 @pytest.mark.parametrize(
@@ -155,7 +213,7 @@ def test_the_report_renders_in_chromium_with_every_figure_loaded(posteriors, tmp
         _report([posteriors["short"], posteriors["converged"]], page, "--formats", "png")[0] == 0
     )
     counts, console = render(page, tmp_path)
-    assert counts == {"images": 18, "images-broken": 0, "errors": 0}, counts
+    assert counts == {"images": 20, "images-broken": 0, "errors": 0}, counts
     assert console == []
 
 

@@ -1,0 +1,80 @@
+"""MATLAB ``.mat`` files as named numeric arrays (v5/v7 via scipy.io, v7.3 via h5py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import scipy.io
+
+from .errors import DataError
+
+__all__ = ["mat_arrays"]
+
+#: What scipy.io and h5py raise on files they cannot read.
+_MAT_ERRORS = (
+    OSError,
+    ValueError,
+    TypeError,
+    KeyError,
+    NotImplementedError,
+    scipy.io.matlab.MatReadError,
+)
+#: MATLAB classes of numeric arrays in v7.3 files.
+_MAT_NUMERIC = {
+    "double",
+    "single",
+    "int8",
+    "int16",
+    "int32",
+    "int64",
+    "uint8",
+    "uint16",
+    "uint32",
+    "uint64",
+}
+
+
+def mat_arrays(path: Path, source: str) -> dict[str, np.ndarray]:
+    """Numeric arrays of a MATLAB file by name (struct fields as ``struct.field``)."""
+    if not path.is_file():
+        raise DataError("no such file", source=source)
+    try:
+        if h5py.is_hdf5(path):
+            with h5py.File(path, "r") as file:
+                return _hdf5_arrays(file, "")
+        return _arrays(scipy.io.loadmat(path, simplify_cells=True), "")
+    except _MAT_ERRORS as exc:
+        raise DataError(
+            f"not a readable MATLAB file ({type(exc).__name__}: {exc})", source=source
+        ) from None
+
+
+def _arrays(contents: dict, prefix: str) -> dict[str, np.ndarray]:
+    """Numeric arrays of scipy.io.loadmat's nested dicts."""
+    arrays = {}
+    for key, value in contents.items():
+        if key.startswith("__"):
+            continue
+        if isinstance(value, dict):
+            arrays |= _arrays(value, f"{prefix}{key}.")
+        elif isinstance(value, (np.ndarray, int, float)) and np.asarray(value).dtype.kind in "iuf":
+            arrays[prefix + key] = np.asarray(value)
+    return arrays
+
+
+def _hdf5_arrays(group: h5py.Group, prefix: str) -> dict[str, np.ndarray]:
+    """Numeric arrays of a v7.3 MATLAB file (HDF5 groups are structs)."""
+    arrays = {}
+    for key, item in group.items():
+        if key.startswith("#"):
+            continue
+        if isinstance(item, h5py.Group):
+            arrays |= _hdf5_arrays(item, f"{prefix}{key}.")
+            continue
+        kind = item.attrs.get("MATLAB_class", b"double")
+        kind = kind.decode() if isinstance(kind, bytes) else str(kind)
+        if kind in _MAT_NUMERIC and "MATLAB_empty" not in item.attrs:
+            arrays[prefix + key] = np.asarray(item[()])
+    return arrays

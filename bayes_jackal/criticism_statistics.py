@@ -1,0 +1,270 @@
+"""Array-level statistics behind the model-criticism checks.
+
+Pure functions of numpy arrays, no posterior: the posterior draws' density
+at a prior bound (:func:`boundary_density`), the residual-input
+cross-correlation and its band (:func:`cross_correlation`,
+:func:`cross_correlation_sd`, :func:`simultaneous_threshold`), the
+posterior-predictive autocorrelation statistics, their p-values and the
+multiple-testing rule that flags them (:func:`acf_statistics`,
+:func:`predictive_p_values`, :func:`predictive_flags`), and how far a window
+is from steady cornering (:func:`steadiness`). :mod:`bayes_jackal.criticism`
+applies them to a posterior.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft
+import scipy.stats
+
+from .bags import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
+from .errors import InputError
+from .noise import ljung_box, sample_autocorrelation
+from .posterior import az  # imported there with arviz's import warning silenced
+
+__all__ = [
+    "acf_statistics",
+    "boundary_density",
+    "cross_correlation",
+    "cross_correlation_sd",
+    "predictive_flags",
+    "predictive_p_values",
+    "simultaneous_threshold",
+    "steadiness",
+]
+
+
+def boundary_density(
+    values: np.ndarray, low: float, high: float, *, log: bool, prob: float, strip: float
+) -> tuple[float, float]:
+    """The draws' density next to each prior bound relative to their density over the HDI.
+
+    In the prior's coordinate x (log theta for a log-uniform prior, theta for
+    a uniform one), with the ``prob`` HDI (arviz's) of width w: the fraction
+    of draws within ``strip`` w of a bound, divided by that strip's width,
+    over ``prob`` / w. About 1 when the posterior runs flat into the bound,
+    more when it peaks there, ~0 when it stays clear of it.
+
+    Parameters
+    ----------
+    values : ndarray
+        Posterior draws in natural units, inside [low, high].
+    low, high : float
+        The prior's bounds (natural units).
+    log : bool
+        Whether the prior is log-uniform.
+    prob : float
+        Mass of the HDI.
+    strip : float
+        Strip width as a fraction of the HDI's width.
+
+    Returns
+    -------
+    (float, float)
+        Density ratio at the lower and at the upper bound.
+    """
+    transform = np.log if log else np.asarray
+    x, lo, hi = transform(np.asarray(values, float).ravel()), transform(low), transform(high)
+    start, stop = az.hdi(x, hdi_prob=prob)
+    # A posterior narrower than rounding: the strip is at least 1e-9 of the range.
+    width = max(strip * (stop - start), 1e-9 * (hi - lo))
+    mean_density = prob / (width / strip)
+    return (
+        float(np.mean(x <= lo + width) / width / mean_density),
+        float(np.mean(x >= hi - width) / width / mean_density),
+    )
+
+
+# --- residual-input cross-correlation -------------------------------------------------
+
+
+def _check_lags(lags: int, n: int) -> int:
+    if isinstance(lags, bool) or not isinstance(lags, (int, np.integer)) or not 0 <= lags < n:
+        raise InputError(f"lags must be an integer in 0..{n - 1}, got {lags!r}", field="lags")
+    return int(lags)
+
+
+def cross_correlation(x: np.ndarray, y: np.ndarray, lags: int) -> np.ndarray:
+    """Sample cross-correlation r_xy(k) at lags k = -L..L, by FFT.
+
+    r_xy(k) = sum_t x_c[t + k] y_c[t] / sqrt(sum x_c^2 sum y_c^2) with the
+    centred series x_c, y_c (MATLAB ``resid``: x the residual, y the input;
+    k > 0 pairs the residual with earlier inputs).
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (..., n)
+        Series, broadcast together over leading axes; neither constant.
+    lags : int
+        L, 0 <= L < n.
+
+    Returns
+    -------
+    ndarray, shape (..., 2 L + 1)
+        r_xy(-L..L).
+    """
+    x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+    n = x.shape[-1]
+    lags = _check_lags(lags, n)
+    xc = x - x.mean(axis=-1, keepdims=True)
+    yc = y - y.mean(axis=-1, keepdims=True)
+    scale = np.sqrt(np.sum(xc**2, axis=-1) * np.sum(yc**2, axis=-1))
+    if not (scale > 0).all():
+        raise InputError("a series is constant: its cross-correlation is undefined", field="x")
+    size = scipy.fft.next_fast_len(n + lags, real=True)
+    cross = scipy.fft.irfft(scipy.fft.rfft(xc, size) * np.conj(scipy.fft.rfft(yc, size)), size)
+    ordered = np.concatenate([cross[..., size - lags :], cross[..., : lags + 1]], axis=-1)
+    return ordered / scale[..., None]
+
+
+def cross_correlation_sd(autocorrelation: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Standard error of r_xy(k) when x, with autocorrelation rho_x, is independent of y.
+
+    Bartlett's formula, conditional on y: var r_xy(k) = (1/n) sum_j
+    rho_x(j) r_y(j) over |j| < n, with the sample autocorrelation r_y of
+    y. At k = 0 it is exactly y_c' R_x y_c / (n y_c' y_c) with the
+    correlation matrix R_x of x (taking sum x_c^2 as its expectation). With
+    white x it is 1/n, the plain +-z / sqrt(n) band; coloured series (both
+    smooth) widen it.
+
+    Parameters
+    ----------
+    autocorrelation : ndarray, shape (..., m)
+        rho_x at lags 0..m-1 (rho_x(0) = 1); lags from n on are unused.
+    y : ndarray, shape (..., n)
+        The other series, not constant.
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    y = np.asarray(y, float)
+    n = y.shape[-1]
+    rho = np.asarray(autocorrelation, float)[..., :n]
+    r_y = sample_autocorrelation(y, rho.shape[-1] - 1)
+    products = rho * r_y
+    variance = (2.0 * products.sum(axis=-1) - products[..., 0]) / n
+    return np.sqrt(variance)
+
+
+def simultaneous_threshold(count: int, *, level: float) -> float:
+    """|z| that ``count`` standard-normal statistics all stay below with probability >= level.
+
+    Bonferroni: Phi^-1(1 - (1 - level) / (2 count)). It holds whatever their
+    correlation, so the family-wise false-alarm rate is at most 1 - level
+    (much less for the strongly correlated lags of a smooth input).
+    """
+    return float(scipy.stats.norm.isf((1.0 - level) / (2.0 * count)))
+
+
+# --- posterior-predictive autocorrelation ------------------------------------------
+
+
+def acf_statistics(x: np.ndarray, *, lags: tuple[int, ...], portmanteau: int) -> np.ndarray:
+    """Autocorrelation at ``lags`` and the Ljung-Box Q over lags 1..``portmanteau``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+        Series, n > max(lags, portmanteau).
+
+    Returns
+    -------
+    ndarray, shape (..., len(lags) + 1)
+    """
+    r = sample_autocorrelation(x, max(max(lags), portmanteau))
+    q, _ = ljung_box(x, portmanteau)
+    return np.concatenate([r[..., list(lags)], q[..., None]], axis=-1)
+
+
+def predictive_p_values(observed: np.ndarray, replicated: np.ndarray) -> np.ndarray:
+    """Posterior-predictive p-values: the fraction of draws with T(rep) >= T(obs).
+
+    Parameters
+    ----------
+    observed, replicated : ndarray, shape (draws, S)
+        Statistics of the data and of a replicated series at each posterior
+        draw (realised discrepancies: the observed residuals depend on the
+        draw's damping).
+
+    Returns
+    -------
+    ndarray, shape (S,)
+    """
+    return np.mean(np.asarray(replicated) >= np.asarray(observed), axis=0)
+
+
+def predictive_flags(p_values: np.ndarray, draws: int, *, alarm: float) -> np.ndarray:
+    """Which of S posterior-predictive p-values (from ``draws`` draws each) are extreme.
+
+    Bonferroni over both tails of the S statistics: each tail is tested at
+    ``alarm`` / (2 S), so the family-wise false-alarm rate is at most
+    ``alarm`` whatever the statistics' correlation. A p-value from D draws
+    resolves only steps of 1/D, so the test uses the Monte Carlo p-value
+    (k + 1) / (D + 1) of the tail, k the replicated statistics at least as
+    extreme as the observed one (Davison & Hinkley 1997, eq. 4.11): its
+    tail rate under the model is floor(tail (D + 1)) / (D + 1) <= tail even
+    for an exact p-value. Posterior-predictive p-values are conservative
+    (Meng 1994), so the rate is lower still. With fewer than
+    1 / tail - 1 draws nothing can be flagged.
+
+    Parameters
+    ----------
+    p_values : ndarray, shape (S,)
+        Fractions of replicated statistics >= the observed one
+        (:func:`predictive_p_values`).
+    draws : int
+        D, the draws behind each p-value.
+    alarm : float
+        Family-wise false-alarm level.
+
+    Returns
+    -------
+    ndarray of bool, shape (S,)
+    """
+    p = np.asarray(p_values, float)
+    count = np.rint(np.minimum(p, 1.0 - p) * draws)
+    return (count + 1.0) / (draws + 1.0) <= alarm / (2.0 * p.size)
+
+
+# --- steadiness ----------------------------------------------------------------------
+
+
+def steadiness(
+    t: np.ndarray, yaw_rate: np.ndarray, inputs: np.ndarray
+) -> tuple[float | None, float]:
+    """How far a window is from steady cornering, by the rule of ``bags.detect_steady``.
+
+    Both signals are first smoothed as there
+    (:func:`bayes_jackal.bags.steady_smoothing`).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Uniform sample times [s].
+    yaw_rate : ndarray, shape (N,)
+        [rad/s].
+    inputs : ndarray, shape (N, 2)
+        Wheel speeds [rad/s].
+
+    Returns
+    -------
+    input_deviation : float or None
+        Largest |smoothed wheel speed - its median| over the window, relative
+        to the larger median wheel speed; steady when <=
+        ``STEADY_INPUT_TOLERANCE``. None when the median wheel speeds are
+        both zero (the wheels stand still: no cornering to be steady in).
+    yaw_drift : float
+        Change of the least-squares line through the smoothed yaw rate over
+        the window, relative to max(|median yaw rate|, ``STEADY_YAW_FLOOR`` /
+        ``STEADY_YAW_TOLERANCE``); steady when <= ``STEADY_YAW_TOLERANCE``.
+        (Process noise makes the yaw rate wander; its trend is what settles.)
+    """
+    t = np.asarray(t, float)
+    u, r = steady_smoothing(t, yaw_rate, inputs)
+    level = np.median(u, axis=0)
+    scale = np.abs(level).max()
+    input_deviation = float(np.abs(u - level).max() / scale) if scale > 0 else None
+    slope = np.polyfit(t - t.mean(), r, 1)[0]
+    reference = max(abs(float(np.median(r))), STEADY_YAW_FLOOR / STEADY_YAW_TOLERANCE)
+    return input_deviation, float(abs(slope) * (t[-1] - t[0]) / reference)

@@ -1,0 +1,270 @@
+"""Starting points of the MAP search: the likelihood profiled over each noise group.
+
+The log-likelihood is a sum over noise groups (a channel, or a channel of
+one experiment), and each group depends only on the damping and on its own
+noise parameters: vx's coefficients on d_long, vy's on d_lat, yaw's on both
+(:func:`bayes_jackal.physics.channel_coefficients`). So a design over the
+damping alone, crossed with a grid over each group's noise, finds for every
+damping point the best noise of every group: the profile likelihood. With
+three channels that is a 2-D search followed by three searches over one
+group's noise, where a design over the whole 11-D prior box cannot find a
+point at which every channel's noise is right at once.
+
+The profile uses the debiased Whittle likelihood
+(:func:`bayes_jackal.likelihood.debiased_whittle_loglike`), whose expected
+periodogram is linear in the autocovariance. With rho = sigma_n / sigma_c,
+
+    E[I] = sigma_c^2 S,    S = E_R(width) + rho^2 E_M(alpha),
+
+E_R the expected periodogram of the kernel's autocorrelation (one FFT per
+width) and E_M that of the sensor term (``ma1``: lags 0 and 1 only). A
+damping point changes the periodogram I = c^T P c of the block's
+cross-periodograms P and the pole alpha in E_M: O(N) work. For a fixed
+shape S the group's Whittle log-likelihood
+
+    -1/2 [A log sigma_c^2 + sum E log S + Q / sigma_c^2] - A/2 log(2 pi),
+
+A the number of residuals and Q = sum I / S (sums over the blocks' Fourier
+frequencies), is largest at sigma_c^2 = Q / A, kept inside the prior box.
+So only the width and the ratio are gridded. The Whittle likelihood is off
+the exact one by tens of nats for the Gaussian family, which does not move
+a basin hundreds of nats better; the local searches that follow use the
+exact engine.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.stats
+
+from .kernels import get_family
+from .likelihood import (
+    ResidualLikelihood,
+    _frequency_weights,
+    expected_periodogram,
+    residual_autocovariance,
+)
+from .physics import channel_coefficients
+
+__all__ = ["profile_starts"]
+
+#: Coarse grid of one group's kernel width (log-spaced over its prior range)
+#: and of rho = sigma_n / sigma_c (log-spaced over the range the box allows),
+#: then ZOOMS refinements: around each damping point's best, a 5 x 5 grid
+#: with half the previous spacing.
+WIDTHS = 16
+RATIOS = 10
+ZOOMS = 5
+#: Largest array of the profile, in elements (~64 MB of float64): the
+#: damping design is processed in chunks of at most this size.
+_MAX_ELEMENTS = 8_000_000
+_LOG_2PI = np.log(2.0 * np.pi)
+
+
+def profile_starts(
+    likelihood: ResidualLikelihood,
+    low: np.ndarray,
+    high: np.ndarray,
+    *,
+    damping_points: int,
+    starts: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The best points of the profile likelihood over a damping design.
+
+    Parameters
+    ----------
+    likelihood : ResidualLikelihood
+    low, high : ndarray, shape (P,)
+        Prior box in natural units, ordered as ``likelihood.parameter_names``.
+    damping_points : int
+        Size of the scrambled Sobol design over (log d_lat, log d_long).
+    starts : int
+        Number of points returned.
+    rng : numpy.random.Generator
+        Scrambles the design.
+
+    Returns
+    -------
+    theta : ndarray, shape (starts, P)
+        Damping points with every group's best noise, best first (natural
+        units, inside the box).
+    profile : ndarray, shape (starts,)
+        Their Whittle log-likelihoods (-inf where no noise setting of some
+        group is valid).
+    """
+    unit = scipy.stats.qmc.Sobol(2, scramble=True, seed=rng).random(damping_points)
+    damping = low[:2] * (high[:2] / low[:2]) ** unit
+    theta = np.repeat(np.sqrt(low * high)[None], damping_points, axis=0)
+    theta[:, :2] = damping
+    total = np.zeros(damping_points)
+    for group in range(len(likelihood.noise_groups)):
+        columns = _noise_columns(likelihood, group)
+        loglike, noise = _group_profile(likelihood, group, damping, low[columns], high[columns])
+        total += loglike
+        theta[:, columns] = noise
+    order = np.argsort(np.where(np.isnan(total), -np.inf, total))[::-1][:starts]
+    return np.clip(theta[order], low, high), total[order]
+
+
+def _noise_columns(likelihood: ResidualLikelihood, group: int) -> list[int]:
+    """Columns of one group's noise parameters, in ``noise_parameter_names`` order."""
+    suffix = likelihood.group_label(*likelihood.noise_groups[group])
+    names = likelihood.parameter_names
+    return [names.index(f"{name}{suffix}") for name in likelihood.noise_parameter_names]
+
+
+def _group_profile(
+    likelihood: ResidualLikelihood,
+    group: int,
+    damping: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Best Whittle log-likelihood of one group at each damping point, and its noise.
+
+    The coarse grid of (log width, log rho) is shared by all damping points;
+    each zoom evaluates a 5 x 5 grid around every point's best so far with
+    half the spacing (one value where the family has no width or the model
+    no sigma_n).
+
+    Parameters
+    ----------
+    damping : ndarray, shape (D, 2)
+        (d_lat, d_long) [N s/m].
+    low, high : ndarray, shape (K,)
+        The group's prior box, in ``noise_parameter_names`` order.
+
+    Returns
+    -------
+    loglike : ndarray, shape (D,)
+    noise : ndarray, shape (D, K)
+        The best (width,) sigma_c(, sigma_n), in that order.
+    """
+    names = likelihood.noise_parameter_names
+    bounds = dict(zip(names, zip(low, high, strict=True), strict=True))
+    family = get_family(likelihood.family)
+    # Log-width and log-ratio ranges; a single value where not a parameter.
+    ranges = np.zeros((2, 2))
+    if family.has_width:
+        ranges[0] = np.log(bounds[family.width_name])
+    if "sigma_n" in bounds:
+        ranges[1] = np.log(bounds["sigma_n"]) - np.log(bounds["sigma_c"])[::-1]
+    sensor = 1.0 if "sigma_n" in bounds else 0.0  # rho = 0 without sigma_n
+    sizes = np.where(ranges[:, 1] > ranges[:, 0], (WIDTHS, RATIOS), 1)
+    axes = [np.linspace(*r, s)[None] for r, s in zip(ranges, sizes, strict=True)]
+    steps = np.ptp(ranges, axis=1) / np.maximum(sizes - 1, 1)
+    rows = np.arange(len(damping))
+    best = None
+    for zoom in range(ZOOMS + 1):
+        if zoom:
+            offsets = [np.arange(-2, 3) * h / 2**zoom if h else np.zeros(1) for h in steps]
+            axes = [
+                np.clip(centre[:, None] + o, r[0], r[1])
+                for centre, o, r in zip(best, offsets, ranges, strict=True)
+            ]
+        loglike, variance = _grid_loglike(
+            likelihood, group, damping, np.exp(axes[0]), sensor * np.exp(axes[1]), bounds
+        )
+        flat = loglike.reshape(len(damping), -1)
+        index = np.unravel_index(np.argmax(flat, axis=1), loglike.shape[1:])
+        best = [axis[rows if len(axis) > 1 else 0, i] for axis, i in zip(axes, index, strict=True)]
+        sigma_c = np.sqrt(variance[(rows, *index)])
+        top = loglike[(rows, *index)]
+    width, ratio = np.exp(best) * [[1.0], [sensor]]
+    values = {"sigma_c": sigma_c, "sigma_n": ratio * sigma_c, family.width_name: width}
+    return top, np.column_stack([values[name] for name in names])
+
+
+def _grid_loglike(
+    likelihood: ResidualLikelihood,
+    group: int,
+    damping: np.ndarray,
+    widths: np.ndarray,
+    ratios: np.ndarray,
+    bounds: dict[str, tuple[float, float]],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Whittle log-likelihood of one group, maximised over sigma_c, on a grid.
+
+    Parameters
+    ----------
+    damping : ndarray, shape (D, 2)
+    widths : ndarray, shape (1 or D, W)
+        Kernel widths [s], shared by all damping points or one row each.
+    ratios : ndarray, shape (1 or D, R)
+        rho = sigma_n / sigma_c (0 where sigma_n is not a parameter).
+    bounds : dict
+        The group's prior box by base name.
+
+    Returns
+    -------
+    loglike, variance : ndarray, shape (D, W, R)
+        The log-likelihood at the best sigma_c^2 = Q / A inside the box
+        (-inf where the box allows none), and that sigma_c^2.
+    """
+    blocks = [b for b in likelihood.blocks if b.noise_group == group]
+    count = sum(b.regressors.shape[0] * b.regressors.shape[1] for b in blocks)
+    cells = len(damping) * widths.shape[1] * ratios.shape[1]
+    frequencies = sum(b.periodogram.shape[0] for b in blocks)
+    chunks = np.array_split(
+        np.arange(len(damping)), int(np.ceil(cells * frequencies / _MAX_ELEMENTS))
+    )
+    log_det, quadratic = (
+        np.concatenate(parts)
+        for parts in zip(
+            *(
+                _chunk_terms(likelihood, blocks, damping[i], _rows(widths, i), _rows(ratios, i))
+                for i in chunks
+            ),
+            strict=True,
+        )
+    )
+    ratios = ratios[:, None, :]
+    c_low, c_high = bounds["sigma_c"]
+    if "sigma_n" in bounds:
+        # sigma_n = rho sigma_c must be inside its box too.
+        c_low = np.maximum(c_low, bounds["sigma_n"][0] / ratios)
+        c_high = np.minimum(c_high, bounds["sigma_n"][1] / ratios)
+    variance = np.clip(quadratic / count, c_low**2, c_high**2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        loglike = -0.5 * (count * (np.log(variance) + _LOG_2PI) + log_det + quadratic / variance)
+    valid = np.isfinite(loglike) & (c_low <= c_high)
+    return np.where(valid, loglike, -np.inf), variance
+
+
+def _rows(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Rows ``index`` of a per-damping-point grid; a shared one-row grid as is."""
+    return values if len(values) == 1 else values[index]
+
+
+def _chunk_terms(
+    likelihood: ResidualLikelihood,
+    blocks: list,
+    damping: np.ndarray,
+    widths: np.ndarray,
+    ratios: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """sum E log S and Q = sum I / S over a group's blocks, each (D, W, R)."""
+    log_det, quadratic = 0.0, 0.0
+    family = get_family(likelihood.family)
+    for block in blocks:
+        count, n = block.regressors.shape[:2]
+        alpha, input_row = channel_coefficients(
+            likelihood.robot, damping[:, 0], damping[:, 1], block.channel, block.dt
+        )
+        c = np.column_stack([np.ones(len(damping)), -alpha, -input_row])
+        periodogram = (c[:, :, None] * c[:, None, :]).reshape(len(c), 16) @ block.periodogram.T
+        kernel = expected_periodogram(family.autocorrelation(widths, block.dt, n))
+        ones, zeros = np.ones(len(alpha)), np.zeros(len(alpha))
+        sensor = expected_periodogram(
+            residual_autocovariance(
+                family, ones, zeros, ones, alpha, block.dt, n, likelihood.sensor
+            )
+        )
+        # S (D, W, R, F) = E_R(width) + rho^2 E_M(alpha).
+        shape = kernel[:, :, None, :] + ratios[:, None, :, None] ** 2 * sensor[:, None, None, :]
+        weights = _frequency_weights(n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            log_det = log_det + count * (np.log(shape) @ weights)
+            quadratic = quadratic + (periodogram[:, None, None, :] / shape) @ weights
+    return log_det, quadratic

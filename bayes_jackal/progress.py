@@ -1,0 +1,135 @@
+"""Progress of long loops on stderr: a bar on a terminal, plain lines in a log.
+
+tqdm redraws its bar with carriage returns and ANSI cursor moves, which a
+log file (CI, ``nohup``, a cluster's batch output) keeps as garbage. Where
+the stream is a terminal, :class:`Progress` shows tqdm's bar; elsewhere it
+prints a plain line every :data:`LOG_INTERVAL` seconds, e.g.
+``gaussian: 1200/20000 steps, tau ~ 35, 40 s``, and one when the loop ends.
+Every progress display of the package (emcee sampling, bag ingest, compare's
+families in parallel processes) goes through it.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Iterable, Iterator
+from typing import TextIO, TypeVar
+
+from tqdm import tqdm
+
+__all__ = ["LOG_INTERVAL", "Progress"]
+
+#: Seconds between the plain lines written where the stream is not a terminal.
+LOG_INTERVAL = 10.0
+
+T = TypeVar("T")
+
+
+class Progress:
+    """Count a loop's items and show it: tqdm on a terminal, periodic lines otherwise.
+
+    Parameters
+    ----------
+    total : int
+        Items expected (the count may stop short, e.g. a converged chain).
+    label : str
+        What is counted, starting each line (e.g. a family or a file name).
+    unit : str
+        Name of the items (``steps``, ``msg``).
+    enabled : bool
+        Show nothing when False.
+    position : int
+        tqdm's line on the terminal (one per process running at once).
+    initial : int
+        Items already done (a resumed chain).
+    stream : file, optional
+        Where to write (default: ``sys.stderr`` at construction).
+    interval : float, optional
+        Seconds between plain lines (default :data:`LOG_INTERVAL`).
+    """
+
+    def __init__(
+        self,
+        total: int,
+        label: str,
+        *,
+        unit: str = "steps",
+        enabled: bool = True,
+        position: int = 0,
+        initial: int = 0,
+        stream: TextIO | None = None,
+        interval: float | None = None,
+    ):
+        self.total, self.label, self.unit = total, label.strip(), unit
+        self.stream = sys.stderr if stream is None else stream
+        self.interval = LOG_INTERVAL if interval is None else interval
+        self.count = initial
+        self.status: dict[str, str] = {}
+        self.enabled = enabled
+        self.start = self.last = time.monotonic()
+        is_terminal = enabled and getattr(self.stream, "isatty", lambda: False)()
+        self.bar = (
+            tqdm(
+                total=total,
+                desc=label,
+                unit=unit,
+                position=position,
+                initial=initial,
+                mininterval=1.0,
+                file=self.stream,
+            )
+            if is_terminal
+            else None
+        )
+
+    def update(self, n: int = 1, **status: str) -> None:
+        """Count ``n`` more items; ``status`` (e.g. ``tau="35"``) joins the shown text."""
+        if not self.enabled:
+            return
+        self.count += n
+        self.status.update(status)
+        if self.bar is not None:
+            self.bar.update(n)
+            if status:
+                self.bar.set_postfix(self.status, refresh=False)
+            return
+        now = time.monotonic()
+        if now - self.last >= self.interval:
+            self.last = now
+            self._line()
+
+    def _line(self, end: str = "") -> None:
+        extra = "".join(f", {key} ~ {value}" for key, value in self.status.items())
+        elapsed = time.monotonic() - self.start
+        self.stream.write(
+            f"{self.label}: {self.count}/{self.total} {self.unit}{extra}, {elapsed:.0f} s{end}\n"
+        )
+        self.stream.flush()
+
+    def close(self, outcome: str = "done") -> None:
+        """End the display: close the bar, or write the last plain line ending in ``outcome``."""
+        if not self.enabled:
+            return
+        if self.bar is not None:
+            self.bar.close()
+        else:
+            self._line(f", {outcome}")
+        self.enabled = False
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        self.close("done" if kind is None else "stopped")
+
+    def wrap(self, items: Iterable[T]) -> Iterator[T]:
+        """Yield ``items``, counting each; close when they run out, or as stopped on an error."""
+        outcome = "stopped"
+        try:
+            for item in items:
+                yield item
+                self.update()
+            outcome = "done"
+        finally:
+            self.close(outcome)

@@ -1,0 +1,369 @@
+"""The whole analysis of a set of logs, as ``bayes-jackal analyse`` runs it.
+
+:func:`analyse_logs` takes ROS bags (``.bag``, ``.mcap``, ``.db3``, bag
+folders) and experiment files (``.csv``, ``.mat``, ``.nc``: what
+:func:`bayes_jackal.experiment.load_experiment` reads) and writes into one
+folder:
+
+- ``experiments/<name>.nc``: every input that could be read, with its
+  provenance (a bad input is reported with its reason and skipped);
+- ``grid_onestep.png``, ``grid_simulation.png``, ``grid.json``: the thesis'
+  grid searches of the yaw channel (ch. 9-1-2 at 1 N s/m resolution and
+  ch. 5's grid of step 10, both over 1-1000 N s/m);
+- ``posteriors/<family>.nc`` and ``compare.json``: the pooled posterior of
+  the damping and the noise on every channel all experiments measure, for
+  each noise family, with its evidence (:func:`compare_families`); each
+  family is saved as it finishes, so an interruption keeps those done;
+- ``posterior.nc``, ``posterior.json``: the posterior of the family of
+  highest evidence, the main result;
+- ``prior.json``: the Active Inference prior exported from that same
+  posterior, at embedding order 2 or the highest the family allows
+  (:data:`bayes_jackal.export.MAX_ORDER`; 0 for white noise): the prior
+  follows the model the data support best;
+- ``report.html``: the report of every family's posterior, best first.
+
+The demo (:mod:`bayes_jackal.demo`) is this function on the shipped bags.
+Not to be confused with :func:`bayes_jackal.noise.analyse`, the thesis'
+ch. 7 residual analysis.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+from ._files import write_json
+from .bags import read_bag
+from .criticism import criticise
+from .errors import DataError, InputError
+from .evidence import compare_families
+from .experiment import Experiment, load_experiment, write_netcdf
+from .export import MAX_ORDER, export_prior, write_prior
+from .gridsearch import damping_grid, grid_search
+from .inference import ConvergenceWarning, SamplerSettings
+from .likelihood import resolve_channels
+from .plots import save_grid_plot
+from .posterior import save_posterior, summarize
+from .report import write_report
+from .robot import RobotProfile, load_profile
+
+__all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "EXPORT_ORDER", "analyse_logs", "ingest_logs"]
+
+#: Families compared by default: the thesis' question, coloured or not.
+DEFAULT_FAMILIES = ("white", "gaussian")
+#: File suffixes read as ROS bags (folders are ROS2 bags too).
+BAG_SUFFIXES = (".bag", ".mcap", ".db3")
+#: Embedding order of the exported prior, where the best family allows it.
+EXPORT_ORDER = 2
+#: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
+GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
+
+
+def _read(
+    path: Path,
+    robot: RobotProfile,
+    window: tuple[float, float] | None,
+    max_gap: float | None,
+    progress: bool,
+    read_options: Mapping,
+) -> Experiment:
+    """One input as an experiment: a bag through ingest, or an experiment file."""
+    if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
+        gap = {} if max_gap is None else {"max_gap": max_gap}
+        return read_bag(path, robot, window=window, progress=progress, **gap)
+    experiment = load_experiment(path, max_gap=max_gap, **read_options)
+    if window is None:
+        return experiment
+    experiment.window(*window)  # raises DataError when it holds too few samples
+    return dataclasses.replace(experiment, steady_window=tuple(float(w) for w in window))
+
+
+def _target(name: str, folder: Path, source: Path, inputs: set[Path]) -> Path:
+    """``folder/<name>.nc``, refused for a name that is no plain file name or an input's path."""
+    if name in ("", ".", "..") or any(sep in name for sep in ("/", "\\")):
+        raise DataError(
+            f"its experiment name {name!r} cannot name a file; rename the experiment",
+            source=str(source),
+            field="name",
+        )
+    target = folder / f"{name}.nc"
+    if target.resolve() in inputs:
+        raise DataError(
+            f"writing it as {target} would overwrite an input; choose another output folder",
+            source=str(source),
+        )
+    return target
+
+
+def ingest_logs(
+    paths: Sequence[str | Path],
+    robot: RobotProfile,
+    folder: str | Path,
+    *,
+    window: tuple[float, float] | None = None,
+    max_gap: float | None = None,
+    progress: bool = False,
+    labels: Mapping[str, Mapping] | None = None,
+    read_options: Mapping | None = None,
+    say: Callable[[str], None] = lambda text: None,
+) -> tuple[list[Experiment], dict[str, str]]:
+    """Read every input, write each as ``folder/<name>.nc``; keep going past bad ones.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Bags (``.bag``, ``.mcap``, ``.db3``, ROS2 bag folders) and
+        experiment files (``.csv``, ``.mat``, ``.nc``).
+    robot : RobotProfile
+        Topics, wheel joints and constants.
+    folder : str or Path
+        Where the experiment files go.
+    window : (float, float), optional
+        Steady window [s on each experiment's time axis; for bags, from the
+        first IMU stamp]; detected in bags, the whole run in files, when
+        omitted.
+    max_gap : float, optional
+        Longest tolerated dropout [s]; None: the defaults of
+        :func:`~bayes_jackal.bags.read_bag` (0.25 s) and of
+        :func:`~bayes_jackal.experiment.load_experiment`.
+    progress : bool
+        Show each bag's progress on stderr.
+    labels : mapping, optional
+        Per input path (as given), Experiment fields to set, e.g. ``series``
+        and ``truth`` of a simulated run.
+    read_options : mapping, optional
+        Keywords of :func:`~bayes_jackal.experiment.load_experiment` for
+        experiment files (``columns``, ``rate``).
+    say : callable
+        Receives one line per input.
+
+    Returns
+    -------
+    experiments : list of Experiment
+    failed : dict of str to str
+        The reason for each input that could not be used, by path.
+    """
+    experiments: list[Experiment] = []
+    failed: dict[str, str] = {}
+    owners: dict[str, str] = {}
+    inputs = {Path(given).resolve() for given in paths}
+    for given in paths:
+        path = Path(given)
+        try:
+            experiment = _read(path, robot, window, max_gap, progress, read_options or {})
+            target = _target(experiment.name, Path(folder), path, inputs)
+            if experiment.name in owners:
+                raise DataError(
+                    f"its experiment name {experiment.name!r} is that of "
+                    f"{owners[experiment.name]}; rename one of them",
+                    source=str(path),
+                )
+        except InputError as exc:  # one bad input does not lose the others
+            failed[str(given)] = str(exc) if exc.source else f"{given}: {exc}"
+            say(f"  skipped {failed[str(given)]}")
+            continue
+        experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
+        owners[experiment.name] = str(given)
+        write_netcdf(experiment, target)
+        window_text = (
+            "{:.2f}-{:.2f} s".format(*experiment.steady_window)
+            if experiment.steady_window
+            else "none (whole run)"
+        )
+        say(
+            f"  ingested {given}: {len(experiment.t)} samples at {1 / experiment.dt:.1f} Hz, "
+            f"channels {', '.join(experiment.channels)}, steady window {window_text}"
+        )
+        experiments.append(experiment)
+    return experiments, failed
+
+
+def _common_truth(experiments: list[Experiment]) -> dict | None:
+    """The true damping all experiments share (simulated runs), else None."""
+    truths = [{key: (e.truth or {}).get(key) for key in ("d_lat", "d_long")} for e in experiments]
+    shared = truths[0]
+    return shared if None not in shared.values() and all(t == shared for t in truths) else None
+
+
+def _grids(experiments, robot, folder: Path, say: Callable[[str], None]) -> dict:
+    """The thesis' grid searches; surfaces as PNG, minima in grid.json."""
+    summaries = {}
+    for method, (start, stop, step) in GRIDS.items():
+        values = damping_grid(start, stop, step)
+        result = grid_search(experiments, robot, values, values, method=method)
+        d_lat, d_long, _ = result.argmin()
+        save_grid_plot(result, folder / f"grid_{method}.png")
+        say(f"  {method} MSE grid minimum: d_lat = {d_lat:g}, d_long = {d_long:g} N s/m")
+        summaries[method] = result.summary()
+    payload = {"truth": _common_truth(experiments), **summaries}
+    write_json(folder / "grid.json", payload)
+    return summaries
+
+
+def _export(idata, family: str, source: Path, path: Path) -> Path:
+    """The prior of ``family``'s posterior at the highest order it allows, up to EXPORT_ORDER."""
+    limit = MAX_ORDER[family]
+    order = EXPORT_ORDER if limit is None else min(EXPORT_ORDER, limit)
+    return write_prior(export_prior(idata, order=order, source=str(source)), path)
+
+
+def analyse_logs(
+    paths: Sequence[str | Path],
+    out: str | Path,
+    *,
+    robot: RobotProfile | None = None,
+    families: Sequence[str] = DEFAULT_FAMILIES,
+    channels: Sequence[str] | None = None,
+    settings: SamplerSettings | None = None,
+    seed: int | None = None,
+    processes: int | None = None,
+    prior_overrides: Mapping[str, tuple[float, float]] | None = None,
+    likelihood_options: Mapping | None = None,
+    window: tuple[float, float] | None = None,
+    max_gap: float | None = None,
+    labels: Mapping[str, Mapping] | None = None,
+    read_options: Mapping | None = None,
+    say: Callable[[str], None] = lambda text: None,
+) -> dict:
+    """Ingest logs, run the grids, compare the noise families, export the prior, report.
+
+    See the module text for the files written under ``out``.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Bags and experiment files (see :func:`ingest_logs`).
+    out : str or Path
+        Output folder (created).
+    robot : RobotProfile, optional
+        Default: the Jackal profile.
+    families : sequence of str
+        Noise families to compare (default white and gaussian).
+    channels : sequence of str, optional
+        Default: every channel all experiments measure.
+    settings : SamplerSettings, optional
+        Walkers, step cap and progress display of each family's chain.
+    seed : int, optional
+        Seeds every chain and the evidence: same seed, same numbers.
+    processes : int, optional
+        Families sampled at once (default: one per core).
+    prior_overrides : mapping, optional
+        Prior ranges by parameter name, e.g. ``{"sigma_h": (0.01, 3.0)}``
+        [natural units], as in :func:`bayes_jackal.inference.sample_posterior`.
+    likelihood_options : mapping, optional
+        Further keywords of :class:`~bayes_jackal.likelihood.ResidualLikelihood`
+        (``sensor``, ``shared_noise``, ``engine``).
+    window, max_gap, labels, read_options
+        As in :func:`ingest_logs`.
+    say : callable
+        Receives the progress and summary lines.
+
+    Returns
+    -------
+    dict
+        ``experiments`` (name -> file, source, samples, rate [Hz], channels,
+        steady window), ``failed`` (input -> reason), ``channels``,
+        ``grids`` (the grid summaries), ``comparison`` (``compare.json``),
+        ``best`` (the family of highest evidence), ``posterior`` (its
+        summary), ``warnings`` (objects with ``kind`` and ``message``: a
+        family's chain that did not converge, then every family's
+        model-criticism warnings, with its ``family``) and ``files``
+        (report, prior, posterior, folder).
+
+    Raises
+    ------
+    InputError
+        When no input can be read (each reason in the message), or for bad
+        options.
+    """
+    folder = Path(out)
+    robot = robot or load_profile()
+    settings = settings or SamplerSettings()
+    experiments, failed = ingest_logs(
+        paths,
+        robot,
+        folder / "experiments",
+        window=window,
+        max_gap=max_gap,
+        progress=settings.progress,
+        labels=labels,
+        read_options=read_options,
+        say=say,
+    )
+    if not experiments:
+        raise DataError(
+            f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
+            field="inputs",
+        )
+    channels = resolve_channels(experiments, channels)
+    say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2):")
+    grids = _grids(experiments, robot, folder, say)
+    say(
+        f"posterior and evidence of {', '.join(families)} noise on {', '.join(channels)}, "
+        f"pooled over {len(experiments)} experiment(s):"
+    )
+
+    def finished(family, evidence, idata) -> None:
+        criticise(idata)  # cached in its attrs: the saved file and the report reuse it
+        save_posterior(idata, folder / "posteriors" / f"{family}.nc")  # kept if interrupted
+        say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConvergenceWarning)
+        comparison = compare_families(
+            experiments,
+            robot,
+            tuple(families),
+            settings,
+            seed,
+            prior_overrides=prior_overrides,
+            on_family=finished,
+            processes=processes or os.cpu_count() or 1,
+            **{**(likelihood_options or {}), "channels": channels},
+        )
+    best = comparison.best
+    paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
+    idata = comparison.posteriors[best]
+    save_posterior(idata, folder / "posterior.nc")
+    summary = summarize(idata)
+    write_json(folder / "posterior.json", summary)
+    result = comparison.to_dict()
+    write_json(folder / "compare.json", result)
+    prior = _export(idata, best, paths_by_family[best], folder / "prior.json")
+    say("writing the report (figures as PNG and SVG)...")
+    ranked = [best, *(family for family in families if family != best)]
+    report = write_report([paths_by_family[family] for family in ranked], folder / "report.html")
+    convergence = [
+        {"kind": "not-converged", "message": str(w.message)}
+        for w in caught
+        if issubclass(w.category, ConvergenceWarning)
+    ]
+    return {
+        "experiments": {
+            e.name: {
+                "file": str(folder / "experiments" / f"{e.name}.nc"),
+                "source": e.source,
+                "samples": len(e.t),
+                "rate": 1.0 / e.dt,
+                "channels": list(e.channels),
+                "steady_window": e.steady_window,
+            }
+            for e in experiments
+        },
+        "failed": failed,
+        "channels": list(channels),
+        "grids": grids,
+        "comparison": result,
+        "best": best,
+        "posterior": summary,
+        "warnings": convergence + result["warnings"],
+        "files": {
+            "report": str(report),
+            "prior": str(prior),
+            "posterior": str(folder / "posterior.nc"),
+            "folder": str(folder),
+        },
+    }

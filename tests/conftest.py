@@ -1,0 +1,151 @@
+"""Shared fixtures: a thesis-like simulator written independently of the package.
+
+``simulate_thesis_like`` builds experiments the way a reader of the thesis
+would, without bayes_jackal.simulate, .physics or .kernels: the linear model
+x' = A x + B u (eq. 4-32) discretised by its own matrix exponential, the
+Gaussian filter of eq. 7-5 with its own normalisation and +-3 sigma_h
+truncation applied by numpy.convolve, wheel speeds of a steady circle with a
+small ripple, and white sensor noise, sampled at the Jackal IMU's 72 Hz for
+38 s (thesis ch. 7-3-1). Only the robot's constants come from the package's
+profile. Tests that pass on these runs pass on data the package did not
+generate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.signal
+
+from bayes_jackal.experiment import Experiment
+from bayes_jackal.robot import RobotProfile
+
+#: Sample rate of the Jackal's IMU [Hz] and length of a v1 run [s] (ch. 7-3-1).
+THESIS_RATE = 72.0
+THESIS_DURATION = 38.0
+#: Channels in the order of the model's state (vx, vy, yaw rate).
+STATE = ("vx", "vy", "yaw")
+#: Seconds simulated before the record starts, so the noise is stationary.
+BURN_IN = 3.0
+
+
+def thesis_matrices(robot: RobotProfile, d_lat: float, d_long: float):
+    """Continuous A [1/s] and B of eq. 4-32 (state vx, vy, r; input omega_r, omega_l)."""
+    m, inertia = robot.mass, robot.yaw_inertia
+    a, b, r = robot.half_wheelbase, robot.half_track, robot.wheel_radius
+    A = np.diag([-4 * d_long / m, -4 * d_lat / m, -4 * (b**2 * d_long + a**2 * d_lat) / inertia])
+    B = np.array(
+        [
+            [2 * d_long * r / m, 2 * d_long * r / m],
+            [0.0, 0.0],
+            [2 * b * d_long * r / inertia, -2 * b * d_long * r / inertia],
+        ]
+    )
+    return A, B
+
+
+def zero_order_hold(A: np.ndarray, B: np.ndarray, dt: float):
+    """(Ad, Bd) from expm([[A, B], [0, 0]] dt) (the input held over each step)."""
+    n, k = B.shape
+    block = np.zeros((n + k, n + k))
+    block[:n, :n], block[:n, n:] = A, B
+    exponential = scipy.linalg.expm(block * dt)
+    return exponential[:n, :n], exponential[:n, n:]
+
+
+def thesis_gaussian_filter(sigma_h: float, dt: float) -> np.ndarray:
+    """Eq. 7-5: h(t) = sqrt(dT / (sigma_h sqrt(pi))) exp(-t^2 / (2 sigma_h^2)), |t| <= 3 sigma_h.
+
+    Its energy sum(h^2) is a Riemann sum of the unit integral of
+    exp(-t^2 / sigma_h^2) / (sigma_h sqrt(pi)): 1 within 1e-4 for
+    sigma_h >= 2 dt, so filtered unit white noise has unit variance.
+    """
+    reach = int(np.floor(3 * sigma_h / dt))
+    t = dt * np.arange(-reach, reach + 1)
+    return np.sqrt(dt / (sigma_h * np.sqrt(np.pi))) * np.exp(-(t**2) / (2 * sigma_h**2))
+
+
+def simulate_thesis_like(
+    robot: RobotProfile,
+    *,
+    d_lat: float,
+    d_long: float,
+    sigma_h: float,
+    sigma_c: dict[str, float],
+    sigma_n: dict[str, float],
+    rng: np.random.Generator,
+    v: float = 0.3,
+    w: float = float(np.deg2rad(22.5)),
+    ripple: float = 0.01,
+    name: str = "thesis_like",
+) -> Experiment:
+    """One steady circle at 72 Hz for 38 s with Gaussian-coloured process noise.
+
+    x[k+1] = Ad x[k] + Bd u[k] + sigma_c h * e[k] per channel (e white, h of
+    eq. 7-5); measured y = x + sigma_n n. Wheel speeds (v +- w b) / r_w of
+    the command (v [m/s], w [rad/s]; thesis v1 by default) carry a ripple,
+    independent per wheel, of relative sd about ``ripple`` / 2: two
+    sinusoids and low-pass jitter. The record starts at t = 12.5 s, as a log
+    cut from a longer session would.
+
+    Returns
+    -------
+    Experiment
+        vx, vy, yaw rate and wheel speeds; ``truth`` in the layout of the
+        package's simulator (d_lat, d_long, width, sigma_h, sigma_c and
+        sigma_n per channel).
+    """
+    dt = 1.0 / THESIS_RATE
+    burn = round(BURN_IN / dt)
+    n = round(THESIS_DURATION / dt) + 1 + burn
+    time = dt * np.arange(n)[:, None]
+    # Each wheel's own controller: sinusoids near the wheel's turning rate
+    # (0.5 Hz) and at 2.3 Hz with random phases, and jitter low-passed over
+    # 0.5 s (a moving average of 36 unit normals, scaled to unit sd).
+    phases = rng.uniform(0, 2 * np.pi, (2, 2))
+    jitter = scipy.signal.lfilter(np.ones(36) / 6.0, 1.0, rng.standard_normal((n + 35, 2)), axis=0)
+    wobble = (
+        0.5 * np.sin(2 * np.pi * 0.49 * time + phases[0])
+        + 0.3 * np.sin(2 * np.pi * 2.3 * time + phases[1])
+        + jitter[35:]
+    )
+    level = np.array([v + w * robot.half_track, v - w * robot.half_track]) / robot.wheel_radius
+    inputs = level * (1.0 + ripple / 2 * wobble)
+    A, B = thesis_matrices(robot, d_lat, d_long)
+    Ad, Bd = zero_order_hold(A, B, dt)
+    steady = np.linalg.solve(np.eye(3) - Ad, Bd @ level)
+    h = thesis_gaussian_filter(sigma_h, dt)
+    states = np.empty((n, 3))
+    for i, channel in enumerate(STATE):
+        noise = sigma_c[channel] * np.convolve(rng.standard_normal(n + len(h) - 1), h, "valid")
+        drive = Bd[i] @ (inputs - level).T + noise
+        # Deviation from the steady state: d[k+1] = Ad[i, i] d[k] + drive[k], d[0] = 0.
+        states[:, i] = steady[i] + scipy.signal.lfilter([0.0, 1.0], [1.0, -Ad[i, i]], drive)
+    measured = states + np.array([sigma_n[c] for c in STATE]) * rng.standard_normal(states.shape)
+    keep = slice(burn, None)
+    return Experiment(
+        t=12.5 + dt * np.arange(n - burn),
+        vx=measured[keep, 0],
+        vy=measured[keep, 1],
+        yaw_rate=measured[keep, 2],
+        omega_r=inputs[keep, 0],
+        omega_l=inputs[keep, 1],
+        name=name,
+        truth={
+            "d_lat": d_lat,
+            "d_long": d_long,
+            "family": "gaussian",
+            "width": sigma_h,
+            "sigma_h": sigma_h,
+            "sigma_c": dict(sigma_c),
+            "sigma_n": dict(sigma_n),
+        },
+        provenance={"simulated": True, "simulator": "tests/conftest.py (independent)"},
+    )
+
+
+@pytest.fixture(scope="session")
+def thesis_like_simulator():
+    """The independent simulator :func:`simulate_thesis_like`."""
+    return simulate_thesis_like

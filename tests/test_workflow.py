@@ -1,0 +1,377 @@
+"""``bayes-jackal analyse`` on a folder of logs, and progress displays fit for log files."""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import re
+import time
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from bayes_jackal import progress as progress_module
+from bayes_jackal.bags import read_bag, write_bag
+from bayes_jackal.cli import main
+from bayes_jackal.demo import demo_folder
+from bayes_jackal.experiment import read_netcdf, write_csv, write_netcdf
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.posterior import load_posterior
+from bayes_jackal.progress import Progress
+from bayes_jackal.robot import load_profile
+from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.workflow import ingest_logs
+
+ROBOT = load_profile()
+#: Cursor movement of a redrawn bar: carriage return or an ANSI escape sequence.
+CURSOR = re.compile(r"\r|\x1b\[")
+#: Short thesis-like runs (the v1 command for 14 s, ramps included): enough for
+#: a steady window (> 1 s) and the 32 residuals a channel needs, and quick to sample.
+SHORT = Series(v=0.3, w=float(np.deg2rad(22.5)), duration=14.0)
+
+
+class _Terminal(io.StringIO):
+    """A text stream that says it is a terminal."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+# --------------------------------------------------------------------------- progress
+
+
+def test_progress_in_a_log_writes_plain_periodic_lines():
+    stream = io.StringIO()
+    with Progress(30, "gaussian", stream=stream, interval=0.0) as bar:
+        for step in range(30):
+            bar.update(**({"tau": "12"} if step == 20 else {}))
+    text = stream.getvalue()
+    assert not CURSOR.search(text)
+    lines = text.splitlines()
+    # interval 0: a line per update, then the closing one.
+    assert len(lines) == 31
+    assert lines[0].startswith("gaussian: 1/30 steps, ")
+    assert lines[25].startswith("gaussian: 26/30 steps, tau ~ 12, ")
+    assert re.fullmatch(r"gaussian: 30/30 steps, tau ~ 12, \d+ s, done", lines[-1])
+
+
+def test_progress_lines_are_spaced_by_the_interval():
+    stream = io.StringIO()
+    with Progress(1000, "ingest", unit="msg", stream=stream, interval=3600.0) as bar:
+        for _ in bar.wrap(range(1000)):
+            pass
+    # Nothing within the hour, one line at the end.
+    assert stream.getvalue().splitlines() == [stream.getvalue().strip()]
+    assert re.fullmatch(r"ingest: 1000/1000 msg, \d+ s, done\n", stream.getvalue())
+
+
+def test_progress_on_a_terminal_is_a_tqdm_bar_and_off_is_silent():
+    terminal = _Terminal()
+    with Progress(50, "white", stream=terminal) as bar:
+        bar.update(50)
+    assert "\r" in terminal.getvalue() and "50/50" in terminal.getvalue()
+    quiet = io.StringIO()
+    with Progress(50, "white", stream=quiet, enabled=False, interval=0.0) as bar:
+        bar.update(50)
+    assert quiet.getvalue() == ""
+
+
+def test_interrupted_progress_says_stopped():
+    stream = io.StringIO()
+    with pytest.raises(KeyboardInterrupt), Progress(10, "x", stream=stream) as bar:
+        bar.update(3)
+        raise KeyboardInterrupt
+    assert stream.getvalue().endswith("x: 3/10 steps, 0 s, stopped\n")
+
+
+def test_wrap_closes_on_an_error_in_the_loop():
+    def corrupt():  # a bag whose third message cannot be read
+        yield from (1, 2)
+        raise ValueError("truncated")
+
+    stream, terminal = io.StringIO(), _Terminal()
+    log, bar = Progress(10, "x", stream=stream), Progress(10, "x", stream=terminal)
+    for progress in (log, bar):
+        with pytest.raises(ValueError, match="truncated"):
+            list(progress.wrap(corrupt()))
+    assert re.fullmatch(r"x: 2/10 steps, \d+ s, stopped\n", stream.getvalue())
+    assert bar.bar.disable  # tqdm marks a closed bar disabled
+    assert not log.enabled and not bar.enabled
+
+
+@pytest.fixture(scope="module")
+def short_runs() -> list:
+    """Two short simulated runs (truth 110, 30), independent noise."""
+    children = np.random.default_rng(11).spawn(2)
+    return [
+        simulate_experiment(ROBOT, 110.0, 30.0, SHORT, rng=child, name=f"run{i}")
+        for i, child in enumerate(children)
+    ]
+
+
+def test_sampler_progress_in_a_log_has_no_cursor_codes(short_runs, monkeypatch, capsys):
+    monkeypatch.setattr(progress_module, "LOG_INTERVAL", 0.0)
+    likelihood = ResidualLikelihood(short_runs[:1], ROBOT, family="white", channels=("yaw",))
+    settings = SamplerSettings(max_steps=200, progress=True, design_points=64)
+    with pytest.warns(ConvergenceWarning):  # 200 steps are too few, on purpose
+        sample_posterior(likelihood, settings, seed=1)
+    err = capsys.readouterr().err
+    assert not CURSOR.search(err)
+    lines = err.splitlines()
+    assert lines[0].startswith("emcee: 1/200 steps, ")
+    # The autocorrelation estimate joins the line at the first check (step 100).
+    assert any(line.startswith("emcee: 101/200 steps, tau ~ ") for line in lines)
+    assert re.fullmatch(r"emcee: 200/200 steps, tau ~ \d+, \d+ s, done", lines[-1])
+
+
+def test_bag_progress_in_a_log_has_no_cursor_codes(short_runs, tmp_path, capsys):
+    bag = write_bag(short_runs[0], tmp_path / "run0.bag", ROBOT, "ros1", 1)
+    read_bag(bag, ROBOT, progress=True)
+    err = capsys.readouterr().err
+    assert not CURSOR.search(err)
+    assert re.fullmatch(r"run0\.bag: (\d+)/\1 msg, \d+ s, done\n", err)
+
+
+# --------------------------------------------------------------------------- analyse
+
+
+def test_analyse_with_no_usable_input_exits_2_naming_each(tmp_path, capsys):
+    missing, text = tmp_path / "missing.bag", tmp_path / "notes.txt"
+    text.write_text("not a log")
+    code = main(["analyse", str(missing), str(text), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert str(missing) in err and "no such file" in err
+    assert str(text) in err and "unknown experiment file type '.txt'" in err
+    assert not (tmp_path / "out" / "posteriors").exists()
+
+
+def test_ingest_logs_mixes_files_and_bags_and_refuses_a_repeated_name(short_runs, tmp_path):
+    csv = write_csv(short_runs[0], tmp_path / "run0.csv")
+    bag = write_bag(short_runs[0], tmp_path / "run0.bag", ROBOT, "ros1", 2)
+    other = write_bag(short_runs[1], tmp_path / "run1.bag", ROBOT, "ros1", 2)
+    lines = []
+    experiments, failed = ingest_logs(
+        [csv, bag, other],
+        ROBOT,
+        tmp_path / "out",
+        window=(3.0, 11.0),
+        labels={str(other): {"series": "v1"}},
+        say=lines.append,
+    )
+    assert [e.name for e in experiments] == ["run0", "run1"]
+    # The window applies to files and bags alike; labels to the inputs named.
+    assert [e.steady_window for e in experiments] == [(3.0, 11.0), (3.0, 11.0)]
+    assert experiments[1].series == "v1"
+    assert list(failed) == [str(bag)]
+    assert "'run0' is that of" in failed[str(bag)] and str(csv) in failed[str(bag)]
+    written = read_netcdf(tmp_path / "out" / "run0.nc")
+    assert written.steady_window == (3.0, 11.0) and "topics" not in written.provenance  # the CSV
+    assert len(lines) == 3 and lines[1].startswith(f"  skipped {bag}: ")
+
+
+@pytest.mark.parametrize(
+    ("extra", "pattern"),
+    [
+        (["--prior", "mass", "1", "2"], r"error: --prior: unknown prior 'mass'"),
+        (["--sensor-noise", "pink"], r"--sensor-noise: invalid choice: 'pink'"),
+        (["--pooled"], r"unrecognized arguments: --pooled"),  # analyse always pools
+    ],
+)
+def test_analyse_checks_the_modelling_flags_of_sample(tmp_path, capsys, extra, pattern):
+    code = main(["analyse", str(tmp_path / "run.bag"), "--out", str(tmp_path), *extra])
+    err = capsys.readouterr().err
+    assert code == 2 and re.search(pattern, err), err
+
+
+def test_analyse_never_writes_over_its_inputs(short_runs, tmp_path, capsys):
+    # Re-running analyse on the experiment files of an earlier run, with the
+    # same --out, would rewrite them (with --window, changed): refused per file.
+    folder = tmp_path / "out" / "experiments"
+    inputs = [write_netcdf(run, folder / f"{run.name}.nc") for run in short_runs]
+    before = [path.read_bytes() for path in inputs]
+    window = ["--window", "3", "11"]
+    code = main(["analyse", *map(str, inputs), *window, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    for path in inputs:
+        assert f"{path}: writing it as {path} would overwrite an input" in err
+    assert [path.read_bytes() for path in inputs] == before
+    assert not (tmp_path / "out" / "posteriors").exists()
+
+
+@pytest.mark.parametrize("name", ["../escape", "sub/run", "..", "a\\b"])
+def test_ingest_refuses_an_experiment_name_that_is_a_path(short_runs, tmp_path, name):
+    # A NetCDF experiment file carries its own name, used as the output file's stem.
+    odd = write_netcdf(dataclasses.replace(short_runs[0], name=name), tmp_path / "odd.nc")
+    good = write_netcdf(short_runs[1], tmp_path / "good.nc")
+    experiments, failed = ingest_logs([odd, good], ROBOT, tmp_path / "out" / "experiments")
+    assert [e.name for e in experiments] == ["run1"]
+    assert list(failed) == [str(odd)]
+    assert f"{odd}: name: its experiment name {name!r} cannot name a file" in failed[str(odd)]
+    assert sorted(p.name for p in tmp_path.rglob("*.nc")) == ["good.nc", "odd.nc", "run1.nc"]
+
+
+@pytest.mark.slow
+def test_analyse_two_bags_and_a_corrupt_one(short_runs, tmp_path, capsys):
+    """The good bags are analysed and written, the corrupt one is named, exit 2."""
+    bags = [write_bag(run, tmp_path / f"{run.name}.bag", ROBOT, "ros1", 5) for run in short_runs]
+    corrupt = tmp_path / "corrupt.bag"
+    corrupt.write_bytes(bags[0].read_bytes()[: bags[0].stat().st_size // 2])  # truncated
+    out = tmp_path / "analysis"
+    inputs = [str(bags[0]), str(corrupt), str(bags[1])]
+    # 300 steps: the files and exit code are checked here, not the statistics
+    # (the demo test is the converged run), so the chains stop short and say so.
+    quick = ["--seed", "4", "--max-steps", "300", "--no-progress", "--json"]
+    # The modelling flags of sample and compare reach the posteriors.
+    model = ["--prior", "sigma_c", "1e-5", "0.5", "--sensor-noise", "diagonal"]
+    code = main(["analyse", *inputs, "--out", str(out), *quick, *model])
+    captured = capsys.readouterr()
+    assert code == 2 and "Traceback" not in captured.err
+    assert "WARNING: white: NOT CONVERGED" in captured.err
+    assert re.search(rf"bayes-jackal: error: {re.escape(str(corrupt))}: cannot read", captured.err)
+    assert f"skipped {corrupt}: cannot read" in captured.err
+    result = json.loads(captured.out)
+    assert list(result["failed"]) == [str(corrupt)]
+    assert set(result["experiments"]) == {"run0", "run1"}
+    # Every channel the bags carry, by default.
+    assert result["channels"] == ["yaw", "vx", "vy"]
+    assert sorted(p.name for p in (out / "experiments").iterdir()) == ["run0.nc", "run1.nc"]
+    assert read_netcdf(out / "experiments" / "run1.nc").provenance["sha256"]
+    for name in ("grid_onestep.png", "grid_simulation.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    comparison = json.loads((out / "compare.json").read_text())
+    assert set(comparison["families"]) == {"white", "gaussian"}
+    for family in ("white", "gaussian"):
+        attrs = load_posterior(out / "posteriors" / f"{family}.nc").posterior.attrs
+        assert attrs["evidence"] and attrs["sensor"] == "diagonal"
+        priors = json.loads(attrs["prior"])
+        assert priors["d_lat"]["low"] == 10.0  # the default, untouched
+        scales = [row for name, row in priors.items() if name.startswith("sigma_c")]
+        assert len(scales) == 3 and all((s["low"], s["high"]) == (1e-5, 0.5) for s in scales)
+    best = load_posterior(out / "posterior.nc")
+    assert best.posterior.attrs["family"] == comparison["best"] == result["best"]
+    prior = json.loads((out / "prior.json").read_text())
+    assert prior["format"] == "bayes_jackal.prior/1" and prior["converged"] is False
+    assert prior["noise"]["family"] == comparison["best"]
+    assert json.loads((out / "posterior.json").read_text()) == result["posterior"]
+    report = (out / "report.html").read_text()
+    assert "<h2>Evidence</h2>" in report and report.count("data:image/png;base64,") >= 10
+    assert "NOT CONVERGED" in report
+
+
+# --------------------------------------------------------------------------- the demo
+
+
+def count_modes(draws: np.ndarray, floor: float = 0.05, points: int = 512) -> int:
+    """Local maxima of a Gaussian KDE (Scott's bandwidth) of ``draws`` above ``floor`` x its peak.
+
+    The ends of the range count as maxima where the density falls away from
+    them (a posterior piled against a bound has one mode there).
+    """
+    grid = np.linspace(draws.min(), draws.max(), points)
+    density = np.pad(scipy.stats.gaussian_kde(draws)(grid), 1)
+    peak = (density[1:-1] > density[:-2]) & (density[1:-1] >= density[2:])
+    return int(np.sum(density[1:-1][peak] > floor * density.max()))
+
+
+def test_the_mode_counter_finds_two_modes_where_there_are_two():
+    rng = np.random.default_rng(3)
+    # The issue's bimodal sigma_h: modes near 0.048 and 0.055 s, 4000 draws.
+    bimodal = np.concatenate([rng.normal(0.048, 0.001, 1500), rng.normal(0.055, 0.001, 2500)])
+    assert count_modes(bimodal) == 2
+    assert count_modes(rng.normal(0.047, 0.002, 4000)) == 1
+    # A half-normal piled against a bound at 0: one mode, at the end.
+    assert count_modes(np.abs(rng.normal(0.0, 1.0, 4000))) == 1
+
+
+def _demo_truth_by_label(truth: dict) -> dict[str, float]:
+    """The shipped truth of the rows whose data the bags carry as simulated.
+
+    The bags' yaw rate is the simulator's measured one (IMU), so the yaw
+    noise is the manifest's; vx and vy are derived from motion-capture poses
+    integrated from the noise-free states (bags.bag_messages), so they carry
+    the process noise (sigma_c) but no sensor noise, smoothed by the
+    Savitzky-Golay derivative: their sigma_n and sigma_h are checked apart.
+    """
+    return {
+        "d_lat": truth["d_lat"],
+        "d_long": truth["d_long"],
+        "ratio": truth["d_lat"] / truth["d_long"],
+        "sigma_h[yaw]": truth["sigma_h"],
+        "sigma_c[yaw]": truth["sigma_c"]["yaw"],
+        "sigma_n[yaw]": truth["sigma_n"]["yaw"],
+        "sigma_c[vx]": truth["sigma_c"]["vx"],
+        "sigma_c[vy]": truth["sigma_c"]["vy"],
+    }
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("demo")
+def test_demo_is_analyse_on_the_shipped_bags_and_holds_the_truth(tmp_path, capsys):
+    folder = tmp_path / "demo"
+    started = time.monotonic()
+    code = main(["demo", "--out", str(folder), "--no-progress", "--json"])
+    elapsed = time.monotonic() - started
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    with capsys.disabled():  # the demo's time, for the README's figure
+        print(f"\ndemo: {elapsed:.0f} s")
+    assert "SIMULATED" in captured.err and "ROS1 bags" in captured.err
+    result = json.loads(captured.out)
+    assert sorted(p.name for p in (folder / "experiments").iterdir()) == ["v1_01.nc", "v2_01.nc"]
+    grids = json.loads((folder / "grid.json").read_text())
+    assert grids["truth"] == {"d_lat": 110.0, "d_long": 30.0}
+    # The thesis' simulation grid (step 10) finds the demo's truth (fixed seed).
+    assert (grids["simulation"]["d_lat"], grids["simulation"]["d_long"]) == (110.0, 30.0)
+    comparison = json.loads((folder / "compare.json").read_text())
+    assert comparison["best"] == result["best"] == "gaussian"
+    assert comparison["verdict"] == "coloured"
+    assert "Is the noise coloured? coloured" in captured.err
+
+    # The printed posterior: every channel, converged, the truth in every 94 % HDI.
+    manifest = json.loads((demo_folder() / "manifest.json").read_text())
+    truth = manifest["runs"]["v1_01"]["truth"]
+    posterior = result["posterior"]
+    assert posterior == json.loads((folder / "posterior.json").read_text())
+    assert posterior["converged"] is True and result["channels"] == ["yaw", "vx", "vy"]
+    printed = {
+        label for label, row in posterior.items() if isinstance(row, dict) and "mean" in row
+    }
+    velocity = {f"{name}[{c}]" for name in ("sigma_h", "sigma_n") for c in ("vx", "vy")}
+    expected = _demo_truth_by_label(truth)
+    assert printed == set(expected) | velocity
+    missed = {
+        label: (posterior[label]["hdi_3%"], value, posterior[label]["hdi_97%"])
+        for label, value in expected.items()
+        if not posterior[label]["hdi_3%"] <= value <= posterior[label]["hdi_97%"]
+    }
+    assert not missed
+    low = ROBOT.priors["sigma_n"][0]
+    for channel in ("vx", "vy"):
+        # No sensor noise in pose-derived velocities: true sigma_n is 0, below the
+        # prior, so the posterior piles at the prior's lower bound and says so.
+        assert posterior[f"sigma_n[{channel}]"]["hdi_3%"] == pytest.approx(low, rel=1e-3)
+        assert any(
+            (w.get("family"), w["kind"], w.get("parameter"), w.get("side"))
+            == ("gaussian", "prior-boundary", f"sigma_n[{channel}]", "low")
+            for w in result["warnings"]
+        )
+        # Smoothing by the Savitzky-Golay derivative (non-negative weights) convolves
+        # the process-noise kernel with another: the variances add, the width grows.
+        assert posterior[f"sigma_h[{channel}]"]["hdi_3%"] > truth["sigma_h"]
+
+    # Each width posterior is unimodal.
+    widths = load_posterior(folder / "posterior.nc").posterior["sigma_h"]
+    modes = {c: count_modes(widths.sel(noise_group=c).values.ravel()) for c in result["channels"]}
+    assert modes == dict.fromkeys(result["channels"], 1)
+
+    prior = json.loads((folder / "prior.json").read_text())
+    assert prior["format"] == "bayes_jackal.prior/1" and prior["converged"] is True
+    assert prior["noise"]["family"] == "gaussian"
+    report = (folder / "report.html").read_text()
+    assert report.count("data:image/png;base64,") >= 10
+    assert "<h2>Evidence</h2>" in report and "NOT CONVERGED" not in report
