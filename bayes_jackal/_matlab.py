@@ -1,4 +1,7 @@
-"""MATLAB ``.mat`` files as named numeric arrays (v5/v7 via scipy.io, v7.3 via h5py)."""
+"""MATLAB ``.mat`` files as named numeric arrays (v5/v7 via scipy.io, v7.3 via h5py).
+
+The container only; :func:`bayes_jackal.tables.read_mat` maps the arrays to an Experiment.
+"""
 
 from __future__ import annotations
 

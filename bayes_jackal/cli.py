@@ -1,6 +1,6 @@
 """The ``bayes-jackal`` command line: a thin layer over the library.
 
-Commands, flags, JSON keys and exit codes follow DESIGN §6. Exit codes:
+Commands, flags, JSON keys and exit codes follow docs/design.md §6. Exit codes:
 0 success, 2 bad input (the message names file, field and value), 1 any
 other failure; no traceback reaches the user.
 """
@@ -18,12 +18,12 @@ from pathlib import Path
 
 from . import __version__
 from ._files import write_json
-from .bags import write_bag
+from .bag_writer import write_bag
 from .criticism import criticise
 from .demo import DEMO_TRUTH, run_demo
 from .errors import InputError
 from .evidence import compare_families
-from .experiment import ROLES, check_column_roles, load_experiments, write_csv, write_netcdf
+from .experiment import write_netcdf
 from .export import export_prior, write_prior
 from .gridsearch import METHODS, GridResult, damping_grid, grid_search
 from .inference import ConvergenceWarning, SamplerSettings, sample_posterior
@@ -42,6 +42,7 @@ from .posterior import load_posterior, save_posterior, summarize
 from .report import FIGURE_FORMATS, write_report
 from .robot import CONVERSIONS, DEFAULT_PRIORS, RobotProfile, load_profile
 from .simulate import SERIES, NoiseSettings, simulate_series
+from .tables import ROLES, check_column_roles, load_experiments, write_csv
 from .workflow import DEFAULT_FAMILIES, analyse_logs, ingest_logs
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2

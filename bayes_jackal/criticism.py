@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
-from .bags import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE
 from .criticism_statistics import (
     acf_statistics,
     boundary_density,
@@ -44,6 +43,7 @@ from .posterior import (
     posterior_likelihood,
     thinned_draws,
 )
+from .steady import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE
 
 __all__ = [
     "BOUNDARY_DENSITY",

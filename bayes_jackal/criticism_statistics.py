@@ -17,10 +17,10 @@ import numpy as np
 import scipy.fft
 import scipy.stats
 
-from .bags import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
 from .errors import InputError
 from .noise import ljung_box, sample_autocorrelation
 from .posterior import az  # imported there with arviz's import warning silenced
+from .steady import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
 
 __all__ = [
     "acf_statistics",
@@ -233,10 +233,10 @@ def predictive_flags(p_values: np.ndarray, draws: int, *, alarm: float) -> np.nd
 def steadiness(
     t: np.ndarray, yaw_rate: np.ndarray, inputs: np.ndarray
 ) -> tuple[float | None, float]:
-    """How far a window is from steady cornering, by the rule of ``bags.detect_steady``.
+    """How far a window is from steady cornering, by the rule of ``steady.detect_steady``.
 
     Both signals are first smoothed as there
-    (:func:`bayes_jackal.bags.steady_smoothing`).
+    (:func:`bayes_jackal.steady.steady_smoothing`).
 
     Parameters
     ----------

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from . import __version__
 from ._files import write_json
-from .bags import write_bag
+from .bag_writer import write_bag
 from .inference import SamplerSettings
 from .kernels import as_rng
 from .robot import RobotProfile, load_profile

@@ -1,4 +1,4 @@
-"""Evidence of a posterior run, and noise-filter families compared by it (DESIGN §4).
+"""Evidence of a posterior run, and noise-filter families compared by it (docs/design.md §4).
 
 The evidence (log marginal likelihood) of a model M on data y is
 log Z = log of the integral of p(y | theta, M) p(theta | M) d theta. Two
@@ -38,16 +38,11 @@ import scipy.stats
 
 from .errors import InputError
 from .experiment import Experiment
-from .inference import (
-    ConvergenceWarning,
-    LogPosterior,
-    Prior,
-    SamplerSettings,
-    sample_posterior,
-)
+from .inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from .kernels import FAMILIES, as_rng, get_family
 from .likelihood import ResidualLikelihood
 from .posterior import HDI_PROB, az, interval, parameter_draws, summarize
+from .priors import LogPosterior, Prior
 from .robot import RobotProfile
 
 __all__ = [
@@ -290,7 +285,7 @@ class Comparison:
         return "inconclusive", f"inconclusive: {rival} against white, {words}"
 
     def to_dict(self) -> dict:
-        """The ``compare --json`` object (DESIGN §6).
+        """The ``compare --json`` object (docs/design.md §6).
 
         Each family carries its model-criticism ``warnings``
         (:func:`bayes_jackal.criticism.criticise`); the top-level ``warnings``

@@ -1,4 +1,4 @@
-"""Priors for Active Inference (DEM) filters, exported from a posterior (DESIGN §4).
+"""Priors for Active Inference (DEM) filters, exported from a posterior (docs/design.md §4).
 
 A DEM filter needs the model (A, B, C = I, or its discrete Ad, Bd at the
 sample time dt) and the precision of the process noise in generalised

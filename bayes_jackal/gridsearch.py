@@ -10,7 +10,7 @@ commands (eq. 5-2) and the sum of the series means (eq. 5-3).
   (eq. 9-1). The residual x[k+1] - alpha x[k] - beta_r u_r[k] - beta_l u_l[k]
   is linear in the coefficient vector c = (1, -alpha, -beta_r, -beta_l), so
   its mean square is c^T G c with the 4 x 4 Gram matrix G of the data: O(N)
-  once per experiment, then O(1) per grid point (DESIGN §4).
+  once per experiment, then O(1) per grid point (docs/design.md §4).
 """
 
 from __future__ import annotations

@@ -1,8 +1,4 @@
-"""Posterior of the damping and the noise parameters, sampled with emcee (DESIGN §4).
-
-Priors: d_lat, d_long uniform on the profile's ranges; every kernel width,
-sigma_c and sigma_n log-uniform. The sampler works in z = log(theta), where
-the damping ridge d_lat / d_long ~ const is straight (see :class:`Prior`).
+"""Posterior of the damping and the noise parameters, sampled with emcee (docs/design.md §4).
 
 The run: the likelihood profiled over each noise group's parameters on a
 design over the damping, local optimisations from the best profile points
@@ -13,6 +9,8 @@ chain is longer than 50 integrated autocorrelation times and that estimate
 changed by less than 1 % (emcee's monitoring recipe), or a step cap with a
 :class:`ConvergenceWarning`. Every step is stored in an HDF5 file; a run
 started again with the same file and settings resumes where it stopped.
+The priors and the log-posterior live in :mod:`bayes_jackal.priors`, the MAP
+search and the walkers' start in :mod:`bayes_jackal.map_search`.
 """
 
 from __future__ import annotations
@@ -20,142 +18,30 @@ from __future__ import annotations
 import hashlib
 import json
 import warnings
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import emcee
 import h5py
 import numpy as np
-import scipy.optimize
-import scipy.stats
 
 from .errors import InputError
 from .likelihood import ResidualLikelihood
-from .noise_profile import profile_starts
+from .map_search import find_map, laplace_walkers
 from .posterior import az, build_inference_data
+from .priors import LogPosterior, Prior
 from .progress import Progress
-from .robot import RobotProfile
 
 __all__ = [
     "BufferedHDFBackend",
     "ConvergenceWarning",
-    "LogPosterior",
-    "Prior",
     "SamplerSettings",
-    "find_map",
     "sample_posterior",
 ]
 
 
 class ConvergenceWarning(UserWarning):
     """The chain hit its step cap before the convergence criterion held."""
-
-
-@dataclass(frozen=True)
-class Prior:
-    """Independent uniform or log-uniform priors on a box.
-
-    The sampler works in z = log(theta) for every parameter: the ridge of
-    the damping, d_lat / d_long ~ const, is a straight line there, which
-    affine-invariant moves cross easily. A prior uniform in theta has
-    log-density z - log(high - low) in z; a log-uniform one is constant.
-
-    Attributes
-    ----------
-    names : tuple of str
-        Parameter names, as :attr:`ResidualLikelihood.parameter_names`.
-    low, high : ndarray, shape (P,)
-        Bounds in natural units.
-    log_uniform : ndarray of bool, shape (P,)
-        Log-uniform (True) or uniform (False) in natural units.
-    """
-
-    names: tuple[str, ...]
-    low: np.ndarray
-    high: np.ndarray
-    log_uniform: np.ndarray
-
-    @classmethod
-    def for_likelihood(
-        cls, likelihood: ResidualLikelihood, robot: RobotProfile, overrides: dict | None = None
-    ) -> Prior:
-        """Priors of every parameter of ``likelihood`` from the robot profile.
-
-        ``overrides`` maps a base name (``d_lat``, ``d_long``, ``sigma_h``,
-        ``sigma_c``, ``sigma_n``) to a (low, high) pair. Every noise family's
-        width takes the ``sigma_h`` range.
-        """
-        ranges = {**robot.priors, **(overrides or {})}
-        low, high, log_uniform = [], [], []
-        for name in likelihood.parameter_names:
-            base = name.split("[")[0]
-            key = "sigma_h" if base == "width" else base
-            lo, hi = (float(v) for v in ranges[key])
-            if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
-                raise InputError(
-                    f"prior range must satisfy 0 < low < high, got [{lo}, {hi}]: it excludes "
-                    "every value",
-                    field=f"priors.{key}",
-                )
-            low.append(lo)
-            high.append(hi)
-            log_uniform.append(base not in ("d_lat", "d_long"))
-        return cls(
-            tuple(likelihood.parameter_names), np.array(low), np.array(high), np.array(log_uniform)
-        )
-
-    @property
-    def z_low(self) -> np.ndarray:
-        """Lower bounds of z = log(theta)."""
-        return np.log(self.low)
-
-    @property
-    def z_high(self) -> np.ndarray:
-        """Upper bounds of z = log(theta)."""
-        return np.log(self.high)
-
-    def log_density(self, z: np.ndarray) -> np.ndarray:
-        """Log prior density of z = log(theta) inside the box, shape (...)."""
-        uniform = np.where(self.log_uniform, 0.0, z - np.log(self.high - self.low))
-        log_uniform = np.where(self.log_uniform, -np.log(self.z_high - self.z_low), 0.0)
-        return np.sum(uniform + log_uniform, axis=-1)
-
-    @staticmethod
-    def to_natural(z: np.ndarray) -> np.ndarray:
-        """Natural units from sampling coordinates."""
-        return np.exp(z)
-
-    def inside(self, z: np.ndarray) -> np.ndarray:
-        """Whether each point lies in the prior's support."""
-        return np.all((z >= self.z_low) & (z <= self.z_high), axis=-1)
-
-    def from_unit(self, u: np.ndarray) -> np.ndarray:
-        """z of the prior quantiles ``u`` in [0, 1]^P: maps uniform draws to prior draws."""
-        uniform = np.log(self.low + u * (self.high - self.low))
-        return np.where(self.log_uniform, self.z_low + u * (self.z_high - self.z_low), uniform)
-
-    def draw(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` prior draws in z from a scrambled Sobol design, shape (n, P)."""
-        return self.from_unit(
-            scipy.stats.qmc.Sobol(len(self.names), scramble=True, seed=rng).random(n)
-        )
-
-
-@dataclass(frozen=True)
-class LogPosterior:
-    """Vectorised log-posterior in sampling coordinates (for emcee, vectorize=True)."""
-
-    likelihood: ResidualLikelihood
-    prior: Prior
-
-    def __call__(self, z: np.ndarray) -> np.ndarray:
-        z = np.atleast_2d(z)
-        out = np.full(len(z), -np.inf)
-        inside = self.prior.inside(z)
-        if inside.any():
-            loglike = self.likelihood(self.prior.to_natural(z[inside]))
-            out[inside] = loglike + self.prior.log_density(z[inside])
-        return np.where(np.isnan(out), -np.inf, out)
 
 
 @dataclass(frozen=True)
@@ -176,7 +62,8 @@ class SamplerSettings:
         ... and the estimate must have changed by less than this (1 %).
     design_points : int
         Size of the MAP search's design: ``design_points / 16`` damping
-        points, each crossed with every noise group's grid (:func:`find_map`).
+        points, each crossed with every noise group's grid
+        (:func:`bayes_jackal.map_search.find_map`).
     progress : bool
         Show the chain's progress on stderr: a bar on a terminal, a plain
         line every 10 s elsewhere (:class:`bayes_jackal.progress.Progress`).
@@ -201,165 +88,6 @@ class SamplerSettings:
         if walkers < 2 * ndim:
             raise InputError(f"need at least {2 * ndim} walkers, got {walkers}", field="walkers")
         return walkers + walkers % 2
-
-
-#: Local searches of :func:`find_map`, from the best points of the profile.
-_MAP_STARTS = 4
-
-
-def find_map(
-    log_posterior: LogPosterior, rng: np.random.Generator, design_points: int = 1024
-) -> np.ndarray:
-    """Maximum a posteriori point in sampling coordinates.
-
-    The likelihood is a sum over noise groups, each depending on the damping
-    and its own noise only, so its profile over each group's noise on a
-    design over the damping (:func:`bayes_jackal.noise_profile.profile_starts`,
-    ``design_points / 16`` damping points) finds the basin where every
-    channel's noise is right at once, which a design over the whole prior
-    box does not. Its best points start bounded quasi-Newton (L-BFGS-B)
-    searches on a scan of the posterior that uses the exact spectral engine
-    without its slow fallback (long-memory corners of the prior, e.g. a 1 s
-    kernel over 1e-4 sensor noise, count as -inf there); line scans of the
-    kernel widths move the best end point out of a local optimum's basin
-    (:func:`_sweep_widths`) and a search starts again from there, and the
-    result is polished on ``log_posterior`` itself.
-
-    Parameters
-    ----------
-    log_posterior : LogPosterior
-    rng : numpy.random.Generator
-        Scrambles the damping design: same seed, same result.
-    design_points : int
-        Sixteen times the size of the damping design (at least 16 points).
-
-    Returns
-    -------
-    ndarray, shape (P,)
-        z = log(theta) of the MAP.
-
-    Raises
-    ------
-    InputError
-        When the log-posterior is -inf at every start.
-    """
-    prior = log_posterior.prior
-    scan = replace(log_posterior.likelihood, engine="fast", fallback=False)
-    scan_posterior = LogPosterior(scan, prior)
-    # Noise far below the data's overflows the likelihood's terms: -inf, checked below.
-    with np.errstate(over="ignore", divide="ignore"):
-        theta, _ = profile_starts(
-            log_posterior.likelihood,
-            prior.low,
-            prior.high,
-            damping_points=max(16, design_points // 16),
-            starts=_MAP_STARTS,
-            rng=rng,
-        )
-        starts = np.log(theta)
-        finite = np.isfinite(log_posterior(starts))
-    if not finite.any():
-        raise InputError(
-            f"the log-posterior is -inf at every start of the MAP search (the best {len(starts)} "
-            "points of the profile likelihood): the priors exclude every parameter value the "
-            "data allow",
-            field="priors",
-        )
-    bounds = list(zip(prior.z_low, prior.z_high, strict=True))
-
-    def maximise(function: LogPosterior, start: np.ndarray) -> scipy.optimize.OptimizeResult:
-        # Finite differences next to a -inf region subtract inf - inf there;
-        # L-BFGS-B treats the NaN as a failed step and backs off.
-        with np.errstate(invalid="ignore"):
-            return scipy.optimize.minimize(
-                _with_gradient(function, prior), start, method="L-BFGS-B", jac=True, bounds=bounds
-            )
-
-    best = max((maximise(scan_posterior, start) for start in starts), key=lambda r: -r.fun)
-    for _ in range(3):
-        swept = _sweep_widths(scan_posterior, best.x, prior)
-        if np.array_equal(swept, best.x):
-            break
-        best = maximise(scan_posterior, swept)
-    polished = maximise(log_posterior, best.x)
-    return polished.x if np.isfinite(polished.fun) else best.x
-
-
-def _with_gradient(function: LogPosterior, prior: Prior):
-    """-function(z) and its forward-difference gradient from one vectorised call.
-
-    The P + 1 points are evaluated as one batch (about half the cost of
-    P + 1 single calls); steps point into the prior box, as scipy's own
-    finite differences do at a bound.
-    """
-
-    def negative(z: np.ndarray) -> tuple[float, np.ndarray]:
-        step = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(z))
-        step = np.where(z + step > prior.z_high, -step, step)
-        values = -function(np.vstack([z, z + np.diag(step)]))
-        return values[0], (values[1:] - values[0]) / step
-
-    return negative
-
-
-def _sweep_widths(
-    function: LogPosterior, z: np.ndarray, prior: Prior, points: int = 256
-) -> np.ndarray:
-    """Move each kernel width to the best of a grid over its prior range, the rest held.
-
-    A kernel width can have separated optima: the moving-average family's
-    likelihood in its width has local maxima at about half and 1.5 times
-    the best width, hundreds of nats lower, and a local search started in
-    their basins stays there. A line scan of each width finds the best basin.
-    """
-    for column, name in enumerate(prior.names):
-        if not name.startswith(("sigma_h", "width")):
-            continue
-        candidates = np.repeat(z[None], points + 1, axis=0)
-        candidates[1:, column] = np.linspace(prior.z_low[column], prior.z_high[column], points)
-        z = candidates[np.argmax(function(candidates))]
-    return z
-
-
-def _laplace_walkers(
-    log_posterior: LogPosterior, centre: np.ndarray, walkers: int, rng: np.random.Generator
-) -> np.ndarray:
-    """Walkers from the Laplace approximation at ``centre``, kept inside the prior.
-
-    A MAP on the prior's boundary (the damping ridge can run into it) has no
-    Laplace approximation; the walkers then start in a small ball.
-    """
-    prior = log_posterior.prior
-    span = prior.z_high - prior.z_low
-    step = 1e-4 * span
-    centre = np.clip(centre, prior.z_low + 10 * step, prior.z_high - 10 * step)
-    ndim = len(centre)
-    # Central-difference Hessian from one vectorised call over the stencil.
-    rows, cols = np.triu_indices(ndim)
-    signs = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
-    offsets = np.zeros((len(rows), 4, ndim))
-    pairs = np.arange(len(rows))[:, None]
-    offsets[pairs, np.arange(4), rows[:, None]] += signs[:, 0] * step[rows][:, None]
-    offsets[pairs, np.arange(4), cols[:, None]] += signs[:, 1] * step[cols][:, None]
-    values = log_posterior(centre + offsets.reshape(-1, ndim)).reshape(-1, 4)
-    hessian = np.zeros((ndim, ndim))
-    hessian[rows, cols] = values @ np.array([1, -1, -1, 1]) / (4 * step[rows] * step[cols])
-    hessian[cols, rows] = hessian[rows, cols]
-    ball = np.diag((1e-3 * span) ** 2)
-    covariance = ball
-    if np.all(np.isfinite(hessian)):
-        try:
-            covariance = np.linalg.inv(-hessian)
-            np.linalg.cholesky(covariance)
-        except np.linalg.LinAlgError:
-            covariance = ball
-    points = rng.multivariate_normal(centre, 0.25 * covariance, size=8 * walkers)
-    points = points[prior.inside(points)]
-    points = points[np.isfinite(log_posterior(points))]
-    if len(points) < walkers:
-        points = rng.multivariate_normal(centre, ball, size=8 * walkers)
-        points = points[prior.inside(points)]
-    return points[:walkers]
 
 
 def _moves() -> list:
@@ -559,7 +287,7 @@ def sample_posterior(
     )
     if backend.iteration == 0:
         centre = find_map(log_posterior, rng, settings.design_points)
-        initial = _laplace_walkers(log_posterior, centre, walkers, rng)
+        initial = laplace_walkers(log_posterior, centre, walkers, rng)
         moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
         start = emcee.State(initial, random_state=moves_state)
     else:

@@ -5,7 +5,7 @@ the data's sample time dt and normalised to unit energy, sum(h^2) = 1. White
 noise of variance s^2 filtered by it keeps variance s^2 and has the
 autocorrelation of the kernel's discrete self-correlation,
 rho[l] = sum_j h[j] h[j + l]. That discrete form, not its continuous limit,
-is what the simulator and the likelihood share (DESIGN §4).
+is what the simulator and the likelihood share (docs/design.md §4).
 
 Families (thesis 7-4-1):
 

@@ -1,4 +1,4 @@
-"""Likelihood of one-step residuals under coloured process noise (DESIGN §4).
+"""Likelihood of one-step residuals under coloured process noise (docs/design.md §4).
 
 For one channel the measured one-step residual (eq. 7-3) is
 
@@ -35,6 +35,7 @@ Three engines evaluate log N(r; 0, Sigma), vectorised over parameter sets:
   noise but large for the smooth Gaussian family (measured on 2,376
   Gaussian-coloured residuals: the error varies by 54 nats across nearby
   noise settings, enough to move the posterior), so it is not the default.
+  Its periodogram functions live in :mod:`bayes_jackal.whittle`.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from .kernels import Family, as_rng, get_family
 from .noise import check_residual_window, residual_regressors
 from .physics import channel_coefficients
 from .robot import RobotProfile
+from .whittle import cross_periodogram, debiased_whittle_loglike, frequency_weights
 
 __all__ = [
     "DEFAULT_CHANNEL_ORDER",
@@ -58,7 +60,6 @@ __all__ = [
     "FAST_TOLERANCE",
     "SENSOR_MODELS",
     "ResidualLikelihood",
-    "debiased_whittle_loglike",
     "residual_autocovariance",
     "resolve_channels",
     "sample_stationary",
@@ -313,7 +314,7 @@ def spectral_loglike(
     # Full convolution energy by Parseval, summed over the block's series.
     outer = (coefficients[:, :, None] * coefficients[:, None, :]).reshape(batch, 16)
     energy = (outer @ block.spectral_periodogram.T) * np.abs(predictor) ** 2
-    full = energy @ _frequency_weights(size) / size
+    full = energy @ frequency_weights(size) / size
     # Boundary terms, from the decayed predictor a[:m] of the trusted sets:
     # the convolution tail sum_{k>=r} a_k x_{k-r} and |L(a~)^T x|_{r-1} are
     # both lag-r correlations of a, r = 1..m-1, with the first m samples and
@@ -334,72 +335,6 @@ def spectral_loglike(
     quadratic = (full - boundary) / np.exp(log_v)
     loglike = -0.5 * (count * log_det + quadratic + count * n * _LOG_2PI)
     return loglike, converged
-
-
-def _frequency_weights(n: int) -> np.ndarray:
-    """Multiplicity of each rfft frequency among the n Fourier frequencies."""
-    weights = np.full(n // 2 + 1, 2.0)
-    weights[0] = 1.0
-    if n % 2 == 0:
-        weights[-1] = 1.0
-    return weights
-
-
-def expected_periodogram(acov: np.ndarray) -> np.ndarray:
-    """E[I_j] = sum_|tau|<n (1 - |tau|/n) c_tau exp(-i w_j tau) at the rfft frequencies.
-
-    Parameters
-    ----------
-    acov : ndarray, shape (B, n)
-
-    Returns
-    -------
-    ndarray, shape (B, n // 2 + 1)
-    """
-    n = acov.shape[-1]
-    tapered = acov * (1.0 - np.arange(n) / n)
-    return 2.0 * scipy.fft.rfft(tapered, n).real - tapered[..., :1]
-
-
-def cross_periodogram(regressors: np.ndarray, size: int | None = None) -> np.ndarray:
-    """Re(Z_j^* Z_j^T) of the regressors' DFT on ``size`` points, shape (size // 2 + 1, 4, 4).
-
-    For any real coefficient vector c, |DFT(Z c)_j|^2 = c^T P_j c. The
-    transform is zero-padded to ``size`` (default: the series' length n).
-    """
-    spectra = scipy.fft.rfft(regressors, size, axis=0)
-    return (spectra[:, :, None].conj() * spectra[:, None, :]).real
-
-
-def debiased_whittle_loglike(
-    acov: np.ndarray, periodogram: np.ndarray, count: int = 1
-) -> np.ndarray:
-    """Debiased Whittle log-likelihood of ``count`` series of length n.
-
-    l = -1/2 sum_j [count log E[I_j] + I_j / E[I_j]] - count n/2 log(2 pi),
-    over all n Fourier frequencies (folded onto the rfft half).
-
-    Parameters
-    ----------
-    acov : ndarray, shape (B, n)
-        Autocovariance of the model for each batch member.
-    periodogram : ndarray, shape (B, n // 2 + 1)
-        Sum of the ``count`` series' periodograms I_j.
-    count : int
-        Number of independent series summed in ``periodogram``.
-
-    Returns
-    -------
-    ndarray, shape (B,)
-    """
-    n = acov.shape[-1]
-    expected = expected_periodogram(acov)
-    weights = _frequency_weights(n)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        terms = count * np.log(expected) + periodogram / expected
-        loglike = -0.5 * (terms @ weights + count * n * _LOG_2PI)
-    valid = np.all(expected > 0, axis=-1) & np.isfinite(loglike)
-    return np.where(valid, loglike, -np.inf)
 
 
 def resolve_channels(

@@ -13,7 +13,7 @@ thesis' long simulated noise.
 
 The fit ignores sensor noise, as the thesis does ("the measurement noise will
 be ignored", ch. 7-2-2). A white sensor noise n adds n[k+1] - Ad n[k] to the
-residual (DESIGN §4): a spike at lag 0 and a negative lag-1 term that pull
+residual (docs/design.md §4): a spike at lag 0 and a negative lag-1 term that pull
 the fitted sigma_h down. The Bayesian model accounts for it; this module
 does not, by design.
 """

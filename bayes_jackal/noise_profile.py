@@ -11,7 +11,7 @@ group's noise, where a design over the whole 11-D prior box cannot find a
 point at which every channel's noise is right at once.
 
 The profile uses the debiased Whittle likelihood
-(:func:`bayes_jackal.likelihood.debiased_whittle_loglike`), whose expected
+(:func:`bayes_jackal.whittle.debiased_whittle_loglike`), whose expected
 periodogram is linear in the autocovariance. With rho = sigma_n / sigma_c,
 
     E[I] = sigma_c^2 S,    S = E_R(width) + rho^2 E_M(alpha),
@@ -38,13 +38,9 @@ import numpy as np
 import scipy.stats
 
 from .kernels import get_family
-from .likelihood import (
-    ResidualLikelihood,
-    _frequency_weights,
-    expected_periodogram,
-    residual_autocovariance,
-)
+from .likelihood import ResidualLikelihood, residual_autocovariance
 from .physics import channel_coefficients
+from .whittle import expected_periodogram, frequency_weights
 
 __all__ = ["profile_starts"]
 
@@ -263,7 +259,7 @@ def _chunk_terms(
         )
         # S (D, W, R, F) = E_R(width) + rho^2 E_M(alpha).
         shape = kernel[:, :, None, :] + ratios[:, None, :, None] ** 2 * sensor[:, None, None, :]
-        weights = _frequency_weights(n)
+        weights = frequency_weights(n)
         with np.errstate(invalid="ignore", divide="ignore"):
             log_det = log_det + count * (np.log(shape) @ weights)
             quadratic = quadratic + (periodogram[:, None, None, :] / shape) @ weights

@@ -237,7 +237,7 @@ def wheel_speeds(
     omega_{r,l} = (v +- w s k / 2) / r_w with wheel separation s and
     multiplier k from the profile. ``"thesis"`` is eq. 4-33/34,
     omega_{r,l} = 0.5 (v +- w) / r_w, which drops the track width and is kept
-    to reproduce the thesis (DESIGN §1).
+    to reproduce the thesis (docs/design.md §1).
 
     Parameters
     ----------

@@ -38,7 +38,7 @@ from .physics import CHANNELS, channel_coefficients, discrete_matrices, simulate
 from .robot import RobotProfile, load_profile
 
 with warnings.catch_warnings():
-    # arviz 0.2x announces its 1.x refactor on import (DESIGN §4 pins arviz<1).
+    # arviz 0.2x announces its 1.x refactor on import (docs/design.md §4 pins arviz<1).
     warnings.simplefilter("ignore", FutureWarning)
     import arviz as az
 
@@ -454,7 +454,7 @@ def load_posterior(path: str | Path) -> az.InferenceData:
 
 
 def summarize(idata: az.InferenceData) -> dict:
-    """JSON-ready summary of a posterior (DESIGN §6 ``sample --json``).
+    """JSON-ready summary of a posterior (docs/design.md §6 ``sample --json``).
 
     One key per parameter and for the derived ``ratio``, each with arviz's
     ``mean``, ``sd``, ``hdi_3%``, ``hdi_97%``, ``ess_bulk``, ``ess_tail``,

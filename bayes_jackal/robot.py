@@ -37,7 +37,7 @@ _DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
 _PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
 #: Prior ranges: uniform for the damping [N s/m], log-uniform for the kernel
 #: width [s] and the noise standard deviations [channel units]. sigma_n is
-#: kept away from zero (DESIGN §4).
+#: kept away from zero (docs/design.md §4).
 DEFAULT_PRIORS = {
     "d_lat": (10.0, 1000.0),
     "d_long": (10.0, 1000.0),

@@ -2,7 +2,7 @@
 
 :func:`analyse_logs` takes ROS bags (``.bag``, ``.mcap``, ``.db3``, bag
 folders) and experiment files (``.csv``, ``.mat``, ``.nc``: what
-:func:`bayes_jackal.experiment.load_experiment` reads) and writes into one
+:func:`bayes_jackal.tables.load_experiment` reads) and writes into one
 folder:
 
 - ``experiments/<name>.nc``: every input that could be read, with its
@@ -40,7 +40,7 @@ from .bags import read_bag
 from .criticism import criticise
 from .errors import DataError, InputError
 from .evidence import compare_families
-from .experiment import Experiment, load_experiment, write_netcdf
+from .experiment import Experiment, write_netcdf
 from .export import MAX_ORDER, export_prior, write_prior
 from .gridsearch import damping_grid, grid_search
 from .inference import ConvergenceWarning, SamplerSettings
@@ -49,6 +49,7 @@ from .plots import save_grid_plot
 from .posterior import save_posterior, summarize
 from .report import write_report
 from .robot import RobotProfile, load_profile
+from .tables import load_experiment
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "EXPORT_ORDER", "analyse_logs", "ingest_logs"]
 
@@ -128,14 +129,14 @@ def ingest_logs(
     max_gap : float, optional
         Longest tolerated dropout [s]; None: the defaults of
         :func:`~bayes_jackal.bags.read_bag` (0.25 s) and of
-        :func:`~bayes_jackal.experiment.load_experiment`.
+        :func:`~bayes_jackal.tables.load_experiment`.
     progress : bool
         Show each bag's progress on stderr.
     labels : mapping, optional
         Per input path (as given), Experiment fields to set, e.g. ``series``
         and ``truth`` of a simulated run.
     read_options : mapping, optional
-        Keywords of :func:`~bayes_jackal.experiment.load_experiment` for
+        Keywords of :func:`~bayes_jackal.tables.load_experiment` for
         experiment files (``columns``, ``rate``).
     say : callable
         Receives one line per input.

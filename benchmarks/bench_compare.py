@@ -20,8 +20,9 @@ import time
 
 from bayes_jackal import load_profile
 from bayes_jackal.evidence import compare_families, nested_sampling
-from bayes_jackal.inference import Prior, sample_posterior
+from bayes_jackal.inference import sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.priors import Prior
 from bayes_jackal.simulate import simulate_experiment
 
 ROBOT = load_profile()

@@ -13,9 +13,10 @@ import pytest
 import xarray as xr
 
 from bayes_jackal.cli import build_parser, main
-from bayes_jackal.experiment import read_csv, read_netcdf
+from bayes_jackal.experiment import read_netcdf
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.robot import default_profile_path
+from bayes_jackal.tables import read_csv
 
 SMALL = ["--v1", "1", "--v2", "1"]
 GRID = ["--d-lat", "50", "200", "10", "--d-long", "10", "60", "5"]

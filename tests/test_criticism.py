@@ -12,7 +12,6 @@ import scipy.signal
 import scipy.stats
 
 from bayes_jackal import criticism, load_profile
-from bayes_jackal.bags import detect_steady
 from bayes_jackal.cli import main
 from bayes_jackal.criticism import BOUNDARY_DENSITY, criticise, damping_scale, predictive_acf
 from bayes_jackal.criticism_statistics import (
@@ -25,10 +24,12 @@ from bayes_jackal.criticism_statistics import (
 )
 from bayes_jackal.evidence import Comparison, Evidence
 from bayes_jackal.experiment import Experiment, write_netcdf
-from bayes_jackal.inference import ConvergenceWarning, Prior, SamplerSettings, sample_posterior
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.posterior import az, build_inference_data, summarize
+from bayes_jackal.priors import Prior
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.steady import detect_steady
 
 ROBOT = load_profile()
 #: Short chains: the checks need a posterior near the fit, not a converged one.

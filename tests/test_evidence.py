@@ -18,8 +18,9 @@ from bayes_jackal.evidence import (
     evidence_strength,
     nested_sampling,
 )
-from bayes_jackal.inference import ConvergenceWarning, LogPosterior, Prior, SamplerSettings
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
 from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.priors import LogPosterior, Prior
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 
 ROBOT = load_profile()

@@ -15,15 +15,13 @@ import xarray as xr
 
 from bayes_jackal.cli import main
 from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.experiment import (
-    Experiment,
+from bayes_jackal.experiment import Experiment, read_netcdf, write_netcdf
+from bayes_jackal.tables import (
     load_experiment,
     load_experiments,
     read_csv,
     read_mat,
-    read_netcdf,
     write_csv,
-    write_netcdf,
 )
 
 DT = 0.1

@@ -10,17 +10,12 @@ import pytest
 import scipy.stats
 
 from bayes_jackal import DataError, InputError, load_profile
-from bayes_jackal.inference import (
-    ConvergenceWarning,
-    LogPosterior,
-    Prior,
-    SamplerSettings,
-    find_map,
-    sample_posterior,
-)
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.map_search import find_map
 from bayes_jackal.noise_profile import profile_starts
 from bayes_jackal.posterior import load_posterior, save_posterior, summarize
+from bayes_jackal.priors import LogPosterior, Prior
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 
 ROBOT = load_profile()
@@ -150,7 +145,7 @@ def test_a_run_that_hits_the_step_cap_warns_and_says_so(v2_run, tmp_path):
     assert set(loaded.groups()) == {"posterior", "sample_stats", "observed_data", "constant_data"}
     assert json.loads(loaded.posterior.attrs["experiments"])[0]["name"] == "v2"
     np.testing.assert_array_equal(loaded.posterior["d_lat"], idata.posterior["d_lat"])
-    # The summary follows DESIGN §6's sample --json keys.
+    # The summary follows docs/design.md §6's sample --json keys.
     for key in ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "ratio"):
         assert set(summary[key]) >= {
             "mean",

@@ -70,7 +70,7 @@ def test_gaussian_kernel_weights_its_edge_taps_by_the_fractional_tap_count():
 
 def test_gaussian_autocorrelation_approaches_the_continuous_form():
     # White noise through h has autocorrelation exp(-tau^2 / (4 sigma_h^2)) in
-    # the continuous limit (DESIGN §3). Sampling errors are exponentially small
+    # the continuous limit (docs/design.md §3). Sampling errors are exponentially small
     # for sigma_h >> dt; what remains is the +-3 sigma_h truncation, which is
     # scale-free and moves the self-correlation by about 3e-3 at any width.
     for sigma_h in (0.047, 0.1, 0.2):

@@ -13,7 +13,6 @@ from bayes_jackal.inference import sample_posterior
 from bayes_jackal.kernels import FAMILIES
 from bayes_jackal.likelihood import (
     ResidualLikelihood,
-    debiased_whittle_loglike,
     residual_autocovariance,
     sample_stationary,
     toeplitz_loglike,
@@ -22,6 +21,7 @@ from bayes_jackal.noise import channel_residuals
 from bayes_jackal.physics import channel_coefficients
 from bayes_jackal.posterior import summarize
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.whittle import debiased_whittle_loglike
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
@@ -160,7 +160,7 @@ def test_parameter_layout_for_channels_and_per_experiment_noise(experiments):
 
 
 def test_truth_beats_the_prior_edge_of_the_ridge_with_the_ma1_sensor_model(experiments):
-    # DESIGN §4: with a diagonal nugget the ridge runs to the prior edge; the
+    # docs/design.md §4: with a diagonal nugget the ridge runs to the prior edge; the
     # MA(1) footprint of the sensor noise keeps the truth ahead.
     edge = np.array([[1000.0, 1000.0 / 3.667, 0.047, 0.01, 0.005]])
     likelihood = ResidualLikelihood([experiments[0]], ROBOT, channels=YAW)

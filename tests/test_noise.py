@@ -10,7 +10,7 @@ import scipy.stats
 
 from bayes_jackal import DataError, InputError, load_profile
 from bayes_jackal.cli import main
-from bayes_jackal.experiment import Experiment, read_csv, write_csv
+from bayes_jackal.experiment import Experiment
 from bayes_jackal.kernels import get_family
 from bayes_jackal.noise import (
     MATLAB_LEVEL,
@@ -33,6 +33,7 @@ from bayes_jackal.physics import (
     one_step_residuals,
 )
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.tables import read_csv, write_csv
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
@@ -94,7 +95,7 @@ def test_noise_free_residuals_with_the_true_damping_are_zero(steady):
 
 def test_residuals_are_process_noise_plus_the_sensor_noise_footprint(noisy):
     # y = x + n and x[k+1] = alpha x[k] + Bd u[k] + p[k], so the residual is
-    # w[k] = p[k] + n[k+1] - alpha n[k] (DESIGN §4), exactly up to rounding.
+    # w[k] = p[k] + n[k+1] - alpha n[k] (docs/design.md §4), exactly up to rounding.
     window = noisy.steady()
     for channel in CHANNELS:
         y = window.channel(channel)

@@ -1,4 +1,4 @@
-"""Physics: eq. 4-32, its discretisation (eq. 6-5, 6-6) and the thesis fixtures (DESIGN §1)."""
+"""Physics: eq. 4-32, its discretisation (eq. 6-5, 6-6), thesis fixtures (docs/design.md §1)."""
 
 import control
 import numpy as np
@@ -41,7 +41,7 @@ def test_eq_6_7_and_6_8_are_reproduced():
     printed = {(0, 0): -7.263, (1, 1): -26.63}
     for index, value in printed.items():
         assert A[index] == pytest.approx(value, rel=0.005)
-    # A33 is printed as -23.31; the constants give -23.21 (DESIGN §1): within 1 %.
+    # A33 is printed as -23.31; the constants give -23.21 (docs/design.md §1): within 1 %.
     assert A[2, 2] == pytest.approx(-23.31, rel=0.01)
     assert A[2, 2] == pytest.approx(-23.21, abs=0.005)
     assert B[0, 0] == B[0, 1] == pytest.approx(0.3559, rel=0.005)
@@ -58,7 +58,7 @@ def test_table_6_1_exact_row_to_four_decimals():
 
 def test_table_6_1_euler_row_matches_only_its_first_step():
     # The printed Euler row (0.0151, 0.0281, ...) is not reproducible past
-    # step 1 (DESIGN §1); step 1 of forward Euler is dt B u whatever A is.
+    # step 1 (docs/design.md §1); step 1 of forward Euler is dt B u whatever A is.
     omega = wheel_speeds(ROBOT, V1, W1, conversion="thesis")
     states = simulate(ROBOT, 110.0, 30.0, np.tile(omega, (3, 1)), dt=DT, method="euler")
     assert round(states[1, 0], 4) == 0.0151
@@ -66,7 +66,7 @@ def test_table_6_1_euler_row_matches_only_its_first_step():
 
 
 def test_printed_ad_matches_dt_of_one_73rd_not_one_72nd():
-    # Eq. 6-10 prints Ad11 = 0.9053; with A11 = -7.263 that is dt = 1/73 (DESIGN §1).
+    # Eq. 6-10 prints Ad11 = 0.9053; with A11 = -7.263 that is dt = 1/73 (docs/design.md §1).
     A, _ = continuous_matrices(ROBOT, 110.0, 30.0)
     assert round(np.exp(A[0, 0] / 73.0), 4) == 0.9053
     assert round(np.exp(A[0, 0] / 72.0), 4) == 0.9041

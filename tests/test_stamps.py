@@ -28,7 +28,6 @@ import pytest
 
 from bayes_jackal.cli import main
 from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.experiment import read_csv
 from bayes_jackal.gridsearch import damping_grid, grid_search
 from bayes_jackal.inference import SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
@@ -36,6 +35,7 @@ from bayes_jackal.posterior import load_posterior
 from bayes_jackal.robot import load_profile
 from bayes_jackal.simulate import Series, simulate_experiment
 from bayes_jackal.stamps import GRID, ONE_PER_TICK, UNIFORM, sort_stamps, uniform_clock
+from bayes_jackal.tables import read_csv
 
 MS = 1e-3
 

@@ -13,16 +13,18 @@ import pytest
 import scipy.stats
 
 from bayes_jackal import progress as progress_module
-from bayes_jackal.bags import read_bag, write_bag
+from bayes_jackal.bag_writer import write_bag
+from bayes_jackal.bags import read_bag
 from bayes_jackal.cli import main
 from bayes_jackal.demo import demo_folder
-from bayes_jackal.experiment import read_netcdf, write_csv, write_netcdf
+from bayes_jackal.experiment import read_netcdf, write_netcdf
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.posterior import load_posterior
 from bayes_jackal.progress import Progress
 from bayes_jackal.robot import load_profile
 from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.tables import write_csv
 from bayes_jackal.workflow import ingest_logs
 
 ROBOT = load_profile()
@@ -293,7 +295,7 @@ def _demo_truth_by_label(truth: dict) -> dict[str, float]:
 
     The bags' yaw rate is the simulator's measured one (IMU), so the yaw
     noise is the manifest's; vx and vy are derived from motion-capture poses
-    integrated from the noise-free states (bags.bag_messages), so they carry
+    integrated from the noise-free states (bag_writer.bag_messages), so they carry
     the process noise (sigma_c) but no sensor noise, smoothed by the
     Savitzky-Golay derivative: their sigma_n and sigma_h are checked apart.
     """
