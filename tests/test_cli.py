@@ -406,7 +406,7 @@ def test_compare_bad_input_exits_2(simulated, capsys, extra, pattern):
 def test_compare_keeps_each_family_as_it_finishes_when_interrupted(
     simulated, tmp_path, capsys, monkeypatch
 ):
-    import bayes_jackal.cli as cli
+    import bayes_jackal.cli.commands as cli
 
     saved = []
 

@@ -1,0 +1,146 @@
+"""What the command line prints: exit codes, the JSON/text reporter and the result tables."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable
+
+from ..gridsearch import GridResult
+
+EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class Reporter:
+    """Human text to stdout, or to stderr when stdout carries JSON."""
+
+    def __init__(self, json_mode: bool):
+        self.json_mode = json_mode
+
+    def say(self, text: str = "") -> None:
+        print(text, file=sys.stderr if self.json_mode else sys.stdout)
+
+    def result(self, payload: dict) -> None:
+        if self.json_mode:
+            json.dump(payload, sys.stdout, indent=2)
+            sys.stdout.write("\n")
+
+
+def grid_table(result: GridResult, say: Callable[[str], None]) -> None:
+    summary = result.summary()
+    say(
+        f"{result.method} MSE of the {result.channel} channel over "
+        f"d_lat {result.d_lat[0]:g}..{result.d_lat[-1]:g} ({len(result.d_lat)} values) x "
+        f"d_long {result.d_long[0]:g}..{result.d_long[-1]:g} ({len(result.d_long)} values)"
+    )
+    say(f"{'':12s} {'runs':>5s} {'d_lat':>8s} {'d_long':>8s} {'ratio':>7s} {'MSE':>11s}")
+    rows = [(label, len(s["experiments"]), s) for label, s in summary["series"].items()]
+    rows.append(("total (5-3)", sum(n for _, n, _ in rows), summary))
+    for label, runs, s in rows:
+        say(
+            f"{label:12s} {runs:5d} {s['d_lat']:8g} {s['d_long']:8g} "
+            f"{s['d_lat'] / s['d_long']:7.3f} {s['mse']:11.4g}"
+        )
+
+
+def residual_table(result: dict, say: Callable[[str], None]) -> None:
+    say(
+        f"one-step residuals (eq. 7-3) of the steady-state window at d_lat={result['d_lat']:g}, "
+        f"d_long={result['d_long']:g} N s/m; Ljung-Box and sigma_h fit over {result['lags']} lags"
+    )
+    say(
+        f"{'experiment':12s} {'channel':7s} {'n':>6s} {'sd':>10s} {'LB p':>9s} "
+        f"{'r1':>7s} {'sigma_h [s]':>11s}"
+    )
+    for name, channels in result["experiments"].items():
+        for channel, row in channels.items():
+            r1 = row["autocorrelation"][0]
+            say(
+                f"{name:12s} {channel:7s} {row['n']:6d} {row['sd']:10.4g} "
+                f"{row['ljung_box_p']:9.3g} {r1:7.3f} {row['sigma_h']:11.3f}"
+            )
+    say()
+    say("sigma_h of the yaw channel (thesis table 7-1: v1 0.051, v2 0.041, all 0.047 s)")
+    say(f"{'series':12s} {'runs':>5s} {'sigma_h [s]':>11s}")
+    members = result["series"]
+    for label, value in result["sigma_h"].items():
+        runs = len(result["experiments"]) if label == "all" else len(members[label])
+        say(f"{label:12s} {runs:5d} {value:11.4f}")
+
+
+def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
+    say(
+        f"{'':16s} {'mean':>10s} {'sd':>10s} {'hdi_3%':>10s} {'hdi_97%':>10s} "
+        f"{'ess_tau':>8s} {'r_hat':>6s}"
+    )
+    for name, row in summary.items():
+        if isinstance(row, dict) and "mean" in row:
+            say(
+                f"{name:16s} {row['mean']:10.4g} {row['sd']:10.3g} {row['hdi_3%']:10.4g} "
+                f"{row['hdi_97%']:10.4g} {row.get('ess_autocorr', float('nan')):8.0f} "
+                f"{row['r_hat']:6.3f}"
+            )
+    ratio = summary["ratio"]
+    say(
+        f"corr(d_lat, d_long) = {summary['corr_d_lat_d_long']:.3f}; d_lat/d_long 94 % HDI "
+        f"[{ratio['hdi_3%']:.3f}, {ratio['hdi_97%']:.3f}] (thesis: {ratio['thesis']:.4f})"
+    )
+    taus = summary["autocorr_time"]
+    status = "converged" if summary["converged"] else "NOT CONVERGED"
+    say(
+        f"{status}: {summary['n_steps']} steps, max autocorrelation time "
+        f"{max(taus.values()):.0f} steps ({summary['n_steps'] / max(taus.values()):.0f} tau)"
+    )
+
+
+def print_criticism(findings: list[dict]) -> None:
+    """Model-criticism warnings on stderr, as ConvergenceWarning (compare: with the family)."""
+    for finding in findings:
+        family = f"{finding['family']}: " if "family" in finding else ""
+        print(f"bayes-jackal: WARNING: {family}{finding['message']}", file=sys.stderr)
+
+
+def comparison_table(result: dict, say: Callable[[str], None]) -> None:
+    say(
+        f"{'family':16s} {'log Z':>12s} {'+-':>6s} {'lnB best':>9s} {'lnB white':>10s}  "
+        "width mean [94 % HDI] (s)"
+    )
+    for name, row in result["families"].items():
+        widths = "; ".join(
+            f"{label} {w['mean']:.4g} [{w['hdi_3%']:.4g}, {w['hdi_97%']:.4g}]"
+            for label, w in (row["width"] or {}).items()
+            if label != "hdi_prob"
+        )
+        versus_white = row["log_bayes_factor_vs_white"]
+        say(
+            f"{name:16s} {row['log_evidence']:12.2f} {row['log_evidence_err']:6.3f} "
+            f"{row['log_bayes_factor_vs_best']:9.2f} "
+            f"{'' if versus_white is None else f'{versus_white:10.2f}':>10s}  {widths or '-'}"
+            + ("" if row["converged"] else "  NOT CONVERGED")
+        )
+        if "log_evidence_nested" in row:
+            say(
+                f"{'':16s} {row['log_evidence_nested']:12.2f} "
+                f"{row['log_evidence_nested_err']:6.3f}  (nested sampling)"
+            )
+    say(f"best: {result['best']}. Verdict: {result['verdict_text']}")
+
+
+def analysis_text(result: dict, out: Reporter) -> int:
+    """Print what analyse_logs found; warnings and bad inputs on stderr; the exit code."""
+    out.say(
+        f"\n{result['best']}-noise posterior (the best family by evidence), pooled over "
+        f"{len(result['experiments'])} experiment(s), channels {', '.join(result['channels'])}:"
+    )
+    posterior_table(result["posterior"], out.say)
+    out.say(f"Is the noise coloured? {result['comparison']['verdict_text']}")
+    files = result["files"]
+    out.say(
+        f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "
+        f"Inference prior), {files['posterior']}, posteriors/, experiments/, grid_*.png, *.json."
+    )
+    print_criticism(result["warnings"])
+    for reason in result["failed"].values():
+        print(f"bayes-jackal: error: {reason}", file=sys.stderr)
+    out.result(result)
+    return EXIT_BAD_INPUT if result["failed"] else EXIT_OK

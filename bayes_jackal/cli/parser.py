@@ -1,0 +1,341 @@
+"""The argument parser of ``bayes-jackal``: commands, flags and their defaults."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Callable
+
+from .. import __version__
+from ..gridsearch import METHODS
+from ..kernels import FAMILIES
+from ..likelihood import DEFAULT_CHANNEL_ORDER, ENGINES, SENSOR_MODELS
+from ..physics import CHANNELS
+from ..report import FIGURE_FORMATS
+from ..robot import CONVERSIONS
+from ..simulate import SERIES, NoiseSettings
+from ..tables import ROLES
+from ..workflow import DEFAULT_FAMILIES
+from .commands import (
+    cmd_analyse,
+    cmd_compare,
+    cmd_demo,
+    cmd_export_prior,
+    cmd_grid,
+    cmd_ingest,
+    cmd_report,
+    cmd_residuals,
+    cmd_sample,
+    cmd_simulate,
+)
+
+
+def _name_list(allowed, what: str) -> Callable[[str], tuple[str, ...]]:
+    """argparse type of a comma-separated list of names, e.g. ``--channels yaw,vx``."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        names = tuple(name.strip() for name in text.split(",") if name.strip())
+        unknown = [name for name in names if name not in allowed]
+        if unknown or not names:
+            raise argparse.ArgumentTypeError(
+                f"unknown {what} {unknown or text!r}; use some of {','.join(allowed)}"
+            )
+        return names
+
+    return parse
+
+
+_channel_list = _name_list(CHANNELS, "channel(s)")
+_family_list = _name_list(tuple(FAMILIES), "families")
+
+
+def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None:
+    parser.add_argument(
+        "--robot", metavar="PROFILE", help="robot profile TOML (default: models/jackal.toml)"
+    )
+    if json_flag:
+        parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _add_input_flags(parser: argparse.ArgumentParser) -> None:
+    """Flags of reading experiment files (CSV, MATLAB): column names and the rate."""
+    parser.add_argument(
+        "--column",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("ROLE", "NAME"),
+        help=f"the file's column for a role ({', '.join(ROLES)}), e.g. --column yaw_rate gyro_z",
+    )
+    parser.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="declared sampling rate [Hz] (default: detected from the time stamps)",
+    )
+
+
+def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = 0.25) -> None:
+    """Flags of reading bags, shared by ingest and analyse: window, gaps, topics."""
+    parser.add_argument(
+        "--window",
+        type=float,
+        nargs=2,
+        metavar=("T0", "T1"),
+        help="steady-state window [s; in bags from the first IMU stamp] instead of detecting it",
+    )
+    parser.add_argument(
+        "--max-gap",
+        type=float,
+        default=max_gap,
+        help="longest tolerated dropout [s] "
+        + (f"({max_gap:g})" if max_gap else "(bags 0.25, experiment files 5 sample steps)"),
+    )
+    parser.add_argument(
+        "--topic",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("ROLE", "NAME"),
+        help="override a profile topic, e.g. --topic pose /vrpn_client_node/jackal/pose",
+    )
+
+
+def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -> None:
+    """Flags of sample, compare and analyse: channels, noise model, pooling, sampler, priors.
+
+    ``pooling=False`` (analyse, always pooled) leaves out ``--pooled``.
+    """
+    parser.add_argument(
+        "--channels",
+        type=_channel_list,
+        default=None,
+        help="comma-separated subset of "
+        f"{','.join(DEFAULT_CHANNEL_ORDER)} (default: every one all experiments measure)",
+    )
+    parser.add_argument(
+        "--sensor-noise",
+        choices=SENSOR_MODELS,
+        default="ma1",
+        help="sensor-noise footprint: ma1 (default) or a diagonal nugget",
+    )
+    if pooling:
+        parser.add_argument(
+            "--pooled", action="store_true", help="one posterior for all experiments (shared d)"
+        )
+    parser.add_argument(
+        "--noise",
+        choices=("shared", "per-experiment"),
+        default="shared",
+        help="pooled: noise parameters shared or per experiment",
+    )
+    parser.add_argument(
+        "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
+    )
+    parser.add_argument("--seed", type=int, default=None, help="seed: same seed, same chain")
+    parser.add_argument("--walkers", type=int, default=0, help="ensemble size (default 32+)")
+    parser.add_argument("--max-steps", type=int, default=20_000, help="step cap (20000)")
+    parser.add_argument(
+        "--prior",
+        nargs=3,
+        action="append",
+        default=[],
+        metavar=("NAME", "LOW", "HIGH"),
+        help="override a prior range, e.g. --prior d_lat 10 2000",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``bayes-jackal``."""
+    parser = argparse.ArgumentParser(
+        prog="bayes-jackal",
+        description="Bayesian system identification of skid-steer robots (thesis: The Noisy "
+        "Jackal).",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    analysis = commands.add_parser(
+        "analyse", help="the whole analysis of your logs: ingest, grids, compare, prior, report"
+    )
+    analysis.add_argument(
+        "inputs",
+        nargs="+",
+        metavar="BAG|EXP",
+        help="bags (.bag, .mcap, .db3, bag folders) and experiment files (.csv, .mat, .nc)",
+    )
+    analysis.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    analysis.add_argument(
+        "--families",
+        type=_family_list,
+        default=DEFAULT_FAMILIES,
+        metavar="white,gaussian,...",
+        help=f"noise families to compare ({','.join(DEFAULT_FAMILIES)})",
+    )
+    analysis.add_argument(
+        "--processes",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="families sampled at once (default: the number of cores)",
+    )
+    _add_bag_flags(analysis, max_gap=None)
+    _add_input_flags(analysis)
+    _add_model_flags(analysis, pooling=False)
+    _add_common(analysis)
+    analysis.set_defaults(func=cmd_analyse)
+
+    demo = commands.add_parser(
+        "demo", help="analyse on the shipped simulated bags (embedded default data)"
+    )
+    demo.add_argument("--out", default="bayes-jackal-demo", help="output folder")
+    demo.add_argument("--no-progress", action="store_true", help="no progress display")
+    demo.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    demo.set_defaults(func=cmd_demo)
+
+    sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
+    sim.add_argument("--out", required=True, help="output folder")
+    sim.add_argument("--seed", type=int, default=None, help="random seed (reproducible runs)")
+    for label in SERIES:
+        default = 10 if label == "v1" else 5
+        sim.add_argument(
+            f"--{label}", type=int, default=default, help=f"runs of series {label} ({default})"
+        )
+    sim.add_argument("--d-lat", type=float, default=110.0, help="true d_lat [N s/m] (110)")
+    sim.add_argument("--d-long", type=float, default=30.0, help="true d_long [N s/m] (30)")
+    defaults = NoiseSettings()
+    sim.add_argument(
+        "--family", choices=list(FAMILIES), default=defaults.family, help="process-noise filter"
+    )
+    sim.add_argument(
+        "--width",
+        "--sigma-h",
+        dest="width",
+        type=float,
+        default=defaults.width,
+        help=f"kernel width [s] (sigma_h of the Gaussian; {defaults.width})",
+    )
+    for name, help_text in (("c", "process"), ("n", "sensor")):
+        sim.add_argument(
+            f"--sigma-{name}",
+            type=float,
+            nargs=3,
+            metavar=("VX", "VY", "YAW"),
+            default=getattr(defaults, f"sigma_{name}"),
+            help=f"{help_text} noise sd of vx, vy [m/s] and yaw [rad/s]",
+        )
+    sim.add_argument("--conversion", choices=CONVERSIONS, help="cmd_vel -> wheel speeds")
+    sim.add_argument("--format", choices=("nc", "csv"), default="nc", help="file format (nc)")
+    sim.add_argument(
+        "--bag", choices=("ros1", "ros2"), help="also write each run as a ROS1 or ROS2 bag"
+    )
+    _add_common(sim)
+    sim.set_defaults(func=cmd_simulate)
+
+    grid = commands.add_parser("grid", help="thesis grid search over (d_lat, d_long)")
+    grid.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
+    grid.add_argument("--method", choices=METHODS, default="onestep")
+    for name in ("d-lat", "d-long"):
+        grid.add_argument(
+            f"--{name}",
+            type=float,
+            nargs=3,
+            default=(10.0, 1000.0, 10.0),
+            metavar=("START", "STOP", "STEP"),
+            help="grid values [N s/m], STOP included (10 1000 10)",
+        )
+    grid.add_argument("--channel", choices=CHANNELS, default="yaw")
+    grid.add_argument("--discretisation", choices=("zoh", "euler"), default="zoh")
+    grid.add_argument("--plot", metavar="FILE", help="save the MSE surface (png, svg, pdf)")
+    grid.add_argument("--out", metavar="FILE.nc", help="save all MSE surfaces as NetCDF")
+    _add_input_flags(grid)
+    _add_common(grid)
+    grid.set_defaults(func=cmd_grid)
+
+    ingest = commands.add_parser("ingest", help="ROS1/ROS2 bags to experiment files")
+    ingest.add_argument("bags", nargs="+", metavar="BAG", help=".bag, .mcap, .db3 or bag folder")
+    ingest.add_argument("--out", required=True, help="output folder (one .nc per bag)")
+    _add_bag_flags(ingest)
+    _add_common(ingest)
+    ingest.set_defaults(func=cmd_ingest)
+
+    res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
+    res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
+    res.add_argument("--d-lat", type=float, default=110.0, help="d_lat of the model [N s/m] (110)")
+    res.add_argument("--d-long", type=float, default=30.0, help="d_long of the model [N s/m] (30)")
+    res.add_argument(
+        "--channels",
+        type=_channel_list,
+        default=("yaw",),
+        metavar="yaw,vx,vy",
+        help="comma-separated channels to analyse (yaw)",
+    )
+    res.add_argument(
+        "--lags", type=int, default=30, help="lags of the Ljung-Box test and sigma_h fit (30)"
+    )
+    _add_input_flags(res)
+    _add_common(res)
+    res.set_defaults(func=cmd_residuals)
+
+    sample = commands.add_parser("sample", help="posterior of damping and noise with emcee")
+    sample.add_argument(
+        "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
+    )
+    sample.add_argument("--out", required=True, metavar="POSTERIOR.nc", help="posterior file")
+    sample.add_argument("--family", choices=list(FAMILIES), default="gaussian")
+    _add_input_flags(sample)
+    _add_model_flags(sample)
+    _add_common(sample)
+    sample.set_defaults(func=cmd_sample)
+
+    compare = commands.add_parser("compare", help="noise-filter families ranked by evidence")
+    compare.add_argument(
+        "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
+    )
+    compare.add_argument(
+        "--families",
+        type=_family_list,
+        default=tuple(FAMILIES),
+        metavar="white,gaussian,...",
+        help=f"comma-separated families ({','.join(FAMILIES)})",
+    )
+    compare.add_argument("--out", metavar="DIR", help="save each family's posterior here")
+    compare.add_argument(
+        "--processes",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="families sampled at once, one per process (default: the number of cores)",
+    )
+    compare.add_argument(
+        "--nested",
+        action="store_true",
+        help="cross-check each evidence by nested sampling (dynesty; slow)",
+    )
+    _add_input_flags(compare)
+    _add_model_flags(compare)
+    _add_common(compare)
+    compare.set_defaults(func=cmd_compare)
+
+    export = commands.add_parser("export-prior", help="Active Inference (DEM) prior as JSON")
+    export.add_argument("posterior", metavar="POSTERIOR.nc", help="posterior file from sample")
+    export.add_argument("--out", required=True, metavar="prior.json", help="output JSON")
+    export.add_argument(
+        "--order", type=int, default=2, help="embedding order P of generalised coordinates (2)"
+    )
+    _add_common(export, json_flag=False)
+    export.set_defaults(func=cmd_export_prior)
+
+    report = commands.add_parser("report", help="HTML report with figures of posteriors")
+    report.add_argument(
+        "posteriors", nargs="+", metavar="POSTERIOR.nc", help="posterior files or folders"
+    )
+    report.add_argument("--out", required=True, metavar="report.html", help="output HTML")
+    report.add_argument(
+        "--formats",
+        type=_name_list(FIGURE_FORMATS, "figure formats"),
+        default=FIGURE_FORMATS,
+        metavar="png,svg",
+        help="figure files written beside the report (png,svg)",
+    )
+    report.set_defaults(func=cmd_report)
+    return parser
