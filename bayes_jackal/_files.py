@@ -1,13 +1,25 @@
-"""Writing files so that an interrupted run never leaves half a file."""
+"""Writing files so that an interrupted run or a full disk never leaves half a file.
+
+Every file the package writes goes through :func:`atomic_path`: written to
+a hidden temporary beside it, renamed into place when complete. A write
+error names the user's path and its reason, and leaves nothing behind.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
+import math
 import os
+import resource
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+
+from .errors import OutputError
+from .outputs import refuse_input
 
 
 def _umask() -> int:
@@ -17,8 +29,53 @@ def _umask() -> int:
     return mask
 
 
+#: Bytes kept free beyond an HDF5 write's estimate: metadata, B-trees, attributes.
+SPACE_MARGIN = 256 * 1024
+
+
+def make_folder(folder: Path, *, output: str | Path | None = None) -> None:
+    """Create ``folder`` and its parents; OutputError naming ``output`` (or it) on failure."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputError(output or folder, f"{folder} is a file, not a folder") from None
+    except OSError as exc:
+        raise OutputError.from_os_error(output or folder, exc) from None
+
+
+def check_space(path: Path, nbytes: int, *, grows: bool = False, advice: str = "") -> None:
+    """Refuse (OutputError) to write ``nbytes`` more to ``path`` where they cannot fit.
+
+    HDF5 (h5py, h5netcdf) cannot recover from a failed write: the file is
+    left unreadable and the process may crash when the library shuts down.
+    So an HDF5 write is checked first, with room for its estimated size
+    plus a quarter (chunk padding and metadata the estimate leaves out) and
+    :data:`SPACE_MARGIN`, against the free space of the file system and the
+    process' file-size limit (``ulimit -f``); the file's present size counts
+    towards the limit when the write ``grows`` it (a chain), not when a new
+    file replaces it. ``advice`` ends the message.
+    """
+    needed = int(nbytes * 1.25) + SPACE_MARGIN
+    free = shutil.disk_usage(path.parent).free
+    if free < needed:
+        raise OutputError(
+            path,
+            f"no space left on device ({needed / 1e6:.2f} MB needed, {free / 1e6:.2f} MB free)"
+            + advice,
+            code=errno.ENOSPC,
+        )
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    size = path.stat().st_size if grows and path.exists() else 0
+    if limit != resource.RLIM_INFINITY and size + needed > limit:
+        raise OutputError(
+            path,
+            f"file too large for the file-size limit of {limit / 1e6:.2f} MB (ulimit -f)" + advice,
+            code=errno.EFBIG,
+        )
+
+
 @contextlib.contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
+def atomic_path(path: str | Path, *, nbytes: int | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; move it into place on success.
 
     The caller writes the whole file to the yielded path. Only when the block
@@ -26,23 +83,81 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     same file system); otherwise it is removed and ``path`` is untouched.
     The file gets the permissions of a plainly created one (0666 less the
     umask), not the temporary file's owner-only 0600.
+
+    Refused with InputError when ``path`` is an input of the running command
+    (:func:`bayes_jackal.outputs.protected`). Any OSError while writing (a
+    full disk, a file-size limit, no permission) removes the temporary and
+    becomes :class:`~bayes_jackal.errors.OutputError` naming ``path``, never
+    the temporary. ``nbytes``: the estimated size of an HDF5 file, checked
+    against the free space first (:func:`check_space`).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    os.close(handle)
-    temporary = Path(temporary)
+    refuse_input(path)
+    make_folder(path.parent, output=path)
+    try:
+        if nbytes is not None:
+            check_space(path, nbytes)
+        handle, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        os.close(handle)
+    except OSError as exc:
+        if isinstance(exc, OutputError):
+            raise
+        raise OutputError.from_os_error(path, exc) from None
+    temporary = Path(name)
     try:
         yield temporary
         os.chmod(temporary, 0o666 & ~_umask())
         os.replace(temporary, path)
+    except OSError as exc:
+        if isinstance(exc, OutputError):
+            raise
+        raise OutputError.from_os_error(path, exc) from None
     finally:
         temporary.unlink(missing_ok=True)
 
 
+def write_hdf5(data, path: str | Path) -> Path:
+    """Write an xarray Dataset or arviz InferenceData as NetCDF (h5netcdf), atomically.
+
+    The estimated size (the data's bytes) is checked against the free space
+    first (:func:`check_space`): HDF5 never meets a full disk.
+    """
+    groups = [data[name] for name in data.groups()] if hasattr(data, "groups") else [data]
+    with atomic_path(path, nbytes=sum(group.nbytes for group in groups)) as temporary:
+        data.to_netcdf(str(temporary), engine="h5netcdf")
+    return Path(path)
+
+
+def finite_json(value: object) -> object:
+    """``value`` with every non-finite float (NaN, +-inf) in it replaced by None.
+
+    JSON has no NaN or Infinity (Python's ``json`` writes them, strict
+    parsers refuse them), so a number that is not finite is written as
+    ``null``: "no value". Dicts, lists and tuples are walked; other values
+    are returned as they are.
+    """
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_json(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_json(item) for item in value]
+    return value
+
+
+def json_text(payload: object, *, indent: int | None = 2) -> str:
+    """``payload`` as strict JSON text: non-finite numbers become null (:func:`finite_json`).
+
+    Dumped with ``allow_nan=False``, so a non-finite number that escaped the
+    mapping raises instead of producing invalid JSON. Every JSON output of
+    the package (files and ``--json``) goes through here.
+    """
+    return json.dumps(finite_json(payload), indent=indent, allow_nan=False)
+
+
 def write_json(path: str | Path, payload: object, *, indent: int = 2) -> Path:
-    """Write ``payload`` as JSON to ``path`` atomically (:func:`atomic_path`); return the path."""
+    """Write ``payload`` as JSON (:func:`json_text`) to ``path`` atomically; return the path."""
     path = Path(path)
     with atomic_path(path) as temporary:
-        temporary.write_text(json.dumps(payload, indent=indent))
+        temporary.write_text(json_text(payload, indent=indent))
     return path

@@ -28,20 +28,22 @@ import json
 import multiprocessing
 import os
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import emcee
 import numpy as np
 import scipy.special
 import scipy.stats
 
-from .errors import InputError
+from . import interrupt
+from .errors import DataError, InputError
 from .experiment import Experiment
-from .inference import ConvergenceWarning, SamplerSettings, sample_posterior
+from .inference import ConvergenceWarning, SamplerSettings, run_identity, sample_posterior
 from .kernels import FAMILIES, as_rng, get_family
 from .likelihood import ResidualLikelihood
-from .posterior import HDI_PROB, az, interval, parameter_draws, summarize
+from .posterior import HDI_PROB, az, interval, load_posterior, parameter_draws, summarize
 from .priors import LogPosterior, Prior
 from .robot import RobotProfile
 
@@ -87,6 +89,11 @@ class Evidence:
             "log_evidence_err": self.error,
             "method": self.method,
         }
+
+    @classmethod
+    def from_dict(cls, fields: dict) -> Evidence:
+        """The inverse of :meth:`to_dict`."""
+        return cls(fields["log_evidence"], fields["log_evidence_err"], fields["method"])
 
 
 def _bridge_ratio(l1: np.ndarray, l2: np.ndarray, tol: float, max_iterations: int) -> float:
@@ -356,6 +363,10 @@ def _single_threaded_children():
                 os.environ[name] = value
 
 
+#: Sampler settings that only change the display, not a family's result.
+_DISPLAY_SETTINGS = ("progress", "progress_label", "progress_line")
+
+
 @dataclass(frozen=True)
 class _FamilyRun:
     """Everything one family's posterior and evidence need (picklable for a process)."""
@@ -369,30 +380,125 @@ class _FamilyRun:
     likelihood_options: dict
     lines: int = 1
 
-    def __call__(self, index: int, family: str):
-        """(family, evidence, posterior, nested evidence or None, convergence warnings)."""
+    def _model(self, family: str) -> tuple[ResidualLikelihood, Prior]:
+        likelihood = ResidualLikelihood(
+            self.experiments, self.robot, family=family, **self.likelihood_options
+        )
+        return likelihood, Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
+
+    def task(self, family: str) -> dict:
+        """Everything that defines ``family``'s result, part by part (JSON-ready).
+
+        The chain's identity (:func:`bayes_jackal.inference.run_identity`),
+        the sampler settings but the display, and the cross-check.
+        """
+        likelihood, prior = self._model(family)
+        settings = self.settings or SamplerSettings()
+        sampler = {
+            key: value
+            for key, value in dataclasses.asdict(settings).items()
+            if key not in _DISPLAY_SETTINGS
+        }
+        walkers = settings.n_walkers(len(prior.names))
+        identity = run_identity(likelihood, prior, walkers, self.seed)
+        task = identity | {"sampler": sampler, "cross_check": self.cross_check}
+        return json.loads(json.dumps(task))
+
+    def __call__(self, job: tuple[int, str]):
+        """(family, evidence, posterior, nested evidence or None, convergence warnings).
+
+        ``job`` is (position, family): the position picks the progress line.
+        The result, kept in the posterior's attributes, is that of
+        :meth:`_stored`.
+        """
+        position, family = job
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ConvergenceWarning)
-            likelihood = ResidualLikelihood(
-                self.experiments, self.robot, family=family, **self.likelihood_options
-            )
-            prior = Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
+            likelihood, prior = self._model(family)
             # One labelled progress line per family (processes share the terminal).
             settings = dataclasses.replace(
                 self.settings or SamplerSettings(),
                 progress_label=f"{family:>14s}",
-                progress_line=index % self.lines,
+                progress_line=position % self.lines,
             )
             idata = sample_posterior(
                 likelihood, settings, self.seed, prior_overrides=self.prior_overrides
             )
             draws, lp = parameter_draws(idata)
-            rng = np.random.default_rng(None if self.seed is None else [self.seed, index])
+            # Keyed on the family, not on which others are compared: results are reusable.
+            key = list(FAMILIES).index(family)
+            rng = np.random.default_rng(None if self.seed is None else [self.seed, key])
             evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
-            idata.posterior.attrs["evidence"] = json.dumps(evidence.to_dict())
             nested = nested_sampling(likelihood, prior, rng) if self.cross_check else None
         messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
-        return family, evidence, idata, nested, messages
+        idata.posterior.attrs |= {
+            "evidence": json.dumps(evidence.to_dict()),
+            "evidence_nested": json.dumps(nested and nested.to_dict()),
+            "convergence_messages": json.dumps(messages),
+            "task": json.dumps(self.task(family)),
+        }
+        return self._stored(family, idata)
+
+    @staticmethod
+    def _stored(family: str, idata: az.InferenceData):
+        """(family, evidence, posterior, nested or None, messages) from the posterior's attrs."""
+        attrs = idata.posterior.attrs
+        nested = json.loads(attrs["evidence_nested"])
+        return (
+            family,
+            Evidence.from_dict(json.loads(attrs["evidence"])),
+            idata,
+            None if nested is None else Evidence.from_dict(nested),
+            json.loads(attrs["convergence_messages"]),
+        )
+
+    def reuse(self, family: str, path: Path, say: Callable[[str], None]):
+        """The result saved in ``path`` when its task is this one's, else None (saying why)."""
+        if not path.exists():
+            return None
+        try:
+            idata = load_posterior(path)
+            stored = json.loads(idata.posterior.attrs.get("task", "{}"))
+        except (DataError, ValueError) as exc:
+            say(f"  recomputing {family}: {exc}")
+            return None
+        if not stored:
+            say(f"  recomputing {family}: {path} holds no record of its settings")
+            return None
+        task = self.task(family)
+        differ = [part for part in task if stored.get(part) != task[part]]
+        if differ:
+            say(f"  recomputing {family}: {path} was computed with other {', '.join(differ)}")
+            return None
+        say(f"  reusing {family} from {path}")
+        return self._stored(family, idata)
+
+
+@contextlib.contextmanager
+def _processes(run: _FamilyRun, jobs: list, workers: int, single_threaded: bool):
+    """Results of ``run(job)`` as they finish, from ``workers`` spawned processes.
+
+    The workers ignore SIGINT and die quietly on SIGTERM
+    (:func:`bayes_jackal.interrupt.quiet_worker`); on any exception here,
+    an interrupt included, they are terminated at once.
+    """
+    context = multiprocessing.get_context("spawn")
+    before = set(multiprocessing.active_children())
+    with concurrent.futures.ProcessPoolExecutor(
+        workers, mp_context=context, initializer=interrupt.quiet_worker
+    ) as pool:
+        try:
+            # With more families than processes every core stays busy; with as
+            # many, the longest family runs alone at the end and keeps its threads.
+            threads = _single_threaded_children() if single_threaded else contextlib.nullcontext()
+            with threads, interrupt.blocked():  # a signal waits until the workers handle it
+                futures = [pool.submit(run, job) for job in jobs]
+            yield (future.result() for future in concurrent.futures.as_completed(futures))
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            for child in set(multiprocessing.active_children()) - before:
+                child.terminate()
+            raise
 
 
 def compare_families(
@@ -405,6 +511,8 @@ def compare_families(
     on_family: Callable[[str, Evidence, az.InferenceData], None] | None = None,
     cross_check: bool = False,
     processes: int = 1,
+    reuse: Mapping[str, str | Path] | None = None,
+    say: Callable[[str], None] = lambda text: None,
     **likelihood_options,
 ) -> Comparison:
     """Sample each family's posterior and estimate its evidence by bridge sampling.
@@ -431,6 +539,15 @@ def compare_families(
         Also estimate each evidence by :func:`nested_sampling` (slow).
     processes : int
         Families sampled at once, each in its own process (one per core).
+    reuse : mapping of str to path, optional
+        Where finished families were saved (family -> posterior file, e.g.
+        by ``on_family`` in a run that was interrupted). A family whose
+        saved task (data, robot, family, likelihood options, priors,
+        sampler settings but the display, seed, cross-check) equals this
+        one's is read back, not recomputed, and ``on_family`` is not
+        called for it.
+    say : callable
+        Told which families are reused, and why others are recomputed.
     **likelihood_options
         ``channels``, ``shared_noise``, ``sensor``, ``engine`` of
         :class:`ResidualLikelihood`. Without ``channels`` (or with None)
@@ -440,8 +557,9 @@ def compare_families(
     Returns
     -------
     Comparison
-        Each posterior carries its evidence in the ``evidence`` attribute.
-        Families that hit the step cap re-issue their
+        Each posterior carries in its attributes its evidence
+        (``evidence``, ``evidence_nested``), its ``task`` and its
+        ``convergence_messages``. Families that hit the step cap re-issue their
         :class:`~bayes_jackal.inference.ConvergenceWarning` here.
     """
     unknown = [name for name in families if name not in FAMILIES]
@@ -452,8 +570,6 @@ def compare_families(
         )
     if processes < 1:
         raise InputError(f"processes must be >= 1, got {processes}", field="processes")
-    parallel = processes > 1 and len(families) > 1
-    workers = min(processes, len(families)) if parallel else 1
     run = _FamilyRun(
         experiments,
         robot,
@@ -462,35 +578,30 @@ def compare_families(
         prior_overrides,
         cross_check,
         likelihood_options,
-        workers,
     )
     results = {}
-    with contextlib.ExitStack() as stack:
-        if parallel:
-            pool = stack.enter_context(
-                concurrent.futures.ProcessPoolExecutor(
-                    workers, mp_context=multiprocessing.get_context("spawn")
-                )
-            )
-            # With more families than processes every core stays busy; with as
-            # many, the longest family runs alone at the end and keeps its threads.
-            threads = (
-                _single_threaded_children()
-                if len(families) > processes
-                else contextlib.nullcontext()
-            )
-            with threads:
-                futures = [pool.submit(run, i, family) for i, family in enumerate(families)]
-            finished = (future.result() for future in concurrent.futures.as_completed(futures))
-        else:
-            finished = (run(i, family) for i, family in enumerate(families))
+    for family in families:
+        if reuse is not None and family in reuse:
+            reused = run.reuse(family, Path(reuse[family]), say)
+            if reused is not None:
+                results[family] = reused[1:]
+    jobs = list(enumerate(family for family in families if family not in results))
+    parallel = processes > 1 and len(jobs) > 1
+    workers = min(processes, len(jobs)) if parallel else 1
+    run = dataclasses.replace(run, lines=workers)
+    with (
+        _processes(run, jobs, workers, len(jobs) > processes)
+        if parallel
+        else contextlib.nullcontext(map(run, jobs))
+    ) as finished:
         for family, evidence, idata, nested, messages in finished:
-            results[family] = evidence, idata, nested
-            for message in messages:
-                warnings.warn(ConvergenceWarning(f"{family}: {message}"), stacklevel=2)
+            results[family] = evidence, idata, nested, messages
             if on_family is not None:
                 on_family(family, evidence, idata)
-    ordered = [(family, *results[family]) for family in families]
+    for family in families:
+        for message in results[family][3]:
+            warnings.warn(ConvergenceWarning(f"{family}: {message}"), stacklevel=2)
+    ordered = [(family, *results[family][:3]) for family in families]
     return Comparison(
         [e.name for e in experiments],
         {family: evidence for family, evidence, _, _ in ordered},

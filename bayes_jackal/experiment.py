@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ._files import atomic_path
+from ._files import write_hdf5
 from .errors import DataError
 from .physics import CHANNELS
 from .stamps import MIN_SAMPLES, UNIFORM_TOLERANCE
@@ -38,6 +39,20 @@ UNITS = {
     "omega_l": "rad/s",
     "vx": "m/s",
     "vy": "m/s",
+}
+#: Largest magnitude each measured column may have [its units]. They are
+#: generous bounds on what any ground robot logs, there to catch garbage
+#: (a unit slip, a scale of 1e300, an overflowed counter) before it turns
+#: into an MSE of nan or an sd of inf: a gyro reads at most ~35 rad/s (2000
+#: deg/s), a wheel below ~1000 rad/s (10,000 rpm), a ground robot drives
+#: below ~50 m/s. Time is checked against the robot's rate instead
+#: (:func:`check_sample_time`).
+MAGNITUDE_LIMITS = {
+    "yaw_rate": 100.0,
+    "omega_r": 1e4,
+    "omega_l": 1e4,
+    "vx": 100.0,
+    "vy": 100.0,
 }
 #: Series label of experiments that carry none (grid and sigma_h tables).
 UNLABELLED = "unlabelled"
@@ -93,10 +108,14 @@ class Experiment:
     def __post_init__(self) -> None:
         columns = {key: getattr(self, key) for key in (*REQUIRED, *OPTIONAL)}
         columns = {
-            key: np.asarray(value, float) for key, value in columns.items() if value is not None
+            key: _numeric(value, self.source, key)
+            for key, value in columns.items()
+            if value is not None
         }
         _check_values(columns, self.source, lambda i: f"sample {i}")
         _check_uniform(columns["t"], self.source, lambda i: f"sample {i}")
+        if self.steady_window is not None:
+            object.__setattr__(self, "steady_window", _window(self.steady_window, self.source))
         for key, value in columns.items():
             value.setflags(write=False)
             object.__setattr__(self, key, value)
@@ -159,10 +178,39 @@ class Experiment:
         return self if self.steady_window is None else self.window(*self.steady_window)
 
 
+def _numeric(values: object, source: str, field: str) -> np.ndarray:
+    """``values`` as a float array; a DataError when they are not numbers (text, objects)."""
+    array = np.asarray(values)
+    if array.dtype.kind not in "iuf":
+        first = f" (first: {array.ravel()[:1].tolist()[0]!r})" if array.size else ""
+        raise DataError(
+            f"expected numbers, got values of type {array.dtype}{first}",
+            source=source,
+            field=field,
+        )
+    return array.astype(float)
+
+
+def _window(window: object, source: str) -> tuple[float, float]:
+    """A steady window as (start, stop) [s]: two finite numbers, start < stop."""
+    values = np.ravel(np.asarray(window, dtype=object))
+    try:
+        start, stop = (float(v) for v in values)
+    except (TypeError, ValueError):
+        start = stop = math.nan
+    if not (math.isfinite(start) and math.isfinite(stop) and start < stop):
+        raise DataError(
+            f"expected [start, stop] with start < stop [s], got {np.asarray(window).tolist()!r}",
+            source=source,
+            field="steady_window",
+        )
+    return start, stop
+
+
 def _check_values(
     columns: dict[str, np.ndarray], source: str, row_name: Callable[[int], str]
 ) -> None:
-    """Check lengths and finiteness; ``row_name`` labels sample i."""
+    """Check lengths, finiteness and magnitudes; ``row_name`` labels sample i."""
     lengths = {key: value.shape for key, value in columns.items()}
     if len(set(lengths.values())) != 1 or len(columns["t"].shape) != 1:
         raise DataError(f"columns differ in length or are not 1-D: {lengths}", source=source)
@@ -175,6 +223,16 @@ def _check_values(
         if bad.size:
             raise DataError(
                 f"{values[bad[0]]} at {row_name(bad[0])} ({bad.size} non-finite values)",
+                source=source,
+                field=key,
+            )
+        limit = MAGNITUDE_LIMITS.get(key, math.inf)
+        bad = np.flatnonzero(np.abs(values) >= limit)
+        if bad.size:
+            raise DataError(
+                f"{values[bad[0]]:.6g} {UNITS[key]} at {row_name(bad[0])} ({bad.size} values): "
+                f"magnitudes must be below {limit:g} {UNITS[key]}, beyond any ground robot "
+                "(wrong units or a corrupt file?)",
                 source=source,
                 field=key,
             )
@@ -225,9 +283,7 @@ def write_netcdf(experiment: Experiment, path: str | Path) -> Path:
     dataset = xr.Dataset(
         data, coords={"time": ("time", experiment.t, {"units": "s"})}, attrs=attrs
     )
-    with atomic_path(path) as temporary:
-        dataset.to_netcdf(temporary, engine="h5netcdf")
-    return path
+    return write_hdf5(dataset, path)
 
 
 def read_netcdf(path: str | Path) -> Experiment:
@@ -257,19 +313,34 @@ def read_netcdf(path: str | Path) -> Experiment:
     missing = [key for key in REQUIRED[1:] if key not in dataset]
     if missing:
         raise DataError(f"missing variable(s) {missing}", source=source, field=missing[0])
-    window = dataset.attrs.get("steady_window")
     return Experiment(
         t=dataset["time"].values,
         **{key: dataset[key].values for key in (*REQUIRED[1:], *OPTIONAL) if key in dataset},
         name=str(dataset.attrs.get("name") or path.stem),
         series=str(dataset.attrs.get("series", "")) or None,
-        steady_window=None if window is None else (float(window[0]), float(window[1])),
-        truth=json.loads(dataset.attrs.get("truth", "null")),
+        steady_window=dataset.attrs.get("steady_window"),
+        truth=_json_attribute(dataset.attrs, "truth", source, null=True),
         truth_arrays={
-            key.removeprefix("truth_"): dataset[key].values
+            key.removeprefix("truth_"): _numeric(dataset[key].values, source, key)
             for key in dataset.data_vars
             if key.startswith("truth_")
         },
-        provenance=json.loads(dataset.attrs.get("provenance", "{}")),
+        provenance=_json_attribute(dataset.attrs, "provenance", source),
         source=source,
     )
+
+
+def _json_attribute(attrs: dict, key: str, source: str, *, null: bool = False) -> dict | None:
+    """A JSON-object attribute of an experiment file, decoded (absent: null or {})."""
+    text = attrs.get(key, "null" if null else "{}")
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError):
+        value = text  # not JSON text: refused below
+    if not (isinstance(value, dict) or (null and value is None)):
+        raise DataError(
+            f"expected a JSON object{' or null' if null else ''}, got {str(text)[:80]!r}",
+            source=source,
+            field=key,
+        )
+    return value

@@ -41,6 +41,7 @@ s_c = sigma_c A / (Ad - 1) [channel units / s] is its sd; ``Pi`` uses s_c.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -61,7 +62,10 @@ from .posterior import (
 )
 
 __all__ = [
+    "AUTO_ORDER",
+    "MAX_CONDITION",
     "PRIOR_FORMAT",
+    "allowed_orders",
     "autocorrelation_derivatives",
     "export_prior",
     "temporal_covariance",
@@ -69,7 +73,15 @@ __all__ = [
 ]
 
 PRIOR_FORMAT = "bayes_jackal.prior/1"
-#: Highest embedding order with a defined V, per family (see the module doc).
+#: Largest condition number of the exported precision: inverting V, and
+#: any computation a filter does with Pi in double precision, loses about
+#: log10(condition) of its 16 significant digits, so 1e12 leaves 4. Where
+#: V exists the bound is what limits the order: for the Gaussian family the
+#: condition grows ~1000-fold per order at the thesis' sigma_h = 0.047 s
+#: (order 4: 5e11, order 5: 1e15), so order 99 is noise or NaN.
+MAX_CONDITION = 1e12
+#: Highest embedding order with a defined V, per family (see the module doc);
+#: None: no limit but :data:`MAX_CONDITION` (:func:`allowed_orders`).
 MAX_ORDER = {
     "gaussian": None,
     "triangular": 1,
@@ -77,6 +89,10 @@ MAX_ORDER = {
     "moving-average": 0,
     "white": 0,
 }
+#: The order of ``export_prior(order=None)`` (``analyse``'s prior), where
+#: the family and :data:`MAX_CONDITION` allow it: position, velocity and
+#: acceleration of the noise, the embedding DEM filters commonly use.
+AUTO_ORDER = 2
 #: Posterior draws written beside the averaged matrices.
 MAX_DRAWS = 1000
 
@@ -92,6 +108,46 @@ def _check_order(family: str, order: int) -> None:
             f"order {limit}, got {order}",
             field="order",
         )
+
+
+def _temporal_precision(
+    family: str, width: np.ndarray, continuous_sd: np.ndarray, order: int
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """V, inv(V) per draw and channel, and the condition number of Pi at ``order``.
+
+    Pi's block of channel c is the draws' mean of inv(V_c) / s_c^2; the
+    condition number is the largest over channels, infinite when any
+    number is not finite.
+    """
+    with np.errstate(all="ignore"):  # overflow is caught below, as a non-finite matrix
+        V = temporal_covariance(family, width, order)  # (draws, channels, P+1, P+1)
+        try:
+            S = np.linalg.inv(V)
+        except np.linalg.LinAlgError:  # exactly singular
+            return V, np.full_like(V, math.nan), math.inf
+        blocks = (S / continuous_sd[..., None, None] ** 2).mean(axis=0)
+        finite = np.isfinite(V).all() and np.isfinite(S).all() and np.isfinite(blocks).all()
+        condition = float(np.linalg.cond(blocks).max()) if finite else math.inf
+    return V, S, condition if math.isfinite(condition) else math.inf
+
+
+def allowed_orders(family: str, width: np.ndarray, continuous_sd: np.ndarray) -> list[int]:
+    """The embedding orders 0, 1, .. whose precision is finite and well conditioned.
+
+    An order is allowed when the family's noise has that many derivatives
+    (:data:`MAX_ORDER`) and Pi's condition number is below
+    :data:`MAX_CONDITION` at these draws of the width [s] and the
+    continuous-time sd ``continuous_sd``, both shaped (draws, channels).
+    The condition grows with the order, so the orders are counted up to the
+    first one that fails.
+    """
+    limit = MAX_ORDER[get_family(family).name]
+    orders = []
+    while limit is None or len(orders) <= limit:
+        if not _temporal_precision(family, width, continuous_sd, len(orders))[2] < MAX_CONDITION:
+            break
+        orders.append(len(orders))
+    return orders
 
 
 def autocorrelation_derivatives(family: str, width: np.ndarray, order: int) -> np.ndarray:
@@ -140,7 +196,9 @@ def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarra
     return (-1.0) ** i * derivatives[..., i + j]
 
 
-def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = None) -> dict:
+def export_prior(
+    idata: az.InferenceData, order: int | None = 2, source: str | None = None
+) -> dict:
     """The Active Inference prior of a posterior, as a JSON-ready dict.
 
     Parameters
@@ -148,8 +206,10 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     idata : arviz.InferenceData
         A posterior written by ``bayes-jackal sample`` (shared noise: one
         noise group per channel).
-    order : int
+    order : int or None
         Embedding order P of the generalised coordinates (P + 1 of them).
+        None: the highest order :func:`allowed_orders` gives for this
+        posterior, at most :data:`AUTO_ORDER`.
     source : str, optional
         Where the posterior was read from.
 
@@ -167,7 +227,8 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
     family = str(attrs["family"])
     channels = json.loads(attrs["channels"])
     names = json.loads(attrs["parameter_names"])
-    _check_order(family, order)
+    if order is not None:
+        _check_order(family, order)
     width_name = get_family(family).width_name
     likelihood = posterior_likelihood(idata)
     if len(likelihood.noise_groups) != len(channels):
@@ -195,8 +256,19 @@ def export_prior(idata: az.InferenceData, order: int = 2, source: str | None = N
         [likelihood.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
     )
     continuous_sd = sigma_c * gain
-    V = temporal_covariance(family, width, order)  # (draws, channels, P+1, P+1)
-    S = np.linalg.inv(V)
+    if order is None:
+        order = min(AUTO_ORDER, max(allowed_orders(family, width, continuous_sd), default=0))
+    V, S, condition = _temporal_precision(family, width, continuous_sd, order)
+    if not condition < MAX_CONDITION:
+        allowed = allowed_orders(family, width, continuous_sd)
+        raise InputError(
+            f"order {order} gives a precision with condition number {condition:.3g} (above "
+            f"{MAX_CONDITION:.0e}: it would keep fewer than 4 significant digits) for this "
+            f"posterior's {family} noise; the orders allowed here are "
+            f"{', '.join(map(str, allowed)) or 'none'}",
+            source=source,
+            field="order",
+        )
     n = len(channels)
     precision = np.einsum("dcij,ce->dicje", S / continuous_sd[..., None, None] ** 2, np.eye(n))
     precision = precision.reshape(len(draws), (order + 1) * n, (order + 1) * n)

@@ -15,9 +15,12 @@ search and the walkers' start in :mod:`bayes_jackal.map_search`.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
+import math
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -25,9 +28,12 @@ import emcee
 import h5py
 import numpy as np
 
-from .errors import InputError
+from . import interrupt
+from ._files import check_space
+from .errors import InputError, OutputError
 from .likelihood import ResidualLikelihood
 from .map_search import find_map, laplace_walkers
+from .outputs import OutputLock
 from .posterior import az, build_inference_data
 from .priors import LogPosterior, Prior
 from .progress import Progress
@@ -36,6 +42,8 @@ __all__ = [
     "BufferedHDFBackend",
     "ConvergenceWarning",
     "SamplerSettings",
+    "chain_path",
+    "run_identity",
     "sample_posterior",
 ]
 
@@ -83,11 +91,31 @@ class SamplerSettings:
     progress_label: str = "emcee"
     progress_line: int = 0
 
+    def __post_init__(self) -> None:
+        counts = {
+            "walkers": (self.walkers, 0),
+            "max_steps": (self.max_steps, 1),
+            "check_every": (self.check_every, 1),
+            "design_points": (self.design_points, 16),
+        }
+        for name, (value, least) in counts.items():
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise InputError(f"must be an integer >= {least}, got {value!r}", field=name)
+        for name in ("autocorr_multiple", "tau_rtol"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise InputError(f"must be a finite number > 0, got {value!r}", field=name)
+
     def n_walkers(self, ndim: int) -> int:
         walkers = self.walkers or max(32, 4 * ndim)
         if walkers < 2 * ndim:
             raise InputError(f"need at least {2 * ndim} walkers, got {walkers}", field="walkers")
         return walkers + walkers % 2
+
+
+def chain_path(posterior: str | Path) -> Path:
+    """Where ``sample`` keeps the chain of a posterior file: ``p.nc`` -> ``p.chain.h5``."""
+    return Path(posterior).with_suffix(".chain.h5")
 
 
 def _moves() -> list:
@@ -98,29 +126,49 @@ def _moves() -> list:
     return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
 
 
-def _fingerprint(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> str:
-    """Hash of everything that defines a chain, to refuse resuming a different run."""
-    digest = hashlib.sha256()
+#: Robot fields that do not change a chain: names and where the profile came from.
+_ROBOT_LABELS = ("name", "source", "topics", "wheels")
+
+
+def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> dict:
+    """What defines a chain, part by part (JSON-ready; data and robot as hashes).
+
+    Keys ``data``, ``robot``, ``family``, ``likelihood``, ``priors``,
+    ``walkers`` and ``seed``: a resumed or reused run must match on all.
+    """
+    data = hashlib.sha256()
     for experiment in likelihood.experiments:
         for values in (experiment.t, experiment.yaw_rate, experiment.omega_r, experiment.omega_l):
-            digest.update(np.ascontiguousarray(values).tobytes())
+            data.update(np.ascontiguousarray(values).tobytes())
         for values in (experiment.vx, experiment.vy):
             if values is not None:
-                digest.update(np.ascontiguousarray(values).tobytes())
-    settings = {
+                data.update(np.ascontiguousarray(values).tobytes())
+        # The window the likelihood reads (``steady``): another window is other data.
+        data.update(json.dumps(experiment.steady_window).encode())
+    robot = {
+        key: value for key, value in asdict(likelihood.robot).items() if key not in _ROBOT_LABELS
+    }
+    return {
+        "data": data.hexdigest(),
+        "robot": hashlib.sha256(json.dumps(robot, sort_keys=True).encode()).hexdigest(),
         "family": likelihood.family,
-        "channels": likelihood.channels,
-        "shared_noise": likelihood.shared_noise,
-        "sensor": likelihood.sensor,
-        "engine": likelihood.engine,
-        "steady": likelihood.steady,
-        "low": prior.low.tolist(),
-        "high": prior.high.tolist(),
+        "likelihood": {
+            "channels": list(likelihood.channels),
+            "shared_noise": likelihood.shared_noise,
+            "sensor": likelihood.sensor,
+            "engine": likelihood.engine,
+            "steady": likelihood.steady,
+        },
+        "priors": {"low": prior.low.tolist(), "high": prior.high.tolist()},
         "walkers": walkers,
         "seed": seed,
     }
-    digest.update(json.dumps(settings, sort_keys=True).encode())
-    return digest.hexdigest()
+
+
+def _fingerprint(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> str:
+    """Hash of everything that defines a chain, to refuse resuming a different run."""
+    identity = run_identity(likelihood, prior, walkers, seed)
+    return hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
 
 
 class BufferedHDFBackend(emcee.backends.HDFBackend):
@@ -132,12 +180,58 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
     convergence check and on any exit, a KeyboardInterrupt included, so an
     interrupted run keeps every completed step (a hard kill can lose the
     steps since the last check).
+
+    A full disk never reaches HDF5, which cannot recover from a failed
+    write: each write is first checked against the free space and the
+    file-size limit (:func:`bayes_jackal._files.check_space`) and refused
+    with an :class:`~bayes_jackal.errors.OutputError` naming the chain file,
+    which is left as it was: the steps stored so far resume. The refused
+    batch (at most ``flush_every`` steps) is dropped.
     """
 
     def __init__(self, filename: str, flush_every: int):
         super().__init__(filename, name="mcmc")
         self.flush_every = flush_every
         self._pending: list[tuple] = []
+        self._chunk_bytes: dict[str, tuple[int, int]] = {}
+
+    @contextlib.contextmanager
+    def writing(self, steps: int = 0):
+        """Check the room for ``steps`` more steps; make a failed write an OutputError."""
+        path = Path(self.filename)
+        advice = (
+            "; the chain file keeps the steps stored so far and resumes: free some space "
+            "and run the same command again"
+        )
+        check_space(path, self._bytes_needed(steps), grows=True, advice=advice)
+        try:
+            yield
+        except OSError as exc:
+            if isinstance(exc, OutputError):
+                raise
+            raise OutputError.from_os_error(path, exc, advice=advice) from None
+
+    def _bytes_needed(self, steps: int) -> int:
+        """The bytes ``steps`` more steps add: the chunks they allocate, whole."""
+        if not steps:
+            return 0
+        with self.open("r") as stored:
+            start = int(stored[self.name].attrs["iteration"])
+            if not self._chunk_bytes:
+                for name in ("chain", "log_prob"):
+                    dataset = stored[self.name][name]
+                    chunks = dataset.chunks or dataset.shape
+                    across = np.prod(np.ceil(np.divide(dataset.shape[1:], chunks[1:])))
+                    chunk = dataset.dtype.itemsize * int(np.prod(chunks))
+                    self._chunk_bytes[name] = (chunks[0], int(across) * chunk)
+        return sum(
+            (-(-(start + steps) // rows) - -(-start // rows)) * band
+            for rows, band in self._chunk_bytes.values()
+        )
+
+    def grow(self, ngrow, blobs) -> None:
+        with self.writing():
+            super().grow(ngrow, blobs)
 
     @property
     def iteration(self) -> int:
@@ -168,18 +262,18 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
         """Write the buffered steps to the file."""
         if not self._pending:
             return
-        coords, log_prob, accepted, _ = zip(*self._pending, strict=True)
-        with self.open("a") as stored:
+        pending, self._pending = self._pending, []  # dropped if refused: the file stays as it was
+        coords, log_prob, accepted, _ = zip(*pending, strict=True)
+        with self.writing(len(pending)), self.open("a") as stored:
             group = stored[self.name]
             start = int(group.attrs["iteration"])
             stop = start + len(coords)
             group["chain"][start:stop] = np.stack(coords)
             group["log_prob"][start:stop] = np.stack(log_prob)
             group["accepted"][:] += np.sum(accepted, axis=0)
-            for i, value in enumerate(self._pending[-1][3]):
+            for i, value in enumerate(pending[-1][3]):
                 group.attrs[f"random_state_{i}"] = value
             group.attrs["iteration"] = stop
-        self._pending.clear()
 
 
 def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush_every: int):
@@ -203,39 +297,73 @@ def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush
                 "seed); remove it or choose another output",
                 source=str(path),
             )
-    backend.reset(walkers, ndim)
-    with h5py.File(path, "a") as stored:
-        stored.attrs["fingerprint"] = fingerprint
+    with backend.writing():
+        backend.reset(walkers, ndim)
+        with h5py.File(path, "a") as stored:
+            stored.attrs["fingerprint"] = fingerprint
     return backend
+
+
+def _autocorr(sampler: emcee.EnsembleSampler, steps: int) -> np.ndarray:
+    """Integrated autocorrelation time of the chain's first ``steps`` steps [steps]."""
+    return emcee.autocorr.integrated_time(sampler.get_chain()[:steps], tol=0)
+
+
+def _passes(tau: np.ndarray, previous_tau: np.ndarray, steps: int, settings) -> bool:
+    """emcee's criterion: longer than the multiple of tau, and tau settled."""
+    long_enough = np.all(tau * settings.autocorr_multiple < steps)
+    return bool(long_enough and np.all(np.abs(previous_tau - tau) < settings.tau_rtol * tau))
+
+
+def _replay(sampler: emcee.EnsembleSampler, settings: SamplerSettings) -> tuple[np.ndarray, bool]:
+    """The convergence monitor where a stored chain stopped: the last check's tau and verdict.
+
+    Both follow from the chain itself, so a resumed run continues the
+    uninterrupted one's test bit for bit, wherever it was stopped.
+    """
+    inf = np.full(sampler.ndim, np.inf)
+    last = sampler.iteration - sampler.iteration % settings.check_every
+    if last == 0:
+        return inf, False
+    tau = _autocorr(sampler, last)
+    earlier = last - settings.check_every
+    previous_tau = _autocorr(sampler, earlier) if earlier > 0 else inf
+    return tau, _passes(tau, previous_tau, last, settings)
 
 
 def _run_until_converged(
     sampler: emcee.EnsembleSampler, start, settings: SamplerSettings
 ) -> tuple[bool, np.ndarray]:
-    """Advance the chain until the autocorrelation criterion holds or the cap is reached."""
-    previous_tau = np.full(sampler.ndim, np.inf)
+    """Advance the chain until the autocorrelation criterion holds or the cap is reached.
+
+    emcee steps inside :func:`bayes_jackal.interrupt.deferred` (its catch-all
+    handlers must not see an interrupt); a signal stops the run between steps.
+    """
+    previous_tau, converged = _replay(sampler, settings)
     remaining = settings.max_steps - sampler.iteration
-    tau = previous_tau
-    if remaining > 0:
-        with Progress(
-            settings.max_steps,
-            settings.progress_label,
-            enabled=settings.progress,
-            position=settings.progress_line,
-            initial=sampler.iteration,
-        ) as progress:
+    if remaining > 0 and not converged:
+        with (
+            Progress(
+                settings.max_steps,
+                settings.progress_label,
+                enabled=settings.progress,
+                position=settings.progress_line,
+                initial=sampler.iteration,
+            ) as progress,
+            interrupt.deferred(),
+        ):
             for _ in sampler.sample(start, iterations=remaining):
+                interrupt.check()
                 progress.update()
                 if sampler.iteration % settings.check_every:
                     continue
-                tau = sampler.get_autocorr_time(tol=0)
+                tau = _autocorr(sampler, sampler.iteration)
                 progress.update(0, tau=f"{np.max(tau):.0f}")
-                long_enough = np.all(tau * settings.autocorr_multiple < sampler.iteration)
-                if long_enough and np.all(np.abs(previous_tau - tau) < settings.tau_rtol * tau):
+                if _passes(tau, previous_tau, sampler.iteration, settings):
                     return True, tau
                 previous_tau = tau
-    tau = sampler.get_autocorr_time(tol=0)
-    converged = bool(np.all(tau * settings.autocorr_multiple < sampler.iteration))
+    tau = _autocorr(sampler, sampler.iteration)
+    converged = converged or bool(np.all(tau * settings.autocorr_multiple < sampler.iteration))
     return converged, tau
 
 
@@ -245,6 +373,8 @@ def sample_posterior(
     seed: int | None = None,
     chain_file: str | Path | None = None,
     prior_overrides: dict | None = None,
+    *,
+    say: Callable[[str], None] | None = None,
 ) -> az.InferenceData:
     """Sample the posterior of a residual likelihood with emcee.
 
@@ -259,6 +389,8 @@ def sample_posterior(
         HDF5 file of the chain; a run with the same file and settings resumes.
     prior_overrides : dict, optional
         (low, high) per base parameter name, over the profile's ranges.
+    say : callable, optional
+        Told "resuming <chain_file> at step N" when a stored chain resumes.
 
     Returns
     -------
@@ -275,45 +407,54 @@ def sample_posterior(
     ndim = len(prior.names)
     walkers = settings.n_walkers(ndim)
     rng = np.random.default_rng(seed)
-    backend = _backend(
-        None if chain_file is None else Path(chain_file),
-        _fingerprint(likelihood, prior, walkers, seed),
-        walkers,
-        ndim,
-        settings.check_every,
-    )
-    sampler = emcee.EnsembleSampler(
-        walkers, ndim, log_posterior, vectorize=True, backend=backend, moves=_moves()
-    )
-    if backend.iteration == 0:
-        centre = find_map(log_posterior, rng, settings.design_points)
-        initial = laplace_walkers(log_posterior, centre, walkers, rng)
-        moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
-        start = emcee.State(initial, random_state=moves_state)
-    else:
-        start = sampler.get_last_sample()
-    try:
-        converged, tau = _run_until_converged(sampler, start, settings)
-    finally:
-        if isinstance(backend, BufferedHDFBackend):
-            backend.flush()
-    if not converged:
-        warnings.warn(
-            ConvergenceWarning(
-                f"NOT CONVERGED: {sampler.iteration} steps are fewer than "
-                f"{settings.autocorr_multiple:g} autocorrelation times (max tau "
-                f"{np.max(tau):.0f} steps); raise max_steps or resume the run"
-            ),
-            stacklevel=2,
+    # One run per chain: a second on the same file is refused, naming this one.
+    lock = contextlib.nullcontext() if chain_file is None else OutputLock(chain_file)
+    with lock:
+        backend = _backend(
+            None if chain_file is None else Path(chain_file),
+            _fingerprint(likelihood, prior, walkers, seed),
+            walkers,
+            ndim,
+            settings.check_every,
         )
-    return _inference_data(sampler, log_posterior, tau, converged, settings, seed)
+        sampler = emcee.EnsembleSampler(
+            walkers, ndim, log_posterior, vectorize=True, backend=backend, moves=_moves()
+        )
+        if backend.iteration == 0:
+            centre = find_map(log_posterior, rng, settings.design_points)
+            initial = laplace_walkers(log_posterior, centre, walkers, rng)
+            moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
+            start = emcee.State(initial, random_state=moves_state)
+        else:
+            start = sampler.get_last_sample()
+            if say is not None:
+                say(f"resuming {chain_file} at step {backend.iteration}")
+        try:
+            converged, tau = _run_until_converged(sampler, start, settings)
+        finally:
+            if isinstance(backend, BufferedHDFBackend):
+                with interrupt.deferred():  # a batch is written whole or not at all
+                    backend.flush()
+        if not converged:
+            warnings.warn(
+                ConvergenceWarning(
+                    f"NOT CONVERGED: {sampler.iteration} steps are fewer than "
+                    f"{settings.autocorr_multiple:g} autocorrelation times (max tau "
+                    f"{np.max(tau):.0f} steps); raise max_steps or resume the run"
+                ),
+                stacklevel=2,
+            )
+        return _inference_data(sampler, log_posterior, tau, converged, settings, seed)
 
 
 def _inference_data(sampler, log_posterior, tau, converged, settings, seed) -> az.InferenceData:
     """Keep the chain after 2 tau of burn-in, thinned by tau / 2, with its diagnostics."""
     names = log_posterior.prior.names
-    discard = min(int(np.ceil(2 * np.max(tau))), sampler.iteration // 2)
-    thin = max(1, int(np.min(tau) / 2))
+    # A chain too short to estimate tau (NaN) keeps its second half, unthinned.
+    estimated = bool(np.all(np.isfinite(tau)))
+    half = sampler.iteration // 2
+    discard = min(int(np.ceil(2 * np.max(tau))), half) if estimated else half
+    thin = max(1, int(np.min(tau) / 2)) if estimated else 1
     kept = sampler.iteration - discard
     diagnostics = {
         "converged": converged,

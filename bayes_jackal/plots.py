@@ -14,6 +14,7 @@ from matplotlib.axes import Axes
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
+from ._files import atomic_path
 from .criticism import criticise
 from .gridsearch import GridResult
 from .noise import autocorrelation_bounds, sample_autocorrelation, spectrum
@@ -89,8 +90,10 @@ def plot_grid(
 def save_grid_plot(result: GridResult, path: str | Path, dpi: int = 120) -> Path:
     """Save :func:`plot_grid` of the total surface (png, svg, pdf by the suffix)."""
     fig, _ = plot_grid(result)
-    fig.savefig(path, dpi=dpi)
-    return Path(path)
+    path = Path(path)
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary, dpi=dpi, format=path.suffix.lstrip(".").lower() or None)
+    return path
 
 
 #: Credible band drawn around posterior-predictive medians (the HDI mass).

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._files import atomic_path
+from ._files import write_hdf5
 from .errors import DataError
 from .experiment import REQUIRED, Experiment
 from .kernels import get_family
@@ -131,6 +131,10 @@ def build_inference_data(
         likelihood, float(np.median(d_lat)), float(np.median(d_long))
     )
     log_likelihood = np.swapaxes(lp - prior.log_density(chain), 0, 1)
+    # C order, as a saved and loaded file (or a worker's pickled result) has
+    # it: numpy's sums depend on the layout in the last bits, and a resumed
+    # run must summarise to the same numbers as an uninterrupted one.
+    posterior = {name: np.ascontiguousarray(values) for name, values in posterior.items()}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         # Walkers are chains; a short run may keep fewer draws than walkers,
@@ -138,7 +142,10 @@ def build_inference_data(
         warnings.filterwarnings("ignore", message="More chains", category=UserWarning)
         idata = az.from_dict(
             posterior=posterior,
-            sample_stats={"lp": np.swapaxes(lp, 0, 1), "log_likelihood_total": log_likelihood},
+            sample_stats={
+                "lp": np.ascontiguousarray(np.swapaxes(lp, 0, 1)),
+                "log_likelihood_total": np.ascontiguousarray(log_likelihood),
+            },
             observed_data=observed,
             constant_data=constant,
             coords=coords,
@@ -422,10 +429,7 @@ def model_states(idata: az.InferenceData, index: int, count: int = 50) -> np.nda
 
 def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:
     """Write a posterior as NetCDF, atomically."""
-    path = Path(path)
-    with atomic_path(path) as temporary:
-        idata.to_netcdf(str(temporary))
-    return path
+    return write_hdf5(idata, path)
 
 
 def load_posterior(path: str | Path) -> az.InferenceData:

@@ -28,7 +28,7 @@ from matplotlib.figure import Figure
 
 from . import __version__, plots
 from ._files import atomic_path
-from .errors import InputError
+from .errors import InputError, each_input, refuse
 from .physics import CHANNELS, discrete_matrices
 from .posterior import (
     az,
@@ -39,7 +39,13 @@ from .posterior import (
     summarize,
 )
 
-__all__ = ["FIGURE_FORMATS", "collect_posteriors", "render_report", "write_report"]
+__all__ = [
+    "FIGURE_FORMATS",
+    "read_posteriors",
+    "render_report",
+    "save_report",
+    "write_report",
+]
 
 FIGURE_FORMATS = ("png", "svg")
 #: Resolution of the embedded and saved PNGs [dots per inch].
@@ -76,28 +82,48 @@ window.addEventListener('load', function () {
 """
 
 
-def collect_posteriors(paths: list[str | Path]) -> list[Path]:
-    """Posterior files from paths and folders (a folder's ``*.nc`` files, sorted).
+def _posterior_files(path: str | Path) -> list[Path]:
+    """The posterior file ``path``, or a folder's ``*.nc`` files, sorted.
 
     Raises
     ------
     InputError
         For a missing path or a folder without ``.nc`` files.
     """
-    files: list[Path] = []
-    for path in map(Path, paths):
-        if path.is_dir():
-            found = sorted(path.glob("*.nc"))
-            if not found:
-                raise InputError("folder holds no posterior files (*.nc)", source=str(path))
-            files += found
-        elif path.exists():
-            files.append(path)
-        else:
-            raise InputError("no such file or folder", source=str(path))
-    if not files:
-        raise InputError("no posterior files given", field="POSTERIOR")
-    return files
+    path = Path(path)
+    if path.is_dir():
+        found = sorted(path.glob("*.nc"))
+        if not found:
+            raise InputError("folder holds no posterior files (*.nc)", source=str(path))
+        return found
+    if not path.exists():
+        raise InputError("no such file or folder", source=str(path))
+    return [path]
+
+
+def read_posteriors(
+    paths: list[str | Path], *, on_failure: Callable[[str, Exception], None] | None = None
+) -> tuple[list[tuple[Path, az.InferenceData]], dict[str, str]]:
+    """Read every posterior of files and folders on its own, past bad ones.
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Posterior files, or folders of them (their ``*.nc`` files, sorted).
+    on_failure : callable, optional
+        ``on_failure(path, exception)``, called as each bad path or file is met.
+
+    Returns
+    -------
+    posteriors : list of (Path, InferenceData)
+    failed : dict of str to str
+        Why each missing path, empty folder or unreadable file cannot be used
+        (the reason names it), by path.
+    """
+    found, failed = each_input(paths, _posterior_files, on_failure=on_failure)
+    files = [file for group in found.values() for file in group]
+    loaded, unreadable = each_input(files, load_posterior, on_failure=on_failure)
+    return [(Path(path), idata) for path, idata in loaded.items()], failed | unreadable
 
 
 def _slug(text: str) -> str:
@@ -483,10 +509,27 @@ def write_report(
     Raises
     ------
     InputError
-        For missing files, empty folders, and files that are not posteriors.
+        Naming every missing file, empty folder and file that is not a
+        posterior (:func:`read_posteriors`).
     """
+    posteriors, failed = read_posteriors(paths)
+    refuse(failed, len(paths))
+    return save_report(posteriors, out, formats, lags)
+
+
+def save_report(
+    posteriors: list[tuple[Path, az.InferenceData]],
+    out: str | Path,
+    formats: tuple[str, ...] = FIGURE_FORMATS,
+    lags: int = 30,
+) -> Path:
+    """Write the HTML report of posteriors already read (:func:`read_posteriors`).
+
+    Parameters and return value as :func:`write_report`.
+    """
+    if not posteriors:
+        raise InputError("no posterior files given", field="POSTERIOR")
     out = Path(out)
-    posteriors = [(path, load_posterior(path)) for path in collect_posteriors(paths)]
     figures = _Figures(out.parent / f"{out.stem}_figures", formats)
     figures.folder.mkdir(parents=True, exist_ok=True)
     text = render_report(posteriors, figures, lags)

@@ -34,7 +34,10 @@ CONVERSIONS = ("ros", "thesis")
 
 _BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radius")
 _DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
+#: The profile schema this version reads (``schema_version``, optional).
+SCHEMA_VERSION = 1
 _PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
+_WHEEL_SIDES = ("right", "left")
 #: Prior ranges: uniform for the damping [N s/m], log-uniform for the kernel
 #: width [s] and the noise standard deviations [channel units]. sigma_n is
 #: kept away from zero (docs/design.md §4).
@@ -50,6 +53,17 @@ _DEFAULT_TOPICS = {
     "joint_states": "/joint_states",
     "cmd_vel": "/cmd_vel",
     "pose": "/mocap_node/Jackal/pose",
+}
+#: The keys a profile may hold: top level, then per table. Anything else is
+#: refused, so that a misspelt key (``d_latt``) is not silently ignored.
+_TOP_KEYS = ("schema_version", "name", "description")
+_TABLE_KEYS = {
+    "body": _BODY_KEYS,
+    "diff_drive": (*_DIFF_DRIVE_KEYS, "conversion"),
+    "sampling": ("rate",),
+    "priors": _PRIOR_KEYS,
+    "topics": tuple(_DEFAULT_TOPICS),
+    "wheels": _WHEEL_SIDES,
 }
 
 
@@ -139,8 +153,9 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     Raises
     ------
     ProfileError
-        When the file cannot be read or parsed, a constant is missing, not a
-        number, not finite or not positive, or a prior range is empty.
+        When the file cannot be read or parsed, a key is unknown, a value has
+        the wrong type, a constant is missing, not a number, not finite or
+        not positive, or a prior range is empty.
     """
     path = Path(path) if path is not None else default_profile_path()
     source = str(path)
@@ -152,23 +167,42 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ProfileError(f"not a valid TOML text file ({exc})", source=source) from None
 
+    _known_keys(doc, (*_TOP_KEYS, *_TABLE_KEYS), "", source)
+    _text(doc, "", "description", source, "-")
+    if doc.get("schema_version", SCHEMA_VERSION) != SCHEMA_VERSION:
+        raise ProfileError(
+            f"this version reads schema {SCHEMA_VERSION}, got {doc['schema_version']!r}",
+            source=source,
+            field="schema_version",
+        )
     body = _table(doc, "body", source)
     diff_drive = _table(doc, "diff_drive", source)
     sampling = _table(doc, "sampling", source, required=False)
     values = {key: _number(body, "body", key, source) for key in _BODY_KEYS}
     values |= {key: _number(diff_drive, "diff_drive", key, source) for key in _DIFF_DRIVE_KEYS}
     profile = RobotProfile(
-        name=str(doc.get("name", path.stem)),
-        conversion=str(diff_drive.get("conversion", "ros")),
+        name=_text(doc, "", "name", source, path.stem),
+        conversion=_text(diff_drive, "diff_drive", "conversion", source, "ros"),
         rate=_number(sampling, "sampling", "rate", source) if "rate" in sampling else 72.0,
         priors=_priors(_table(doc, "priors", source, required=False), source),
-        topics={**_DEFAULT_TOPICS, **_table(doc, "topics", source, required=False)},
+        topics=_topics(_table(doc, "topics", source, required=False), source),
         wheels=_wheels(_table(doc, "wheels", source, required=False), source),
         source=source,
         **values,
     )
     _validate(profile)
     return profile
+
+
+def _known_keys(table: dict, allowed: tuple[str, ...], where: str, source: str) -> None:
+    """Refuse a key not in ``allowed``, naming it and listing the allowed ones."""
+    unknown = [key for key in table if key not in allowed]
+    if unknown:
+        raise ProfileError(
+            f"unknown key {unknown[0]!r}; the keys allowed here are {list(allowed)}",
+            source=source,
+            field=f"{where}.{unknown[0]}" if where else unknown[0],
+        )
 
 
 def _table(doc: dict, name: str, source: str, required: bool = True) -> dict:
@@ -180,7 +214,27 @@ def _table(doc: dict, name: str, source: str, required: bool = True) -> dict:
         raise ProfileError(
             f"expected a table [{name}], got {doc[name]!r}", source=source, field=name
         )
+    _known_keys(doc[name], _TABLE_KEYS[name], name, source)
     return doc[name]
+
+
+def _text(table: dict, table_name: str, key: str, source: str, default: str) -> str:
+    """A non-empty string value, or ``default`` when the key is absent."""
+    value = table.get(key, default)
+    if not (isinstance(value, str) and value):
+        raise ProfileError(
+            f"expected a non-empty string, got {value!r}",
+            source=source,
+            field=f"{table_name}.{key}" if table_name else key,
+        )
+    return value
+
+
+def _topics(table: dict, source: str) -> dict[str, str]:
+    return {
+        role: _text(table, "topics", role, source, default)
+        for role, default in _DEFAULT_TOPICS.items()
+    }
 
 
 def _wheels(table: dict, source: str) -> dict[str, list[str]]:

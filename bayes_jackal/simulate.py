@@ -143,7 +143,8 @@ def simulate_experiment(
     robot : RobotProfile
         Constants and sampling rate (dt = 1 / ``robot.rate``).
     d_lat, d_long : float
-        True damping [N s/m].
+        True damping [N s/m], within the profile's prior ranges
+        (``robot.priors``; InputError otherwise).
     series : {"v1", "v2"} or Series
         Command setting (table 2-2), or any :class:`Series` (labelled
         ``"custom"``).
@@ -169,6 +170,15 @@ def simulate_experiment(
         command, label = SERIES[series], series
     else:
         raise InputError(f"unknown series {series!r}; use one of {list(SERIES)}", field="series")
+    for parameter, value in (("d_lat", d_lat), ("d_long", d_long)):
+        low, high = robot.priors[parameter]
+        if not low <= value <= high:  # NaN too
+            raise InputError(
+                f"{value:g} N s/m is outside the robot profile's prior range [{low:g}, "
+                f"{high:g}]: no posterior could recover it; widen [priors] {parameter} to "
+                "simulate it",
+                field=parameter,
+            )
     noise = NoiseSettings() if noise is None else noise
     rng = as_rng(rng)
     dt = robot.dt

@@ -26,16 +26,20 @@ import numpy as np
 
 from ._files import atomic_path
 from ._matlab import mat_arrays
-from .errors import DataError, InputError
+from .errors import DataError, InputError, each_input, refuse
 from .experiment import OPTIONAL, REQUIRED, Experiment, _check_values, read_netcdf
+from .robot import RobotProfile
 from .stamps import UNIFORM_TOLERANCE, uniform_clock
 
 __all__ = [
+    "RATE_TOLERANCE",
     "ROLES",
     "check_column_roles",
+    "check_sample_time",
     "load_experiment",
     "load_experiments",
     "read_csv",
+    "read_experiments",
     "read_mat",
     "write_csv",
 ]
@@ -185,14 +189,24 @@ def read_csv(
     """
     path = Path(path)
     source = str(path)
-    try:
-        with open(path, newline="") as stream:
+    try:  # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is not part of the header
+        with open(path, newline="", encoding="utf-8-sig") as stream:
             rows = list(csv.reader(stream))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DataError(f"cannot read CSV ({exc})", source=source) from None
+    while rows and not "".join(rows[-1]).strip():  # trailing blank lines
+        rows.pop()
     if not rows:
         raise DataError("file is empty", source=source)
     header = [cell.strip() for cell in rows[0]]
+    repeated = [name for i, name in enumerate(header) if name and name in header[:i]]
+    if repeated:
+        raise DataError(
+            f"column {repeated[0]!r} appears {header.count(repeated[0])} times in the header; "
+            "which one is meant is ambiguous (rename one)",
+            source=source,
+            field=repeated[0],
+        )
     names = _mapped(header, columns, source)
     body = rows[1:]
     short = [i for i, row in enumerate(body) if len(row) != len(header)]
@@ -294,20 +308,77 @@ def write_csv(experiment: Experiment, path: str | Path) -> Path:
 _LOG_READERS = {".csv": read_csv, ".mat": read_mat}
 
 
+#: Largest relative difference between an experiment's sample rate and its
+#: robot profile's rate. A real sensor runs within a fraction of a per cent
+#: of its nominal rate, and a profile may round it (72 Hz for 72.3 Hz);
+#: time in the wrong unit is off by a factor of 1000 or more.
+RATE_TOLERANCE = 0.05
+#: Time units a time column is mistaken for, by their size in seconds.
+_TIME_UNITS = {"milliseconds": 1e-3, "microseconds": 1e-6, "nanoseconds": 1e-9}
+
+
+def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
+    """Refuse an experiment whose sample time disagrees with the robot's rate.
+
+    The rates must agree within :data:`RATE_TOLERANCE`. This is what catches
+    a time column in milliseconds or nanoseconds, which would otherwise be
+    read as a robot sampled a thousand (or a billion) times too slowly.
+
+    Raises
+    ------
+    DataError
+        Naming the file, the sample time and both rates, and what to do.
+    """
+    rate = 1.0 / experiment.dt
+    if abs(rate / robot.rate - 1.0) <= RATE_TOLERANCE:
+        return
+    unit = [
+        name
+        for name, size in _TIME_UNITS.items()
+        if abs(experiment.dt * size * robot.rate - 1.0) <= RATE_TOLERANCE
+    ]
+    hint = f"the time column looks like {unit[0]}; " if unit else "time in milliseconds? "
+    raise DataError(
+        f"sample time {experiment.dt:.6g} s ({rate:.6g} Hz) disagrees with the profile's rate "
+        f"{robot.rate:g} Hz ({robot.source}) by more than {RATE_TOLERANCE:.0%}: {hint}time "
+        f"must be in seconds. If {rate:.6g} Hz is the true rate, declare it with --rate "
+        f"{rate:.6g} (rate= in Python) or use a robot profile with that [sampling] rate",
+        source=experiment.source,
+        field="t",
+    )
+
+
 def load_experiment(
     path: str | Path,
     *,
     columns: dict[str, str] | None = None,
     rate: float | None = None,
     max_gap: float | None = None,
+    robot: RobotProfile | None = None,
 ) -> Experiment:
     """Read a CSV (``.csv``), MATLAB (``.mat``) or NetCDF experiment file (``.nc``).
 
     ``columns``, ``rate`` and ``max_gap`` are those of :func:`read_csv`. The
     column mapping applies to CSV and MATLAB files; a NetCDF experiment file
     is already uniform, and a declared rate must agree with its own (within
-    :data:`~bayes_jackal.stamps.UNIFORM_TOLERANCE`).
+    :data:`~bayes_jackal.stamps.UNIFORM_TOLERANCE`). Given a ``robot``, the
+    sample time must agree with its profile's rate (:func:`check_sample_time`)
+    unless a rate is declared: the declared rate overrides the profile's.
     """
+    experiment = _read_experiment(path, columns=columns, rate=rate, max_gap=max_gap)
+    if robot is not None and rate is None:
+        check_sample_time(experiment, robot)
+    return experiment
+
+
+def _read_experiment(
+    path: str | Path,
+    *,
+    columns: dict[str, str] | None,
+    rate: float | None,
+    max_gap: float | None,
+) -> Experiment:
+    """An experiment file read by its suffix (:func:`load_experiment`)."""
     suffix = Path(path).suffix.lower()
     if suffix in _LOG_READERS:
         return _LOG_READERS[suffix](path, columns=columns, rate=rate, max_gap=max_gap)
@@ -328,22 +399,77 @@ def load_experiment(
     )
 
 
+def read_experiments(
+    paths: list[str | Path],
+    *,
+    columns: dict[str, str] | None = None,
+    rate: float | None = None,
+    max_gap: float | None = None,
+    robot: RobotProfile | None = None,
+    on_failure: Callable[[str, Exception], None] | None = None,
+) -> tuple[dict[str, Experiment], dict[str, str]]:
+    """Read each experiment file on its own (:func:`load_experiment`), past bad ones.
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Experiment files.
+    columns, rate, max_gap, robot
+        As in :func:`load_experiment`.
+    on_failure : callable, optional
+        ``on_failure(path, exception)``, called as each bad file is met.
+
+    Returns
+    -------
+    experiments : dict of str to Experiment
+        By path as given, in order.
+    failed : dict of str to str
+        Why each bad file cannot be used (the reason names it), by path.
+
+    Raises
+    ------
+    DataError
+        When two experiments that could be read share a name.
+    InputError
+        For a bad column mapping.
+    """
+    check_column_roles(columns)
+    experiments, failed = each_input(
+        paths,
+        lambda path: load_experiment(
+            path, columns=columns, rate=rate, max_gap=max_gap, robot=robot
+        ),
+        on_failure=on_failure,
+    )
+    names = [e.name for e in experiments.values()]
+    duplicated = {
+        n: [e.source for e in experiments.values() if e.name == n]
+        for n in names
+        if names.count(n) > 1
+    }
+    if duplicated:
+        raise DataError(f"experiment names are not unique: {duplicated}", field="name")
+    return experiments, failed
+
+
 def load_experiments(
     paths: list[str | Path],
     *,
     columns: dict[str, str] | None = None,
     rate: float | None = None,
     max_gap: float | None = None,
+    robot: RobotProfile | None = None,
 ) -> list[Experiment]:
-    """Read several experiment files (:func:`load_experiment`); names must be unique."""
-    check_column_roles(columns)
-    experiments = [
-        load_experiment(path, columns=columns, rate=rate, max_gap=max_gap) for path in paths
-    ]
-    names = [e.name for e in experiments]
-    duplicated = {
-        n: [e.source for e in experiments if e.name == n] for n in names if names.count(n) > 1
-    }
-    if duplicated:
-        raise DataError(f"experiment names are not unique: {duplicated}", field="name")
-    return experiments
+    """Read several experiment files (:func:`load_experiment`), all or none; names must be unique.
+
+    Raises
+    ------
+    DataError
+        Naming every file that cannot be read (:func:`read_experiments`), or
+        experiments that share a name.
+    """
+    experiments, failed = read_experiments(
+        paths, columns=columns, rate=rate, max_gap=max_gap, robot=robot
+    )
+    refuse(failed, len(paths))
+    return list(experiments.values())

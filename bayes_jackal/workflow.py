@@ -17,9 +17,10 @@ folder:
 - ``posterior.nc``, ``posterior.json``: the posterior of the family of
   highest evidence, the main result;
 - ``prior.json``: the Active Inference prior exported from that same
-  posterior, at embedding order 2 or the highest the family allows
-  (:data:`bayes_jackal.export.MAX_ORDER`; 0 for white noise): the prior
-  follows the model the data support best;
+  posterior, at embedding order 2 or the highest the family and the
+  precision's conditioning allow (:data:`bayes_jackal.export.AUTO_ORDER`,
+  :func:`bayes_jackal.export.allowed_orders`; 0 for white noise): the
+  prior follows the model the data support best;
 - ``report.html``: the report of every family's posterior, best first.
 
 The demo (:mod:`bayes_jackal.demo`) is this function on the shipped bags.
@@ -38,10 +39,10 @@ from pathlib import Path
 from ._files import write_json
 from .bags import read_bag
 from .criticism import criticise
-from .errors import DataError, InputError
+from .errors import DataError, describe, each_input
 from .evidence import compare_families
 from .experiment import Experiment, write_netcdf
-from .export import MAX_ORDER, export_prior, write_prior
+from .export import export_prior, write_prior
 from .gridsearch import damping_grid, grid_search
 from .inference import ConvergenceWarning, SamplerSettings
 from .likelihood import resolve_channels
@@ -51,14 +52,12 @@ from .report import write_report
 from .robot import RobotProfile, load_profile
 from .tables import load_experiment
 
-__all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "EXPORT_ORDER", "analyse_logs", "ingest_logs"]
+__all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "analyse_logs", "ingest_logs"]
 
 #: Families compared by default: the thesis' question, coloured or not.
 DEFAULT_FAMILIES = ("white", "gaussian")
 #: File suffixes read as ROS bags (folders are ROS2 bags too).
 BAG_SUFFIXES = (".bag", ".mcap", ".db3")
-#: Embedding order of the exported prior, where the best family allows it.
-EXPORT_ORDER = 2
 #: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
 GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
 
@@ -75,28 +74,38 @@ def _read(
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
         gap = {} if max_gap is None else {"max_gap": max_gap}
         return read_bag(path, robot, window=window, progress=progress, **gap)
-    experiment = load_experiment(path, max_gap=max_gap, **read_options)
+    experiment = load_experiment(path, max_gap=max_gap, **{"robot": robot, **read_options})
     if window is None:
         return experiment
     experiment.window(*window)  # raises DataError when it holds too few samples
     return dataclasses.replace(experiment, steady_window=tuple(float(w) for w in window))
 
 
-def _target(name: str, folder: Path, source: Path, inputs: set[Path]) -> Path:
-    """``folder/<name>.nc``, refused for a name that is no plain file name or an input's path."""
+def _target(
+    name: str, folder: Path, source: Path, inputs: set[Path], taken: Mapping[str, str]
+) -> tuple[str, Path]:
+    """A free name and ``folder/<name>.nc`` for an input.
+
+    A name an earlier input ``taken`` gets a suffix ``-2``, ``-3``...;
+    refused for a name that is no plain file name or whose file is an input.
+    """
     if name in ("", ".", "..") or any(sep in name for sep in ("/", "\\")):
         raise DataError(
             f"its experiment name {name!r} cannot name a file; rename the experiment",
             source=str(source),
             field="name",
         )
-    target = folder / f"{name}.nc"
+    free, count = name, 1
+    while free in taken:
+        count += 1
+        free = f"{name}-{count}"
+    target = folder / f"{free}.nc"
     if target.resolve() in inputs:
         raise DataError(
             f"writing it as {target} would overwrite an input; choose another output folder",
             source=str(source),
         )
-    return target
+    return free, target
 
 
 def ingest_logs(
@@ -112,6 +121,10 @@ def ingest_logs(
     say: Callable[[str], None] = lambda text: None,
 ) -> tuple[list[Experiment], dict[str, str]]:
     """Read every input, write each as ``folder/<name>.nc``; keep going past bad ones.
+
+    Two inputs of one experiment name are both kept: the later one is
+    written as ``<name>-2.nc`` (``-3``...), named so, with ``renamed_from``
+    in its provenance, and ``say`` tells.
 
     Parameters
     ----------
@@ -147,26 +160,19 @@ def ingest_logs(
     failed : dict of str to str
         The reason for each input that could not be used, by path.
     """
-    experiments: list[Experiment] = []
-    failed: dict[str, str] = {}
     owners: dict[str, str] = {}
     inputs = {Path(given).resolve() for given in paths}
-    for given in paths:
+
+    def ingest(given: str | Path) -> Experiment:
         path = Path(given)
-        try:
-            experiment = _read(path, robot, window, max_gap, progress, read_options or {})
-            target = _target(experiment.name, Path(folder), path, inputs)
-            if experiment.name in owners:
-                raise DataError(
-                    f"its experiment name {experiment.name!r} is that of "
-                    f"{owners[experiment.name]}; rename one of them",
-                    source=str(path),
-                )
-        except InputError as exc:  # one bad input does not lose the others
-            failed[str(given)] = str(exc) if exc.source else f"{given}: {exc}"
-            say(f"  skipped {failed[str(given)]}")
-            continue
+        experiment = _read(path, robot, window, max_gap, progress, read_options or {})
+        name, target = _target(experiment.name, Path(folder), path, inputs, owners)
         experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
+        if name != experiment.name:  # two inputs of one name: both kept, the second renamed
+            taken = owners[experiment.name]
+            say(f"  {given}: its name {experiment.name} is {taken}'s; ingested as {name}")
+            provenance = {**experiment.provenance, "renamed_from": experiment.name}
+            experiment = dataclasses.replace(experiment, name=name, provenance=provenance)
         owners[experiment.name] = str(given)
         write_netcdf(experiment, target)
         window_text = (
@@ -178,8 +184,13 @@ def ingest_logs(
             f"  ingested {given}: {len(experiment.t)} samples at {1 / experiment.dt:.1f} Hz, "
             f"channels {', '.join(experiment.channels)}, steady window {window_text}"
         )
-        experiments.append(experiment)
-    return experiments, failed
+        return experiment
+
+    # one bad input does not lose the others
+    ingested, failed = each_input(
+        paths, ingest, on_failure=lambda given, exc: say(f"  skipped {describe(exc, given)}")
+    )
+    return list(ingested.values()), failed
 
 
 def _common_truth(experiments: list[Experiment]) -> dict | None:
@@ -202,13 +213,6 @@ def _grids(experiments, robot, folder: Path, say: Callable[[str], None]) -> dict
     payload = {"truth": _common_truth(experiments), **summaries}
     write_json(folder / "grid.json", payload)
     return summaries
-
-
-def _export(idata, family: str, source: Path, path: Path) -> Path:
-    """The prior of ``family``'s posterior at the highest order it allows, up to EXPORT_ORDER."""
-    limit = MAX_ORDER[family]
-    order = EXPORT_ORDER if limit is None else min(EXPORT_ORDER, limit)
-    return write_prior(export_prior(idata, order=order, source=str(source)), path)
 
 
 def analyse_logs(
@@ -307,9 +311,11 @@ def analyse_logs(
         f"pooled over {len(experiments)} experiment(s):"
     )
 
+    paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
+
     def finished(family, evidence, idata) -> None:
         criticise(idata)  # cached in its attrs: the saved file and the report reuse it
-        save_posterior(idata, folder / "posteriors" / f"{family}.nc")  # kept if interrupted
+        save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
         say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
 
     with warnings.catch_warnings(record=True) as caught:
@@ -323,17 +329,21 @@ def analyse_logs(
             prior_overrides=prior_overrides,
             on_family=finished,
             processes=processes or os.cpu_count() or 1,
+            reuse=paths_by_family,
+            say=say,
             **{**(likelihood_options or {}), "channels": channels},
         )
     best = comparison.best
-    paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
     idata = comparison.posteriors[best]
     save_posterior(idata, folder / "posterior.nc")
     summary = summarize(idata)
     write_json(folder / "posterior.json", summary)
     result = comparison.to_dict()
     write_json(folder / "compare.json", result)
-    prior = _export(idata, best, paths_by_family[best], folder / "prior.json")
+    # The highest order the best family allows, up to export.AUTO_ORDER.
+    prior = write_prior(
+        export_prior(idata, order=None, source=str(paths_by_family[best])), folder / "prior.json"
+    )
     say("writing the report (figures as PNG and SVG)...")
     ranked = [best, *(family for family in families if family != best)]
     report = write_report([paths_by_family[family] for family in ranked], folder / "report.html")

@@ -31,6 +31,14 @@ def simulated(tmp_path_factory) -> list[str]:
     return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
 
 
+def assert_usage_error(code: int, captured, command: str, pattern: str) -> None:
+    """Exit code 2 from the parser: usage, then ``bayes-jackal CMD: error: argument ...``."""
+    assert code == 2 and "Traceback" not in captured.err
+    last = captured.err.strip().splitlines()[-1]
+    assert last.startswith(f"bayes-jackal {command}: error: argument "), captured.err
+    assert re.search(pattern, last), (pattern, last)
+
+
 def assert_bad_input(code: int, captured, *patterns: str) -> str:
     """Exit code 2, one line on stderr matching every pattern, no traceback."""
     assert code == 2
@@ -159,16 +167,17 @@ def test_grid_csv_missing_column(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("flag", "values", "pattern"),
     [
-        ("--d-lat", ["0", "100", "10"], r"d_lat: .*START=0\.0"),
-        ("--d-lat", ["10", "100", "-5"], r"d_lat: .*STEP=-5\.0"),
-        ("--d-lat", ["nan", "100", "10"], r"d_lat: .*START=nan"),
-        ("--d-long", ["100", "10", "10"], r"d_long: .*START=100\.0 STOP=10\.0"),
+        ("--d-lat", ["0", "100", "10"], r"--d-lat: grid needs .*START=0\.0"),
+        ("--d-lat", ["10", "100", "-5"], r"--d-lat: grid needs .*STEP=-5\.0"),
+        ("--d-lat", ["nan", "100", "10"], r"--d-lat: expected a finite number, got 'nan'"),
+        ("--d-long", ["100", "10", "10"], r"--d-long: grid needs .*START=100\.0 STOP=10\.0"),
     ],
 )
 def test_grid_bad_range(simulated, capsys, flag, values, pattern):
+    # Checked by the parser, with damping_grid's own rule, before any work.
     code = main(["grid", simulated[0], flag, *values, "--json"])
     captured = capsys.readouterr()
-    assert_bad_input(code, captured, pattern)
+    assert_usage_error(code, captured, "grid", pattern)
     assert captured.out == ""
 
 
@@ -290,23 +299,27 @@ def test_simulate_bags_and_ingest_them_back(tmp_path, capsys):
     assert ingested.provenance["sha256"]
 
 
-def test_ingest_refuses_a_second_bag_of_the_same_name(tmp_path, capsys):
-    # a/v2_01.bag and b/v2_01.bag both become v2_01.nc: the second would
-    # overwrite the first's experiment file.
-    for folder, seed in (("a", "4"), ("b", "5")):
-        one_run = ["--v1", "0", "--v2", "1", "--bag", "ros1"]
+def test_ingest_keeps_both_bags_of_one_name(tmp_path, capsys):
+    # a/v2_01.bag and b/v2_01.mcap both are v2_01: once the second overwrote the
+    # first's experiment file (issue 11); now it is ingested as v2_01-2 and a line says so.
+    for folder, seed, kind in (("a", "4", "ros1"), ("b", "5", "ros2")):
+        one_run = ["--v1", "0", "--v2", "1", "--bag", kind]
         assert main(["simulate", "--out", str(tmp_path / folder), "--seed", seed, *one_run]) == 0
-    first, second = (str(tmp_path / folder / "v2_01.bag") for folder in "ab")
+    first, second = str(tmp_path / "a" / "v2_01.bag"), str(tmp_path / "b" / "v2_01.mcap")
     capsys.readouterr()
+    code = main(["ingest", first, second, "--out", str(tmp_path / "exp")])
+    assert code == 0 and "renamed: v2_01 was another input's name" in capsys.readouterr().out
     code = main(["ingest", first, second, "--out", str(tmp_path / "exp"), "--json"])
     captured = capsys.readouterr()
-    assert code == 2 and "Traceback" not in captured.err
+    assert code == 0 and "Traceback" not in captured.err
     payload = json.loads(captured.out)
-    assert list(payload["experiments"]) == ["v2_01"] and list(payload["failed"]) == [second]
-    assert f"error: {second}: its experiment name 'v2_01' is that of {first}" in captured.err
-    kept = read_netcdf(tmp_path / "exp" / "v2_01.nc")
-    simulated = read_netcdf(tmp_path / "a" / "v2_01.nc")
-    np.testing.assert_allclose(kept.yaw_rate, simulated.yaw_rate[: len(kept.t)], atol=1e-5)
+    assert list(payload["experiments"]) == ["v2_01", "v2_01-2"] and not payload["failed"]
+    assert payload["experiments"]["v2_01-2"]["file"] == str(tmp_path / "exp" / "v2_01-2.nc")
+    for name, folder in (("v2_01", "a"), ("v2_01-2", "b")):
+        kept = read_netcdf(tmp_path / "exp" / f"{name}.nc")
+        simulated = read_netcdf(tmp_path / folder / "v2_01.nc")
+        assert kept.name == name
+        np.testing.assert_allclose(kept.yaw_rate, simulated.yaw_rate[: len(kept.t)], atol=1e-5)
 
 
 def test_ingest_topic_override(tmp_path, capsys):
@@ -423,3 +436,196 @@ def test_compare_keeps_each_family_as_it_finishes_when_interrupted(
     assert code == 130
     assert [p.name for p in saved] == ["v1_01.white.nc"]
     assert sorted(p.name for p in folder.iterdir()) == ["v1_01.white.nc"]
+
+
+# One bad input never stops the others (issue 11, item 9); escaping exceptions (item 10).
+
+#: The cheapest sampling that still writes a posterior: white noise on yaw, 80 steps.
+QUICK_WHITE = [*QUICK_SAMPLE, "--family", "white", "--channels", "yaw"]
+
+
+@pytest.fixture
+def empty_csv(tmp_path) -> str:
+    path = tmp_path / "empty.csv"
+    path.write_bytes(b"")
+    return str(path)
+
+
+def error_lines(captured) -> list[str]:
+    """The error lines on stderr (no traceback anywhere)."""
+    assert "Traceback" not in captured.err
+    return [line for line in captured.err.splitlines() if line.startswith("bayes-jackal: error")]
+
+
+def test_sample_without_pooling_finishes_the_good_inputs_and_names_the_bad_one(
+    simulated, empty_csv, tmp_path, capsys
+):
+    out = tmp_path / "post.nc"
+    inputs = [simulated[0], empty_csv, simulated[1]]
+    code = main(["sample", *inputs, "--out", str(out), *QUICK_WHITE, "--json"])
+    captured = capsys.readouterr()
+    assert code == 2
+    payload = json.loads(captured.out)
+    assert set(payload["experiments"]) == {"v1_01", "v2_01"}
+    assert payload["failed"] == {empty_csv: f"{empty_csv}: file is empty"}
+    assert error_lines(captured) == [f"bayes-jackal: error: {empty_csv}: file is empty"]
+    assert "2 of 3 experiments done" in captured.err
+    assert (tmp_path / "post.v1_01.nc").is_file() and (tmp_path / "post.v2_01.nc").is_file()
+    # report: an unreadable posterior among two: the report is written from the others.
+    posteriors = [str(tmp_path / "post.v1_01.nc"), simulated[0], str(tmp_path / "post.v2_01.nc")]
+    report = tmp_path / "report" / "r.html"
+    code = main(["report", *posteriors, "--out", str(report), "--formats", "png"])
+    captured = capsys.readouterr()
+    assert code == 2
+    [line] = error_lines(captured)
+    assert line.startswith(f"bayes-jackal: error: {simulated[0]}: not a bayes_jackal posterior")
+    assert f"posteriors: {posteriors[0]}, {posteriors[2]}. Figures" in report.read_text()
+
+
+def test_compare_without_pooling_finishes_the_good_input(simulated, empty_csv, tmp_path, capsys):
+    folder = tmp_path / "compare"
+    quick = [*QUICK_COMPARE, "--families", "white", "--processes", "1"]
+    code = main(["compare", empty_csv, simulated[0], *quick, "--out", str(folder), "--json"])
+    captured = capsys.readouterr()
+    assert code == 2
+    payload = json.loads(captured.out)
+    assert list(payload["experiments"]) == ["v1_01"] and list(payload["failed"]) == [empty_csv]
+    assert error_lines(captured) == [f"bayes-jackal: error: {empty_csv}: file is empty"]
+    assert sorted(p.name for p in folder.iterdir()) == ["v1_01.compare.json", "v1_01.white.nc"]
+
+
+def test_residuals_analyse_the_good_inputs_and_name_the_bad_one(simulated, empty_csv, capsys):
+    code = main(["residuals", simulated[0], empty_csv, simulated[1], "--json"])
+    captured = capsys.readouterr()
+    assert code == 2
+    payload = json.loads(captured.out)
+    assert list(payload["experiments"]) == ["v1_01", "v2_01"]
+    assert set(payload["sigma_h"]) == {"v1", "v2", "all"}
+    assert payload["failed"] == {empty_csv: f"{empty_csv}: file is empty"}
+    assert error_lines(captured) == [f"bayes-jackal: error: {empty_csv}: file is empty"]
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["sample", "--pooled", "--out", "{tmp}/p.nc", *QUICK_WHITE],
+        ["compare", "--pooled", "--out", "{tmp}/compare", *QUICK_COMPARE],
+        ["grid", *GRID, "--out", "{tmp}/grid.nc", "--plot", "{tmp}/grid.png"],
+    ],
+)
+def test_pooled_commands_name_every_bad_input_before_any_work(
+    simulated, empty_csv, tmp_path, capsys, command
+):
+    outputs = tmp_path / "outputs"
+    outputs.mkdir()
+    missing = str(tmp_path / "missing.nc")
+    argv = [part.replace("{tmp}", str(outputs)) for part in command]
+    code = main([*argv, simulated[0], empty_csv, missing])
+    line = assert_bad_input(code, capsys.readouterr(), "2 of 3 inputs cannot be used")
+    assert f"{empty_csv}: file is empty" in line and f"{missing}: no such file" in line
+    assert [path for path in outputs.rglob("*") if not path.is_dir()] == []  # nothing written
+
+
+@pytest.fixture
+def failing_chi2(monkeypatch):
+    """A library function deep in the residual analysis that fails unexpectedly."""
+    import scipy.stats
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("simulated failure")
+
+    monkeypatch.setattr(scipy.stats.chi2, "sf", fail)
+
+
+def test_an_escaping_exception_is_one_line_naming_the_input(simulated, capsys, failing_chi2):
+    code = main(["residuals", simulated[0]])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert captured.err.splitlines() == [
+        f"bayes-jackal: failed: RuntimeError: simulated failure ({simulated[0]})"
+    ]
+    # Without pooling, each input fails on its own, named; the exit code is 1.
+    code = main(["residuals", *simulated, "--json"])
+    captured = capsys.readouterr()
+    assert code == 1 and "Traceback" not in captured.err
+    assert set(json.loads(captured.out)["failed"]) == set(simulated)
+    for path in simulated:
+        assert f"bayes-jackal: failed: RuntimeError: simulated failure ({path})" in captured.err
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_debug_shows_the_traceback(simulated, capsys, failing_chi2, where):
+    argv = ["residuals", simulated[0]]
+    code = main(["--debug", *argv] if where == "before" else [*argv, "--debug"])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert captured.err.startswith("Traceback (most recent call last):")
+    assert "in _ljung_box\n" in captured.err
+    last = captured.err.splitlines()[-1]
+    assert last == f"bayes-jackal: failed: RuntimeError: simulated failure ({simulated[0]})"
+
+
+# --- numeric flags and strict JSON (issue 11) ----------------------------------
+
+
+@pytest.mark.parametrize(
+    ("command", "pattern"),
+    [
+        (["simulate", "--out", "OUT", "--v1", "-1"], r"--v1: expected an integer >= 0, got '-1'"),
+        (["simulate", "--out", "OUT", "--seed", "-1"], r"--seed: expected an integer >= 0"),
+        (["simulate", "--out", "OUT", "--d-lat", "inf"], r"--d-lat: expected a finite number > 0"),
+        (["simulate", "--out", "OUT", "--width", "-0.1"], r"--sigma-h: expected a finite num"),
+        (["simulate", "--out", "OUT", "--sigma-n", "0", "0", "nan"], r"--sigma-n: .* >= 0"),
+        (["sample", "EXP", "--out", "OUT/p.nc", "--max-steps", "0"], r"--max-steps: .* >= 1"),
+        (["sample", "EXP", "--out", "OUT/p.nc", "--walkers", "-4"], r"--walkers: .* >= 0"),
+        (["compare", "EXP", "--processes", "0"], r"--processes: expected an integer >= 1"),
+        (["residuals", "EXP", "--lags", "0"], r"--lags: expected an integer >= 1, got '0'"),
+        (["residuals", "EXP", "--d-long", "-30"], r"--d-long: expected a finite number > 0"),
+        (["residuals", "EXP", "--rate", "nan"], r"--rate: expected a finite number > 0"),
+        (["grid", "EXP", "--d-lat", "10", "100", "0"], r"--d-lat: grid needs .*STEP=0\.0"),
+        (["export-prior", "EXP", "--out", "OUT/p.json", "--order", "1.5"], r"--order: .* >= 0"),
+        (["ingest", "EXP", "--out", "OUT", "--window", "30", "10"], r"--window: expected T0 < T1"),
+        (["analyse", "EXP", "--out", "OUT", "--max-gap", "0"], r"--max-gap: .*> 0, got '0'"),
+    ],
+)
+def test_bad_numeric_flags_are_refused_before_any_work(
+    simulated, tmp_path, capsys, command, pattern
+):
+    argv = [
+        simulated[0] if a == "EXP" else a.replace("OUT", str(tmp_path / "out")) for a in command
+    ]
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert_usage_error(code, captured, command[0], pattern)
+    assert captured.out == "" and not (tmp_path / "out").exists()
+
+
+def _strict_json(text: str) -> object:
+    """json.loads that refuses NaN and Infinity, as every JSON parser but Python's does."""
+
+    def refuse(constant: str) -> None:
+        raise ValueError(f"not JSON: {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_every_json_output_maps_non_finite_numbers_to_null(tmp_path, capsys):
+    from bayes_jackal._files import json_text, write_json
+    from bayes_jackal.cli.output import Reporter
+
+    payload = {
+        "sd": float("inf"),
+        "p": [float("nan"), 1.5, -float("inf")],
+        "n": (np.float64("nan"),),
+    }
+    expected = {"sd": None, "p": [None, 1.5, None], "n": [None]}
+    Reporter(True).result(payload)
+    assert _strict_json(capsys.readouterr().out) == expected
+    assert _strict_json(write_json(tmp_path / "x.json", payload).read_text()) == expected
+    assert _strict_json(json_text(payload, indent=None)) == expected
+
+
+def test_command_json_parses_strictly(simulated, capsys):
+    for command in (["grid", *GRID], ["residuals", "--channels", "yaw,vx"]):
+        assert main([command[0], simulated[0], *command[1:], "--json"]) == 0
+        assert _strict_json(capsys.readouterr().out)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import stat
@@ -587,7 +588,7 @@ def test_cli_column_and_rate_flags(tmp_path, capsys):
         (["--column", "gyro", "gyro_z"], r"--column: unknown column role\(s\) \['gyro'\]"),
         (["--column", "yaw_rate", "yaw_z"], r"yaw_z: column 'yaw_z' \(mapped to yaw_rate\)"),
         (["--rate", "25"], r"t: time is not uniformly sampled at line .*declared 25 Hz"),
-        (["--rate", "-1"], r"rate: must be a positive number of Hz"),
+        (["--rate", "-1"], r"argument --rate: expected a finite number > 0, got '-1'"),
     ):
         code = main(["grid", str(path), *flags, *extra, *grid])
         err = capsys.readouterr().err
@@ -602,3 +603,113 @@ def test_declared_rate_against_an_experiment_file(tmp_path):
         DataError, match=r"t: the declared rate 25 Hz contradicts the file's 10 Hz"
     ):
         load_experiment(path, rate=25.0)
+
+
+# --- garbage refused, Excel's CSV accepted (issue 11) -------------------------
+
+
+@pytest.mark.parametrize(
+    ("column", "value", "unit"),
+    [
+        ("yaw_rate", "6e+297", "rad/s"),  # a yaw rate scaled by 1e300
+        ("omega_r", "1e+12", "rad/s"),
+        ("vx", "-150", "m/s"),
+    ],
+)
+def test_absurd_magnitudes_name_file_column_line_and_value(tmp_path, capsys, column, value, unit):
+    header = HEADER + ",vx"
+    rows = replace_cell(
+        [f"{row},0.8" for row in good_rows(40)], 3, header.split(",").index(column), value
+    )
+    path = tmp_path / "garbage.csv"
+    path.write_text(csv_text(header, rows))
+    pattern = rf"garbage\.csv: {column}: {re.escape(value)}.* {unit} at line 5"
+    with pytest.raises(DataError, match=pattern):
+        read_csv(path)
+    # On the command line: exit 2, no MSE of nan, no "sd": Infinity.
+    assert main(["grid", str(path), "--rate", "10"]) == 2
+    assert main(["residuals", str(path), "--rate", "10", "--json"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and f"{column}:" in captured.err
+    with pytest.raises(DataError, match=rf"<memory>: {column}: .*must be below"):
+        dataclasses.replace(make_experiment(), **{column: np.full(N, float(value))})
+
+
+def test_magnitude_bounds_are_generous():
+    # The bounds themselves pass: just below them, and a thesis run, are accepted.
+    limits = {"yaw_rate": 99.9, "omega_r": 9999.0, "omega_l": -9999.0, "vx": 99.0, "vy": -99.0}
+    columns = {key: np.full(N, value) for key, value in limits.items()}
+    assert dataclasses.replace(make_experiment(), **columns).vx[0] == 99.0
+
+
+def _netcdf_variant(tmp_path: Path, change) -> Path:
+    path = write_netcdf(full_experiment(), tmp_path / "run.nc")
+    with xr.open_dataset(path, engine="h5netcdf") as dataset:
+        dataset = dataset.load()
+    change(dataset)
+    bad = tmp_path / "bad.nc"
+    dataset.to_netcdf(bad, engine="h5netcdf")
+    return bad
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "words"),
+    [
+        (lambda d: d.attrs.update(steady_window=[0.95]), "steady_window", "got 0.95"),
+        (lambda d: d.attrs.update(steady_window=[3.0, 1.0]), "steady_window", "start < stop"),
+        (lambda d: d.attrs.update(truth="{d_lat: 110"), "truth", "'{d_lat: 110'"),
+        (lambda d: d.attrs.update(provenance="[1, 2]"), "provenance", "a JSON object"),
+        (
+            lambda d: d.__setitem__("yaw_rate", ("time", d["yaw_rate"].values.astype(str))),
+            "yaw_rate",
+            "expected numbers",
+        ),
+        (
+            lambda d: d.__setitem__("truth_yaw_state", ("time", np.full(N, "x"))),
+            "truth_yaw_state",
+            "'x'",
+        ),
+    ],
+)
+def test_garbage_in_an_experiment_file_names_file_and_field(
+    tmp_path, capsys, change, field, words
+):
+    bad = _netcdf_variant(tmp_path, change)
+    with pytest.raises(DataError, match=rf"^{re.escape(str(bad))}: {field}: .*{re.escape(words)}"):
+        read_netcdf(bad)
+    assert main(["residuals", str(bad), "--rate", "10"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.nc" in err and field in err and "Traceback" not in err, err
+
+
+def test_duplicate_csv_columns_are_refused_naming_the_column(tmp_path):
+    path = tmp_path / "dup.csv"
+    rows = [f"{row},0.5" for row in good_rows(40)]
+    path.write_text(csv_text(HEADER + ",yaw_rate", rows))
+    with pytest.raises(DataError, match=r"dup\.csv: yaw_rate: column 'yaw_rate' appears 2 times"):
+        read_csv(path)
+    # Even a duplicated column no role reads is ambiguous.
+    path.write_text(csv_text(HEADER + ",note,note", [f"{row},1,2" for row in good_rows(40)]))
+    with pytest.raises(DataError, match=r"note: column 'note' appears 2 times"):
+        read_csv(path)
+
+
+@pytest.mark.parametrize(
+    ("prefix", "suffix"),
+    [("\ufeff", ""), ("", "\n"), ("", "\r\n\r\n"), ("\ufeff", "\n  \n")],
+    ids=["bom", "blank-line", "crlf-blank-lines", "bom-and-blank-lines"],
+)
+def test_excel_bom_and_trailing_blank_lines_are_accepted(tmp_path, prefix, suffix):
+    clean = tmp_path / "clean.csv"
+    clean.write_text(csv_text(HEADER, good_rows(40)))
+    excel = tmp_path / "excel.csv"
+    excel.write_bytes((prefix + csv_text(HEADER, good_rows(40)) + suffix).encode("utf-8"))
+    expected, read = read_csv(clean), read_csv(excel)
+    for key in ("t", "yaw_rate", "omega_r", "omega_l"):
+        np.testing.assert_array_equal(getattr(read, key), getattr(expected, key))
+    assert main(["residuals", str(excel), "--rate", "10"]) == 0
+    # A blank line inside the data is still refused.
+    inside = tmp_path / "inside.csv"
+    inside.write_text(csv_text(HEADER, [*good_rows(20), "", *good_rows(40)[20:]]))
+    with pytest.raises(DataError, match=r"line 22 has 0 fields"):
+        read_csv(inside)

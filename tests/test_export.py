@@ -13,7 +13,9 @@ import scipy.signal
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.cli import main
 from bayes_jackal.export import (
+    MAX_CONDITION,
     PRIOR_FORMAT,
+    allowed_orders,
     autocorrelation_derivatives,
     export_prior,
     temporal_covariance,
@@ -226,3 +228,42 @@ def test_export_prior_bad_input(yaw_vx_posterior, tmp_path, capsys):
     assert code == 2
     assert "order" in capsys.readouterr().err
     assert not (tmp_path / "p.json").exists()
+
+
+def test_orders_whose_precision_is_ill_conditioned_are_refused(yaw_vx_posterior, tmp_path, capsys):
+    # The real computation: the highest allowed order exports a finite
+    # precision whose condition number is below the bound; the next one is
+    # refused naming the allowed orders. Order 99 (NaN/Infinity before) too.
+    post = yaw_vx_posterior.posterior
+    sigma_h = post["sigma_h"].transpose("chain", "draw", "noise_group").values.reshape(-1, 2)
+    allowed = allowed_orders("gaussian", sigma_h, np.ones_like(sigma_h))
+    assert allowed == list(range(len(allowed))) and 3 <= allowed[-1] < 8
+    top = export_prior(yaw_vx_posterior, order=allowed[-1])["generalised_coordinates"]
+    size = 2 * (allowed[-1] + 1)
+    assert np.isfinite(top["precision"]).all() and np.shape(top["precision"]) == (size, size)
+    blocks = np.asarray(top["precision"])[np.ix_(range(0, size, 2), range(0, size, 2))]
+    assert 1e-4 * MAX_CONDITION < np.linalg.cond(blocks) < MAX_CONDITION
+    listed = ", ".join(map(str, allowed))
+    for order in (allowed[-1] + 1, 99):
+        with pytest.raises(
+            InputError, match=rf"order: order {order} .*allowed here are {listed}$"
+        ):
+            export_prior(yaw_vx_posterior, order=order)
+    posterior = save_posterior(yaw_vx_posterior, tmp_path / "posterior.nc")
+    out = tmp_path / "prior.json"
+    assert main(["export-prior", str(posterior), "--out", str(out), "--order", "99"]) == 2
+    assert f"allowed here are {listed}" in capsys.readouterr().err
+    assert not out.exists()
+    # White noise: order 0 only, as before (its noise has no derivative).
+    assert allowed_orders("white", np.ones((3, 1)), np.ones((3, 1))) == [0]
+
+
+def test_exported_prior_is_strict_json(yaw_vx_posterior, tmp_path):
+    posterior = save_posterior(yaw_vx_posterior, tmp_path / "posterior.nc")
+    out = tmp_path / "prior.json"
+    assert main(["export-prior", str(posterior), "--out", str(out)]) == 0
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+
+    assert json.loads(out.read_text(), parse_constant=refuse)["format"] == PRIOR_FORMAT

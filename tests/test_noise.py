@@ -485,10 +485,16 @@ def test_cli_residuals_too_many_lags_is_bad_input(simulated, capsys):
     code = main(["residuals", *simulated, "--lags", "100000", "--json"])
     captured = capsys.readouterr()
     assert code == 2
-    assert captured.out == ""
     assert "Traceback" not in captured.err
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1, captured.err
-    assert lines[0].startswith("bayes-jackal: error: ")
-    assert simulated[0] in lines[0]
-    assert "100000 lags" in lines[0]
+    # Each input on its own (README, "Your data is safe"): both are named, with the reason.
+    errors = [line for line in captured.err.splitlines() if line.startswith("bayes-jackal: ")]
+    assert len(errors) == 2, captured.err
+    for path, line in zip(simulated, errors, strict=True):
+        assert line.startswith(f"bayes-jackal: error: {path}: ") and "100000 lags" in line
+    assert json.loads(captured.out) == {
+        "experiments": {},
+        "failed": {
+            path: errors[i].removeprefix("bayes-jackal: error: ")
+            for i, path in enumerate(simulated)
+        },
+    }

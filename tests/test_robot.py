@@ -227,3 +227,41 @@ def test_replace_validates(changes, pattern):
     profile = load_profile()
     with pytest.raises(ProfileError, match=re.escape(profile.source) + ": " + pattern):
         profile.replace(**changes)
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "allowed"),
+    [
+        ({"priors.d_latt": "[10.0, 1000.0]"}, "priors.d_latt", "'d_lat', 'd_long', 'sigma_h'"),
+        ({"body.masss": "16.5"}, "body.masss", "'mass', 'yaw_inertia'"),
+        ({"sampling.hz": "72.0"}, "sampling.hz", "['rate']"),
+        ({"topics.lidar": '"/scan"'}, "topics.lidar", "'imu', 'joint_states'"),
+        ({"wheels.middle": '["w"]'}, "wheels.middle", "['right', 'left']"),
+        ({"imu": "42"}, "imu", "'name', 'description', 'body'"),
+    ],
+)
+def test_unknown_profile_key_is_refused_listing_the_allowed_ones(
+    tmp_path, changes, field, allowed
+):
+    path = write_profile(tmp_path, changes)
+    key = field.rpartition(".")[2]
+    with pytest.raises(ProfileError, match=error_pattern(path, field, f"unknown key '{key}'")):
+        load_profile(path)
+    with pytest.raises(ProfileError, match=re.escape(allowed)):
+        load_profile(path)
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "value"),
+    [
+        ({"topics.imu": "42"}, "topics.imu", "got 42"),
+        ({"topics.pose": '""'}, "topics.pose", "got ''"),
+        ({"description": "42"}, "description", "got 42"),
+        ({"diff_drive.conversion": "1"}, "diff_drive.conversion", "got 1"),
+        ({"schema_version": "2"}, "schema_version", "got 2"),
+    ],
+)
+def test_wrong_type_in_a_profile_is_a_profile_error(tmp_path, changes, field, value):
+    path = write_profile(tmp_path, changes)
+    with pytest.raises(ProfileError, match=error_pattern(path, field, value)):
+        load_profile(path)

@@ -32,10 +32,10 @@ from bayes_jackal.gridsearch import damping_grid, grid_search
 from bayes_jackal.inference import SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.posterior import load_posterior
-from bayes_jackal.robot import load_profile
+from bayes_jackal.robot import default_profile_path, load_profile
 from bayes_jackal.simulate import Series, simulate_experiment
 from bayes_jackal.stamps import GRID, ONE_PER_TICK, UNIFORM, sort_stamps, uniform_clock
-from bayes_jackal.tables import read_csv
+from bayes_jackal.tables import load_experiment, read_csv, write_csv
 
 MS = 1e-3
 
@@ -310,6 +310,16 @@ def runs(tmp_path_factory) -> dict[str, str]:
     }
 
 
+@pytest.fixture(scope="module")
+def kilohertz_robot(tmp_path_factory) -> list[str]:
+    """``--robot`` flags of the Jackal profile at the runs' 1 kHz (the CLI checks the rate)."""
+    text = default_profile_path().read_text()
+    assert "rate = 72.0" in text
+    path = tmp_path_factory.mktemp("profile") / "jackal_1khz.toml"
+    path.write_text(text.replace("rate = 72.0", "rate = 1000.0"))
+    return ["--robot", str(path)]
+
+
 def test_jittered_csv_reads_as_the_clean_one(runs):
     clean = read_csv(runs["clean"], columns=NAMES)
     jittered = read_csv(runs["jittered"], columns=NAMES)
@@ -322,11 +332,11 @@ def test_jittered_csv_reads_as_the_clean_one(runs):
     assert jittered.provenance["time_base"]["jitter"]["repeated"] > 0.1 * len(clean.t)
 
 
-def test_grid_on_jittered_stamps_matches_clean_stamps(runs, capsys):
+def test_grid_on_jittered_stamps_matches_clean_stamps(runs, kilohertz_robot, capsys):
     # The simulation grid (thesis ch. 5): its argmin on this grid is interior.
     payloads = {}
     for kind, path in runs.items():
-        flags = [*COLUMN_FLAGS, *GRID_FLAGS, "--method", "simulation", "--json"]
+        flags = [*COLUMN_FLAGS, *GRID_FLAGS, *kilohertz_robot, "--method", "simulation", "--json"]
         assert main(["grid", path, *flags]) == 0
         payloads[kind] = json.loads(capsys.readouterr().out)
     assert payloads["jittered"] == payloads["clean"]
@@ -345,12 +355,12 @@ def test_grid_on_jittered_stamps_matches_clean_stamps(runs, capsys):
     assert argmins[0][:2] == (payloads["clean"]["d_lat"], payloads["clean"]["d_long"])
 
 
-def test_sample_on_jittered_stamps_matches_clean_stamps(runs, tmp_path, capsys):
+def test_sample_on_jittered_stamps_matches_clean_stamps(runs, kilohertz_robot, tmp_path, capsys):
     # The stamps are restored exactly to k x 1 ms, so the data and, with the
     # same seed, the chain are identical: equality, not a tolerance. White
     # noise keeps it cheap (a Gaussian kernel at 1 kHz spans up to 3000 taps).
     quick = ["--max-steps", "60", "--seed", "3", "--no-progress", "--json"]
-    quick += ["--channels", "yaw", "--family", "white"]
+    quick += ["--channels", "yaw", "--family", "white", *kilohertz_robot]
     payloads = {}
     for kind, path in runs.items():
         out = tmp_path / f"{kind}.nc"
@@ -370,3 +380,38 @@ def test_sample_on_jittered_stamps_matches_clean_stamps(runs, tmp_path, capsys):
         with pytest.warns(UserWarning, match="NOT CONVERGED"):
             chains.append(sample_posterior(likelihood, settings, seed=3).posterior["d_lat"])
     np.testing.assert_array_equal(chains[0].values, chains[1].values)
+
+
+# --------------------------------------------------------------------------- time base vs profile
+
+
+def test_a_rate_other_than_the_profiles_is_refused_unless_declared(runs, kilohertz_robot, capsys):
+    # The 1 kHz run under the 72 Hz Jackal profile: refused, naming both rates.
+    with pytest.raises(DataError, match=r"run\.csv: t: sample time 0\.001 s \(1000 Hz\) .* 72 Hz"):
+        load_experiment(runs["clean"], columns=NAMES, robot=ROBOT)
+    assert load_experiment(runs["clean"], columns=NAMES, robot=ROBOT, rate=1000.0).dt == 0.001
+    assert main(["grid", runs["clean"], *COLUMN_FLAGS, *GRID_FLAGS]) == 2
+    assert "declare it with --rate 1000" in capsys.readouterr().err
+    for flags in (["--rate", "1000"], kilohertz_robot):
+        assert main(["grid", runs["clean"], *COLUMN_FLAGS, *GRID_FLAGS, *flags]) == 0
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    ("unit", "scale", "offset"),
+    [("milliseconds", 1e3, 0.0), ("nanoseconds", 1e9, 1.7e18)],  # ns: since the epoch
+)
+def test_time_in_milliseconds_or_nanoseconds_is_refused(tmp_path, capsys, unit, scale, offset):
+    experiment = simulate_experiment(ROBOT, 110, 30, Series(v=0.4, w=0.52, duration=7.0), rng=1)
+    seconds = write_csv(experiment, tmp_path / "seconds.csv")
+    assert load_experiment(seconds, robot=ROBOT).dt == pytest.approx(1 / 72)
+    lines = seconds.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    scaled = [f"{float(row[0]) * scale + offset:.17g},{','.join(row[1:])}" for row in rows]
+    path = tmp_path / f"{unit}.csv"
+    path.write_text("\n".join([lines[0], *scaled]) + "\n")
+    with pytest.raises(DataError, match=rf"{unit}\.csv: t: sample time .* looks like {unit}"):
+        load_experiment(path, robot=ROBOT)
+    assert main(["residuals", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "disagrees with the profile's rate 72 Hz" in err and unit in err, err

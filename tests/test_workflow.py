@@ -151,7 +151,7 @@ def test_analyse_with_no_usable_input_exits_2_naming_each(tmp_path, capsys):
     assert not (tmp_path / "out" / "posteriors").exists()
 
 
-def test_ingest_logs_mixes_files_and_bags_and_refuses_a_repeated_name(short_runs, tmp_path):
+def test_ingest_logs_mixes_files_and_bags_and_renames_a_repeated_name(short_runs, tmp_path):
     csv = write_csv(short_runs[0], tmp_path / "run0.csv")
     bag = write_bag(short_runs[0], tmp_path / "run0.bag", ROBOT, "ros1", 2)
     other = write_bag(short_runs[1], tmp_path / "run1.bag", ROBOT, "ros1", 2)
@@ -164,15 +164,17 @@ def test_ingest_logs_mixes_files_and_bags_and_refuses_a_repeated_name(short_runs
         labels={str(other): {"series": "v1"}},
         say=lines.append,
     )
-    assert [e.name for e in experiments] == ["run0", "run1"]
+    # The bag named like the CSV is kept too, under a name of its own (issue 11).
+    assert [e.name for e in experiments] == ["run0", "run0-2", "run1"] and not failed
+    assert experiments[1].provenance["renamed_from"] == "run0"
     # The window applies to files and bags alike; labels to the inputs named.
-    assert [e.steady_window for e in experiments] == [(3.0, 11.0), (3.0, 11.0)]
-    assert experiments[1].series == "v1"
-    assert list(failed) == [str(bag)]
-    assert "'run0' is that of" in failed[str(bag)] and str(csv) in failed[str(bag)]
+    assert [e.steady_window for e in experiments] == [(3.0, 11.0)] * 3
+    assert experiments[2].series == "v1"
     written = read_netcdf(tmp_path / "out" / "run0.nc")
     assert written.steady_window == (3.0, 11.0) and "topics" not in written.provenance  # the CSV
-    assert len(lines) == 3 and lines[1].startswith(f"  skipped {bag}: ")
+    assert read_netcdf(tmp_path / "out" / "run0-2.nc").name == "run0-2"
+    assert lines[1] == f"  {bag}: its name run0 is {csv}'s; ingested as run0-2"
+    assert len(lines) == 4
 
 
 @pytest.mark.parametrize(

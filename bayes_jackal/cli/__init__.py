@@ -2,40 +2,96 @@
 
 Commands, flags, JSON keys and exit codes follow docs/design.md §6. Exit codes:
 0 success, 2 bad input (the message names file, field and value), 1 any
-other failure; no traceback reaches the user. The parser lives in
+other failure; no traceback reaches the user (unless ``--debug``). The parser lives in
 :mod:`.parser`, the commands in :mod:`.commands`, what they print in
 :mod:`.output`.
 """
 
 from __future__ import annotations
 
+import gc
+import signal
 import sys
 
-from ..errors import InputError
-from .output import EXIT_BAD_INPUT, EXIT_FAILURE
-from .parser import build_parser
-
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "console", "main"]
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``bayes-jackal``; return the exit code."""
+def __getattr__(name: str):
+    """``build_parser`` on first use: importing this package loads only the stdlib."""
+    if name == "build_parser":
+        from .parser import build_parser
+
+        return build_parser
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def console(argv: list[str] | None = None) -> None:
+    """The ``bayes-jackal`` console script: :func:`main`, then the process exits.
+
+    A signal after the command's last line would meet Python's own handler
+    during the interpreter's shutdown and print a traceback: the process
+    ignores SIGINT and SIGTERM from then on instead.
+    """
+    sys.exit(main(argv, _exiting=True))
+
+
+def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
+    """Run ``bayes-jackal``; return the exit code.
+
+    The signal handlers come first, then the imports: SIGINT or SIGTERM at
+    any moment prints one line and exits 130 or 143
+    (:mod:`bayes_jackal.interrupt`). The previous handlers are restored on
+    return (``_exiting``, for :func:`console`: the signals are ignored).
+    """
+    from .. import interrupt
+
+    previous = interrupt.install()
+    try:
+        code = _run(argv)
+        interrupt.check()  # a stop that landed where it could not be raised
+        return code
+    except interrupt.Interrupted as exc:
+        print(
+            f"bayes-jackal: interrupted by {exc}; what had finished is kept, "
+            "and the same command resumes",
+            file=sys.stderr,
+        )
+        gc.freeze()  # the exit's collection of every object loaded would take ~1 s more
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("bayes-jackal: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if _exiting:
+            previous = dict.fromkeys(interrupt.SIGNALS, signal.SIG_IGN)
+        interrupt.restore(previous)
+
+
+def _run(argv: list[str] | None) -> int:
+    """Parse and dispatch; map exceptions to exit codes."""
+    if (sys.argv[1:] if argv is None else argv) == ["--version"]:  # without the imports
+        from .. import __version__
+
+        print(f"bayes-jackal {__version__}")
+        return 0
+    from ..errors import InputError
+    from .output import EXIT_BAD_INPUT, print_failure
+    from .parser import build_parser
+    from .paths import command_inputs, guarded
+
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # usage errors (2) and --help/--version (0)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
-        return args.func(args)
-    except InputError as exc:
-        print(f"bayes-jackal: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("bayes-jackal: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:
-        print(f"bayes-jackal: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return EXIT_FAILURE
+        with guarded(args):  # outputs checked, inputs protected, main output locked
+            return args.func(args)
+    except InputError as exc:  # names its file, field and value
+        return print_failure(exc, debug=args.debug)
+    except Exception as exc:  # one line naming the input (exit 1); --debug: the traceback
+        source = getattr(exc, "input_source", None) or ", ".join(command_inputs(args))
+        return print_failure(exc, source, debug=args.debug)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

@@ -3,34 +3,35 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from .._files import write_json
 from ..bag_writer import write_bag
 from ..criticism import criticise
 from ..demo import DEMO_TRUTH, run_demo
-from ..errors import InputError
+from ..errors import InputError, each_input
 from ..evidence import compare_families
-from ..experiment import write_netcdf
+from ..experiment import Experiment, write_netcdf
 from ..export import export_prior, write_prior
 from ..gridsearch import damping_grid, grid_search
-from ..inference import ConvergenceWarning, SamplerSettings, sample_posterior
+from ..inference import ConvergenceWarning, SamplerSettings, chain_path, sample_posterior
 from ..likelihood import ResidualLikelihood, resolve_channels
 from ..noise import analyse
 from ..plots import save_grid_plot
 from ..posterior import load_posterior, save_posterior, summarize
-from ..report import write_report
+from ..report import read_posteriors, save_report
 from ..robot import DEFAULT_PRIORS, RobotProfile, load_profile
 from ..simulate import NoiseSettings, simulate_series
-from ..tables import check_column_roles, load_experiments, write_csv
+from ..tables import check_column_roles, load_experiments, read_experiments, write_csv
 from ..workflow import analyse_logs, ingest_logs
 from .output import (
     EXIT_BAD_INPUT,
     EXIT_OK,
+    Failures,
     Reporter,
     analysis_text,
     comparison_table,
@@ -39,6 +40,7 @@ from .output import (
     print_criticism,
     residual_table,
 )
+from .paths import check_named_outputs
 
 
 def _robot(args: argparse.Namespace) -> RobotProfile:
@@ -115,6 +117,8 @@ def cmd_ingest(args: argparse.Namespace) -> int:
             f"{row['pose_rate'] or float('nan'):7.1f} {start:8.2f} - {stop:7.2f} "
             f"{len(row['repairs']):7d}"
         )
+        if "renamed_from" in experiment.provenance:  # two inputs of one name (ingest_logs)
+            out.say(f"  renamed: {experiment.provenance['renamed_from']} was another input's name")
     out.say(f"{len(written)} of {len(args.bags)} bags ingested into {folder}/")
     out.result({"experiments": written, "failed": failed})
     return EXIT_BAD_INPUT if failed else EXIT_OK
@@ -145,11 +149,22 @@ def cmd_grid(args: argparse.Namespace) -> int:
 def cmd_residuals(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = _robot(args)
-    experiments = _load(args)
-    result = analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
+
+    def residuals(experiments: list) -> dict:
+        return analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
+
+    if len(args.experiments) == 1:
+        experiments, failed, code = _load(args), {}, EXIT_OK
+    else:  # each on its own first: a bad one is named, the others analysed together
+        done, failed, code = _each_experiment(args, out.say, lambda e: residuals([e]))
+        experiments = [e for e, _ in done]
+    if not experiments:  # every input named on stderr already
+        out.result({"experiments": {}, "failed": failed})
+        return code
+    result = residuals(experiments)
     residual_table(result, out.say)
-    out.result(result)
-    return EXIT_OK
+    out.result(result | {"failed": failed})
+    return code
 
 
 def _run_sample(
@@ -171,8 +186,9 @@ def _run_sample(
             likelihood,
             settings,
             seed=seed,
-            chain_file=out_path.with_suffix(".chain.h5"),
+            chain_file=chain_path(out_path),
             prior_overrides=prior_overrides,
+            say=say,
         )
     save_posterior(idata, out_path)
     summary = summarize(idata)
@@ -200,22 +216,63 @@ def _likelihood_options(args: argparse.Namespace) -> dict:
     }
 
 
-def _data_sets(args: argparse.Namespace, experiments: list) -> dict[str, list]:
-    """One pooled data set, or one per experiment (keyed by experiment name)."""
-    if args.pooled or len(experiments) == 1:
-        return {"pooled" if len(experiments) > 1 else experiments[0].name: experiments}
-    return {e.name: [e] for e in experiments}
+def _each_experiment(
+    args: argparse.Namespace,
+    say: Callable[[str], None],
+    work: Callable[[Experiment], Any],
+    outputs: Callable[[Experiment], list[Path]] | None = None,
+) -> tuple[list[tuple[Experiment, Any]], dict[str, str], int]:
+    """Without pooling: read and process each experiment on its own.
+
+    A bad input is reported on stderr as it is met, and the others finish.
+    ``outputs`` gives the files an experiment's work writes: they are checked
+    for every experiment before any work (:func:`.paths.check_named_outputs`).
+
+    Returns
+    -------
+    done : list of (Experiment, result)
+    failed : dict of str to str
+        Input -> reason.
+    code : int
+        The exit code: 2 when an input was bad, 1 when one failed otherwise.
+    """
+    failures = Failures(args.debug)
+    loaded, failed = read_experiments(args.experiments, **_read_options(args), on_failure=failures)
+    if outputs is not None:
+        checked, refused = each_input(
+            loaded,
+            lambda given: check_named_outputs(args, outputs(loaded[given])),
+            on_failure=failures,
+        )
+        loaded, failed = {given: loaded[given] for given in checked}, failed | refused
+    done, crashed = each_input(
+        loaded, lambda given: work(loaded[given]), catch=Exception, on_failure=failures
+    )
+    failed |= crashed
+    if failed:
+        total = len(args.experiments)
+        say(f"{len(done)} of {total} experiments done; failed: {', '.join(failed)}")
+    return [(loaded[given], result) for given, result in done.items()], failed, failures.code
+
+
+def _print_each(
+    args: argparse.Namespace,
+    out: Reporter,
+    work: Callable[[Experiment], Any],
+    outputs: Callable[[Experiment], list[Path]],
+) -> int:
+    """:func:`_each_experiment`; JSON: ``experiments`` (name -> result) and ``failed``."""
+    done, failed, code = _each_experiment(args, out.say, work, outputs)
+    out.result({"experiments": {e.name: result for e, result in done}, "failed": failed})
+    return code
 
 
 def cmd_sample(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = _robot(args)
-    experiments = _load(args)
     out_path = Path(args.out)
     settings = _sampler_settings(args)
     overrides = _prior_overrides(args.prior)
-    signal.signal(signal.SIGTERM, _interrupt)
-    data_sets = _data_sets(args, experiments)
 
     def run(group: list, path: Path) -> dict:
         likelihood = ResidualLikelihood(
@@ -223,39 +280,39 @@ def cmd_sample(args: argparse.Namespace) -> int:
         )
         return _run_sample(likelihood, settings, args.seed, path, out.say, overrides)
 
-    if len(data_sets) == 1:
-        result = run(experiments, out_path)
-    else:
-        result = {
-            "experiments": {
-                name: run(group, out_path.with_name(f"{out_path.stem}.{name}.nc"))
-                for name, group in data_sets.items()
-            }
-        }
-    out.result(result)
-    return EXIT_OK
+    if args.pooled or len(args.experiments) == 1:
+        out.result(run(_load(args), out_path))
+        return EXIT_OK
+
+    def path(experiment: Experiment) -> Path:
+        return out_path.with_name(f"{out_path.stem}.{experiment.name}.nc")
+
+    return _print_each(
+        args,
+        out,
+        lambda e: run([e], path(e)),
+        lambda e: [path(e), chain_path(path(e))],
+    )
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = _robot(args)
-    experiments = _load(args)
     folder = Path(args.out) if args.out else None
     overrides = _prior_overrides(args.prior)
-    signal.signal(signal.SIGTERM, _interrupt)
-    results = {}
-    for name, group in _data_sets(args, experiments).items():
+
+    def compare(name: str, group: list) -> dict:
         channels = resolve_channels(group, args.channels)
         out.say(
             f"comparing {', '.join(args.families)} on {name}, channels {', '.join(channels)} "
             "(bridge sampling)"
         )
 
-        def finished(family, evidence, idata, name=name) -> None:
+        def finished(family, evidence, idata) -> None:
             out.say(f"  {family}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
             if folder is not None:  # saved at once: an interruption keeps it
                 criticise(idata)  # cached in its attrs: the file carries it
-                save_posterior(idata, folder / f"{name}.{family}.nc")
+                save_posterior(idata, _family_files(folder, name, [family])[family])
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ConvergenceWarning)
@@ -269,19 +326,43 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 finished,
                 cross_check=args.nested,
                 processes=args.processes,
+                reuse=None if folder is None else _family_files(folder, name, args.families),
+                say=out.say,
                 **_likelihood_options(args) | {"channels": channels},
             )
         for warning in caught:
             if issubclass(warning.category, ConvergenceWarning):
                 print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
-        results[name] = comparison.to_dict() | {"channels": list(channels)}
-        comparison_table(results[name], out.say)
-        print_criticism(results[name]["warnings"])
+        result = comparison.to_dict() | {"channels": list(channels)}
+        comparison_table(result, out.say)
+        print_criticism(result["warnings"])
         if folder is not None:
-            write_json(folder / f"{name}.compare.json", results[name])
+            write_json(_summary_file(folder, name), result)
             out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
-    out.result(results.popitem()[1] if len(results) == 1 else {"experiments": results})
-    return EXIT_OK
+        return result
+
+    def outputs(name: str) -> list[Path]:
+        if folder is None:
+            return []
+        return [*_family_files(folder, name, args.families).values(), _summary_file(folder, name)]
+
+    if args.pooled or len(args.experiments) == 1:
+        experiments = _load(args)
+        name = "pooled" if len(experiments) > 1 else experiments[0].name
+        check_named_outputs(args, outputs(name))
+        out.result(compare(name, experiments))
+        return EXIT_OK
+    return _print_each(args, out, lambda e: compare(e.name, [e]), lambda e: outputs(e.name))
+
+
+def _family_files(folder: Path, name: str, families) -> dict[str, Path]:
+    """Where ``compare --out`` keeps each family's posterior (and finds it on a rerun)."""
+    return {family: folder / f"{name}.{family}.nc" for family in families}
+
+
+def _summary_file(folder: Path, name: str) -> Path:
+    """Where ``compare --out`` writes the comparison of ``name``."""
+    return folder / f"{name}.compare.json"
 
 
 def cmd_export_prior(args: argparse.Namespace) -> int:
@@ -321,15 +402,9 @@ def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
     return overrides
 
 
-def _interrupt(signum, frame) -> None:
-    """SIGTERM handler: unwind like Ctrl-C so that the chain is flushed."""
-    raise KeyboardInterrupt
-
-
 def cmd_analyse(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = _robot_with_topics(args)
-    signal.signal(signal.SIGTERM, _interrupt)
     options = _likelihood_options(args)
     result = analyse_logs(
         args.inputs,
@@ -352,7 +427,6 @@ def cmd_analyse(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
-    signal.signal(signal.SIGTERM, _interrupt)
     result = run_demo(args.out, out.say, progress=not args.no_progress)
     out.say(
         f"Truth (simulated): d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} "
@@ -365,14 +439,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     out = Reporter(False)
-    path = write_report(args.posteriors, args.out, args.formats)
+    failures = Failures(args.debug)
+    posteriors, _ = read_posteriors(args.posteriors, on_failure=failures)
+    if not posteriors:  # every input named on stderr already
+        return failures.code
+    path = save_report(posteriors, args.out, args.formats)
     out.say(f"wrote {path} and its figures in {path.parent / (path.stem + '_figures')}/")
-    return EXIT_OK
+    return failures.code
 
 
 def _read_options(args: argparse.Namespace) -> dict:
-    """Keywords of load_experiment(s) from the input flags."""
-    return {"columns": check_column_roles(dict(args.column), field="--column"), "rate": args.rate}
+    """Keywords of load_experiment(s) from the input flags (and ``--robot``: its rate)."""
+    return {
+        "columns": check_column_roles(dict(args.column), field="--column"),
+        "rate": args.rate,
+        "robot": _robot(args),
+    }
 
 
 def _load(args: argparse.Namespace) -> list:

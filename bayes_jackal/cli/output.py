@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-import json
 import sys
+import traceback
 from collections.abc import Callable
 
+from .._files import json_text
+from ..errors import InputError, describe
 from ..gridsearch import GridResult
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
@@ -21,9 +23,9 @@ class Reporter:
         print(text, file=sys.stderr if self.json_mode else sys.stdout)
 
     def result(self, payload: dict) -> None:
+        """With ``--json``, print ``payload`` as strict JSON (NaN and +-inf as null)."""
         if self.json_mode:
-            json.dump(payload, sys.stdout, indent=2)
-            sys.stdout.write("\n")
+            sys.stdout.write(json_text(payload) + "\n")
 
 
 def grid_table(result: GridResult, say: Callable[[str], None]) -> None:
@@ -144,3 +146,35 @@ def analysis_text(result: dict, out: Reporter) -> int:
         print(f"bayes-jackal: error: {reason}", file=sys.stderr)
     out.result(result)
     return EXIT_BAD_INPUT if result["failed"] else EXIT_OK
+
+
+def print_failure(exc: Exception, source: str | None = None, *, debug: bool = False) -> int:
+    """One line on stderr naming ``source`` (with ``--debug``, the traceback first); the exit code.
+
+    Bad input (:class:`~bayes_jackal.errors.InputError`) reads ``bayes-jackal:
+    error: ...`` and gives 2; any other exception ``bayes-jackal: failed: Type:
+    message (source)`` and 1.
+    """
+    if debug:
+        traceback.print_exception(exc, file=sys.stderr)
+    bad = isinstance(exc, InputError)
+    kind = "error" if bad else "failed"
+    print(f"bayes-jackal: {kind}: {describe(exc, source)}", file=sys.stderr)
+    return EXIT_BAD_INPUT if bad else EXIT_FAILURE
+
+
+class Failures:
+    """Reports each input that fails as it fails (:func:`print_failure`); the exit code.
+
+    Pass it as ``on_failure`` of :func:`~bayes_jackal.errors.each_input`.
+    ``code`` is 0 while nothing failed, 2 when only bad inputs did, 1 when
+    any input failed otherwise.
+    """
+
+    def __init__(self, debug: bool = False):
+        self.debug = debug
+        self.code = EXIT_OK
+
+    def __call__(self, source: str, exc: Exception) -> None:
+        code = print_failure(exc, source, debug=self.debug)
+        self.code = EXIT_FAILURE if EXIT_FAILURE in (code, self.code) else code

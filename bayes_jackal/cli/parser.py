@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from collections.abc import Callable
 
 from .. import __version__
-from ..gridsearch import METHODS
+from ..errors import InputError
+from ..gridsearch import METHODS, damping_grid
 from ..kernels import FAMILIES
 from ..likelihood import DEFAULT_CHANNEL_ORDER, ENGINES, SENSOR_MODELS
 from ..physics import CHANNELS
@@ -49,12 +51,68 @@ _channel_list = _name_list(CHANNELS, "channel(s)")
 _family_list = _name_list(tuple(FAMILIES), "families")
 
 
+def _bounded(convert: type, what: str, *, minimum: float, strict: bool = False) -> Callable:
+    """argparse type of a finite number (``convert``: int or float) >= ``minimum`` (> if strict).
+
+    ``what`` states the allowed range in the message, e.g. "an integer >= 0".
+    Checked while parsing, so a bad flag is refused before any work.
+    """
+
+    def parse(text: str) -> float:
+        try:
+            value = convert(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and (value > minimum if strict else value >= minimum)):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+
+    return parse
+
+
+#: Counts and seeds (numpy's seeds are >= 0), counts of at least one, and
+#: physical quantities: positive, or non-negative (a noise sd of 0 is none).
+_natural = _bounded(int, "an integer >= 0", minimum=0)
+_count = _bounded(int, "an integer >= 1", minimum=1)
+_positive = _bounded(float, "a finite number > 0", minimum=0.0, strict=True)
+_non_negative = _bounded(float, "a finite number >= 0", minimum=0.0)
+_finite = _bounded(float, "a finite number", minimum=-math.inf)
+
+
+class _Grid(argparse.Action):
+    """``--d-lat START STOP STEP``: checked by the grid's own rule (``damping_grid``)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        try:
+            damping_grid(*values, name=option_string)
+        except InputError as exc:
+            message = str(exc).removeprefix(f"{option_string}: ")
+            raise argparse.ArgumentError(self, message) from None
+        setattr(namespace, self.dest, values)
+
+
+class _Window(argparse.Action):
+    """``--window T0 T1`` [s]: T0 < T1."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        start, stop = values
+        if not start < stop:
+            raise argparse.ArgumentError(self, f"expected T0 < T1 [s], got {start:g} {stop:g}")
+        setattr(namespace, self.dest, values)
+
+
 def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None:
     parser.add_argument(
         "--robot", metavar="PROFILE", help="robot profile TOML (default: models/jackal.toml)"
     )
     if json_flag:
         parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _add_debug(parser: argparse.ArgumentParser, default: object) -> None:
+    parser.add_argument(
+        "--debug", action="store_true", default=default, help="show the traceback of a failure"
+    )
 
 
 def _add_input_flags(parser: argparse.ArgumentParser) -> None:
@@ -69,7 +127,7 @@ def _add_input_flags(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--rate",
-        type=float,
+        type=_positive,
         metavar="HZ",
         help="declared sampling rate [Hz] (default: detected from the time stamps)",
     )
@@ -79,14 +137,15 @@ def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = 0.25
     """Flags of reading bags, shared by ingest and analyse: window, gaps, topics."""
     parser.add_argument(
         "--window",
-        type=float,
+        type=_finite,
         nargs=2,
+        action=_Window,
         metavar=("T0", "T1"),
         help="steady-state window [s; in bags from the first IMU stamp] instead of detecting it",
     )
     parser.add_argument(
         "--max-gap",
-        type=float,
+        type=_positive,
         default=max_gap,
         help="longest tolerated dropout [s] "
         + (f"({max_gap:g})" if max_gap else "(bags 0.25, experiment files 5 sample steps)"),
@@ -132,9 +191,11 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
     parser.add_argument(
         "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
     )
-    parser.add_argument("--seed", type=int, default=None, help="seed: same seed, same chain")
-    parser.add_argument("--walkers", type=int, default=0, help="ensemble size (default 32+)")
-    parser.add_argument("--max-steps", type=int, default=20_000, help="step cap (20000)")
+    parser.add_argument("--seed", type=_natural, default=None, help="seed: same seed, same chain")
+    parser.add_argument(
+        "--walkers", type=_natural, default=0, help="ensemble size (default 0: 32 or more)"
+    )
+    parser.add_argument("--max-steps", type=_count, default=20_000, help="step cap (20000)")
     parser.add_argument(
         "--prior",
         nargs=3,
@@ -154,6 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Jackal).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    _add_debug(parser, default=False)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     analysis = commands.add_parser(
@@ -175,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     analysis.add_argument(
         "--processes",
-        type=int,
+        type=_count,
         default=os.cpu_count() or 1,
         help="families sampled at once (default: the number of cores)",
     )
@@ -195,14 +257,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
     sim.add_argument("--out", required=True, help="output folder")
-    sim.add_argument("--seed", type=int, default=None, help="random seed (reproducible runs)")
+    sim.add_argument("--seed", type=_natural, default=None, help="random seed (reproducible runs)")
     for label in SERIES:
         default = 10 if label == "v1" else 5
         sim.add_argument(
-            f"--{label}", type=int, default=default, help=f"runs of series {label} ({default})"
+            f"--{label}",
+            type=_natural,
+            default=default,
+            help=f"runs of series {label} ({default})",
         )
-    sim.add_argument("--d-lat", type=float, default=110.0, help="true d_lat [N s/m] (110)")
-    sim.add_argument("--d-long", type=float, default=30.0, help="true d_long [N s/m] (30)")
+    sim.add_argument("--d-lat", type=_positive, default=110.0, help="true d_lat [N s/m] (110)")
+    sim.add_argument("--d-long", type=_positive, default=30.0, help="true d_long [N s/m] (30)")
     defaults = NoiseSettings()
     sim.add_argument(
         "--family", choices=list(FAMILIES), default=defaults.family, help="process-noise filter"
@@ -211,14 +276,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--width",
         "--sigma-h",
         dest="width",
-        type=float,
+        type=_positive,
         default=defaults.width,
         help=f"kernel width [s] (sigma_h of the Gaussian; {defaults.width})",
     )
     for name, help_text in (("c", "process"), ("n", "sensor")):
         sim.add_argument(
             f"--sigma-{name}",
-            type=float,
+            type=_non_negative,
             nargs=3,
             metavar=("VX", "VY", "YAW"),
             default=getattr(defaults, f"sigma_{name}"),
@@ -238,8 +303,9 @@ def build_parser() -> argparse.ArgumentParser:
     for name in ("d-lat", "d-long"):
         grid.add_argument(
             f"--{name}",
-            type=float,
+            type=_finite,
             nargs=3,
+            action=_Grid,
             default=(10.0, 1000.0, 10.0),
             metavar=("START", "STOP", "STEP"),
             help="grid values [N s/m], STOP included (10 1000 10)",
@@ -261,8 +327,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
     res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
-    res.add_argument("--d-lat", type=float, default=110.0, help="d_lat of the model [N s/m] (110)")
-    res.add_argument("--d-long", type=float, default=30.0, help="d_long of the model [N s/m] (30)")
+    res.add_argument(
+        "--d-lat", type=_positive, default=110.0, help="d_lat of the model [N s/m] (110)"
+    )
+    res.add_argument(
+        "--d-long", type=_positive, default=30.0, help="d_long of the model [N s/m] (30)"
+    )
     res.add_argument(
         "--channels",
         type=_channel_list,
@@ -271,7 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="comma-separated channels to analyse (yaw)",
     )
     res.add_argument(
-        "--lags", type=int, default=30, help="lags of the Ljung-Box test and sigma_h fit (30)"
+        "--lags", type=_count, default=30, help="lags of the Ljung-Box test and sigma_h fit (30)"
     )
     _add_input_flags(res)
     _add_common(res)
@@ -302,7 +372,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", metavar="DIR", help="save each family's posterior here")
     compare.add_argument(
         "--processes",
-        type=int,
+        type=_count,
         default=os.cpu_count() or 1,
         help="families sampled at once, one per process (default: the number of cores)",
     )
@@ -320,7 +390,10 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("posterior", metavar="POSTERIOR.nc", help="posterior file from sample")
     export.add_argument("--out", required=True, metavar="prior.json", help="output JSON")
     export.add_argument(
-        "--order", type=int, default=2, help="embedding order P of generalised coordinates (2)"
+        "--order",
+        type=_natural,
+        default=2,
+        help="embedding order P of generalised coordinates (2)",
     )
     _add_common(export, json_flag=False)
     export.set_defaults(func=cmd_export_prior)
@@ -338,4 +411,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="figure files written beside the report (png,svg)",
     )
     report.set_defaults(func=cmd_report)
+    for command in commands.choices.values():
+        _add_debug(command, default=argparse.SUPPRESS)  # keeps a --debug given before COMMAND
     return parser

@@ -1,0 +1,74 @@
+"""Each command's planned outputs and its inputs, from its arguments; checked before any work.
+
+:func:`guarded` runs a command under the guarantees of
+:mod:`bayes_jackal.outputs`: outputs checked and their folders created before
+any work, the inputs never replaced, and the command's main output (the
+first one listed here) locked for the whole run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from ..inference import chain_path
+from ..outputs import Output, OutputLock, check_outputs, protected
+
+#: Figure suffixes of ``grid --plot`` (matplotlib's formats the README names).
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def planned_outputs(args: argparse.Namespace) -> list[Output]:
+    """What the command writes under the names the user gave; the main output first."""
+    command, out = args.command, getattr(args, "out", None)
+    if command in ("simulate", "ingest", "analyse", "demo") or (command == "compare" and out):
+        return [Output(Path(out), "folder")]
+    if command == "sample":
+        path = Path(out)
+        return [Output(path, suffixes=(".nc",)), Output(chain_path(path))]
+    if command == "grid":
+        files = [(args.out, (".nc",), "--out"), (args.plot, PLOT_SUFFIXES, "--plot")]
+        return [Output(Path(p), "file", suffixes, flag) for p, suffixes, flag in files if p]
+    if command == "export-prior":
+        return [Output(Path(out), suffixes=(".json",))]
+    if command == "report":
+        path = Path(out)
+        return [
+            Output(path, suffixes=(".html", ".htm")),
+            Output(path.parent / f"{path.stem}_figures", "folder"),
+        ]
+    return []  # residuals writes nothing
+
+
+def command_inputs(args: argparse.Namespace) -> list[str]:
+    """The files and folders the command reads: never to be replaced by an output."""
+    inputs = [getattr(args, "posterior", None)]
+    for name in ("experiments", "posteriors", "bags", "inputs"):
+        inputs += getattr(args, name, None) or []
+    inputs.append(getattr(args, "robot", None))  # last: failures name the data first
+    return [given for given in inputs if given]
+
+
+def check_named_outputs(args: argparse.Namespace, paths: Iterable[Path]) -> None:
+    """Check outputs named after the data (an experiment's name) like the planned ones.
+
+    ``sample --out p.nc`` on several experiments writes ``p.<name>.nc``, and
+    ``compare --out DIR`` writes ``DIR/<name>.<family>.nc``: known only once
+    the inputs are read, and checked then, before the work they belong to.
+    """
+    check_outputs([Output(Path(path)) for path in paths], inputs=command_inputs(args))
+
+
+@contextlib.contextmanager
+def guarded(args: argparse.Namespace) -> Iterator[None]:
+    """Check the outputs, protect the inputs and lock the main output while the command runs."""
+    outputs, inputs = planned_outputs(args), command_inputs(args)
+    check_outputs(outputs, inputs=inputs)
+    with contextlib.ExitStack() as stack:
+        if outputs:
+            main = outputs[0]
+            stack.enter_context(OutputLock(main.path, folder=main.kind == "folder"))
+        stack.enter_context(protected(inputs))
+        yield

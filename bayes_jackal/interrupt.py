@@ -1,0 +1,171 @@
+"""Clean stops on SIGINT and SIGTERM (stdlib only: the CLI installs it before any import).
+
+:func:`install` makes both signals raise :class:`Interrupted`, a
+:class:`KeyboardInterrupt` that knows its signal and exit code, so every
+``finally`` runs (a chain is flushed, finished results stay saved).
+Third-party code with catch-all handlers must not see it raised in its
+midst: emcee's ``except:`` around the log-probability prints the walkers on
+stdout, and its ``random_state`` setter swallows the interrupt whole. Such
+code runs inside :func:`deferred`, where a signal only records a stop that
+:func:`check` raises between steps; a second signal raises at once.
+
+Worker processes call :func:`quiet_worker` first: they ignore SIGINT (the
+terminal sends Ctrl-C to them too; the main process stops them) and die
+without a word on SIGTERM.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+from collections.abc import Iterator
+
+__all__ = [
+    "Interrupted",
+    "blocked",
+    "check",
+    "deferred",
+    "install",
+    "pending",
+    "quiet_worker",
+    "restore",
+]
+
+#: The signals that stop a run.
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(KeyboardInterrupt):
+    """A run stopped by a signal.
+
+    Attributes
+    ----------
+    signum : int
+        The signal (SIGINT or SIGTERM).
+    exit_code : int
+        128 + signum: 130 for SIGINT, 143 for SIGTERM.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+        self.exit_code = 128 + self.signum
+
+
+_pending: int | None = None
+_deferring = 0
+
+
+def _handler(signum: int, frame) -> None:
+    global _pending
+    first, _pending = _pending is None, signum  # kept until check() raises it
+    if _deferring and first:
+        return
+    raise Interrupted(signum)
+
+
+def _unraisable(hook: sys.UnraisableHookArgs) -> None:
+    """Drop an :class:`Interrupted` raised where Python cannot propagate it.
+
+    A signal landing in a finaliser or in Cython code that cannot raise
+    (scipy's Sobol set-up reads its tables so) raises there, and Python
+    would print "Exception ignored" and carry on: the stop stays pending
+    instead, and :func:`check` (or the CLI, when the command returns)
+    raises it.
+    """
+    if not isinstance(hook.exc_value, Interrupted):
+        _previous_hooks["unraisablehook"](hook)
+
+
+def _excepthook(kind, value, traceback) -> None:
+    """As :func:`_unraisable`, for Cython's print of such an exception's traceback."""
+    if not isinstance(value, Interrupted):
+        _previous_hooks["excepthook"](kind, value, traceback)
+
+
+#: sys hooks in place before :func:`install`.
+_previous_hooks = {"unraisablehook": sys.unraisablehook, "excepthook": sys.excepthook}
+
+
+def pending() -> int | None:
+    """The signal of a stop that was requested and not yet raised by :func:`check`."""
+    return _pending
+
+
+def install() -> dict:
+    """Make SIGINT and SIGTERM raise :class:`Interrupted`, ignore SIGXFSZ (main thread only).
+
+    Returns
+    -------
+    dict
+        The previous handlers by signal, and the previous
+        ``sys.unraisablehook`` and ``sys.excepthook`` (see
+        :func:`_unraisable`), for :func:`restore`.
+    """
+    global _pending
+    _pending = None
+    previous = {signum: signal.signal(signum, _handler) for signum in SIGNALS}
+    # Beyond a file-size limit (ulimit -f) a write then fails with EFBIG, which
+    # the writers report naming the file, instead of the signal killing the run.
+    previous[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    if sys.unraisablehook is not _unraisable:  # installed twice: keep the first's
+        _previous_hooks.update(unraisablehook=sys.unraisablehook, excepthook=sys.excepthook)
+    sys.unraisablehook, sys.excepthook = _unraisable, _excepthook
+    return previous | _previous_hooks
+
+
+def restore(previous: dict) -> None:
+    """Put back the handlers :func:`install` returned."""
+    previous = dict(previous)
+    sys.unraisablehook = previous.pop("unraisablehook", sys.unraisablehook)
+    sys.excepthook = previous.pop("excepthook", sys.excepthook)
+    for signum, handler in previous.items():
+        signal.signal(signum, handler)
+
+
+def check() -> None:
+    """Raise the stop a signal recorded inside :func:`deferred`, if any."""
+    global _pending
+    signum, _pending = _pending, None
+    if signum is not None:
+        raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Hold a signal back as a pending stop while third-party code runs.
+
+    Call :func:`check` where stopping is safe; leaving the outermost block
+    normally raises a stop still pending. A second signal raises at once.
+    """
+    global _deferring
+    _deferring += 1
+    try:
+        yield
+    finally:
+        _deferring -= 1
+    if not _deferring:
+        check()
+
+
+def quiet_worker() -> None:
+    """Initializer of worker processes: ignore SIGINT, die quietly on SIGTERM."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)
+
+
+@contextlib.contextmanager
+def blocked() -> Iterator[None]:
+    """Block SIGINT and SIGTERM while starting worker processes.
+
+    The children inherit the mask, so a signal during their start-up waits
+    until :func:`quiet_worker` has set their handlers; here it is delivered
+    when the block ends.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)

@@ -1,0 +1,260 @@
+"""Where a command may write: checked outputs, protected inputs, one run per output.
+
+The guarantees, in the order a command meets them:
+
+- :func:`check_outputs`, before any work: an output is never one of the
+  command's inputs (same resolved path, or the same file by device and
+  inode: a hard link or a symbolic link is caught too), a file output has
+  a known suffix and is not an existing folder, a folder output is not an
+  existing file, two outputs of one command never share a path; the
+  outputs' folders are created. A refusal is an :class:`InputError`
+  (exit 2) and nothing has been done.
+- :func:`protected`, for the whole run: every file written through
+  :func:`bayes_jackal._files.atomic_path` is refused when it would replace
+  an input. This catches the names a command computes, such as
+  ``sample --out p.nc`` writing ``p.<experiment>.nc`` for each experiment.
+- :class:`OutputLock`, for the whole run: a second run on the same output
+  is refused at once, naming the run that holds it; a chain is never
+  written by two runs.
+
+POSIX only (Linux, macOS): the lock is :func:`fcntl.flock`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import datetime
+import errno
+import fcntl
+import json
+import os
+import socket
+import sys
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+
+from .errors import InputError, OutputError
+
+__all__ = [
+    "Output",
+    "OutputLock",
+    "OutputLockedError",
+    "check_outputs",
+    "protected",
+    "refuse_input",
+]
+
+
+class OutputLockedError(InputError):
+    """Another run holds the output: it is refused at once (exit 2)."""
+
+
+@dataclass(frozen=True)
+class Output:
+    """One output a command plans to write.
+
+    Attributes
+    ----------
+    path : Path
+    kind : str
+        ``"file"`` or ``"folder"``.
+    suffixes : tuple of str
+        A file's allowed suffixes (lower case, with the dot); empty: any.
+    flag : str
+        The option that named it, for messages (``--out``, ``--plot``).
+    """
+
+    path: Path
+    kind: str = "file"
+    suffixes: tuple[str, ...] = ()
+    flag: str = "--out"
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    """(device, inode) of an existing path, following links; None if it does not exist."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return stat.st_dev, stat.st_ino
+
+
+def _check_one(output: Output, inputs: dict[tuple[int, int] | Path, str]) -> None:
+    path, where = output.path, f"{output.flag} {output.path}"
+    if path.resolve() in inputs or _identity(path) in inputs:
+        given = inputs.get(path.resolve()) or inputs[_identity(path)]
+        raise InputError(
+            f"is the input {given}; an output never replaces an input, choose another",
+            source=where,
+        )
+    parent = next((p for p in path.parents if p.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise InputError(f"{parent} is a file, not a folder; choose another", source=where)
+    if output.kind == "folder":
+        if path.exists() and not path.is_dir():
+            raise InputError("is an existing file; give a folder", source=where)
+        return
+    if path.is_dir():
+        raise InputError("is an existing folder; give a file name", source=where)
+    if output.suffixes and path.suffix.lower() not in output.suffixes:
+        suffix = repr(path.suffix) if path.suffix else "no suffix"
+        raise InputError(
+            f"{suffix} is not a known suffix; use {', '.join(output.suffixes)}", source=where
+        )
+
+
+def check_outputs(outputs: Sequence[Output], *, inputs: Iterable[str | Path]) -> None:
+    """Refuse bad outputs before any work; create their folders.
+
+    Parameters
+    ----------
+    outputs : sequence of Output
+        Everything the command plans to write under names the user gave.
+    inputs : iterable of str or Path
+        The command's input files and folders (missing ones are ignored here;
+        reading reports them).
+
+    Raises
+    ------
+    InputError
+        An output is an input, has an unknown suffix, is a folder where a
+        file is wanted or the other way round, or two outputs share a path.
+    OutputError
+        A folder cannot be created (permission, read-only file system).
+    """
+    known: dict[tuple[int, int] | Path, str] = {}
+    for given in inputs:
+        known[Path(given).resolve()] = str(given)
+        if (identity := _identity(Path(given))) is not None:
+            known[identity] = str(given)
+    seen: dict[Path, Output] = {}
+    for output in outputs:
+        _check_one(output, known)
+        resolved = output.path.resolve()
+        if resolved in seen:
+            raise InputError(
+                f"is also {seen[resolved].flag}; two outputs cannot share a path",
+                source=f"{output.flag} {output.path}",
+            )
+        seen[resolved] = output
+    from ._files import make_folder  # _files consults this module: imported late
+
+    for output in outputs:
+        make_folder(output.path if output.kind == "folder" else output.path.parent)
+
+
+#: The protected inputs, (device, inode) -> the path as given; a mapping that is never mutated.
+_PROTECTED: contextvars.ContextVar[Mapping] = contextvars.ContextVar(
+    "protected", default=MappingProxyType({})
+)
+
+
+@contextlib.contextmanager
+def protected(inputs: Iterable[str | Path]) -> Iterator[None]:
+    """Within the block, :func:`refuse_input` refuses to replace any of ``inputs``."""
+    identities = {}
+    for given in inputs:
+        if (identity := _identity(Path(given))) is not None:
+            identities[identity] = str(given)
+    token = _PROTECTED.set({**_PROTECTED.get(), **identities})
+    try:
+        yield
+    finally:
+        _PROTECTED.reset(token)
+
+
+def refuse_input(path: Path) -> None:
+    """Raise InputError when writing ``path`` would replace a protected input."""
+    given = _PROTECTED.get().get(_identity(path))
+    if given is not None:
+        raise InputError(
+            f"writing it would replace the input {given}; choose another output",
+            source=str(path),
+        )
+
+
+def lock_path(path: str | Path, *, folder: bool = False) -> Path:
+    """An output's lock file: ``.NAME.lock`` beside a file, ``.bayes-jackal.lock`` in a folder."""
+    path = Path(path)
+    return path / ".bayes-jackal.lock" if folder else path.parent / f".{path.name}.lock"
+
+
+class OutputLock:
+    """A lock per run on an output, naming its holder; use as a context manager.
+
+    Entering takes an exclusive :func:`fcntl.flock` on :func:`lock_path`
+    without waiting and writes the holder (pid, host, command line, start
+    time) into the lock file; when another run holds it,
+    :class:`OutputLockedError` names that run. Leaving removes the lock
+    file. The kernel releases the lock when a process dies, even by
+    SIGKILL, so a stale lock file never blocks a later run. POSIX only;
+    on a network file system flock may not exclude other hosts.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output.
+    folder : bool
+        The output is a folder (it must exist): the lock file goes inside it.
+    """
+
+    def __init__(self, path: str | Path, *, folder: bool = False):
+        self.path = Path(path)
+        self.lock_file = lock_path(self.path, folder=folder)
+        self._fd: int | None = None
+
+    def __enter__(self) -> OutputLock:
+        while self._fd is None:
+            try:
+                fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:  # a read-only folder, no permission
+                raise OutputError.from_os_error(self.path, exc) from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                    raise
+                raise OutputLockedError(
+                    f"is in use by another run ({self._holder()}); wait for it to finish "
+                    "or choose another output",
+                    source=str(self.path),
+                ) from None
+            locked = os.fstat(fd)
+            if _identity(self.lock_file) == (locked.st_dev, locked.st_ino):
+                self._fd = fd  # the file we locked is still the lock file
+            else:  # its holder removed it between our open and flock: try again
+                os.close(fd)
+        holder = {
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "command": " ".join(["bayes-jackal", *sys.argv[1:]]),
+            "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        }
+        try:
+            os.ftruncate(self._fd, 0)
+            os.write(self._fd, json.dumps(holder).encode())
+        except OSError as exc:  # a full disk, a file-size limit: before any work
+            self.__exit__()
+            raise OutputError.from_os_error(self.path, exc) from None
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            self.lock_file.unlink()  # still holding the lock: no one else removes it
+        os.close(self._fd)
+        self._fd = None
+
+    def _holder(self) -> str:
+        """The holding run, in words, from the lock file."""
+        try:
+            holder = json.loads(self.lock_file.read_text())
+            return (
+                f"pid {holder['pid']} on {holder['host']}, started {holder['started']}: "
+                f"{holder['command']}"
+            )
+        except (OSError, ValueError, KeyError, TypeError):
+            return f"lock file {self.lock_file}"

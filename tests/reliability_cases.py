@@ -1,0 +1,1900 @@
+"""The reliability table of issue 11: hostile but realistic inputs, one row per case.
+
+Each :class:`Case` names the files to create (by builder functions below,
+which derive every input from one small simulated experiment, its CSV, MATLAB
+file, bags and posterior, built once per session), the command line, the
+expected exit code and the words (regular expressions, case-insensitive) that
+stderr must hold. ``tests/test_reliability.py`` runs each through the real
+command line in a subprocess and also checks what every case must satisfy:
+no traceback, inputs byte-identical and untouched, no ``.part`` file left,
+stdout empty or strict JSON with ``--json``.
+
+Expected behaviour is issue 11's; where it is silent, what a careful tool
+does: exit 2 for bad input, named with its file and field, before any work;
+1 for other failures (a full disk); 130/143 for SIGINT/SIGTERM. Cases whose
+point is "refused before any work" run with the default, expensive settings
+and a short timeout, so a check made only after the work fails the case.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import re
+import shutil
+import signal
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib.resources import files as package_files
+from pathlib import Path
+
+import numpy as np
+
+#: Settings that keep a successful run short (seconds, not minutes).
+SAMPLE = "--family white --channels yaw --max-steps 200 --walkers 32 --seed 1 --no-progress"
+COMPARE = (
+    "--families white --channels yaw --max-steps 200 --walkers 32 --seed 1 --no-progress "
+    "--processes 1"
+)
+ANALYSE = COMPARE
+GRID = "--d-lat 10 300 10 --d-long 10 100 10"
+#: Timeout [s] of cases that must fail before any work.
+FAST = 30.0
+
+
+@dataclass(frozen=True)
+class Library:
+    """The session's source files, from which every case's inputs are derived."""
+
+    root: Path
+    nc: Path  # simulate --seed 1 --v1 1 --v2 0: runs/v1_01.nc
+    csv: Path  # the same run as CSV
+    mat: Path  # the same columns in a MATLAB file
+    bag: Path  # the run as a ROS1 bag
+    mcap: Path  # the run as a ROS2 bag (another seed)
+    posterior: Path  # sample --family gaussian --channels yaw, 200 steps
+    white_posterior: Path  # the same with --family white
+
+
+Builder = Callable[[Library, Path], None]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One row: files to build, argv, expected exit, words stderr must hold, checks.
+
+    ``kind`` is ``run`` (one run), ``signal`` (a signal once ``trigger``
+    exists or after ``delay`` seconds), ``lock`` (a second run while a first
+    holds the output), ``fsize`` (RLIMIT_FSIZE of ``limit`` bytes) or
+    ``tmpfs`` (the output on a full tmpfs). ``rerun`` is a follow-up of the
+    same argv without the signal or limit: (exit, words).
+    """
+
+    id: str
+    argv: str
+    exit: int | tuple[int, ...]
+    words: tuple[str, ...] = ()
+    files: dict[str, Builder] = field(default_factory=dict)
+    exists: tuple[str, ...] = ()
+    absent: tuple[str, ...] = ()
+    json_files: tuple[str, ...] = ()
+    count: dict[str, int] = field(default_factory=dict)
+    stdout_lacks: tuple[str, ...] = ()
+    mutable: tuple[str, ...] = ()
+    timeout: float = 90.0
+    kind: str = "run"
+    signum: int = 0
+    trigger: str = ""
+    delay: float = 0.0
+    limit: int = 0
+    rerun: tuple[int, tuple[str, ...]] | None = None
+    script: bool = False  # exec the console script, not python -m
+
+
+def C(id: str, argv: str, exit, *words: str, **options) -> Case:
+    """A row, compactly: ``C(id, argv, exit, *words, files=..., ...)``."""
+    return Case(id=id, argv=argv, exit=exit, words=words, **options)
+
+
+# ---------------------------------------------------------------- builders
+
+
+def experiment(name: str | None = None, **attrs) -> Builder:
+    """The simulated experiment file, named ``name`` (default: the file's stem)."""
+
+    def build(lib: Library, path: Path) -> None:
+        _nc_edit(lib, path, lambda ds: ds.assign_attrs(name=name or path.stem, **attrs))
+
+    build.__name__ = f"experiment({name or ''})"
+    return build
+
+
+def nc_edit(edit: Callable) -> Builder:
+    """The experiment file with ``edit(dataset) -> dataset`` applied."""
+
+    def build(lib: Library, path: Path) -> None:
+        _nc_edit(lib, path, lambda ds: edit(ds.assign_attrs(name=path.stem)))
+
+    return build
+
+
+def _nc_edit(lib: Library, path: Path, edit: Callable) -> None:
+    import xarray as xr
+
+    with xr.open_dataset(lib.nc, engine="h5netcdf") as source:
+        dataset = edit(source.load())
+    dataset.to_netcdf(path, engine="h5netcdf")
+
+
+def nc_scaled(variable: str, factor: float) -> Builder:
+    return nc_edit(lambda ds: ds.assign({variable: ds[variable] * factor}))
+
+
+def nc_cell(variable: str, value: float, row: int = 100) -> Builder:
+    def edit(ds):
+        values = ds[variable].values.copy()
+        values[row] = value
+        return ds.assign({variable: ("time", values)})
+
+    return nc_edit(edit)
+
+
+def nc_string_variable(variable: str) -> Builder:
+    return nc_edit(
+        lambda ds: ds.assign({variable: ("time", np.array(["fast"] * ds.sizes["time"]))})
+    )
+
+
+def nc_drop(variable: str) -> Builder:
+    return nc_edit(lambda ds: ds.drop_vars(variable))
+
+
+def nc_time(edit: Callable[[np.ndarray], np.ndarray]) -> Builder:
+    return nc_edit(lambda ds: ds.assign_coords(time=edit(ds["time"].values.copy())))
+
+
+def nc_short(rows: int) -> Builder:
+    return nc_edit(lambda ds: ds.isel(time=slice(0, rows)))
+
+
+def copy(what: str) -> Builder:
+    """A byte copy of a library file (``nc``, ``csv``, ``mat``, ``bag``, ``posterior``...)."""
+
+    def build(lib: Library, path: Path) -> None:
+        shutil.copyfile(getattr(lib, what), path)
+
+    build.__name__ = f"copy({what})"
+    return build
+
+
+def truncated(what: str, fraction: float = 0.5) -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        data = getattr(lib, what).read_bytes()
+        path.write_bytes(data[: int(len(data) * fraction)])
+
+    return build
+
+
+def raw(content: bytes) -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        path.write_bytes(content)
+
+    return build
+
+
+def folder() -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        path.mkdir(parents=True)
+
+    return build
+
+
+def symlink(target: str) -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        path.symlink_to(target)
+
+    return build
+
+
+def hardlink(target: str) -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        os.link(path.parent / target, path)
+
+    return build
+
+
+def csv_text(edit: Callable[[str], str]) -> Builder:
+    """The simulated run's CSV text with ``edit(text) -> text`` applied."""
+
+    def build(lib: Library, path: Path) -> None:
+        path.write_bytes(edit(lib.csv.read_text()).encode())
+
+    return build
+
+
+def csv_table(edit: Callable[[list[str], np.ndarray], tuple[list[str], np.ndarray]]) -> Builder:
+    """The CSV's header and values with ``edit(header, values)`` applied, written back."""
+
+    def build(lib: Library, path: Path) -> None:
+        header, values = read_table(lib.csv)
+        header, values = edit(list(header), values.copy())
+        buffer = io.StringIO()
+        buffer.write(",".join(header) + "\n")
+        np.savetxt(buffer, values, delimiter=",", fmt="%.12g")
+        path.write_text(buffer.getvalue())
+
+    return build
+
+
+def read_table(path: Path) -> tuple[list[str], np.ndarray]:
+    with path.open() as handle:
+        header = next(csv.reader(handle))
+    return header, np.loadtxt(path, delimiter=",", skiprows=1)
+
+
+def _column(header: list[str], name: str) -> int:
+    return header.index(name)
+
+
+def csv_scaled(name: str, factor: float) -> Builder:
+    def edit(header, values):
+        values[:, _column(header, name)] *= factor
+        return header, values
+
+    return csv_table(edit)
+
+
+def csv_cell(name: str, value: float, row: int = 100) -> Builder:
+    def edit(header, values):
+        values[row, _column(header, name)] = value
+        return header, values
+
+    return csv_table(edit)
+
+
+def csv_rows(select: Callable[[np.ndarray], np.ndarray]) -> Builder:
+    return csv_table(lambda header, values: (header, values[select(values)]))
+
+
+def csv_header(edit: Callable[[list[str]], list[str]]) -> Builder:
+    return csv_table(lambda header, values: (edit(header), values))
+
+
+def csv_columns(keep: Callable[[list[str]], list[int]]) -> Builder:
+    def edit(header, values):
+        index = keep(header)
+        return [header[i] for i in index], values[:, index]
+
+    return csv_table(edit)
+
+
+def mat(edit: Callable[[dict], dict] = lambda columns: columns) -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        import scipy.io
+
+        header, values = read_table(lib.csv)
+        scipy.io.savemat(path, edit({name: values[:, i] for i, name in enumerate(header)}))
+
+    return build
+
+
+def profile(edit: Callable[[str], str] = lambda text: text) -> Builder:
+    """The Jackal profile's TOML text with ``edit(text) -> text`` applied."""
+
+    def build(lib: Library, path: Path) -> None:
+        text = (package_files("bayes_jackal.models") / "jackal.toml").read_text()
+        path.write_text(edit(text))
+
+    return build
+
+
+def replace(old: str, new: str) -> Callable[[str], str]:
+    def edit(text: str) -> str:
+        assert old in text, old
+        return text.replace(old, new, 1)
+
+    return edit
+
+
+def json_text(payload: str) -> Builder:
+    return raw(payload.encode())
+
+
+GOOD = {"a.nc": experiment()}
+GOOD2 = {"a.nc": experiment(), "b.nc": experiment()}
+GOOD_CSV = {"a.csv": copy("csv")}
+POST = {"post.nc": copy("posterior")}
+EMPTY = raw(b"")
+GARBAGE = raw(bytes(range(256)) * 64)
+BOM = "\ufeff"
+
+
+def shuffled_pairs(values: np.ndarray) -> np.ndarray:
+    """Row order with 5 neighbouring pairs swapped (stamps out of order)."""
+    order = np.arange(len(values))
+    for i in range(200, 1200, 200):
+        order[[i, i + 1]] = order[[i + 1, i]]
+    return order
+
+
+def repeated_rows(values: np.ndarray) -> np.ndarray:
+    """Row order with 5 rows logged twice (repeated stamps)."""
+    return np.sort(np.concatenate([np.arange(len(values)), np.arange(300, 1300, 200)]))
+
+
+def hole(values: np.ndarray) -> np.ndarray:
+    """Rows with 10 s missing in the middle (a dropout far beyond --max-gap)."""
+    t = values[:, 0]
+    return (t < 10.0) | (t > 20.0)
+
+
+# ---------------------------------------------------------------- the table
+
+_EXP_COMMANDS = {
+    "grid": f"grid {{}} {GRID}",
+    "residuals": "residuals {} --json",
+    "sample": "sample {} --out p.nc",
+    "compare": "compare {} --out cmp",
+}
+
+#: Bad experiment files: (id, file name, builder, words), each refused by every reader.
+BAD_EXPERIMENTS = [
+    ("csv-empty", "e.csv", EMPTY, (r"e\.csv", r"empty|no (data|header|rows)")),
+    ("csv-header-only", "h.csv", csv_text(lambda t: t.splitlines()[0] + "\n"), (r"h\.csv",)),
+    ("csv-1e300", "x.csv", csv_scaled("yaw_rate", 1e300), (r"x\.csv", "yaw_rate")),
+    ("csv-inf", "x.csv", csv_cell("omega_r", np.inf), (r"x\.csv", "omega_r")),
+    ("csv-nan", "x.csv", csv_cell("yaw_rate", np.nan), (r"x\.csv", "yaw_rate")),
+    ("csv-time-ns", "x.csv", csv_scaled("t", 1e9), (r"x\.csv", r"rate|sample time|\bt\b")),
+    ("csv-time-ms", "x.csv", csv_scaled("t", 1e3), (r"x\.csv", r"rate|sample time")),
+    (
+        "csv-duplicate-column",
+        "x.csv",
+        csv_header(lambda h: [*h[:4], "yaw_rate", h[5]]),
+        (r"x\.csv", r"duplicate|appears 2 times|twice", "yaw_rate"),
+    ),
+    (
+        "csv-missing-column",
+        "x.csv",
+        csv_columns(lambda h: [i for i, n in enumerate(h) if n != "yaw_rate"]),
+        (r"x\.csv", "yaw_rate"),
+    ),
+    (
+        "csv-renamed-column",
+        "x.csv",
+        csv_header(lambda h: ["gyro_z" if n == "yaw_rate" else n for n in h]),
+        (r"x\.csv", "yaw_rate", "--column"),
+    ),
+    ("csv-garbage", "x.csv", GARBAGE, (r"x\.csv",)),
+    (
+        "csv-text-cell",
+        "x.csv",
+        csv_text(lambda t: t.replace("\n", "\n0.5,fast,1,1,0,0\n", 1)),
+        (r"x\.csv", r"fast|row|line"),
+    ),
+    (
+        "csv-truncated-line",
+        "x.csv",
+        csv_text(lambda t: t[: len(t) // 2].rsplit(",", 2)[0]),
+        (r"x\.csv", r"row|line|column|field"),
+    ),
+    ("csv-too-short", "x.csv", csv_text(lambda t: "\n".join(t.splitlines()[:6])), (r"x\.csv",)),
+    (
+        "csv-all-stamps-equal",
+        "x.csv",
+        csv_table(lambda h, v: (h, np.column_stack([np.zeros(len(v)), v[:, 1:]]))),
+        (r"x\.csv", r"\bt\b|stamp|time"),
+    ),
+    (
+        "csv-semicolons",
+        "x.csv",
+        csv_text(lambda t: t.replace(",", ";")),
+        (r"x\.csv", r"column|yaw_rate"),
+    ),
+    ("nc-empty", "e.nc", EMPTY, (r"e\.nc",)),
+    ("nc-truncated", "x.nc", truncated("nc"), (r"x\.nc",)),
+    ("nc-garbage", "x.nc", GARBAGE, (r"x\.nc",)),
+    ("nc-is-csv", "x.nc", copy("csv"), (r"x\.nc",)),
+    ("nc-is-posterior", "x.nc", copy("posterior"), (r"x\.nc", r"experiment|format")),
+    ("nc-missing-variable", "x.nc", nc_drop("omega_l"), (r"x\.nc", "omega_l")),
+    ("nc-1e300", "x.nc", nc_scaled("yaw_rate", 1e300), (r"x\.nc", "yaw_rate")),
+    ("nc-inf", "x.nc", nc_cell("omega_l", np.inf), (r"x\.nc", "omega_l")),
+    ("nc-nan", "x.nc", nc_cell("yaw_rate", np.nan), (r"x\.nc", "yaw_rate")),
+    ("nc-time-ms", "x.nc", nc_time(lambda t: t * 1e3), (r"x\.nc", r"rate|sample time")),
+    ("nc-time-reversed", "x.nc", nc_time(lambda t: t[::-1]), (r"x\.nc", r"\bt\b|time|increas")),
+    ("nc-short", "x.nc", nc_short(4), (r"x\.nc", r"samples|short|rows")),
+    (
+        "nc-steady-window-one-element",
+        "x.nc",
+        experiment(steady_window=[5.0]),
+        (r"x\.nc", "steady_window"),
+    ),
+    (
+        "nc-steady-window-reversed",
+        "x.nc",
+        experiment(steady_window=[30.0, 5.0]),
+        (r"x\.nc", "steady_window"),
+    ),
+    ("nc-truth-not-json", "x.nc", experiment(truth="{d_lat: 110"), (r"x\.nc", "truth")),
+    (
+        "nc-provenance-not-json",
+        "x.nc",
+        experiment(provenance="not json"),
+        (r"x\.nc", "provenance"),
+    ),
+    ("nc-string-variable", "x.nc", nc_string_variable("yaw_rate"), (r"x\.nc", "yaw_rate")),
+    ("mat-empty", "e.mat", EMPTY, (r"e\.mat",)),
+    ("mat-truncated", "x.mat", truncated("mat"), (r"x\.mat",)),
+    (
+        "mat-missing-variable",
+        "x.mat",
+        mat(lambda c: {k: v for k, v in c.items() if k != "omega_r"}),
+        (r"x\.mat", "omega_r"),
+    ),
+    (
+        "mat-1e300",
+        "x.mat",
+        mat(lambda c: c | {"yaw_rate": c["yaw_rate"] * 1e300}),
+        (r"x\.mat", "yaw_rate"),
+    ),
+    ("suffix-txt", "x.txt", copy("csv"), (r"x\.txt", r"suffix|\.txt|format")),
+    ("suffix-h5", "x.h5", copy("nc"), (r"x\.h5", r"suffix|\.h5|format")),
+    ("is-a-folder", "x.nc", folder(), (r"x\.nc",)),
+    ("missing", None, None, (r"nothere\.nc", r"no such|not found|does not exist")),
+]
+
+
+def _bad_experiment_cases() -> list[Case]:
+    """Every bad experiment file under grid, residuals, sample and compare (fast refusals)."""
+    cases = []
+    commands = {
+        "grid": "grid",
+        "residuals": "residuals",
+        "sample": "sample",
+        "compare": "compare",
+    }
+    # Each file under one command, in turn: every reader is hit by every command.
+    names = list(commands)
+    for index, (case_id, name, builder, words) in enumerate(BAD_EXPERIMENTS):
+        for command in (names[index % 4],):
+            path = name or "nothere.nc"
+            files = {name: builder} if name else {}
+            cases.append(
+                C(
+                    f"{command}-{case_id}",
+                    _EXP_COMMANDS[command].format(path),
+                    2,
+                    *words,
+                    files=files,
+                    absent=("p.nc", "p.chain.h5", "cmp/*.nc"),
+                    timeout=FAST,
+                )
+            )
+    return cases
+
+
+ACCEPTED = [
+    # Excel's CSV: a UTF-8 BOM, CRLF lines, a trailing blank line (item 11).
+    ("csv-bom", csv_text(lambda t: BOM + t)),
+    ("csv-trailing-blank-line", csv_text(lambda t: t + "\n")),
+    ("csv-trailing-blank-lines-spaces", csv_text(lambda t: t + "\n  \n\n")),
+    ("csv-crlf", csv_text(lambda t: t.replace("\n", "\r\n"))),
+    ("csv-bom-crlf-blank", csv_text(lambda t: BOM + t.replace("\n", "\r\n") + "\r\n")),
+    ("csv-columns-reordered", csv_columns(lambda h: [5, 4, 3, 2, 1, 0])),
+    ("csv-extra-column", csv_table(lambda h, v: ([*h, "battery"], np.c_[v, np.ones(len(v))]))),
+    ("csv-stamps-swapped", csv_rows(shuffled_pairs)),
+    ("csv-stamps-repeated", csv_rows(repeated_rows)),
+    ("csv-without-vx-vy", csv_columns(lambda h: [0, 1, 2, 3])),
+    # A long dropout splits the series; the longest piece is kept (bayes_jackal.stamps, rule 3).
+    ("csv-dropout", csv_rows(hole)),
+]
+
+
+def _accepted_cases() -> list[Case]:
+    cases = []
+    for case_id, builder in ACCEPTED:
+        cases.append(
+            C(f"grid-accepts-{case_id}", f"grid x.csv {GRID} --json", 0, files={"x.csv": builder})
+        )
+    cases += [
+        C(
+            "residuals-accepts-csv-bom",
+            "residuals x.csv --json",
+            0,
+            files={"x.csv": ACCEPTED[0][1]},
+        ),
+        C(
+            "residuals-accepts-csv-trailing-blank",
+            "residuals x.csv --json",
+            0,
+            files={"x.csv": ACCEPTED[1][1]},
+        ),
+        C(
+            "grid-accepts-renamed-column-with-flag",
+            f"grid x.csv {GRID} --column yaw_rate gyro_z --json",
+            0,
+            files={"x.csv": csv_header(lambda h: ["gyro_z" if n == "yaw_rate" else n for n in h])},
+        ),
+        C(
+            "grid-accepts-time-ms-with-rate",
+            f"grid x.csv {GRID} --rate 0.072 --json",
+            0,
+            files={"x.csv": csv_scaled("t", 1e3)},
+        ),
+        C("grid-accepts-mat", f"grid x.mat {GRID} --json", 0, files={"x.mat": mat()}),
+        C("residuals-accepts-mat", "residuals x.mat --json", 0, files={"x.mat": mat()}),
+        C(
+            "grid-accepts-csv-nc-mat-mixed",
+            f"grid a.csv b.nc c.mat {GRID} --json",
+            0,
+            files={"a.csv": copy("csv"), "b.nc": experiment(), "c.mat": mat()},
+        ),
+    ]
+    return cases
+
+
+# Item 1 and the output checks: never an input, folder created, suffix known.
+OUTPUT_CASES = [
+    C(
+        "sample-out-is-input-nc",
+        "sample runs/v1_01.nc --out runs/v1_01.nc",
+        2,
+        r"v1_01\.nc",
+        r"input",
+        files={"runs/v1_01.nc": copy("nc")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-is-input-csv",
+        "sample v1_01.csv --out v1_01.csv",
+        2,
+        r"v1_01\.csv",
+        files={"v1_01.csv": copy("csv")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-is-input-dotdot",
+        "sample runs/a.nc --out ./runs/../runs/a.nc",
+        2,
+        r"a\.nc",
+        r"input",
+        files={"runs/a.nc": experiment()},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-is-input-symlink",
+        "sample a.nc --out link.nc",
+        2,
+        r"(link|a)\.nc",
+        r"input",
+        files={"a.nc": experiment(), "link.nc": symlink("a.nc")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-is-input-hardlink",
+        "sample a.nc --out hard.nc",
+        2,
+        r"(hard|a)\.nc",
+        r"input",
+        files={"a.nc": experiment(), "hard.nc": hardlink("a.nc")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-is-second-input-pooled",
+        "sample a.nc b.nc --pooled --out b.nc",
+        2,
+        r"b\.nc",
+        r"input",
+        files=GOOD2,
+        timeout=FAST,
+    ),
+    C(
+        # a's output p.a.nc is an input: refused before any work; x is done (exit 2)
+        "sample-per-experiment-out-is-input",
+        f"sample a.nc p.a.nc --out p.nc {SAMPLE}",
+        2,
+        r"p\.a\.nc",
+        r"input",
+        files={"a.nc": experiment(), "p.a.nc": experiment("x")},
+        exists=("p.x.nc",),
+    ),
+    C(
+        "grid-out-is-input",
+        f"grid runs/v1_01.nc {GRID} --out runs/v1_01.nc",
+        2,
+        r"v1_01\.nc",
+        r"input",
+        files={"runs/v1_01.nc": copy("nc")},
+        timeout=FAST,
+    ),
+    C(
+        "grid-plot-is-input",
+        f"grid a.png.nc {GRID} --plot a.png.nc",
+        2,
+        r"a\.png\.nc",
+        files={"a.png.nc": experiment()},
+        timeout=FAST,
+    ),
+    C(
+        "grid-out-is-input-csv",
+        f"grid a.csv {GRID} --out a.csv",
+        2,
+        r"a\.csv",
+        files=GOOD_CSV,
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-out-is-input",
+        "export-prior post.nc --out post.nc",
+        2,
+        r"post\.nc",
+        r"input",
+        files=POST,
+        timeout=FAST,
+    ),
+    C(
+        "report-out-is-input",
+        "report post.nc --out post.nc",
+        2,
+        r"post\.nc",
+        r"input|suffix",
+        files=POST,
+        timeout=FAST,
+    ),
+    C(
+        "compare-out-file-is-input",
+        "compare v1_01.white.nc --families white --out .",
+        2,
+        r"v1_01\.white\.nc",
+        r"input",
+        files={"v1_01.white.nc": experiment("v1_01")},
+        timeout=FAST,
+    ),
+    C(
+        "analyse-out-holds-input",
+        "analyse out/experiments/v1_01.nc --out out",
+        2,
+        r"v1_01\.nc",
+        r"input",
+        files={"out/experiments/v1_01.nc": experiment("v1_01")},
+        timeout=FAST,
+    ),
+    # Outputs in a folder that does not exist yet are created (item 11).
+    C(
+        "sample-out-new-folder",
+        f"sample a.nc --out new/dir/p.nc {SAMPLE}",
+        0,
+        files=GOOD,
+        exists=("new/dir/p.nc",),
+    ),
+    C(
+        "grid-out-new-folder",
+        f"grid a.nc {GRID} --out new/dir/g.nc",
+        0,
+        files=GOOD,
+        exists=("new/dir/g.nc",),
+    ),
+    C(
+        "grid-plot-new-folder",
+        f"grid a.nc {GRID} --plot new/dir/s.png",
+        0,
+        files=GOOD,
+        exists=("new/dir/s.png",),
+    ),
+    C(
+        "export-prior-out-new-folder",
+        "export-prior post.nc --out new/dir/prior.json",
+        0,
+        files=POST,
+        exists=("new/dir/prior.json",),
+        json_files=("new/dir/prior.json",),
+    ),
+    C(
+        "report-out-new-folder",
+        "report post.nc --out new/dir/r.html --formats png",
+        0,
+        files=POST,
+        exists=("new/dir/r.html",),
+    ),
+    C(
+        "simulate-out-new-folder",
+        "simulate --out new/dir --seed 3 --v1 1 --v2 0",
+        0,
+        exists=("new/dir/v1_01.nc",),
+    ),
+    C(
+        "ingest-out-new-folder",
+        "ingest a.bag --out new/dir",
+        0,
+        files={"a.bag": copy("bag")},
+        exists=("new/dir/*.nc",),
+    ),
+    # An existing output of the wrong kind is refused before any work (item 11).
+    C(
+        "sample-out-existing-folder",
+        "sample a.nc --out outdir",
+        2,
+        r"outdir",
+        r"folder|directory",
+        files={**GOOD, "outdir": folder()},
+        absent=("outdir.chain.h5",),
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-existing-folder-nc",
+        "sample a.nc --out out.nc",
+        2,
+        r"out\.nc",
+        r"folder|directory",
+        files={**GOOD, "out.nc": folder()},
+        absent=("out.chain.h5",),
+        timeout=FAST,
+    ),
+    C(
+        "grid-out-existing-folder",
+        f"grid a.nc {GRID} --out g.nc",
+        2,
+        r"g\.nc",
+        r"folder|directory",
+        files={**GOOD, "g.nc": folder()},
+        timeout=FAST,
+    ),
+    C(
+        "grid-plot-existing-folder",
+        f"grid a.nc {GRID} --plot s.png",
+        2,
+        r"s\.png",
+        r"folder|directory",
+        files={**GOOD, "s.png": folder()},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-out-existing-folder",
+        "export-prior post.nc --out prior.json",
+        2,
+        r"prior\.json",
+        r"folder|directory",
+        files={**POST, "prior.json": folder()},
+        timeout=FAST,
+    ),
+    C(
+        "report-out-existing-folder",
+        "report post.nc --out r.html",
+        2,
+        r"r\.html",
+        r"folder|directory",
+        files={**POST, "r.html": folder()},
+        timeout=FAST,
+    ),
+    C(
+        "compare-out-existing-file",
+        "compare a.nc --out taken",
+        2,
+        r"taken",
+        r"file|folder|directory",
+        files={**GOOD, "taken": raw(b"mine\n")},
+        timeout=FAST,
+        stdout_lacks=("log Z",),
+    ),
+    C(
+        "simulate-out-existing-file",
+        "simulate --out taken --v1 1 --v2 0",
+        2,
+        r"taken",
+        r"file|folder|directory",
+        files={"taken": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-out-existing-file",
+        "ingest a.bag --out taken",
+        2,
+        r"taken",
+        r"file|folder|directory",
+        files={"a.bag": copy("bag"), "taken": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    C(
+        "analyse-out-existing-file",
+        "analyse a.nc --out taken",
+        2,
+        r"taken",
+        r"file|folder|directory",
+        files={**GOOD, "taken": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    C(
+        "demo-out-existing-file",
+        "demo --out taken --no-progress",
+        2,
+        r"taken",
+        r"file|folder|directory",
+        files={"taken": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-parent-is-file",
+        "sample a.nc --out notdir/p.nc",
+        2,
+        r"notdir",
+        files={**GOOD, "notdir": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    # Suffixes are known before any work (item 11: grid --plot x.xyz).
+    C(
+        "grid-plot-unknown-suffix",
+        "grid a.nc --method simulation --plot x.xyz",
+        2,
+        r"x\.xyz",
+        r"suffix|format|xyz",
+        files=GOOD,
+        absent=("x.xyz",),
+        timeout=FAST,
+    ),
+    C(
+        "grid-out-wrong-suffix",
+        f"grid a.nc {GRID} --out g.csv",
+        2,
+        r"g\.csv",
+        r"suffix|\.nc",
+        files=GOOD,
+        absent=("g.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-wrong-suffix",
+        "sample a.nc --out p.csv",
+        2,
+        r"p\.csv",
+        r"suffix|\.nc",
+        files=GOOD,
+        absent=("p.csv", "p.chain.h5"),
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-no-suffix",
+        "sample a.nc --out posterior",
+        2,
+        r"posterior",
+        r"suffix|\.nc",
+        files=GOOD,
+        absent=("posterior", "posterior.chain.h5"),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-out-wrong-suffix",
+        "export-prior post.nc --out prior.nc",
+        2,
+        r"prior\.nc",
+        r"suffix|\.json",
+        files=POST,
+        absent=("prior.nc",),
+        timeout=FAST,
+    ),
+    C(
+        "report-out-wrong-suffix",
+        "report post.nc --out r.pdf",
+        2,
+        r"r\.pdf",
+        r"suffix|\.html",
+        files=POST,
+        absent=("r.pdf",),
+        timeout=FAST,
+    ),
+    C(
+        "grid-plot-and-out-same-name",
+        f"grid a.nc {GRID} --plot g.png --out g.png",
+        2,
+        r"g\.png",
+        files=GOOD,
+        absent=("g.png",),
+        timeout=FAST,
+    ),
+]
+
+# Item 2: ingest never writes two bags onto one experiment file.
+INGEST_CASES = [
+    C(
+        "ingest-same-stem-bag-and-mcap",
+        "ingest one/v1_01.bag two/v1_01.mcap --out exps",
+        0,
+        r"v1_01",
+        files={"one/v1_01.bag": copy("bag"), "two/v1_01.mcap": copy("mcap")},
+        exists=("exps/*.nc",),
+        count={"exps/*.nc": 2},
+    ),
+    C(
+        "ingest-same-stem-two-folders",
+        "ingest one/run.bag two/run.bag --out exps --json",
+        0,
+        files={"one/run.bag": copy("bag"), "two/run.bag": copy("bag")},
+        count={"exps/*.nc": 2},
+    ),
+    C(
+        "ingest-one-bad-of-two",
+        "ingest good.bag bad.bag --out exps",
+        2,
+        r"bad\.bag",
+        files={"good.bag": copy("bag"), "bad.bag": truncated("bag", 0.3)},
+        exists=("exps/good.nc",),
+        absent=("exps/bad.nc",),
+    ),
+    C(
+        "ingest-empty-bag",
+        "ingest e.bag --out exps",
+        2,
+        r"e\.bag",
+        files={"e.bag": EMPTY},
+        absent=("exps/*.nc",),
+        timeout=FAST,
+    ),
+    C(
+        "ingest-garbage-bag",
+        "ingest x.bag --out exps",
+        2,
+        r"x\.bag",
+        files={"x.bag": GARBAGE},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-csv-named-bag",
+        "ingest x.bag --out exps",
+        2,
+        r"x\.bag",
+        files={"x.bag": copy("csv")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-empty-mcap",
+        "ingest e.mcap --out exps",
+        2,
+        r"e\.mcap",
+        files={"e.mcap": EMPTY},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-truncated-mcap",
+        "ingest x.mcap --out exps",
+        2,
+        r"x\.mcap",
+        files={"x.mcap": truncated("mcap", 0.5)},
+        absent=("exps/x.nc",),
+        timeout=FAST,
+    ),
+    C(
+        "ingest-wrong-suffix",
+        "ingest x.txt --out exps",
+        2,
+        r"x\.txt",
+        files={"x.txt": copy("csv")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-missing-topic",
+        "ingest x.bag --out exps --topic imu /nope",
+        2,
+        r"x\.bag",
+        r"/nope|imu",
+        files={"x.bag": copy("bag")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-unknown-topic-role",
+        "ingest x.bag --out exps --topic sonar /s",
+        2,
+        r"sonar",
+        files={"x.bag": copy("bag")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-max-gap-negative",
+        "ingest x.bag --out exps --max-gap -1",
+        2,
+        r"max.gap",
+        files={"x.bag": copy("bag")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-max-gap-nan",
+        "ingest x.bag --out exps --max-gap nan",
+        2,
+        r"max.gap",
+        files={"x.bag": copy("bag")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-window-reversed",
+        "ingest x.bag --out exps --window 20 5",
+        2,
+        r"window",
+        files={"x.bag": copy("bag")},
+        timeout=FAST,
+    ),
+    C(
+        "ingest-window-nan",
+        "ingest x.bag --out exps --window nan 5",
+        2,
+        r"window",
+        files={"x.bag": copy("bag")},
+        timeout=FAST,
+    ),
+    C("ingest-missing-bag", "ingest nothere.bag --out exps", 2, r"nothere\.bag", timeout=FAST),
+]
+
+# Item 7: export orders whose precision is not finite and well conditioned.
+EXPORT_CASES = [
+    C(
+        "export-prior-order-99",
+        "export-prior post.nc --out prior.json --order 99",
+        2,
+        r"order",
+        r"99",
+        files=POST,
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-order-20",
+        "export-prior post.nc --out prior.json --order 20",
+        2,
+        r"order",
+        files=POST,
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-order-6",
+        "export-prior post.nc --out prior.json --order 6",
+        2,
+        r"order",
+        files=POST,
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-order-negative",
+        "export-prior post.nc --out prior.json --order -1",
+        2,
+        r"order",
+        files=POST,
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-order-not-int",
+        "export-prior post.nc --out prior.json --order 2.5",
+        2,
+        r"order",
+        files=POST,
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-order-2",
+        "export-prior post.nc --out prior.json --order 2",
+        0,
+        files=POST,
+        json_files=("prior.json",),
+    ),
+    C(
+        "export-prior-order-0",
+        "export-prior post.nc --out prior.json --order 0",
+        0,
+        files=POST,
+        json_files=("prior.json",),
+    ),
+    C(
+        "export-prior-white-order-0",
+        "export-prior w.nc --out prior.json --order 0",
+        0,
+        files={"w.nc": copy("white_posterior")},
+        json_files=("prior.json",),
+    ),
+    C(
+        "export-prior-white-order-3",
+        "export-prior w.nc --out prior.json --order 3",
+        2,  # white noise has no derivative: order 0 only
+        files={"w.nc": copy("white_posterior")},
+        absent=("*.part",),
+    ),
+    C(
+        "export-prior-empty",
+        "export-prior e.nc --out prior.json",
+        2,
+        r"e\.nc",
+        files={"e.nc": EMPTY},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-truncated",
+        "export-prior x.nc --out prior.json",
+        2,
+        r"x\.nc",
+        files={"x.nc": truncated("posterior")},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-experiment",
+        "export-prior x.nc --out prior.json",
+        2,
+        r"x\.nc",
+        r"posterior",
+        files={"x.nc": experiment()},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-csv",
+        "export-prior x.csv --out prior.json",
+        2,
+        r"x\.csv",
+        files={"x.csv": copy("csv")},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-json",
+        "export-prior x.json --out prior.json",
+        2,
+        r"x\.json",
+        files={"x.json": json_text('{"format": "bayes_jackal.prior/1"}')},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-missing",
+        "export-prior nothere.nc --out prior.json",
+        2,
+        r"nothere\.nc",
+        timeout=FAST,
+    ),
+]
+
+REPORT_CASES = [
+    C(
+        "report-one-posterior",
+        "report post.nc --out r.html --formats png",
+        0,
+        files=POST,
+        exists=("r.html",),
+    ),
+    C(
+        "report-one-bad-of-two",
+        "report post.nc e.nc --out r.html --formats png",
+        2,
+        r"e\.nc",
+        files={**POST, "e.nc": EMPTY},
+        exists=("r.html",),
+    ),
+    C(
+        "report-truncated-and-good",
+        "report post.nc x.nc --out r.html --formats png",
+        2,
+        r"x\.nc",
+        files={**POST, "x.nc": truncated("posterior")},
+        exists=("r.html",),
+    ),
+    C(
+        "report-experiment-as-posterior",
+        "report x.nc --out r.html",
+        2,
+        r"x\.nc",
+        files={"x.nc": experiment()},
+        absent=("r.html",),
+        timeout=FAST,
+    ),
+    C(
+        "report-empty",
+        "report e.nc --out r.html",
+        2,
+        r"e\.nc",
+        files={"e.nc": EMPTY},
+        absent=("r.html",),
+        timeout=FAST,
+    ),
+    C(
+        "report-empty-folder",
+        "report posts --out r.html",
+        2,
+        r"posts",
+        files={"posts": folder()},
+        absent=("r.html",),
+        timeout=FAST,
+    ),
+    C(
+        "report-missing",
+        "report nothere.nc --out r.html",
+        2,
+        r"nothere\.nc",
+        absent=("r.html",),
+        timeout=FAST,
+    ),
+    C(
+        "report-formats-unknown",
+        "report post.nc --out r.html --formats png,bmp",
+        2,
+        r"bmp",
+        files=POST,
+        absent=("r.html",),
+        timeout=FAST,
+    ),
+]
+
+# Item 9: several inputs, one bad: the good ones are written, exit 2. Pooled: named first.
+ONE_BAD_CASES = [
+    C(
+        "sample-one-empty-of-two",
+        f"sample a.nc e.csv --out p.nc {SAMPLE}",
+        2,
+        r"e\.csv",
+        files={"a.nc": experiment(), "e.csv": EMPTY},
+        exists=("p.a.nc",),
+    ),
+    C(
+        "sample-one-missing-of-two",
+        f"sample a.nc nothere.nc --out p.nc {SAMPLE}",
+        2,
+        r"nothere\.nc",
+        files=GOOD,
+        exists=("p.a.nc",),
+    ),
+    C(
+        "sample-json-one-bad",
+        f"sample a.nc x.nc --out p.nc --json {SAMPLE}",
+        2,
+        r"x\.nc",
+        files={"a.nc": experiment(), "x.nc": nc_scaled("yaw_rate", 1e300)},
+        exists=("p.a.nc",),
+    ),
+    C(
+        "compare-one-empty-of-two",
+        f"compare a.nc e.csv --out cmp {COMPARE}",
+        2,
+        r"e\.csv",
+        files={"a.nc": experiment(), "e.csv": EMPTY},
+        exists=("cmp/a.white.nc",),
+    ),
+    C(
+        "compare-json-one-bad",
+        f"compare a.nc x.csv --json {COMPARE}",
+        2,
+        r"x\.csv",
+        files={"a.nc": experiment(), "x.csv": csv_scaled("t", 1e3)},
+    ),
+    C(
+        "residuals-one-empty-of-two",
+        "residuals a.nc e.csv --json",
+        2,
+        r"e\.csv",
+        files={"a.nc": experiment(), "e.csv": EMPTY},
+    ),
+    C(
+        "residuals-one-nan-of-two",
+        "residuals a.csv x.csv --json",
+        2,
+        r"x\.csv",
+        files={"a.csv": copy("csv"), "x.csv": csv_cell("yaw_rate", np.inf)},
+    ),
+    C(
+        "grid-one-empty-of-two",
+        f"grid a.nc e.csv {GRID} --out g.nc",
+        2,
+        r"e\.csv",
+        files={"a.nc": experiment(), "e.csv": EMPTY},
+        absent=("g.nc",),  # one surface over all inputs: pooled, refused before any work
+    ),
+    C(
+        "sample-pooled-one-bad",
+        "sample a.nc b.nc e.csv --pooled --out p.nc",
+        2,
+        r"e\.csv",
+        files={**GOOD2, "e.csv": EMPTY},
+        absent=("p.nc", "p.chain.h5"),
+        timeout=FAST,
+    ),
+    C(
+        "sample-pooled-last-bad",
+        "sample a.nc b.nc x.nc --pooled --out p.nc",
+        2,
+        r"x\.nc",
+        "steady_window",
+        files={**GOOD2, "x.nc": experiment(steady_window=[1.0])},
+        absent=("p.nc", "p.chain.h5"),
+        timeout=FAST,
+    ),
+    C(
+        "compare-pooled-one-bad",
+        "compare a.nc b.nc x.csv --pooled --out cmp",
+        2,
+        r"x\.csv",
+        files={**GOOD2, "x.csv": csv_scaled("yaw_rate", 1e300)},
+        absent=("cmp/*.nc",),
+        timeout=FAST,
+    ),
+    C(
+        "compare-pooled-two-bad-both-named",
+        "compare x.csv e.csv a.nc --pooled",
+        2,
+        r"x\.csv",
+        r"e\.csv",
+        files={"a.nc": experiment(), "x.csv": csv_scaled("t", 1e9), "e.csv": EMPTY},
+        timeout=FAST,
+    ),
+    C(
+        "analyse-one-bad-of-two",
+        f"analyse a.nc e.csv --out out {ANALYSE}",
+        2,
+        r"e\.csv",
+        files={"a.nc": experiment(), "e.csv": EMPTY},
+        exists=("out/report.html",),
+        timeout=120,
+    ),
+]
+
+# Item 8 and numeric flags: refused with exit 2 before any work.
+FLAG_CASES = [
+    C(f"{command}-{case_id}", argv, 2, *words, files=files, timeout=FAST)
+    for command, case_id, argv, words, files in [
+        ("simulate", "v1-negative", "simulate --out r --v1 -1", (r"v1",), {}),
+        ("simulate", "seed-negative", "simulate --out r --v1 1 --v2 0 --seed -1", (r"seed",), {}),
+        ("simulate", "width-negative", "simulate --out r --v1 1 --width -0.1", (r"width",), {}),
+        ("simulate", "width-nan", "simulate --out r --v1 1 --width nan", (r"width",), {}),
+        (
+            "simulate",
+            "sigma-c-nan",
+            "simulate --out r --v1 1 --sigma-c nan 0 0",
+            (r"sigma.c",),
+            {},
+        ),
+        (
+            "simulate",
+            "sigma-n-negative",
+            "simulate --out r --v1 1 --sigma-n -1 0 0",
+            (r"sigma.n",),
+            {},
+        ),
+        ("simulate", "d-lat-negative", "simulate --out r --v1 1 --d-lat -110", (r"d.lat",), {}),
+        ("simulate", "d-lat-inf", "simulate --out r --v1 1 --d-lat inf", (r"d.lat",), {}),
+        ("simulate", "d-long-1e300", "simulate --out r --v1 1 --d-long 1e300", (r"d.long",), {}),
+        ("grid", "start-after-stop", "grid a.nc --d-lat 100 10 10", (r"d.lat",), GOOD),
+        ("grid", "step-zero", "grid a.nc --d-lat 10 100 0", (r"d.lat",), GOOD),
+        ("grid", "step-negative", "grid a.nc --d-long 10 100 -5", (r"d.long",), GOOD),
+        ("grid", "step-nan", "grid a.nc --d-lat 10 100 nan", (r"d.lat",), GOOD),
+        ("grid", "start-nan", "grid a.nc --d-long nan 100 10", (r"d.long",), GOOD),
+        ("grid", "stop-inf", "grid a.nc --d-lat 10 inf 10", (r"d.lat",), GOOD),
+        ("grid", "absurd-size", "grid a.nc --d-lat 1 1e9 1", (r"d.lat",), GOOD),
+        ("grid", "damping-negative", "grid a.nc --d-lat -100 100 10", (r"d.lat",), GOOD),
+        ("grid", "rate-zero", "grid a.csv --rate 0", (r"rate",), GOOD_CSV),
+        ("grid", "rate-nan", "grid a.csv --rate nan", (r"rate",), GOOD_CSV),
+        ("grid", "column-unknown-role", "grid a.csv --column gyro yaw_rate", (r"gyro",), GOOD_CSV),
+        ("grid", "column-missing", "grid a.csv --column yaw_rate gyro_z", (r"gyro_z",), GOOD_CSV),
+        ("residuals", "lags-zero", "residuals a.nc --lags 0", (r"lags",), GOOD),
+        ("residuals", "lags-negative", "residuals a.nc --lags -3", (r"lags",), GOOD),
+        ("residuals", "lags-too-many", "residuals a.nc --lags 100000", (r"lags",), GOOD),
+        ("residuals", "d-lat-nan", "residuals a.nc --d-lat nan", (r"d.lat",), GOOD),
+        ("residuals", "d-long-negative", "residuals a.nc --d-long -30", (r"d.long",), GOOD),
+        ("residuals", "d-lat-inf", "residuals a.nc --d-lat inf", (r"d.lat",), GOOD),
+        ("residuals", "rate-negative", "residuals a.csv --rate -72", (r"rate",), GOOD_CSV),
+        ("residuals", "channels-unknown", "residuals a.nc --channels yaw,roll", (r"roll",), GOOD),
+        (
+            "sample",
+            "max-steps-zero",
+            "sample a.nc --out p.nc --max-steps 0",
+            (r"max.steps",),
+            GOOD,
+        ),
+        (
+            "sample",
+            "max-steps-negative",
+            "sample a.nc --out p.nc --max-steps -5",
+            (r"max.steps",),
+            GOOD,
+        ),
+        ("sample", "walkers-negative", "sample a.nc --out p.nc --walkers -1", (r"walkers",), GOOD),
+        ("sample", "walkers-one", "sample a.nc --out p.nc --walkers 1", (r"walkers",), GOOD),
+        ("sample", "seed-negative", "sample a.nc --out p.nc --seed -1", (r"seed",), GOOD),
+        (
+            "sample",
+            "prior-reversed",
+            "sample a.nc --out p.nc --prior d_lat 1000 10",
+            (r"d_lat",),
+            GOOD,
+        ),
+        ("sample", "prior-nan", "sample a.nc --out p.nc --prior d_lat nan 10", (r"d_lat",), GOOD),
+        (
+            "sample",
+            "prior-log-zero",
+            "sample a.nc --out p.nc --prior sigma_h 0 1",
+            (r"sigma_h",),
+            GOOD,
+        ),
+        (
+            "sample",
+            "prior-unknown",
+            "sample a.nc --out p.nc --prior d_latt 10 100",
+            (r"d_latt",),
+            GOOD,
+        ),
+        (
+            "sample",
+            "prior-not-number",
+            "sample a.nc --out p.nc --prior d_lat ten 100",
+            (r"d_lat",),
+            GOOD,
+        ),
+        ("sample", "rate-inf", "sample a.csv --out p.nc --rate inf", (r"rate",), GOOD_CSV),
+        (
+            "sample",
+            "channel-not-measured",
+            "sample a.csv --out p.nc --channels vx",
+            (r"vx",),
+            {"a.csv": csv_columns(lambda h: [0, 1, 2, 3])},
+        ),
+        ("compare", "processes-zero", "compare a.nc --processes 0", (r"processes",), GOOD),
+        ("compare", "processes-negative", "compare a.nc --processes -2", (r"processes",), GOOD),
+        ("compare", "families-unknown", "compare a.nc --families white,pink", (r"pink",), GOOD),
+        ("compare", "families-empty", "compare a.nc --families ,", (r"famil",), GOOD),
+        ("compare", "max-steps-zero", "compare a.nc --max-steps 0", (r"max.steps",), GOOD),
+        ("compare", "walkers-negative", "compare a.nc --walkers -8", (r"walkers",), GOOD),
+        (
+            "analyse",
+            "processes-zero",
+            "analyse a.nc --out out --processes 0",
+            (r"processes",),
+            GOOD,
+        ),
+        (
+            "analyse",
+            "max-steps-negative",
+            "analyse a.nc --out out --max-steps -1",
+            (r"max.steps",),
+            GOOD,
+        ),
+        ("analyse", "window-reversed", "analyse a.nc --out out --window 30 5", (r"window",), GOOD),
+        ("analyse", "max-gap-zero", "analyse a.nc --out out --max-gap 0", (r"max.gap",), GOOD),
+    ]
+]
+
+# Item 8 and 10: robot profiles. Unknown keys and wrong types are refused, naming the key.
+PROFILE_CASES = [
+    C(
+        f"profile-{case_id}",
+        f"{command} --robot bad.toml",
+        2,
+        r"bad\.toml",
+        *words,
+        files={**GOOD, "bad.toml": builder},
+        timeout=FAST,
+    )
+    for case_id, command, builder, words in [
+        (
+            "misspelt-prior",
+            "residuals a.nc",
+            profile(replace("d_lat = [10.0", "d_latt = [10.0")),
+            (r"d_latt",),
+        ),
+        (
+            "unknown-section",
+            "residuals a.nc",
+            profile(lambda t: t + "\n[prior]\nd_lat = [1, 2]\n"),
+            (r"prior",),
+        ),
+        (
+            "unknown-body-key",
+            "grid a.nc",
+            profile(replace("mass = 16.523", "mas = 16.523")),
+            (r"mas\b",),
+        ),
+        (
+            "topic-is-number",
+            "residuals a.nc",
+            profile(replace('imu = "/imu/data"', "imu = 42")),
+            (r"imu",),
+        ),
+        (
+            "mass-is-text",
+            "residuals a.nc",
+            profile(replace("mass = 16.523", 'mass = "heavy"')),
+            (r"mass",),
+        ),
+        (
+            "mass-negative",
+            "grid a.nc",
+            profile(replace("mass = 16.523", "mass = -16.5")),
+            (r"mass",),
+        ),
+        (
+            "mass-nan",
+            "residuals a.nc",
+            profile(replace("mass = 16.523", "mass = nan")),
+            (r"mass",),
+        ),
+        ("rate-zero", "residuals a.nc", profile(replace("rate = 72.0", "rate = 0.0")), (r"rate",)),
+        (
+            "prior-reversed",
+            "residuals a.nc",
+            profile(replace("d_lat = [10.0, 1000.0]", "d_lat = [1000.0, 10.0]")),
+            (r"d_lat",),
+        ),
+        (
+            "prior-is-text",
+            "residuals a.nc",
+            profile(replace("d_lat = [10.0, 1000.0]", 'd_lat = "wide"')),
+            (r"d_lat",),
+        ),
+        (
+            "prior-three-numbers",
+            "residuals a.nc",
+            profile(replace("d_lat = [10.0, 1000.0]", "d_lat = [10.0, 500.0, 1000.0]")),
+            (r"d_lat",),
+        ),
+        (
+            "wheels-not-list",
+            "residuals a.nc",
+            profile(replace('right = ["front_right_wheel", "rear_right_wheel"]', "right = 3")),
+            (r"right",),
+        ),
+        (
+            "conversion-unknown",
+            "residuals a.nc",
+            profile(replace('conversion = "ros"', 'conversion = "magic"')),
+            (r"conversion",),
+        ),
+        ("not-toml", "residuals a.nc", raw(b"mass: 16.5\n[[[\n"), (r"toml|parse|invalid",)),
+        ("empty", "residuals a.nc", raw(b""), (r"mass|body|missing",)),
+        ("binary", "grid a.nc", GARBAGE, ()),
+        (
+            "schema-version-99",
+            "residuals a.nc",
+            profile(replace("schema_version = 1", "schema_version = 99")),
+            (r"schema",),
+        ),
+        (
+            "simulate-misspelt",
+            "simulate --out r --v1 1 --v2 0",
+            profile(replace("wheel_radius = 0.098", "wheel_radios = 0.098")),
+            (r"wheel_radi",),
+        ),
+    ]
+] + [
+    C(
+        "profile-missing",
+        "residuals a.nc --robot nothere.toml",
+        2,
+        r"nothere\.toml",
+        files=GOOD,
+        timeout=FAST,
+    ),
+    C(
+        "profile-is-folder",
+        "residuals a.nc --robot prof",
+        2,
+        r"prof",
+        files={**GOOD, "prof": folder()},
+        timeout=FAST,
+    ),
+]
+
+# Item 8: garbage data under commands that once gave confident answers.
+GARBAGE_CASES = [
+    C(
+        "grid-json-yaw-1e300",
+        f"grid x.csv {GRID} --json",
+        2,
+        r"x\.csv",
+        r"yaw_rate",
+        files={"x.csv": csv_scaled("yaw_rate", 1e300)},
+        timeout=FAST,
+    ),
+    C(
+        "residuals-json-yaw-1e300",
+        "residuals x.csv --json",
+        2,
+        r"x\.csv",
+        r"yaw_rate",
+        files={"x.csv": csv_scaled("yaw_rate", 1e300)},
+        stdout_lacks=("Infinity", "NaN"),
+        timeout=FAST,
+    ),
+    C(
+        "residuals-json-yaw-1e150",
+        "residuals x.nc --json",
+        2,
+        r"x\.nc",
+        r"yaw_rate",
+        files={"x.nc": nc_scaled("yaw_rate", 1e150)},
+        timeout=FAST,
+    ),
+    C(
+        "grid-wheels-1e200",
+        f"grid x.nc {GRID}",
+        2,
+        r"x\.nc",
+        r"omega_r",
+        files={"x.nc": nc_scaled("omega_r", 1e200)},
+        timeout=FAST,
+    ),
+    C(
+        "grid-time-ms-nc",
+        f"grid x.nc {GRID} --json",
+        2,
+        r"x\.nc",
+        r"rate|sample time",
+        files={"x.nc": nc_time(lambda t: t * 1e3)},
+        timeout=FAST,
+    ),
+    C(
+        "grid-time-ms-mat",
+        f"grid x.mat {GRID}",
+        2,
+        r"x\.mat",
+        r"rate|sample time",
+        files={"x.mat": mat(lambda c: c | {"t": c["t"] * 1e3})},
+        timeout=FAST,
+    ),
+    C(
+        "residuals-time-us",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"rate|sample time",
+        files={"x.csv": csv_scaled("t", 1e6)},
+        timeout=FAST,
+    ),
+    C(
+        "grid-rate-disagrees",
+        f"grid a.csv {GRID} --rate 100",
+        2,
+        r"a\.csv",
+        r"rate",
+        files=GOOD_CSV,
+        timeout=FAST,
+    ),
+    C("residuals-json-valid", "residuals a.nc --json --channels yaw,vx,vy", 0, files=GOOD),
+    C("grid-json-valid", f"grid a.nc {GRID} --json --method simulation", 0, files=GOOD),
+    C(
+        "simulate-json-valid",
+        "simulate --out r --seed 2 --v1 1 --v2 0 --json",
+        0,
+        exists=("r/v1_01.nc",),
+    ),
+    C(
+        "ingest-json-valid",
+        "ingest a.bag --out exps --json",
+        0,
+        files={"a.bag": copy("bag")},
+        exists=("exps/a.nc",),
+    ),
+    C(
+        "sample-json-valid",
+        f"sample a.nc --out p.nc --json {SAMPLE}",
+        0,
+        files=GOOD,
+        exists=("p.nc",),
+    ),
+    C(
+        "compare-json-valid",
+        f"compare a.nc --json --out cmp {COMPARE}",
+        0,
+        files=GOOD,
+        exists=("cmp/a.white.nc",),
+        json_files=("cmp/a.compare.json",),
+    ),
+    C(
+        "sample-csv-and-nc",
+        f"sample a.csv b.nc --out p.nc {SAMPLE}",
+        0,
+        files={"a.csv": copy("csv"), "b.nc": experiment()},
+        exists=("p.a.nc", "p.b.nc"),
+    ),
+    C("usage-no-command", "", 2, r"usage|command"),
+    C("usage-unknown-command", "fly", 2, r"fly"),
+    C("usage-missing-out", "sample a.nc", 2, r"--out", files=GOOD),
+]
+
+# Lock, signal and full-disk cases (items 3, 4, 5, 6).
+HOLD = "--family white --channels yaw --walkers 32 --seed 1 --no-progress"
+SPECIAL_CASES = [
+    C(
+        "lock-sample-same-out",
+        "sample a.nc --out p.nc --walkers 32 --seed 1 --no-progress",
+        2,
+        r"lock|running|in use|busy",
+        kind="lock",
+        files=GOOD,
+        trigger="p.chain.h5",
+    ),
+    C(
+        "lock-compare-same-out",
+        "compare a.nc --out cmp --families gaussian --walkers 32 --seed 1 --no-progress",
+        2,
+        r"lock|running|in use|busy",
+        kind="lock",
+        files=GOOD,
+        trigger="cmp",
+    ),
+    C(
+        "signal-sample-sigint-json",
+        f"sample a.nc --out p.nc --json {HOLD} --max-steps 800",
+        130,
+        kind="signal",
+        signum=signal.SIGINT,
+        trigger="p.chain.h5",
+        files=GOOD,
+        rerun=(0, (r"resum",)),
+    ),
+    C(
+        "signal-sample-sigterm",
+        f"sample a.nc --out p.nc {HOLD} --max-steps 800",
+        (130, 143),
+        kind="signal",
+        signum=signal.SIGTERM,
+        trigger="p.chain.h5",
+        files=GOOD,
+        rerun=(0, (r"resum",)),
+    ),
+    C(
+        "signal-sample-sigkill-resumes",
+        f"sample a.nc --out p.nc {HOLD} --max-steps 800",
+        -signal.SIGKILL,
+        kind="signal",
+        signum=signal.SIGKILL,
+        trigger="p.chain.h5",
+        files=GOOD,
+        rerun=(0, (r"resum",)),
+    ),
+    C(
+        "signal-compare-sigterm-keeps-family",
+        f"compare a.nc --out cmp {COMPARE.replace('white', 'white,exponential')} --json",
+        (130, 143),
+        kind="signal",
+        signum=signal.SIGTERM,
+        trigger="cmp/a.white.nc",
+        files=GOOD,
+        exists=("cmp/a.white.nc",),
+        rerun=(0, (r"white", r"reus|resum|already|kept|saved")),
+    ),
+    C(
+        "signal-sigint-during-imports",
+        "residuals a.nc",
+        130,
+        kind="signal",
+        signum=signal.SIGINT,
+        delay=0.3,
+        files=GOOD,
+        script=True,
+    ),
+    C(
+        "signal-sigterm-during-imports",
+        "grid a.nc",
+        (130, 143),
+        kind="signal",
+        signum=signal.SIGTERM,
+        delay=0.3,
+        files=GOOD,
+    ),
+    C(
+        "signal-analyse-sigint-json",
+        f"analyse a.nc --out out --json {ANALYSE}",
+        130,
+        kind="signal",
+        signum=signal.SIGINT,
+        trigger="out/experiments/a.nc",
+        files=GOOD,
+    ),
+    C(
+        "fsize-simulate",
+        "simulate --out runs --seed 1 --v1 1 --v2 0",
+        1,  # a write error: exit 1
+        r"runs/v1_01\.nc",
+        kind="fsize",
+        limit=100_000,
+        absent=("runs/v1_01.nc",),
+    ),
+    C(
+        "fsize-sample-resumable",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        1,  # a write error: exit 1
+        r"p\.(chain\.h5|nc)",
+        kind="fsize",
+        limit=150_000,
+        files=GOOD,
+        rerun=(0, (r"resum",)),
+    ),
+    C(
+        "fsize-grid-out",
+        f"grid a.nc {GRID} --out g.nc",
+        1,  # a write error: exit 1
+        r"g\.nc",
+        kind="fsize",
+        limit=4_000,
+        files=GOOD,
+        absent=("g.nc",),
+    ),
+    C(
+        "fsize-grid-plot",
+        f"grid a.nc {GRID} --plot s.png",
+        1,  # a write error: exit 1
+        r"s\.png",
+        kind="fsize",
+        limit=4_000,
+        files=GOOD,
+        absent=("s.png",),
+    ),
+    C(
+        "fsize-export-prior",
+        "export-prior post.nc --out prior.json",
+        1,  # a write error: exit 1
+        r"prior\.json",
+        kind="fsize",
+        limit=600,
+        files=POST,
+        absent=("prior.json",),
+    ),
+    C(
+        "fsize-report",
+        "report post.nc --out r.html --formats png",
+        1,  # a write error: exit 1
+        r"r\.html|r_figures",
+        kind="fsize",
+        limit=20_000,
+        files=POST,
+        absent=("r.html",),
+    ),
+    C(
+        "fsize-ingest",
+        "ingest a.bag --out exps",
+        1,  # a write error: exit 1
+        r"exps/a\.nc",
+        kind="fsize",
+        limit=50_000,
+        files={"a.bag": copy("bag")},
+        absent=("exps/a.nc",),
+    ),
+    C(
+        "tmpfs-sample-resumable",
+        f"sample a.nc --out disk/p.nc {SAMPLE}",
+        1,  # a write error: exit 1
+        r"disk/p\.(chain\.h5|nc)",
+        r"space|full",
+        kind="tmpfs",
+        limit=250_000,
+        files=GOOD,
+        rerun=(0, (r"resum",)),
+    ),
+    C(
+        "tmpfs-simulate",
+        "simulate --out disk/runs --seed 1 --v1 4 --v2 0",
+        1,  # a write error: exit 1
+        r"disk/runs",
+        r"space|full",
+        kind="tmpfs",
+        limit=0,
+    ),
+]
+
+
+CASES: list[Case] = [
+    *_bad_experiment_cases(),
+    *_accepted_cases(),
+    *OUTPUT_CASES,
+    *INGEST_CASES,
+    *EXPORT_CASES,
+    *REPORT_CASES,
+    *ONE_BAD_CASES,
+    *FLAG_CASES,
+    *PROFILE_CASES,
+    *GARBAGE_CASES,
+    *SPECIAL_CASES,
+]
+
+
+def strict_json(text: str) -> object:
+    """Parse JSON refusing NaN and Infinity (which json.loads accepts by default)."""
+
+    def refuse(name: str):
+        raise ValueError(f"not valid JSON: {name}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def words_missing(case: Case, stderr: str, words=None) -> list[str]:
+    return [w for w in (case.words if words is None else words) if not re.search(w, stderr, re.I)]

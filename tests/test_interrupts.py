@@ -1,0 +1,309 @@
+"""SIGINT and SIGTERM: one line, exit 130 / 143, nothing lost; resumed = uninterrupted."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import emcee
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+
+from bayes_jackal import interrupt
+from bayes_jackal.inference import BufferedHDFBackend, SamplerSettings, _run_until_converged
+
+#: The console script's entry point, run in a fresh interpreter.
+CLI = [sys.executable, "-m", "bayes_jackal.cli"]
+#: One experiment, short chains, two families: the cheapest runs of every command.
+QUICK = ["--seed", "3", "--max-steps", "200", "--channels", "yaw", "--no-progress", "--json"]
+FAMILIES = ["--families", "white,exponential"]
+
+
+@pytest.fixture
+def handlers():
+    """The package's handlers installed for one test, the previous ones restored after."""
+    previous = interrupt.install()
+    yield
+    interrupt.restore(previous)
+
+
+def test_interrupted_knows_its_signal_and_exit_code():
+    for signum, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        stop = interrupt.Interrupted(signum)
+        assert isinstance(stop, KeyboardInterrupt)
+        assert (stop.signum, stop.exit_code) == (signum, code)
+
+
+def test_a_signal_raises_at_once_outside_deferred(handlers):
+    with pytest.raises(interrupt.Interrupted) as stop:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(1)  # the handler runs at the next bytecode: never reached
+    assert stop.value.exit_code == 143
+
+
+def test_deferred_holds_a_signal_until_check_and_a_second_one_raises(handlers):
+    with interrupt.deferred():
+        os.kill(os.getpid(), signal.SIGINT)
+        reached = True  # recorded, not raised
+        with pytest.raises(interrupt.Interrupted) as stop:
+            interrupt.check()
+        assert stop.value.signum == signal.SIGINT
+        interrupt.check()  # raised once only
+        os.kill(os.getpid(), signal.SIGINT)
+        with pytest.raises(interrupt.Interrupted):
+            os.kill(os.getpid(), signal.SIGTERM)  # the second one: at once
+        # ... and it stays pending, in case the code it landed in swallows it.
+        assert interrupt.pending() == signal.SIGTERM
+        with pytest.raises(interrupt.Interrupted):
+            interrupt.check()  # raised where nothing swallows it: no longer pending
+    assert reached
+    with pytest.raises(interrupt.Interrupted) as stop, interrupt.deferred():
+        os.kill(os.getpid(), signal.SIGTERM)
+    assert stop.value.signum == signal.SIGTERM  # leaving the block raises what is pending
+
+
+class _SignalOnAccess(tuple):
+    """A 'random state' that sends SIGINT when emcee's setter reads it (inside its bare except)."""
+
+    def __getitem__(self, index):
+        os.kill(os.getpid(), signal.SIGINT)
+        return super().__getitem__(index)
+
+
+def _gaussian(x: np.ndarray) -> np.ndarray:
+    return -0.5 * np.sum(x**2, axis=1)
+
+
+def _sampler(log_prob, backend=None) -> emcee.EnsembleSampler:
+    return emcee.EnsembleSampler(8, 2, log_prob, vectorize=True, backend=backend)
+
+
+def test_emcee_swallows_an_interrupt_in_its_random_state_setter(handlers):
+    """The hazard the deferral exists for: `except: pass` around set_state."""
+    _sampler(_gaussian).random_state = _SignalOnAccess((1, 2))  # raised, and lost ...
+    with pytest.raises(interrupt.Interrupted):
+        interrupt.check()  # ... but still pending: the next check (or the CLI) stops
+
+
+class _RaisesWhenCollected:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)  # raised in a finaliser: Python cannot propagate it
+
+
+def test_a_stop_raised_where_python_cannot_propagate_it_is_silent_and_pending(handlers, capsys):
+    _RaisesWhenCollected()  # collected at once: "Exception ignored in ..." without the hook
+    assert capsys.readouterr().err == ""
+    with pytest.raises(interrupt.Interrupted) as stop:
+        interrupt.check()
+    assert stop.value.signum == signal.SIGINT
+
+
+def test_emcee_catch_alls_neither_swallow_nor_print_an_interrupt(handlers, capsys):
+    settings = SamplerSettings(max_steps=50, check_every=10)
+    coords = np.random.default_rng(1).normal(size=(8, 2))
+    # Inside the setter's `except: pass`: held, raised after the first step.
+    sampler = _sampler(_gaussian)
+    with pytest.raises(interrupt.Interrupted):
+        _run_until_converged(
+            sampler, emcee.State(coords, random_state=_SignalOnAccess((1,))), settings
+        )
+    assert sampler.iteration == 1
+    calls = []
+
+    def signal_on_fifth_call(x):  # inside emcee's `except:` that prints the walkers
+        calls.append(1)
+        if len(calls) == 5:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return _gaussian(x)
+
+    # One call for the start, two a step (each half of the ensemble): the
+    # fifth is step 2's second half, which finishes; then the stop.
+    sampler = _sampler(signal_on_fifth_call)
+    with pytest.raises(interrupt.Interrupted) as stop:
+        _run_until_converged(sampler, emcee.State(coords), settings)
+    assert stop.value.exit_code == 143
+    assert sampler.iteration == 2
+    assert capsys.readouterr().out == ""
+
+
+def _chain(path: Path, settings: SamplerSettings, stop_at: int | None = None):
+    """Run (or resume) a toy chain in ``path``; SIGINT on the ``stop_at``-th evaluation."""
+    calls = []
+
+    def log_prob(x):
+        calls.append(1)
+        if len(calls) == stop_at:
+            os.kill(os.getpid(), signal.SIGINT)
+        return _gaussian(x)
+
+    backend = BufferedHDFBackend(str(path), settings.check_every)
+    if not path.exists():
+        backend.reset(8, 2)
+    sampler = _sampler(log_prob, backend)
+    start = (
+        sampler.get_last_sample()
+        if backend.iteration
+        else emcee.State(
+            np.random.default_rng(1).normal(size=(8, 2)),
+            random_state=np.random.RandomState(2).get_state(),
+        )
+    )
+    try:
+        converged, tau = _run_until_converged(sampler, start, settings)
+    finally:
+        backend.flush()
+    return converged, tau, sampler.get_chain()
+
+
+def test_resumed_chain_equals_the_uninterrupted_one_at_every_stop(handlers, tmp_path):
+    settings = SamplerSettings(max_steps=3000, check_every=20, autocorr_multiple=5, tau_rtol=0.05)
+    converged, tau, chain = _chain(tmp_path / "reference.h5", settings)
+    assert converged and len(chain) < settings.max_steps  # it stopped on the criterion
+    # Evaluation k > 0 belongs to step (k + 1) // 2 (one for the start, two a
+    # step): stops in steps 2, 19, 20 (a check), 48, and the last (then a rerun).
+    for stop_at in (3, 38, 40, 95, 2 * len(chain)):
+        path = tmp_path / f"stopped_{stop_at}.h5"
+        try:
+            _chain(path, settings, stop_at)
+        except interrupt.Interrupted:
+            pass
+        resumed = _chain(path, settings)
+        assert resumed[0] == converged
+        np.testing.assert_array_equal(resumed[1], tau)
+        np.testing.assert_array_equal(resumed[2], chain)
+        rerun = _chain(path, settings)  # a converged chain takes no more steps
+        np.testing.assert_array_equal(rerun[2], chain)
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory) -> str:
+    folder = tmp_path_factory.mktemp("experiment")
+    args = ["simulate", "--out", str(folder), "--seed", "1", "--v1", "1", "--v2", "0"]
+    subprocess.run([*CLI, *args], check=True, capture_output=True)
+    return str(folder / "v1_01.nc")
+
+
+def _interrupt(args: list[str], delay: float, signum: int, *, after: str = ""):
+    """Signal the CLI ``delay`` s after ``after`` is on stderr; (code, latency, out, err)."""
+    process = subprocess.Popen(
+        [*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    err = ""
+    while after and after not in err:
+        err += process.stderr.readline()
+    time.sleep(delay)
+    sent = time.monotonic()
+    process.send_signal(signum)
+    out, rest = process.communicate(timeout=60)
+    return process.returncode, time.monotonic() - sent, out, err + rest
+
+
+def _assert_clean_stop(code, latency, out, err, signum):
+    assert code == 128 + signum, err
+    assert latency < 2.0
+    assert out == ""  # stdout may carry --json
+    assert "Traceback" not in err and "emcee:" not in err, err
+    assert err.strip().splitlines()[-1].startswith("bayes-jackal: interrupted")
+
+
+def test_sample_stops_cleanly_inside_emcee_and_says_it_resumes(experiment, tmp_path):
+    args = ["sample", experiment, "--out", str(tmp_path / "p.nc"), *QUICK]
+    chain = tmp_path / "p.chain.h5"
+    steps = 0
+    for delay in (2.0, 4.0, 8.0):  # the MAP search takes ~1 s, more on a busy machine
+        result = _interrupt(args, delay, signal.SIGINT, after="sampling")
+        _assert_clean_stop(*result, signal.SIGINT)
+        with h5py.File(chain, "r") as stored:
+            steps = int(stored["mcmc"].attrs["iteration"])
+        if steps:
+            break
+    assert steps > 0  # stopped inside emcee
+    code, latency, out, err = _interrupt(args, 0.0, signal.SIGTERM, after="resuming")
+    _assert_clean_stop(code, latency, out, err, signal.SIGTERM)
+    assert f"resuming {chain} at step {steps}" in err
+
+
+def test_a_signal_during_the_imports_gives_one_line(experiment, tmp_path):
+    args = ["sample", experiment, "--out", str(tmp_path / "p.nc"), *QUICK]
+    code, latency, out, err = _interrupt(args, 0.3, signal.SIGINT)  # imports take ~2 s
+    _assert_clean_stop(code, latency, out, err, signal.SIGINT)
+    assert len(err.strip().splitlines()) == 1
+
+
+def _results(folder: Path, out: str) -> dict:
+    """Every posterior array under ``folder``, and the command's JSON (evidence included)."""
+    arrays = {}
+    for path in sorted(folder.rglob("*.nc")):
+        if path.parent.name == "experiments":
+            continue
+        for group in ("posterior", "sample_stats"):
+            with xr.open_dataset(path, group=group) as data:
+                for name, values in data.data_vars.items():
+                    arrays[f"{path.relative_to(folder)}:{group}/{name}"] = values.values
+    return {"arrays": arrays, "json": json.loads(out)}
+
+
+def _assert_equal(results: dict, reference: dict) -> None:
+    assert results["json"] == reference["json"]
+    assert results["arrays"].keys() == reference["arrays"].keys()
+    for name, values in reference["arrays"].items():
+        np.testing.assert_array_equal(results["arrays"][name], values, err_msg=name)
+
+
+COMMANDS = {
+    "sample": ["sample", "{exp}", "--out", "{out}/p.nc", *QUICK],
+    "compare": ["compare", "{exp}", "--out", "{out}", *QUICK, *FAMILIES, "--processes", "2"],
+    "analyse": ["analyse", "{exp}", "--out", "{out}", *QUICK, *FAMILIES, "--processes", "1"],
+}
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("interrupts")
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_random_interrupts_resume_to_the_uninterrupted_results(experiment, tmp_path, command):
+    """20 signals at random moments (SIGINT and SIGTERM in turn) on one command.
+
+    ``BAYES_JACKAL_INTERRUPTS`` sets another count: CI runs 8 to stay within
+    its time (.ci/run); the issue's 20 per command take ~6 min on 2 cores.
+
+    Runs follow each other in one output folder: each is stopped at a random
+    moment of a whole run, or finishes, resuming what the stopped ones kept;
+    a finished run's results must equal the uninterrupted run's bit for bit,
+    and the folder starts afresh.
+    """
+    template = COMMANDS[command]
+    out = tmp_path / "out"
+    args = [a.format(exp=experiment, out=out) for a in template]
+    started = time.monotonic()
+    reference = subprocess.run([*CLI, *args], capture_output=True, text=True, check=True)
+    duration = time.monotonic() - started
+    expected = _results(out, reference.stdout)
+    shutil.rmtree(out)
+    rng = np.random.default_rng(20)
+    signals = [signal.SIGINT, signal.SIGTERM]
+    interrupted = finished = 0
+    while interrupted < int(os.environ.get("BAYES_JACKAL_INTERRUPTS", "20")):
+        signum = signals[interrupted % 2]
+        code, latency, stdout, err = _interrupt(args, rng.uniform(0.5, duration), signum)
+        # Done before the signal (or the signal came as the interpreter exited,
+        # its handlers reset: killed, quietly, with the output complete): the
+        # run must have resumed to the same results.
+        if code == 0 or (code == -signum and stdout):
+            assert "Traceback" not in err, err
+            _assert_equal(_results(out, stdout), expected)
+            shutil.rmtree(out)
+            finished += 1
+            continue
+        _assert_clean_stop(code, latency, stdout, err, signum)
+        interrupted += 1
+    rerun = subprocess.run([*CLI, *args], capture_output=True, text=True, check=True)
+    _assert_equal(_results(out, rerun.stdout), expected)
+    assert finished >= 1

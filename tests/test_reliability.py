@@ -1,0 +1,437 @@
+"""The reliability suite of issue 11: the table of tests/reliability_cases.py, run for real.
+
+Every case runs ``bayes-jackal`` in a subprocess, in a fresh folder, and must
+give the expected exit code and words on stderr, with no traceback, every
+input byte-identical and untouched (sha256 and mtime), no ``.part`` file
+left, and stdout empty or strict JSON (no NaN, no Infinity) with ``--json``.
+
+Starting Python and importing the package takes ~2 s, more than most cases
+need, so plain cases run in a child forked from a "zygote": a Python process
+started once per test session (per xdist worker) that has imported
+``bayes_jackal.cli``. Each child chdirs to the case's folder, points fds 0-2
+at /dev/null and files, and exits through ``console(argv)``: the same
+entry point as the console script and ``python -m bayes_jackal.cli``. Signal,
+lock-holder and full-disk cases, and everything when
+``BAYES_JACKAL_RELIABILITY_EXEC=1``, exec a fresh interpreter instead.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import select
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from reliability_cases import CASES, Case, Library, mat, strict_json, words_missing
+
+ENV = os.environ | {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+EXEC_ALL = os.environ.get("BAYES_JACKAL_RELIABILITY_EXEC") == "1"
+MODULE = [sys.executable, "-m", "bayes_jackal.cli"]
+SCRIPT = [str(Path(sys.executable).with_name("bayes-jackal"))]
+#: Seconds a command may take to stop after SIGINT/SIGTERM (issue: "about a second").
+STOP_WITHIN = 2.0
+INTERRUPT_LINE = r"interrupt|signal|sigint|sigterm|stopp|terminat"
+
+#: Modules the zygote imports before it forks (the CLI imports them on first use).
+WARM = (
+    "bayes_jackal.cli.parser",
+    "bayes_jackal.cli.paths",
+    "bayes_jackal.interrupt",
+    "bayes_jackal.bags",
+    "matplotlib.pyplot",
+    "h5netcdf",
+    "h5py",
+    "emcee",
+)
+ZYGOTE = (
+    f"WARM = {WARM!r}\n"
+    + r"""
+import gc, importlib, json, os, resource, signal, sys
+from bayes_jackal.cli import console
+for name in WARM:  # what a run imports lazily, imported once here
+    try:
+        importlib.import_module(name)
+    except ImportError:
+        pass
+gc.freeze()  # the children's collections skip what the zygote loaded
+os.write(1, b"ready\n")
+while True:
+    line = sys.stdin.readline()
+    if not line:
+        os._exit(0)
+    request = json.loads(line)
+    pid = os.fork()
+    if pid == 0:
+        break
+    os.write(1, f"{pid}\n".encode())
+    _, status = os.waitpid(pid, 0)
+    os.write(1, f"{os.waitstatus_to_exitcode(status)}\n".encode())
+os.setpgid(0, 0)
+os.chdir(request["cwd"])
+for fd, name, mode in ((0, os.devnull, os.O_RDONLY), (1, request["stdout"], os.O_WRONLY),
+                       (2, request["stderr"], os.O_WRONLY)):
+    handle = os.open(name, mode | (os.O_CREAT | os.O_TRUNC if fd else 0), 0o644)
+    os.dup2(handle, fd)
+    os.close(handle)
+if request["fsize"]:
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (request["fsize"], request["fsize"]))
+sys.argv = ["bayes-jackal", *request["argv"]]
+console(request["argv"])
+"""
+)
+
+
+@dataclass
+class Result:
+    code: int
+    stdout: str
+    stderr: str
+    seconds: float
+
+
+class Zygote:
+    """A Python process with the CLI imported that forks one child per command."""
+
+    def __init__(self):
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", ZYGOTE], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=ENV
+        )
+        self.buffer = b""
+        assert self._line(120) == "ready"
+
+    def _line(self, timeout: float) -> str:
+        deadline = time.monotonic() + timeout
+        fd = self.process.stdout.fileno()
+        while b"\n" not in self.buffer:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                raise TimeoutError
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                raise RuntimeError("the zygote died")
+            self.buffer += chunk
+        line, self.buffer = self.buffer.split(b"\n", 1)
+        return line.decode()
+
+    def run(self, argv: list[str], cwd: Path, *, fsize: int, timeout: float) -> Result:
+        out, err = cwd.parent / f"{cwd.name}.stdout", cwd.parent / f"{cwd.name}.stderr"
+        request = {"argv": argv, "cwd": str(cwd), "stdout": str(out), "stderr": str(err)}
+        self.process.stdin.write((json.dumps(request | {"fsize": fsize}) + "\n").encode())
+        self.process.stdin.flush()
+        start = time.monotonic()
+        pid = int(self._line(30))
+        try:
+            code = int(self._line(timeout))
+        except TimeoutError:
+            os.killpg(pid, signal.SIGKILL)
+            code = int(self._line(30))
+            err.write_text(err.read_text() + f"\n[test: killed after the {timeout:g} s timeout]")
+        return Result(code, out.read_text(), err.read_text(), time.monotonic() - start)
+
+    def close(self):
+        self.process.stdin.close()
+        self.process.wait(10)
+        self.process.stdout.close()
+
+
+def _limit_fsize(limit: int):
+    def preexec():
+        import resource
+
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return preexec if limit else None
+
+
+def start(argv: list[str], cwd: Path, *, script: bool = False, fsize: int = 0):
+    """A fresh interpreter running the CLI, in its own process group (like a shell job)."""
+    out, err = cwd.parent / f"{cwd.name}.stdout", cwd.parent / f"{cwd.name}.stderr"
+    with out.open("wb") as stdout, err.open("wb") as stderr:
+        process = subprocess.Popen(
+            (SCRIPT if script else MODULE) + argv,
+            cwd=cwd,
+            stdin=subprocess.DEVNULL,
+            stdout=stdout,
+            stderr=stderr,
+            env=ENV,
+            start_new_session=True,
+            preexec_fn=_limit_fsize(fsize),
+        )
+    process.outputs = (out, err)
+    process.started = time.monotonic()
+    return process
+
+
+def finish(process, timeout: float) -> Result:
+    try:
+        process.wait(timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    out, err = process.outputs
+    return Result(process.returncode, out.read_text(), err.read_text(), 0.0)
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """Run the CLI: ``cli(argv, cwd, fsize=0, timeout=90) -> Result``."""
+    zygote = None if EXEC_ALL else Zygote()
+
+    def run(argv: list[str], cwd: Path, *, fsize: int = 0, timeout: float = 90.0) -> Result:
+        if zygote is None:
+            process = start(argv, cwd, fsize=fsize)
+            result = finish(process, timeout)
+            result.seconds = time.monotonic() - process.started
+            return result
+        return zygote.run(argv, cwd, fsize=fsize, timeout=timeout)
+
+    yield run
+    if zygote is not None:
+        zygote.close()
+
+
+@pytest.fixture(scope="session")
+def library(cli, tmp_path_factory) -> Library:
+    """One tiny simulated run as .nc, .csv, .mat, .bag, .mcap, and two short posteriors."""
+    root = tmp_path_factory.mktemp("library")
+    commands = [
+        "simulate --out runs --seed 1 --v1 1 --v2 0 --bag ros2",
+        "simulate --out csv --seed 1 --v1 1 --v2 0 --format csv --bag ros1",
+        "sample runs/v1_01.nc --out post/gaussian.nc --family gaussian --channels yaw "
+        "--max-steps 200 --walkers 32 --seed 1 --no-progress",
+        "sample runs/v1_01.nc --out post/white.nc --family white --channels yaw "
+        "--max-steps 200 --walkers 32 --seed 1 --no-progress",
+    ]
+    for command in commands:
+        result = cli(shlex.split(command), root)
+        if result.code != 0:
+            pytest.fail(f"could not build the library ({command}): {result.stderr}")
+    lib = Library(
+        root=root,
+        nc=root / "runs/v1_01.nc",
+        csv=root / "csv/v1_01.csv",
+        mat=root / "v1_01.mat",
+        bag=root / "csv/v1_01.bag",
+        mcap=root / "runs/v1_01.mcap",
+        posterior=root / "post/gaussian.nc",
+        white_posterior=root / "post/white.nc",
+    )
+    mat()(lib, lib.mat)
+    return lib
+
+
+def _snapshot(folder: Path, mutable: tuple[str, ...]) -> dict[Path, tuple]:
+    """sha256, size and mtime of every file under ``folder``."""
+    skip = {folder / name for name in mutable}
+    return {
+        path: (hashlib.sha256(path.read_bytes()).hexdigest(), path.stat().st_mtime_ns)
+        for path in sorted(folder.rglob("*"))
+        if path.is_file() and not path.is_symlink() and path not in skip
+    }
+
+
+def _build(case: Case, library: Library, folder: Path) -> dict[Path, tuple]:
+    folder.mkdir()
+    for name, builder in case.files.items():
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        builder(library, path)
+    return _snapshot(folder, case.mutable)
+
+
+def _check(
+    case: Case,
+    result: Result,
+    folder: Path,
+    inputs: dict,
+    *,
+    exit=None,
+    words=None,
+    interrupted: bool = False,
+) -> None:
+    """What every case must satisfy, and the case's own checks."""
+    argv = shlex.split(case.argv)
+    expected = case.exit if exit is None else exit
+    expected = expected if isinstance(expected, tuple) else (expected,)
+    said = f"\n--- stderr ---\n{result.stderr[-3000:]}\n--- stdout ---\n{result.stdout[-1500:]}"
+    assert result.code in expected, f"exit {result.code}, expected {expected}{said}"
+    missing = words_missing(case, result.stderr, words)
+    assert not missing, f"stderr lacks {missing}{said}"
+    if "--debug" not in argv:
+        assert "Traceback" not in result.stderr, f"a traceback reached the user{said}"
+    if "--json" in argv:
+        if interrupted or (result.code != 0 and not result.stdout.strip()):
+            assert not interrupted or not result.stdout.strip(), f"stdout after a signal{said}"
+        else:
+            try:
+                strict_json(result.stdout)
+            except ValueError as exc:
+                pytest.fail(f"stdout is not strict JSON ({exc}){said}")
+    for text in case.stdout_lacks:
+        assert text not in result.stdout, f"stdout holds {text!r}{said}"
+    after = _snapshot(folder, case.mutable)
+    changed = [str(p.relative_to(folder)) for p, state in inputs.items() if after.get(p) != state]
+    assert not changed, f"inputs changed or touched: {changed}{said}"
+    parts = [str(p.relative_to(folder)) for p in folder.rglob("*.part")]
+    assert not parts, f"half-written files left: {parts}{said}"
+    for pattern in case.exists:
+        assert list(folder.glob(pattern)), f"{pattern} was not written{said}"
+    for pattern in case.absent:
+        found = [str(p.relative_to(folder)) for p in folder.glob(pattern)]
+        assert not found, f"{found} should not exist{said}"
+    for pattern, count in case.count.items():
+        found = sorted(str(p.relative_to(folder)) for p in folder.glob(pattern))
+        assert len(found) == count, f"{pattern}: {found}, expected {count} files{said}"
+    for name in case.json_files:
+        try:
+            strict_json((folder / name).read_text())
+        except (OSError, ValueError) as exc:
+            pytest.fail(f"{name} is not strict JSON ({exc}){said}")
+
+
+def _wait_for(folder: Path, pattern: str, process, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and process.poll() is None:
+        if list(folder.glob(pattern)):
+            return True
+        time.sleep(0.05)
+    return bool(list(folder.glob(pattern)))
+
+
+def _run_signal(case: Case, folder: Path, inputs: dict, cli) -> None:
+    argv = shlex.split(case.argv)
+    process = start(argv, folder, script=case.script)
+    if case.trigger:
+        assert _wait_for(folder, case.trigger, process, case.timeout), (
+            f"{case.trigger} never appeared (exit {process.poll()})"
+        )
+    else:
+        time.sleep(case.delay)
+    assert process.poll() is None, "the command ended before the signal"
+    sent = time.monotonic()
+    # Ctrl-C reaches the terminal's whole process group; kill(1) one process.
+    if case.signum == signal.SIGINT:
+        os.killpg(process.pid, case.signum)
+    else:
+        os.kill(process.pid, case.signum)
+    result = finish(process, 30)
+    stopped = time.monotonic() - sent
+    if case.signum != signal.SIGKILL:
+        _check(case, result, folder, inputs, interrupted=True)
+        assert stopped <= STOP_WITHIN, f"stopped {stopped:.1f} s after the signal"
+        lines = [line for line in result.stderr.splitlines() if line.strip()]
+        said = [line for line in lines if __import__("re").search(INTERRUPT_LINE, line, 2)]
+        assert len(said) == 1, f"expected one line about the signal: {lines[-10:]}"
+        if case.delay:  # during the imports: that line and nothing else
+            assert len(lines) <= 2, lines
+    else:
+        assert result.code == case.exit
+    if case.rerun:
+        code, words = case.rerun
+        again = cli(argv, folder, timeout=case.timeout)
+        _check(case, again, folder, inputs, exit=code, words=words)
+
+
+def _run_lock(case: Case, folder: Path, inputs: dict, cli) -> None:
+    argv = shlex.split(case.argv)
+    holder = start(argv, folder)
+    try:
+        assert _wait_for(folder, "**/*.lock", holder, 60), (
+            f"no lock file appeared (holder exit {holder.poll()})"
+        )
+        assert _wait_for(folder, case.trigger, holder, 60)
+        second = cli(argv, folder, timeout=30)
+        _check(case, second, folder, inputs, words=(*case.words, str(holder.pid)))
+        assert holder.poll() is None, "the holder ended while the second run was refused"
+    finally:
+        if holder.poll() is None:
+            holder.send_signal(signal.SIGTERM)
+        first = finish(holder, 30)
+    assert first.code in (130, 143), f"holder exit {first.code}: {first.stderr[-2000:]}"
+    assert "Traceback" not in first.stderr, first.stderr
+
+
+def _run_tmpfs(case: Case, folder: Path, inputs: dict, cli) -> None:
+    """The output folder ``disk`` on a 4 MB tmpfs with ``limit`` bytes free (0: 1 MB)."""
+    if shutil.which("unshare") is None:
+        pytest.skip("no unshare(1) to mount a private tmpfs")
+    disk, saved = folder / "disk", folder.parent / f"{folder.name}.saved"
+    disk.mkdir()
+    saved.mkdir()
+    command = shlex.join(MODULE + shlex.split(case.argv))
+    fill = (4 << 20) - (case.limit or 1 << 20)
+    script = "\n".join(
+        [
+            "mount -t tmpfs -o size=4m tmpfs disk || exit 97",
+            f"head -c {fill} /dev/zero > disk/.filler 2>/dev/null",
+            f"{command} > ../{folder.name}.stdout 2> ../{folder.name}.stderr",
+            f"echo $? > ../{folder.name}.code",
+            "rm -f disk/.filler",
+            f"{command} > ../{folder.name}.stdout2 2> ../{folder.name}.stderr2"
+            if case.rerun
+            else "",
+            f"echo $? > ../{folder.name}.code2",
+            f"cp -a disk/. {shlex.quote(str(saved))}/",
+        ]
+    )
+    status = subprocess.run(
+        ["unshare", "-rm", "sh", "-c", script], cwd=folder, env=ENV, timeout=180, check=False
+    ).returncode
+    if status == 97 or not (folder.parent / f"{folder.name}.code").exists():
+        pytest.skip(f"cannot mount a tmpfs in a user namespace here (unshare exit {status})")
+    shutil.copytree(saved, disk, dirs_exist_ok=True)
+
+    def outcome(suffix: str) -> Result:
+        read = lambda kind: (folder.parent / f"{folder.name}.{kind}{suffix}").read_text()  # noqa: E731
+        return Result(int(read("code")), read("stdout"), read("stderr"), 0.0)
+
+    _check(case, outcome(""), folder, inputs)
+    if case.rerun:
+        code, words = case.rerun
+        _check(case, outcome("2"), folder, inputs, exit=code, words=words)
+
+
+def _run(case: Case, folder: Path, inputs: dict, cli) -> None:
+    argv = shlex.split(case.argv)
+    result = cli(
+        argv, folder, fsize=case.limit if case.kind == "fsize" else 0, timeout=case.timeout
+    )
+    _check(case, result, folder, inputs)
+    if case.rerun:
+        code, words = case.rerun
+        again = cli(argv, folder, timeout=case.timeout)
+        _check(case, again, folder, inputs, exit=code, words=words)
+
+
+RUNNERS = {
+    "run": _run,
+    "fsize": _run,
+    "signal": _run_signal,
+    "lock": _run_lock,
+    "tmpfs": _run_tmpfs,
+}
+
+
+def test_table_has_150_distinct_cases():
+    ids = [case.id for case in CASES]
+    assert len(ids) == len(set(ids)), sorted({i for i in ids if ids.count(i) > 1})
+    assert len(CASES) >= 150
+    assert {case.kind for case in CASES} == set(RUNNERS)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[case.id for case in CASES])
+def test_reliability(case: Case, library: Library, cli, tmp_path: Path) -> None:
+    folder = tmp_path / "case"
+    inputs = _build(case, library, folder)
+    RUNNERS[case.kind](case, folder, inputs, cli)
