@@ -96,7 +96,7 @@ class SamplerSettings:
             "walkers": (self.walkers, 0),
             "max_steps": (self.max_steps, 1),
             "check_every": (self.check_every, 1),
-            "design_points": (self.design_points, 16),
+            "design_points": (self.design_points, 16),  # design_points / 16 damping points
         }
         for name, (value, least) in counts.items():
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
