@@ -3,7 +3,7 @@
 :func:`read_bag` turns a recorded run (ROS1 ``.bag``, ROS2 ``.mcap`` or
 ``.db3`` storage file, or a ROS2 bag directory; read with rosbags' AnyReader,
 no ROS install) into an :class:`~bayes_jackal.experiment.Experiment`
-(DESIGN §2). The topics come from the robot profile (``robot.topics``):
+(docs/design.md §2). The topics come from the robot profile (``robot.topics``):
 
 ==============  =======================================  ==========================
 role            message type                             used for
