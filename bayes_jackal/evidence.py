@@ -21,12 +21,9 @@ bare mention, 1-3 positive, 3-5 strong, above 5 very strong.
 
 from __future__ import annotations
 
-import concurrent.futures
 import contextlib
 import dataclasses
 import json
-import multiprocessing
-import os
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -37,8 +34,8 @@ import numpy as np
 import scipy.special
 import scipy.stats
 
-from . import interrupt
 from .errors import DataError, InputError
+from .executors import in_processes
 from .experiment import Experiment
 from .inference import ConvergenceWarning, SamplerSettings, run_identity, sample_posterior
 from .kernels import FAMILIES, as_rng, get_family
@@ -339,30 +336,6 @@ def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
     } | {"hdi_prob": HDI_PROB}
 
 
-#: Thread counts of the numerical libraries, read once when a process loads them.
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-@contextlib.contextmanager
-def _single_threaded_children():
-    """One BLAS/OpenMP thread in the processes started meanwhile (they inherit os.environ).
-
-    A process per core with threaded BLAS in each oversubscribes the cores:
-    five families on 2 cores took 85 s that way and 48 s with one thread each.
-    (The demo's two families, one 4x slower, took 74 s threaded and 83 s not.)
-    """
-    saved = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
-    os.environ.update(dict.fromkeys(_THREAD_VARIABLES, "1"))
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
-
-
 #: Sampler settings that only change the display, not a family's result.
 _DISPLAY_SETTINGS = ("progress", "progress_label", "progress_line")
 
@@ -474,33 +447,6 @@ class _FamilyRun:
         return self._stored(family, idata)
 
 
-@contextlib.contextmanager
-def _processes(run: _FamilyRun, jobs: list, workers: int, single_threaded: bool):
-    """Results of ``run(job)`` as they finish, from ``workers`` spawned processes.
-
-    The workers ignore SIGINT and die quietly on SIGTERM
-    (:func:`bayes_jackal.interrupt.quiet_worker`); on any exception here,
-    an interrupt included, they are terminated at once.
-    """
-    context = multiprocessing.get_context("spawn")
-    before = set(multiprocessing.active_children())
-    with concurrent.futures.ProcessPoolExecutor(
-        workers, mp_context=context, initializer=interrupt.quiet_worker
-    ) as pool:
-        try:
-            # With more families than processes every core stays busy; with as
-            # many, the longest family runs alone at the end and keeps its threads.
-            threads = _single_threaded_children() if single_threaded else contextlib.nullcontext()
-            with threads, interrupt.blocked():  # a signal waits until the workers handle it
-                futures = [pool.submit(run, job) for job in jobs]
-            yield (future.result() for future in concurrent.futures.as_completed(futures))
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            for child in set(multiprocessing.active_children()) - before:
-                child.terminate()
-            raise
-
-
 def compare_families(
     experiments: list[Experiment],
     robot: RobotProfile,
@@ -589,8 +535,11 @@ def compare_families(
     parallel = processes > 1 and len(jobs) > 1
     workers = min(processes, len(jobs)) if parallel else 1
     run = dataclasses.replace(run, lines=workers)
+    # With more families than processes every core stays busy (one BLAS thread
+    # each); with as many, the longest family runs alone at the end and keeps
+    # its threads.
     with (
-        _processes(run, jobs, workers, len(jobs) > processes)
+        in_processes(run, jobs, workers=workers, single_threaded=len(jobs) > processes)
         if parallel
         else contextlib.nullcontext(map(run, jobs))
     ) as finished:
