@@ -34,7 +34,6 @@ from .criticism_statistics import (
 from .experiment import Experiment
 from .kernels import as_rng
 from .likelihood import ResidualLikelihood, sample_stationary
-from .noise import channel_residuals
 from .posterior import (
     HDI_PROB,
     az,
@@ -43,6 +42,7 @@ from .posterior import (
     posterior_likelihood,
     thinned_draws,
 )
+from .residuals import channel_residuals
 from .steady import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE
 
 __all__ = [

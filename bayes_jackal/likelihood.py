@@ -49,8 +49,8 @@ import scipy.fft
 from .errors import DataError, InputError
 from .experiment import Experiment
 from .kernels import Family, as_rng, get_family
-from .noise import check_residual_window, residual_regressors
 from .physics import channel_coefficients
+from .residuals import check_residual_window, residual_regressors
 from .robot import RobotProfile
 from .whittle import cross_periodogram, debiased_whittle_loglike, frequency_weights
 

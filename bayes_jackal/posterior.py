@@ -33,8 +33,8 @@ from .errors import DataError
 from .experiment import REQUIRED, Experiment
 from .kernels import get_family
 from .likelihood import ResidualLikelihood, residual_autocovariance, sample_stationary
-from .noise import channel_residuals
 from .physics import CHANNELS, channel_coefficients, discrete_matrices, simulate
+from .residuals import channel_residuals
 from .robot import RobotProfile, load_profile
 
 with warnings.catch_warnings():

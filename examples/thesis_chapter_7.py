@@ -21,11 +21,11 @@ from bayes_jackal.kernels import get_family
 from bayes_jackal.noise import (
     analyse,
     autocorrelation_bounds,
-    channel_residuals,
     fit_sigma_h,
     sample_autocorrelation,
     spectrum,
 )
+from bayes_jackal.residuals import channel_residuals
 from bayes_jackal.simulate import NoiseSettings, simulate_series
 
 THESIS_TABLE_7_1 = {"v1": 0.051, "v2": 0.041, "all": 0.047}

@@ -17,9 +17,9 @@ from bayes_jackal.likelihood import (
     sample_stationary,
     toeplitz_loglike,
 )
-from bayes_jackal.noise import channel_residuals
 from bayes_jackal.physics import channel_coefficients
 from bayes_jackal.posterior import summarize
+from bayes_jackal.residuals import channel_residuals
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
 from bayes_jackal.whittle import debiased_whittle_loglike
 

@@ -18,7 +18,6 @@ from bayes_jackal.noise import (
     analyse,
     autocorrelation_bounds,
     average_per_series,
-    channel_residuals,
     fit_sigma_h,
     ljung_box,
     magnitude_spectrum,
@@ -32,6 +31,7 @@ from bayes_jackal.physics import (
     discrete_matrices,
     one_step_residuals,
 )
+from bayes_jackal.residuals import channel_residuals
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
 from bayes_jackal.tables import read_csv, write_csv
 
