@@ -33,7 +33,7 @@ from .criticism_statistics import (
 )
 from .experiment import Experiment
 from .kernels import as_rng
-from .likelihood import ResidualLikelihood, sample_stationary
+from .likelihood import ResidualLikelihood
 from .posterior import (
     HDI_PROB,
     az,
@@ -42,6 +42,7 @@ from .posterior import (
     posterior_likelihood,
     thinned_draws,
 )
+from .predictive import predictive_series
 from .residuals import channel_residuals
 from .steady import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE
 
@@ -53,6 +54,7 @@ __all__ = [
     "PREDICTIVE_ALARM",
     "PREDICTIVE_DRAWS",
     "PREDICTIVE_LAGS",
+    "PREDICTIVE_WINDOW",
     "RESIDUAL_INPUT_LAGS",
     "RESIDUAL_INPUT_LEVEL",
     "Check",
@@ -85,8 +87,12 @@ PORTMANTEAU_LAGS = 30
 #: Posterior draws (one replicated series each) behind every p-value, as
 #: many as the report's predictive bands: p resolves steps of 0.005.
 PREDICTIVE_DRAWS = 200
-#: Replicated series held at once: the chunk is at most this many samples.
-_CHUNK_SAMPLES = 400_000
+#: Longest stretch of residuals the predictive check replicates: longer runs
+#: are checked on their central 16,384 residuals (3.8 min at 72 Hz), where
+#: an autocorrelation has a standard error of 1/128 = 0.008, so the check's
+#: cost does not grow with the run (200 replicated hours per channel would
+#: take minutes).
+PREDICTIVE_WINDOW = 16_384
 #: Family-wise false-alarm level of the p-values of one experiment and
 #: channel (:func:`criticism_statistics.predictive_flags`: Bonferroni over
 #: both tails of the 5 statistics, 0.5 % per tail). With 200 draws a tail
@@ -279,7 +285,7 @@ def predictive_acf(
 
     For each of ``count`` posterior draws theta: the observed residuals at
     theta's damping and one replicated residual series drawn exactly from
-    the model at theta (as :func:`bayes_jackal.posterior.predictive_residuals`);
+    the model at theta (:func:`bayes_jackal.predictive.predictive_series`);
     their :func:`acf_statistics` give one p-value per statistic
     (:func:`predictive_p_values`). The statistics of one experiment and
     channel are flagged by :func:`predictive_flags` at the family-wise level
@@ -288,35 +294,40 @@ def predictive_acf(
     predictive p-values are conservative (Meng 1994: they concentrate near
     0.5 when the model holds, because the data fitted theta), so the false
     alarm rate is lower still. The draws are processed in chunks of at most
-    :data:`_CHUNK_SAMPLES` samples (one draw per chunk at least).
+    :data:`~bayes_jackal.predictive.CHUNK_SAMPLES` samples (one draw per
+    chunk at least), and each replicated series comes from its own generator
+    spawned from ``rng`` (:func:`bayes_jackal.predictive.predictive_series`),
+    so the p-values do not depend on the chunks. Runs with more than
+    :data:`PREDICTIVE_WINDOW` residuals are checked on their central
+    window of that length.
 
     Numbers per experiment and channel: ``statistics`` (names),
-    ``p_values``, ``draws``, ``alarm`` and ``tail_level`` (per tail).
+    ``p_values``, ``draws``, ``alarm``, ``tail_level`` (per tail) and
+    ``window`` (the residuals checked, first and last index + 1).
     """
     likelihood = posterior_likelihood(idata)
     theta = thinned_draws(idata, count)
-    rng = as_rng(rng)
+    rng = as_rng(rng)  # one generator: every channel spawns its own series from it
     check = Check()
     for index, experiment in enumerate(likelihood.experiments):
         rows = {}
         for channel in likelihood.channels:
-            n = idata.observed_data[f"residual_{channel}_{index}"].size
+            total = idata.observed_data[f"residual_{channel}_{index}"].size
+            n = min(total, PREDICTIVE_WINDOW)
+            window = slice((total - n) // 2, (total - n) // 2 + n)
             lags = tuple(k for k in PREDICTIVE_LAGS if k < n // 2)
             portmanteau = min(PORTMANTEAU_LAGS, n // 2)
             names = _statistic_names(lags, portmanteau)
-            chunks = max(1, min(len(theta), -(-len(theta) * n // _CHUNK_SAMPLES)))
-            exceed = sum(
-                len(chunk)
-                * _chunk_p_values(likelihood, index, channel, chunk, lags, portmanteau, rng)
-                for chunk in np.array_split(theta, chunks)
+            p_values = _p_values(
+                likelihood, (index, channel, window), theta, lags, portmanteau, rng
             )
-            p_values = exceed / len(theta)
             rows[channel] = {
                 "statistics": names,
                 "p_values": p_values.tolist(),
                 "draws": len(theta),
                 "alarm": PREDICTIVE_ALARM,
                 "tail_level": PREDICTIVE_ALARM / (2 * len(names)),
+                "window": [window.start, window.stop],
             }
             flags = predictive_flags(p_values, len(theta), alarm=PREDICTIVE_ALARM)
             check.warnings += [
@@ -328,26 +339,39 @@ def predictive_acf(
     return check
 
 
-def _chunk_p_values(
+def _p_values(
     likelihood: ResidualLikelihood,
-    index: int,
-    channel: str,
+    series: tuple[int, str, slice],
     theta: np.ndarray,
     lags: tuple[int, ...],
     portmanteau: int,
-    rng: np.random.Generator,
+    rng: np.random.Generator | int | None,
 ) -> np.ndarray:
-    """:func:`predictive_p_values` over the draws ``theta`` of one chunk."""
+    """:func:`predictive_p_values` over the draws ``theta``, from chunks of their series.
+
+    ``series`` is (experiment index, channel, window of the residuals
+    checked). Per chunk of draws, the observed residuals in the window at
+    each draw's damping and the replicated series of the window's length
+    are reduced to their :func:`acf_statistics`; only those (draws x
+    statistics) are kept.
+    """
+    index, channel, window = series
     experiment = likelihood.experiments[index]
-    observed = channel_residuals(
-        experiment, likelihood.robot, theta[:, 0], theta[:, 1], channel, likelihood.steady
-    )
-    n = observed.shape[-1]
-    replicated = sample_stationary(model_autocovariance(likelihood, index, channel, theta, n), rng)
-    return predictive_p_values(
-        acf_statistics(observed, lags=lags, portmanteau=portmanteau),
-        acf_statistics(replicated, lags=lags, portmanteau=portmanteau),
-    )
+    n = window.stop - window.start
+    observed, replicated = [], []
+    for part, draws in predictive_series(likelihood, index, channel, theta, n, rng):
+        residuals = channel_residuals(
+            experiment,
+            likelihood.robot,
+            theta[part, 0],
+            theta[part, 1],
+            channel,
+            likelihood.steady,
+            window,
+        )
+        observed.append(acf_statistics(residuals, lags=lags, portmanteau=portmanteau))
+        replicated.append(acf_statistics(draws, lags=lags, portmanteau=portmanteau))
+    return predictive_p_values(np.concatenate(observed), np.concatenate(replicated))
 
 
 def _predictive_warning(

@@ -1,4 +1,12 @@
-"""Running independent jobs (a family's posterior and evidence) in worker processes.
+"""Running independent jobs (a family's posterior and evidence): here, in processes, on a cluster.
+
+An :class:`Executor` runs picklable jobs and yields their results as they
+finish: :class:`SerialExecutor` in this process, one after the other;
+:class:`ProcessExecutor` in spawned local processes (:func:`in_processes`);
+:class:`DaskExecutor` as tasks of a Dask distributed cluster (``dask
+scheduler`` and ``dask worker``; optional extra ``bayes-jackal[cluster]``).
+A job carries everything its result depends on, its seed included, so the
+results do not depend on the executor.
 
 :func:`in_processes` runs picklable jobs in spawned processes and yields
 their results as they finish. The workers ignore SIGINT (a terminal's
@@ -9,22 +17,35 @@ included, the workers it started are terminated at once.
 
 from __future__ import annotations
 
+import asyncio
 import concurrent.futures
 import contextlib
 import multiprocessing
 import os
 from collections.abc import Callable, Iterator, Sequence
-from typing import TypeVar
+from contextlib import AbstractContextManager
+from typing import Any, TypeVar
 
 from . import interrupt
+from .errors import InputError
 
-__all__ = ["in_processes", "single_threaded_children"]
+__all__ = [
+    "DaskExecutor",
+    "Executor",
+    "ProcessExecutor",
+    "SerialExecutor",
+    "executor_for",
+    "in_processes",
+    "single_threaded_children",
+]
 
 T = TypeVar("T")
 R = TypeVar("R")
 
 #: Thread counts of the numerical libraries, read once when a process loads them.
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+#: How long to try to reach a Dask scheduler [s].
+DEFAULT_TIMEOUT = 5.0
 
 
 @contextlib.contextmanager
@@ -76,3 +97,183 @@ def in_processes(
             for child in set(multiprocessing.active_children()) - before:
                 child.terminate()
             raise
+
+
+class Executor:
+    """Where independent, picklable jobs run; :meth:`run` yields their results as they finish.
+
+    An executor is also a context manager: within ``with executor:`` it
+    may hold a connection (:class:`DaskExecutor`) for several runs;
+    outside, each :meth:`run` makes its own.
+
+    Attributes
+    ----------
+    terminal : bool
+        Whether the jobs share the caller's terminal (progress bars make
+        sense); False on a cluster, whose workers have none.
+    """
+
+    terminal = True
+
+    def __enter__(self) -> Executor:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        return None
+
+    def slots(self, jobs: int) -> int:
+        """How many of ``jobs`` jobs run at once (one progress line each)."""
+        return 1
+
+    def run(
+        self, work: Callable[[T], R], jobs: Sequence[T]
+    ) -> AbstractContextManager[Iterator[R]]:
+        """``work(job)`` for each job, as a context holding an iterator of the results.
+
+        The results come as the jobs finish, in any order; a job's result
+        never depends on which executor ran it. Leaving the context early
+        (an exception, an interrupt) stops or cancels the jobs still pending.
+        """
+        return contextlib.nullcontext(map(work, jobs))
+
+
+class SerialExecutor(Executor):
+    """Every job in this process, one after the other (what :class:`Executor` does)."""
+
+
+class ProcessExecutor(Executor):
+    """Jobs in spawned local processes, at most ``processes`` at once (:func:`in_processes`).
+
+    One process, or a single job, runs in this process. With more jobs than
+    processes every worker gets one BLAS thread (every core stays busy);
+    with as many, the longest job runs alone at the end and keeps its
+    threads.
+
+    Parameters
+    ----------
+    processes : int
+        Jobs at once, one per process (e.g. one per core), >= 1.
+    """
+
+    def __init__(self, processes: int):
+        if processes < 1:
+            raise InputError(
+                f"processes must be an integer >= 1, got {processes!r}", field="processes"
+            )
+        self.processes = processes
+
+    def slots(self, jobs: int) -> int:
+        return min(self.processes, jobs) if self._parallel(jobs) else 1
+
+    def _parallel(self, jobs: int) -> bool:
+        return self.processes > 1 and jobs > 1
+
+    def run(
+        self, work: Callable[[T], R], jobs: Sequence[T]
+    ) -> AbstractContextManager[Iterator[R]]:
+        if not self._parallel(len(jobs)):
+            return super().run(work, jobs)
+        return in_processes(
+            work,
+            jobs,
+            workers=self.slots(len(jobs)),
+            single_threaded=len(jobs) > self.processes,
+        )
+
+
+class DaskExecutor(Executor):
+    """Jobs as tasks of a Dask distributed cluster (optional extra ``bayes-jackal[cluster]``).
+
+    The workers need this package installed, at the same version. Dask is
+    imported only here, when a scheduler is used.
+
+    Parameters
+    ----------
+    scheduler : str, distributed.Client or cluster
+        The scheduler's address (``tcp://host:8786``, as ``dask scheduler``
+        prints it), a connected ``distributed.Client`` (used as it is, never
+        closed here) or a cluster object such as ``distributed.LocalCluster``
+        (a client of its own is connected to it, and closed after; the
+        cluster is left running).
+    timeout : float
+        How long to try to reach the scheduler [s].
+
+    Raises
+    ------
+    InputError
+        Without dask installed (naming the extra to install).
+    """
+
+    terminal = False
+
+    def __init__(self, scheduler: Any, *, timeout: float = DEFAULT_TIMEOUT):
+        try:
+            import distributed
+        except ImportError:
+            raise InputError(
+                "a Dask scheduler needs dask.distributed: pip install 'bayes-jackal[cluster]'",
+                field="scheduler",
+            ) from None
+        self._distributed = distributed
+        self.scheduler = scheduler
+        self.timeout = timeout
+        self._client = scheduler if isinstance(scheduler, distributed.Client) else None
+        self._owned = None  # the client this executor opened, closed on __exit__
+
+    def _address(self) -> str:
+        """The scheduler's address, for messages."""
+        return str(getattr(self.scheduler, "scheduler_address", self.scheduler))
+
+    def _connect(self):
+        """A new client of the scheduler; InputError naming it when it cannot be reached."""
+        try:
+            return self._distributed.Client(
+                self.scheduler, timeout=self.timeout, set_as_default=False
+            )
+        # Unreachable, not an address, or a port that is not a scheduler's
+        # (asyncio.TimeoutError is no OSError before Python 3.11).
+        except (OSError, ValueError, TypeError, asyncio.TimeoutError) as exc:
+            raise InputError(
+                f"cannot reach the Dask scheduler at {self._address()!r} within "
+                f"{self.timeout:g} s ({exc}); start one with `dask scheduler` and its "
+                "workers with `dask worker ADDRESS`",
+                field="scheduler",
+            ) from None
+
+    def __enter__(self) -> DaskExecutor:
+        if self._client is None:
+            self._client = self._owned = self._connect()
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        if self._owned is not None:
+            self._owned.close()  # the client only: the scheduler and workers keep running
+            self._client = self._owned = None
+
+    def slots(self, jobs: int) -> int:
+        return jobs  # the scheduler spreads them; no progress lines on a cluster
+
+    @contextlib.contextmanager
+    def run(self, work: Callable[[T], R], jobs: Sequence[T]) -> Iterator[Iterator[R]]:
+        with self if self._client is None else contextlib.nullcontext():
+            client = self._client
+            # pure=False: a job is run even when an identical one ran before.
+            futures = [client.submit(work, job, pure=False) for job in jobs]
+            try:
+                finished = self._distributed.as_completed(futures, loop=client.loop)
+                yield (future.result() for future in finished)
+            finally:  # left early (an error, an interrupt): nothing keeps running for us
+                client.cancel([future for future in futures if not future.done()])
+
+
+def executor_for(scheduler: Any = None, *, processes: int = 1) -> Executor:
+    """The executor of a ``--scheduler`` option: Dask when given, else local processes.
+
+    Parameters
+    ----------
+    scheduler : str, distributed.Client, cluster or None
+        As in :class:`DaskExecutor`.
+    processes : int
+        Jobs at once without a scheduler (:class:`ProcessExecutor`).
+    """
+    return ProcessExecutor(processes) if scheduler is None else DaskExecutor(scheduler)

@@ -194,6 +194,7 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
         self.flush_every = flush_every
         self._pending: list[tuple] = []
         self._chunk_bytes: dict[str, tuple[int, int]] = {}
+        self._stored: int | None = None  # steps in the file, read once
 
     @contextlib.contextmanager
     def writing(self, steps: int = 0):
@@ -233,9 +234,16 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
         with self.writing():
             super().grow(ngrow, blobs)
 
+    def reset(self, nwalkers, ndim) -> None:
+        super().reset(nwalkers, ndim)
+        self._stored = None
+
     @property
     def iteration(self) -> int:
-        return super().iteration + len(self._pending)
+        # emcee asks every step; reading the file each time cost ~1 ms a step.
+        if self._stored is None:
+            self._stored = super().iteration
+        return self._stored + len(self._pending)
 
     @property
     def accepted(self) -> np.ndarray:
@@ -274,6 +282,7 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
             for i, value in enumerate(pending[-1][3]):
                 group.attrs[f"random_state_{i}"] = value
             group.attrs["iteration"] = stop
+        self._stored = stop
 
 
 def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush_every: int):

@@ -19,7 +19,9 @@ periodogram is linear in the autocovariance. With rho = sigma_n / sigma_c,
 E_R the expected periodogram of the kernel's autocorrelation (one FFT per
 width) and E_M that of the sensor term (``ma1``: lags 0 and 1 only). A
 damping point changes the periodogram I = c^T P c of the block's
-cross-periodograms P and the pole alpha in E_M: O(N) work. For a fixed
+cross-periodograms P and the pole alpha in E_M. Past 4,096 residuals the
+periodogram is averaged onto 4,096 frequencies (the spectra of the model
+are smooth on that scale), so the work does not grow with the run. For a fixed
 shape S the group's Whittle log-likelihood
 
     -1/2 [A log sigma_c^2 + sum E log S + Q / sigma_c^2] - A/2 log(2 pi),
@@ -40,6 +42,7 @@ import scipy.stats
 from .kernels import get_family
 from .likelihood import ResidualLikelihood, residual_autocovariance
 from .physics import channel_coefficients
+from .spectral import ResidualBlock
 from .whittle import expected_periodogram, frequency_weights
 
 __all__ = ["profile_starts"]
@@ -51,6 +54,10 @@ __all__ = ["profile_starts"]
 WIDTHS = 16
 RATIOS = 10
 ZOOMS = 5
+#: Frequencies of the profile's spectral grid: a longer series' periodogram
+#: is averaged onto it, so the profile's cost does not grow with the run
+#: (only the starting points of the MAP search depend on it).
+PROFILE_FREQUENCIES = 4096
 #: Largest array of the profile, in elements (~64 MB of float64): the
 #: damping design is processed in chunks of at most this size.
 _MAX_ELEMENTS = 8_000_000
@@ -201,7 +208,7 @@ def _grid_loglike(
     blocks = [b for b in likelihood.blocks if b.noise_group == group]
     count = sum(b.regressors.shape[0] * b.regressors.shape[1] for b in blocks)
     cells = len(damping) * widths.shape[1] * ratios.shape[1]
-    frequencies = sum(b.periodogram.shape[0] for b in blocks)
+    frequencies = sum(min(b.n, PROFILE_FREQUENCIES) // 2 + 1 for b in blocks)
     chunks = np.array_split(
         np.arange(len(damping)), int(np.ceil(cells * frequencies / _MAX_ELEMENTS))
     )
@@ -245,22 +252,50 @@ def _chunk_terms(
     family = get_family(likelihood.family)
     for block in blocks:
         count, n = block.regressors.shape[:2]
+        lags = min(n, PROFILE_FREQUENCIES)
+        binned, weights = _binned_periodogram(block, lags)
         alpha, input_row = channel_coefficients(
             likelihood.robot, damping[:, 0], damping[:, 1], block.channel, block.dt
         )
         c = np.column_stack([np.ones(len(damping)), -alpha, -input_row])
-        periodogram = (c[:, :, None] * c[:, None, :]).reshape(len(c), 16) @ block.periodogram.T
-        kernel = expected_periodogram(family.autocorrelation(widths, block.dt, n))
+        periodogram = (c[:, :, None] * c[:, None, :]).reshape(len(c), 16) @ binned.T
+        kernel = expected_periodogram(family.autocorrelation(widths, block.dt, lags), n)
         ones, zeros = np.ones(len(alpha)), np.zeros(len(alpha))
         sensor = expected_periodogram(
             residual_autocovariance(
-                family, ones, zeros, ones, alpha, block.dt, n, likelihood.sensor
-            )
+                family, ones, zeros, ones, alpha, block.dt, lags, likelihood.sensor
+            ),
+            n,
         )
         # S (D, W, R, F) = E_R(width) + rho^2 E_M(alpha).
         shape = kernel[:, :, None, :] + ratios[:, None, :, None] ** 2 * sensor[:, None, None, :]
-        weights = frequency_weights(n)
         with np.errstate(invalid="ignore", divide="ignore"):
             log_det = log_det + count * (np.log(shape) @ weights)
             quadratic = quadratic + (periodogram[:, None, None, :] / shape) @ weights
     return log_det, quadratic
+
+
+def _binned_periodogram(block: ResidualBlock, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """The block's cross-periodogram averaged onto the rfft frequencies of ``points`` points.
+
+    Each of the n Fourier frequencies goes to the nearest of the coarse
+    ones, weighted by its multiplicity; with points = n that is the
+    periodogram itself.
+
+    Returns
+    -------
+    periodogram : ndarray, shape (points // 2 + 1, 16)
+        Weighted mean over each coarse frequency's bin.
+    weights : ndarray, shape (points // 2 + 1,)
+        Multiplicity of each bin among the n Fourier frequencies.
+    """
+    n = block.n
+    if points == n:
+        return block.periodogram, frequency_weights(n)
+    multiplicity = frequency_weights(n)
+    bins = np.rint(np.arange(n // 2 + 1) * points / n).astype(int)
+    weights = np.bincount(bins, multiplicity, points // 2 + 1)
+    sums = [
+        np.bincount(bins, multiplicity * column, len(weights)) for column in block.periodogram.T
+    ]
+    return np.column_stack(sums) / weights[:, None], weights

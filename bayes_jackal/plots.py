@@ -16,17 +16,12 @@ from matplotlib.figure import Figure
 
 from ._files import atomic_path
 from .criticism import criticise
+from .errors import InputError
 from .gridsearch import GridResult
 from .noise import autocorrelation_bounds, sample_autocorrelation, spectrum
 from .physics import CHANNELS
-from .posterior import (
-    THESIS_RATIO,
-    model_states,
-    parameter_draws,
-    posterior_experiments,
-    posterior_truth,
-    predictive_residuals,
-)
+from .posterior import THESIS_RATIO, parameter_draws, posterior_experiments, posterior_truth
+from .predictive import model_percentiles, predictive_statistics
 
 __all__ = [
     "plot_autocorrelation",
@@ -38,6 +33,7 @@ __all__ = [
     "plot_sigma_h",
     "plot_spectrum",
     "plot_traces",
+    "predictive_bands",
     "save_grid_plot",
 ]
 
@@ -100,6 +96,32 @@ def save_grid_plot(result: GridResult, path: str | Path, dpi: int = 120) -> Path
 BAND = (3.0, 97.0)
 _UNITS = {"vx": "m/s", "vy": "m/s", "yaw": "rad/s"}
 _DATA_COLOUR, _MODEL_COLOUR = "0.25", "tab:red"
+#: Most points a curve over a whole run is drawn with. A longer series (past
+#: ~55 s at 72 Hz) is drawn as its envelope: the min and max of each of
+#: MAX_POINTS / 2 consecutive bins, filled, which at a figure's resolution
+#: (a few hundred samples per pixel column for an hour) looks as the full
+#: line would, at a fraction of the points.
+MAX_POINTS = 4000
+
+
+def _envelope(t: np.ndarray, low: np.ndarray, high: np.ndarray):
+    """(t, low, high) binned to MAX_POINTS / 2 bins: each bin's centre, min of low, max of high."""
+    edges = np.linspace(0, len(t), MAX_POINTS // 2 + 1).astype(int)
+    centres = t[(edges[:-1] + edges[1:] - 1) // 2]
+    return centres, np.minimum.reduceat(low, edges[:-1]), np.maximum.reduceat(high, edges[:-1])
+
+
+def _curve(ax: Axes, t: np.ndarray, y: np.ndarray, *, color, lw: float, label=None) -> None:
+    """A line of y(t), or its filled envelope past :data:`MAX_POINTS` samples."""
+    if len(t) <= MAX_POINTS:
+        ax.plot(t, y, color=color, lw=lw, label=label)
+    else:
+        ax.fill_between(*_envelope(t, y, y), color=color, lw=lw / 2, label=label)
+
+
+def _band(ax: Axes, t: np.ndarray, low: np.ndarray, high: np.ndarray, **style) -> None:
+    """A filled band low..high over t, enveloped past :data:`MAX_POINTS` samples."""
+    ax.fill_between(*(_envelope(t, low, high) if len(t) > MAX_POINTS else (t, low, high)), **style)
 
 
 def _figures(axes, rows: int, **figure_options) -> tuple[Figure, np.ndarray]:
@@ -121,7 +143,12 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
     The model runs without process noise from the measured initial state,
     driven by the measured wheel speeds; the band spans the central 94 % of
-    50 posterior draws of the damping. The steady window is shaded.
+    50 posterior draws of the damping
+    (:func:`bayes_jackal.predictive.model_percentiles`). The steady window
+    is shaded. A run longer than :data:`MAX_POINTS` samples is drawn as
+    envelopes: the measured series and the model's median as the min-max
+    band of each of MAX_POINTS / 2 bins, the 94 % band from its lowest to its
+    highest value in each bin.
 
     Parameters
     ----------
@@ -136,16 +163,16 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     fig, axes
     """
     experiment = posterior_experiments(idata)[index]
-    states = model_states(idata, index)
+    t = experiment.t
+    low, median, high = model_percentiles(idata, index, [BAND[0], 50.0, BAND[1]])
     fig, axes = _figures(axes, 3, figsize=(7.0, 6.0))
-    low, median, high = np.percentile(states, [BAND[0], 50.0, BAND[1]], axis=0)
     for i, (ax, channel) in enumerate(zip(axes, CHANNELS, strict=True)):
         _shade_window(ax, experiment)
-        measured = experiment.channel(channel) if channel in experiment.channels else None
-        if measured is not None:
-            ax.plot(experiment.t, measured, color=_DATA_COLOUR, lw=0.6, label="measured")
-        ax.fill_between(experiment.t, low[:, i], high[:, i], color=_MODEL_COLOUR, alpha=0.3)
-        ax.plot(experiment.t, median[:, i], color=_MODEL_COLOUR, lw=1.2, label="model (94 % band)")
+        if channel in experiment.channels:
+            measured = experiment.channel(channel)
+            _curve(ax, t, measured, color=_DATA_COLOUR, lw=0.6, label="measured")
+        _band(ax, t, low[:, i], high[:, i], color=_MODEL_COLOUR, alpha=0.3)
+        _curve(ax, t, median[:, i], color=_MODEL_COLOUR, lw=1.2, label="model (94 % band)")
         ax.set_ylabel(f"{channel} [{_UNITS[channel]}]")
     axes[0].legend(loc="lower right", fontsize="small")
     axes[0].set_title(f"{experiment.name}: model at the posterior against the data")
@@ -155,6 +182,9 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
 def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray]:
     """One-step residuals (eq. 7-3) at the posterior median, per channel (thesis figs. 7-1..7-6).
+
+    Past :data:`MAX_POINTS` residuals each channel is drawn as its envelope
+    (the min-max band of each of MAX_POINTS / 2 bins).
 
     Returns
     -------
@@ -167,7 +197,7 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
         residuals = idata.observed_data[f"residual_{channel}_{index}"].values
         start = experiment.steady_window[0] if experiment.steady_window else experiment.t[0]
         t = start + experiment.dt * np.arange(1, len(residuals) + 1)
-        ax.plot(t, residuals, color=_DATA_COLOUR, lw=0.6)
+        _curve(ax, t, residuals, color=_DATA_COLOUR, lw=0.6)
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_ylabel(f"{channel} residual [{_UNITS[channel]}]")
     axes[0].set_title(f"{experiment.name}: one-step residuals (eq. 7-3)")
@@ -179,6 +209,43 @@ def _channels(idata) -> list[str]:
     return json.loads(idata.posterior.attrs["channels"])
 
 
+def predictive_bands(
+    idata, index: int = 0, channel: str = "yaw", *, lags: int = 30, rng=0
+) -> dict[str, np.ndarray]:
+    """Per-draw statistics behind the predictive bands of the ACF and PSD figures.
+
+    For each of 200 posterior-predictive residual series
+    (:func:`bayes_jackal.predictive.predictive_statistics`, made and reduced
+    in chunks): its sample autocorrelation at lags 0..``lags`` and its Welch
+    PSD estimated exactly as the data's (:func:`bayes_jackal.noise.spectrum`),
+    for :func:`plot_autocorrelation` and :func:`plot_spectrum`.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+    index : int
+        Experiment of the posterior.
+    channel : {"yaw", "vx", "vy"}
+    lags : int
+        Largest lag of the autocorrelation.
+    rng : numpy.random.Generator, int or None
+
+    Returns
+    -------
+    dict
+        ``acf``, shape (200, lags + 1), and ``psd``, shape (200, F)
+        [(channel unit)^2 / Hz].
+    """
+    dt = _experiment(idata, index)["dt"]
+    return predictive_statistics(
+        idata,
+        index,
+        channel,
+        {"acf": lambda x: sample_autocorrelation(x, lags), "psd": lambda x: spectrum(x, dt)[1]},
+        rng=rng,
+    )
+
+
 def plot_autocorrelation(
     idata,
     index: int = 0,
@@ -186,25 +253,36 @@ def plot_autocorrelation(
     lags: int = 30,
     ax: Axes | None = None,
     rng=0,
-    predictive: np.ndarray | None = None,
+    predictive: dict[str, np.ndarray] | None = None,
 ) -> tuple[Figure, Axes]:
     """Residual autocorrelation with its white-noise bounds and the fitted filter's band.
 
     Thesis figs. 7-12, 7-22..7-24 with the posterior added: the band spans
     the central 94 % of the sample autocorrelations of 200 posterior-predictive
-    residual series (:func:`bayes_jackal.posterior.predictive_residuals`),
-    so it holds both the parameter uncertainty and the sampling noise of
-    an autocorrelation estimate. Bounds: +-1.96 / sqrt(n). ``predictive``
-    passes those series when already drawn (:func:`plot_spectrum` uses the
-    same); else they are drawn with ``rng``.
+    residual series (:func:`predictive_bands`), so it holds both the
+    parameter uncertainty and the sampling noise of an autocorrelation
+    estimate. Bounds: +-1.96 / sqrt(n). ``predictive`` passes
+    :func:`predictive_bands` of the same ``lags`` when already computed
+    (:func:`plot_spectrum` uses the same); else they are drawn with ``rng``.
 
     Returns
     -------
     fig, ax
+
+    Raises
+    ------
+    InputError
+        When ``predictive`` holds the autocorrelation at other lags.
     """
     fig, ax = _figure(ax, figsize=(6.0, 3.6))
     residuals = idata.observed_data[f"residual_{channel}_{index}"].values
-    predicted = sample_autocorrelation(_predictive(idata, index, channel, rng, predictive), lags)
+    predicted = (predictive or predictive_bands(idata, index, channel, lags=lags, rng=rng))["acf"]
+    if predicted.shape[-1] != lags + 1:
+        raise InputError(
+            f"the predictive autocorrelation has lags 0..{predicted.shape[-1] - 1}, the "
+            f"figure {lags}",
+            field="predictive",
+        )
     lag = np.arange(lags + 1)
     low, median, high = np.percentile(predicted, [BAND[0], 50.0, BAND[1]], axis=0)
     ax.fill_between(lag, low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %")
@@ -234,13 +312,14 @@ def plot_spectrum(
     channel: str = "yaw",
     ax: Axes | None = None,
     rng=0,
-    predictive: np.ndarray | None = None,
+    predictive: dict[str, np.ndarray] | None = None,
 ) -> tuple[Figure, Axes]:
     """Welch PSD of the residuals against the fitted filter's (thesis figs. 7-7..7-9).
 
     The band spans the central 94 % of the Welch estimates of 200
     posterior-predictive residual series, estimated exactly as the data's
-    (``predictive`` and ``rng`` as in :func:`plot_autocorrelation`).
+    (:func:`predictive_bands`; ``predictive`` and ``rng`` as in
+    :func:`plot_autocorrelation`).
 
     Returns
     -------
@@ -250,7 +329,7 @@ def plot_spectrum(
     dt = _experiment(idata, index)["dt"]
     residuals = idata.observed_data[f"residual_{channel}_{index}"].values
     frequency, observed = spectrum(residuals, dt)
-    _, predicted = spectrum(_predictive(idata, index, channel, rng, predictive), dt)
+    predicted = (predictive or predictive_bands(idata, index, channel, rng=rng))["psd"]
     low, median, high = np.percentile(predicted[:, 1:], [BAND[0], 50.0, BAND[1]], axis=0)
     ax.fill_between(
         frequency[1:], low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %"
@@ -262,12 +341,6 @@ def plot_spectrum(
     ax.set_title(f"{_experiment(idata, index)['name']}: {channel} residual spectrum")
     ax.legend(fontsize="small")
     return fig, ax
-
-
-def _predictive(idata, index, channel, rng, predictive) -> np.ndarray:
-    if predictive is None:
-        return predictive_residuals(idata, index, channel, rng=rng)
-    return predictive
 
 
 def _experiment(idata, index: int) -> dict:

@@ -32,8 +32,8 @@ from ._files import write_hdf5
 from .errors import DataError
 from .experiment import REQUIRED, Experiment
 from .kernels import get_family
-from .likelihood import ResidualLikelihood, residual_autocovariance, sample_stationary
-from .physics import CHANNELS, channel_coefficients, discrete_matrices, simulate
+from .likelihood import ResidualLikelihood, residual_autocovariance
+from .physics import CHANNELS, channel_coefficients, discrete_matrices
 from .residuals import channel_residuals
 from .robot import RobotProfile, load_profile
 
@@ -50,14 +50,12 @@ __all__ = [
     "interval",
     "load_posterior",
     "model_autocovariance",
-    "model_states",
     "parameter_draws",
     "parameter_variables",
     "posterior_experiments",
     "posterior_likelihood",
     "posterior_robot",
     "posterior_truth",
-    "predictive_residuals",
     "save_posterior",
     "summarize",
     "thinned_draws",
@@ -376,54 +374,6 @@ def model_autocovariance(
         experiment.dt,
         n,
         likelihood.sensor,
-    )
-
-
-def predictive_residuals(
-    idata: az.InferenceData,
-    index: int,
-    channel: str,
-    count: int = 200,
-    rng: np.random.Generator | int | None = None,
-) -> np.ndarray:
-    """Posterior-predictive one-step residuals of one experiment and channel.
-
-    For each of ``count`` posterior draws, one series as long as the observed
-    residuals, drawn exactly from the model's residual covariance
-    (:func:`bayes_jackal.likelihood.sample_stationary`): what the fitted
-    noise filter says the residuals should look like.
-
-    Returns
-    -------
-    ndarray, shape (count, n)
-    """
-    theta = thinned_draws(idata, count)
-    n = idata.observed_data[f"residual_{channel}_{index}"].size
-    acov = model_autocovariance(posterior_likelihood(idata), index, channel, theta, n)
-    return sample_stationary(acov, rng)
-
-
-def model_states(idata: az.InferenceData, index: int, count: int = 50) -> np.ndarray:
-    """The model's states over one experiment at ``count`` posterior draws of the damping.
-
-    The deterministic model (no process noise) driven by the measured wheel
-    speeds from the measured initial state, as in thesis figs. 5-5, 5-13..5-16.
-
-    Returns
-    -------
-    ndarray, shape (count, N, 3)
-        (vx, vy, yaw rate) at each sample.
-    """
-    experiment = posterior_experiments(idata)[index]
-    theta = thinned_draws(idata, count)
-    x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
-    return simulate(
-        posterior_robot(idata),
-        theta[:, 0],
-        theta[:, 1],
-        experiment.inputs,
-        np.array([*x0, experiment.yaw_rate[0]]),
-        dt=experiment.dt,
     )
 
 

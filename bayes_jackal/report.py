@@ -35,7 +35,6 @@ from .posterior import (
     load_posterior,
     posterior_robot,
     posterior_truth,
-    predictive_residuals,
     summarize,
 )
 
@@ -432,8 +431,8 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
             )
         )
         for channel in channels:
-            # One set of posterior-predictive series serves both figures.
-            draws = predictive_residuals(idata, i, channel, rng=0)
+            # One set of posterior-predictive statistics serves both figures.
+            draws = plots.predictive_bands(idata, i, channel, lags=lags, rng=0)
             parts.append(
                 figures.html(
                     f"{prefix}-{name}-{channel}-acf",

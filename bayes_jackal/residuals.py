@@ -27,6 +27,7 @@ def channel_residuals(
     d_long: np.ndarray | float,
     channel: str = "yaw",
     steady: bool = True,
+    samples: slice = slice(None),
 ) -> np.ndarray:
     """One-step residuals of one measured channel (eq. 7-3).
 
@@ -46,10 +47,13 @@ def channel_residuals(
     steady : bool
         Use ``experiment.steady()`` (the whole experiment when it has no
         steady-state window); False uses every sample.
+    samples : slice
+        Which residuals to compute (default all): a window of a long run
+        costs only its own length.
 
     Returns
     -------
-    ndarray, shape (..., N - 1)
+    ndarray, shape (..., N - 1) or (..., window length)
         Residuals in the channel's unit ([rad/s] or [m/s]).
 
     Raises
@@ -63,7 +67,7 @@ def channel_residuals(
     alpha, input_row = channel_coefficients(robot, d_lat, d_long, channel, dt)
     # eq. 7-3 for one channel of the diagonal model: Z (1, -alpha, -Bd[c, :])
     coefficients = np.concatenate([np.ones((*alpha.shape, 1)), -alpha[..., None], -input_row], -1)
-    return coefficients @ residual_regressors(experiment, channel, steady).T
+    return coefficients @ residual_regressors(experiment, channel, steady)[samples].T
 
 
 def residual_regressors(experiment: Experiment, channel: str, steady: bool = True) -> np.ndarray:

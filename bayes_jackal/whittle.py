@@ -32,20 +32,25 @@ def frequency_weights(n: int) -> np.ndarray:
     return weights
 
 
-def expected_periodogram(acov: np.ndarray) -> np.ndarray:
+def expected_periodogram(acov: np.ndarray, length: int | None = None) -> np.ndarray:
     """E[I_j] = sum_|tau|<n (1 - |tau|/n) c_tau exp(-i w_j tau) at the rfft frequencies.
 
     Parameters
     ----------
-    acov : ndarray, shape (B, n)
+    acov : ndarray, shape (B, L)
+        Autocovariance at lags 0..L-1.
+    length : int, optional
+        Length n of the series (>= L), default L. With L < n the
+        frequencies are those of L points, 2 pi j / L, and the lags from L
+        on are taken as negligible.
 
     Returns
     -------
-    ndarray, shape (B, n // 2 + 1)
+    ndarray, shape (B, L // 2 + 1)
     """
-    n = acov.shape[-1]
-    tapered = acov * (1.0 - np.arange(n) / n)
-    return 2.0 * scipy.fft.rfft(tapered, n).real - tapered[..., :1]
+    lags = acov.shape[-1]
+    tapered = acov * (1.0 - np.arange(lags) / (length or lags))
+    return 2.0 * scipy.fft.rfft(tapered, lags).real - tapered[..., :1]
 
 
 def cross_periodogram(regressors: np.ndarray, size: int | None = None) -> np.ndarray:

@@ -38,9 +38,10 @@ from pathlib import Path
 
 from ._files import write_json
 from .bags import read_bag
+from .comparison import compare_families
 from .criticism import criticise
 from .errors import DataError, describe, each_input
-from .evidence import compare_families
+from .executors import Executor, ProcessExecutor
 from .experiment import Experiment, write_netcdf
 from .export import export_prior, write_prior
 from .gridsearch import damping_grid, grid_search
@@ -225,6 +226,7 @@ def analyse_logs(
     settings: SamplerSettings | None = None,
     seed: int | None = None,
     processes: int | None = None,
+    executor: Executor | None = None,
     prior_overrides: Mapping[str, tuple[float, float]] | None = None,
     likelihood_options: Mapping | None = None,
     window: tuple[float, float] | None = None,
@@ -254,7 +256,10 @@ def analyse_logs(
     seed : int, optional
         Seeds every chain and the evidence: same seed, same numbers.
     processes : int, optional
-        Families sampled at once (default: one per core).
+        Families sampled at once (default: one per core), without ``executor``.
+    executor : Executor, optional
+        Where the families run (:mod:`bayes_jackal.executors`), e.g. a
+        ``DaskExecutor`` of a Dask cluster; default: local processes.
     prior_overrides : mapping, optional
         Prior ranges by parameter name, e.g. ``{"sigma_h": (0.01, 3.0)}``
         [natural units], as in :func:`bayes_jackal.inference.sample_posterior`.
@@ -328,9 +333,9 @@ def analyse_logs(
             seed,
             prior_overrides=prior_overrides,
             on_family=finished,
-            processes=processes or os.cpu_count() or 1,
             reuse=paths_by_family,
             say=say,
+            executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
             **{**(likelihood_options or {}), "channels": channels},
         )
     best = comparison.best

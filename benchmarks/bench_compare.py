@@ -19,7 +19,8 @@ import os
 import time
 
 from bayes_jackal import load_profile
-from bayes_jackal.evidence import compare_families, nested_sampling
+from bayes_jackal.comparison import compare_families
+from bayes_jackal.evidence import nested_sampling
 from bayes_jackal.inference import sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.priors import Prior

@@ -22,8 +22,8 @@ from pathlib import Path
 
 from bayes_jackal import load_profile
 from bayes_jackal.bags import read_bag
+from bayes_jackal.comparison import compare_families
 from bayes_jackal.demo import demo_folder
-from bayes_jackal.evidence import compare_families
 from bayes_jackal.experiment import write_netcdf
 from bayes_jackal.export import export_prior, write_prior
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings

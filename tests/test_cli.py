@@ -13,10 +13,10 @@ import pytest
 import xarray as xr
 
 from bayes_jackal.cli import build_parser, main
-from bayes_jackal.experiment import read_netcdf
+from bayes_jackal.experiment import Experiment, read_netcdf
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.robot import default_profile_path
-from bayes_jackal.tables import read_csv
+from bayes_jackal.tables import read_csv, write_csv
 
 SMALL = ["--v1", "1", "--v2", "1"]
 GRID = ["--d-lat", "50", "200", "10", "--d-long", "10", "60", "5"]
@@ -480,6 +480,23 @@ def test_sample_without_pooling_finishes_the_good_inputs_and_names_the_bad_one(
     [line] = error_lines(captured)
     assert line.startswith(f"bayes-jackal: error: {simulated[0]}: not a bayes_jackal posterior")
     assert f"posteriors: {posteriors[0]}, {posteriors[2]}. Figures" in report.read_text()
+
+
+def test_sample_goes_on_past_an_input_without_a_requested_channel(simulated, tmp_path, capsys):
+    # A yaw-only log among runs that measure vx: the channel check names it
+    # and the others are sampled (the check once ran outside each input's guard).
+    run = read_netcdf(simulated[0])
+    yaw_only = tmp_path / "yaw_only.csv"
+    write_csv(Experiment(run.t, run.yaw_rate, run.omega_r, run.omega_l), yaw_only)
+    out = tmp_path / "post.nc"
+    quick = [*QUICK_SAMPLE, "--family", "white", "--channels", "yaw,vx"]
+    code = main(["sample", str(yaw_only), simulated[1], "--out", str(out), *quick, "--json"])
+    captured = capsys.readouterr()
+    assert code == 2
+    [line] = error_lines(captured)
+    assert str(yaw_only) in line and "['vx'] not measured" in line
+    assert list(json.loads(captured.out)["experiments"]) == ["v2_01"]
+    assert (tmp_path / "post.v2_01.nc").is_file()
 
 
 def test_compare_without_pooling_finishes_the_good_input(simulated, empty_csv, tmp_path, capsys):

@@ -10,11 +10,14 @@ import pytest
 import scipy.linalg
 import scipy.signal
 import scipy.stats
+from synthetic_posteriors import posterior_at
 
-from bayes_jackal import criticism, load_profile
+from bayes_jackal import criticism, load_profile, predictive
 from bayes_jackal.cli import main
+from bayes_jackal.comparison import Comparison
 from bayes_jackal.criticism import BOUNDARY_DENSITY, criticise, damping_scale, predictive_acf
 from bayes_jackal.criticism_statistics import (
+    acf_statistics,
     boundary_density,
     cross_correlation,
     cross_correlation_sd,
@@ -22,12 +25,18 @@ from bayes_jackal.criticism_statistics import (
     simultaneous_threshold,
     steadiness,
 )
-from bayes_jackal.evidence import Comparison, Evidence
+from bayes_jackal.evidence import Evidence
 from bayes_jackal.experiment import Experiment, write_netcdf
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import az, build_inference_data, summarize
-from bayes_jackal.priors import Prior
+from bayes_jackal.likelihood import ResidualLikelihood, sample_stationary
+from bayes_jackal.posterior import (
+    az,
+    model_autocovariance,
+    posterior_likelihood,
+    summarize,
+    thinned_draws,
+)
+from bayes_jackal.residuals import channel_residuals
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 from bayes_jackal.steady import detect_steady
 
@@ -163,21 +172,6 @@ def test_steadiness_of_standing_wheels_is_none_not_infinite():
 # --- checks on posteriors placed at a known parameter vector ---------------------------
 
 
-def _posterior_at(experiments, theta, family="gaussian", channels=("yaw",), spread=0.02):
-    """A posterior concentrated around theta (log-normal spread), built as a sampled one is."""
-    likelihood = ResidualLikelihood(experiments, ROBOT, family=family, channels=channels)
-    prior = Prior.for_likelihood(likelihood, ROBOT)
-    z = np.log(theta) + spread * np.random.default_rng(8).normal(size=(40, 8, len(theta)))
-    names = prior.names
-    diagnostics = {
-        "converged": True,
-        "n_steps": 40,
-        "autocorr_time": dict.fromkeys(names, 1.0),
-        "ess_autocorr": dict.fromkeys(names, 320.0),
-    }
-    return build_inference_data(likelihood, prior, z, np.zeros((40, 8)), diagnostics)
-
-
 #: The simulator's truth: damping, then (sigma_h, sigma_c, sigma_n) of yaw and of vx.
 YAW_VX_TRUTH = [110.0, 30.0, 0.047, 0.01, 0.005, 0.047, 0.005, 0.003]
 
@@ -192,7 +186,7 @@ def _kinds(result) -> list[str]:
 
 
 def test_a_correct_model_at_the_truth_passes_every_check(simulated):
-    idata = _posterior_at([simulated], YAW_VX_TRUTH, channels=("yaw", "vx"))
+    idata = posterior_at([simulated], YAW_VX_TRUTH, channels=("yaw", "vx"))
     summary = summarize(idata)
     assert summary["warnings"] == [], summary["warnings"]
     p_values = summary["criticism"]["predictive_acf"]["v2"]["yaw"]["p_values"]
@@ -201,14 +195,14 @@ def test_a_correct_model_at_the_truth_passes_every_check(simulated):
 
 
 def test_white_noise_on_coloured_residuals_fails_the_predictive_acf_check(simulated):
-    idata = _posterior_at([simulated], [110.0, 30.0, 0.012, 0.005], family="white")
+    idata = posterior_at([simulated], [110.0, 30.0, 0.012, 0.005], family="white")
     found = [w for w in criticise(idata)["warnings"] if w["kind"] == "predictive-acf"]
     # The residuals' lag-1 autocorrelation (~0.9) is far above white noise's.
     assert any(w["statistic"] == "acf[1]" and w["p_value"] == 0.0 for w in found)
 
 
 def test_yaw_alone_says_the_damping_scale_is_not_identified(simulated):
-    idata = _posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005])
+    idata = posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005])
     (found,) = [w for w in criticise(idata)["warnings"] if w["kind"] != "prior-boundary"]
     assert found["kind"] == "damping-scale-not-identified"
     assert "d_lat/d_long" in found["message"] and "--channels yaw,vx,vy" in found["message"]
@@ -223,15 +217,15 @@ def test_the_whole_run_as_window_is_not_steady(simulated):
         vx=simulated.vx,
         name="ramps",
     )
-    idata = _posterior_at([run], YAW_VX_TRUTH, channels=("yaw", "vx"))
+    idata = posterior_at([run], YAW_VX_TRUTH, channels=("yaw", "vx"))
     (found,) = [w for w in criticise(idata)["warnings"] if w["kind"] == "not-steady"]
     assert found["experiment"] == "ramps" and found["input_deviation"] > 0.05
 
 
 def test_compare_json_carries_each_familys_warnings(simulated):
     posteriors = {
-        "white": _posterior_at([simulated], [110.0, 30.0, 0.012, 0.005], family="white"),
-        "gaussian": _posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005]),
+        "white": posterior_at([simulated], [110.0, 30.0, 0.012, 0.005], family="white"),
+        "gaussian": posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005]),
     }
     evidence = {name: Evidence(0.0, 0.1, "bridge") for name in posteriors}
     result = Comparison(["v2"], evidence, posteriors).to_dict()
@@ -241,17 +235,48 @@ def test_compare_json_carries_each_familys_warnings(simulated):
     assert len(result["warnings"]) == sum(len(f["warnings"]) for f in result["families"].values())
 
 
-def test_long_series_are_chunked_into_nonempty_chunks(simulated, monkeypatch):
-    # A chunk of 1 sample stands for a series longer than 400,000 samples:
-    # ceil(draws n / chunk) chunks would exceed the draws, leaving empty ones
-    # (NaN p-values). At most one chunk per draw keeps every p-value a count
-    # over the 200 draws.
-    monkeypatch.setattr(criticism, "_CHUNK_SAMPLES", 1)
-    idata = _posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005])
-    row = predictive_acf(idata).numbers["v2"]["yaw"]
-    counts = np.array(row["p_values"]) * row["draws"]
-    assert row["draws"] == 200 and np.allclose(counts, np.round(counts))
-    json.dumps(row, allow_nan=False)
+def test_chunked_p_values_equal_the_draw_by_draw_computation(simulated, monkeypatch):
+    # A budget of 1 sample stands for a series longer than CHUNK_SAMPLES: one
+    # draw per chunk, 50 chunks. Each replicated series comes from its own
+    # generator spawned from the seed, so the p-values equal those of one
+    # chunk and those computed draw by draw here; a p-value is a count over
+    # the 50 draws, so any difference would be a multiple of 0.02.
+    idata = posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005])
+    whole = predictive_acf(idata, count=50).numbers["v2"]["yaw"]
+    monkeypatch.setattr(predictive, "CHUNK_SAMPLES", 1)
+    chunked = predictive_acf(idata, count=50).numbers["v2"]["yaw"]
+    likelihood = posterior_likelihood(idata)
+    (experiment,) = likelihood.experiments
+    theta = thinned_draws(idata, 50)
+    n = idata.observed_data["residual_yaw_0"].size
+    options = {"lags": criticism.PREDICTIVE_LAGS, "portmanteau": criticism.PORTMANTEAU_LAGS}
+    generators = np.random.default_rng(0).spawn(50)
+    exceed = 0
+    for row, generator in zip(theta, generators, strict=True):
+        observed = channel_residuals(experiment, ROBOT, row[0], row[1], "yaw", steady=True)
+        acov = model_autocovariance(likelihood, 0, "yaw", row[None], n)
+        replicated = sample_stationary(acov, generator)[0]
+        exceed += acf_statistics(replicated, **options) >= acf_statistics(observed, **options)
+    assert chunked["draws"] == 50
+    np.testing.assert_allclose(chunked["p_values"], whole["p_values"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chunked["p_values"], exceed / 50, rtol=0, atol=1e-12)
+    json.dumps(chunked, allow_nan=False)
+
+
+def test_a_long_run_is_checked_on_its_central_window(simulated, monkeypatch):
+    # With a window of 400 residuals the check of the v2 run (1,512 residuals
+    # in its steady window) equals the whole check of the run cut to those
+    # 401 samples: same draws, same generators, same residuals.
+    truth = [110.0, 30.0, 0.047, 0.01, 0.005]
+    monkeypatch.setattr(criticism, "PREDICTIVE_WINDOW", 400)
+    windowed = predictive_acf(posterior_at([simulated], truth), count=50).numbers["v2"]["yaw"]
+    steady = simulated.steady()
+    start = (len(steady.t) - 1 - 400) // 2
+    assert windowed["window"] == [start, start + 400]
+    cut = steady.window(steady.t[start], steady.t[start + 400])
+    whole = predictive_acf(posterior_at([cut], truth), count=50).numbers["v2"]["yaw"]
+    assert whole["window"] == [0, 400]
+    np.testing.assert_allclose(windowed["p_values"], whole["p_values"], rtol=0, atol=1e-12)
 
 
 def _single(experiment, name, **fields):
@@ -284,7 +309,7 @@ def test_one_channel_never_identifies_the_damping_and_two_always_do(
 ):
     run = _single(simulated, "v2", **dict.fromkeys(stored))
     noise = [0.047, 0.01, 0.005] * len(channels)
-    check = damping_scale(_posterior_at([run], [110.0, 30.0, *noise], channels=channels))
+    check = damping_scale(posterior_at([run], [110.0, 30.0, *noise], channels=channels))
     assert check.numbers["identified"] == (expected is None)
     assert check.numbers["measured"] == ["yaw", *stored]
     if expected is None:
@@ -311,7 +336,7 @@ def test_not_steady_names_only_the_failing_criteria_and_stays_valid_json(simulat
         omega_l=np.full(n, 4.0),
         name="ramp",
     )
-    result = criticise(_posterior_at([still, ramp], [110.0, 30.0, 0.047, 0.01, 0.005]))
+    result = criticise(posterior_at([still, ramp], [110.0, 30.0, 0.047, 0.01, 0.005]))
     json.dumps(result, allow_nan=False)
     found = {w["experiment"]: w for w in result["warnings"] if w["kind"] == "not-steady"}
     assert found["still"]["input_deviation"] is None
@@ -322,7 +347,7 @@ def test_not_steady_names_only_the_failing_criteria_and_stays_valid_json(simulat
 
 def test_a_prior_boundary_warning_quotes_the_summarys_hdi(simulated):
     # sigma_h[yaw] placed 1 sd (log scale) below its prior's upper bound 1.0 s.
-    idata = _posterior_at([simulated], [110.0, 30.0, 0.995, 0.01, 0.005], spread=0.005)
+    idata = posterior_at([simulated], [110.0, 30.0, 0.995, 0.01, 0.005], spread=0.005)
     summary = summarize(idata)
     (found,) = [w for w in summary["warnings"] if w["kind"] == "prior-boundary"]
     row = summary[found["parameter"]]

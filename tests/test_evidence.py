@@ -10,14 +10,8 @@ import pytest
 import scipy.special
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.evidence import (
-    Comparison,
-    Evidence,
-    bridge_sampling,
-    compare_families,
-    evidence_strength,
-    nested_sampling,
-)
+from bayes_jackal.comparison import Comparison, compare_families
+from bayes_jackal.evidence import Evidence, bridge_sampling, evidence_strength, nested_sampling
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.priors import LogPosterior, Prior

@@ -215,10 +215,11 @@ def _assert_clean_stop(code, latency, out, err, signum):
 
 
 def test_sample_stops_cleanly_inside_emcee_and_says_it_resumes(experiment, tmp_path):
-    args = ["sample", experiment, "--out", str(tmp_path / "p.nc"), *QUICK]
+    # A cap the chain cannot reach before the signal (200 steps take < 1 s).
+    args = ["sample", experiment, "--out", str(tmp_path / "p.nc"), *QUICK, "--max-steps", "20000"]
     chain = tmp_path / "p.chain.h5"
     steps = 0
-    for delay in (2.0, 4.0, 8.0):  # the MAP search takes ~1 s, more on a busy machine
+    for delay in (1.0, 2.0, 4.0):  # the MAP search takes < 1 s, more on a busy machine
         result = _interrupt(args, delay, signal.SIGINT, after="sampling")
         _assert_clean_stop(*result, signal.SIGINT)
         with h5py.File(chain, "r") as stored:

@@ -17,11 +17,12 @@ from bayes_jackal.likelihood import (
     sample_stationary,
     toeplitz_loglike,
 )
+from bayes_jackal.noise_profile import _binned_periodogram
 from bayes_jackal.physics import channel_coefficients
 from bayes_jackal.posterior import summarize
 from bayes_jackal.residuals import channel_residuals
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
-from bayes_jackal.whittle import debiased_whittle_loglike
+from bayes_jackal.whittle import debiased_whittle_loglike, expected_periodogram, frequency_weights
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
@@ -362,3 +363,31 @@ def test_white_noise_with_the_diagonal_term_samples_its_one_sd_quickly():
     ess = row["ess_autocorr"]
     assert abs(row["mean"] - mean) < 5 * sd / np.sqrt(ess)
     assert row["sd"] == pytest.approx(sd, rel=5 / np.sqrt(2 * ess))
+
+
+# --- the MAP search's noise profile on long runs ----------------------------------------------
+
+
+def test_expected_periodogram_of_a_long_series_on_a_short_grid():
+    # E[I_j] = sum_{|tau|<L} (1 - |tau|/n) c_tau exp(-i w_j tau), w_j = 2 pi j / L,
+    # written as the per-frequency sum, for L = 64 lags of a series of n = 1,000.
+    acov = 0.8 ** np.arange(64)[None]
+    expected = expected_periodogram(acov, 1_000)
+    tau = np.arange(-63, 64)
+    taper = (1.0 - np.abs(tau) / 1_000) * 0.8 ** np.abs(tau)
+    omega = 2 * np.pi * np.arange(33) / 64
+    direct = (taper * np.exp(-1j * np.outer(omega, tau))).sum(axis=1).real
+    np.testing.assert_allclose(expected[0], direct, rtol=1e-12)
+
+
+def test_the_profile_bins_a_long_periodogram_keeping_its_weights_and_energy(experiments):
+    # Averaged onto 512 frequencies, the bins' multiplicities still count the
+    # n Fourier frequencies and the weighted periodogram keeps its sum (the
+    # energy, Parseval); with as many points as residuals nothing changes.
+    block = ResidualLikelihood(experiments[:1], ROBOT, channels=YAW).blocks[0]
+    binned, weights = _binned_periodogram(block, 512)
+    assert binned.shape == (257, 16) and weights.sum() == block.n
+    full_weights = frequency_weights(block.n)
+    np.testing.assert_allclose(weights @ binned, full_weights @ block.periodogram, rtol=1e-12)
+    same, same_weights = _binned_periodogram(block, block.n)
+    assert same is block.periodogram and np.array_equal(same_weights, full_weights)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import html
+import itertools
 import json
 import re
 import shutil
@@ -10,13 +11,14 @@ import subprocess
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from bayes_jackal import load_profile
+from bayes_jackal import load_profile, plots
 from bayes_jackal.cli import main
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import save_posterior
+from bayes_jackal.posterior import load_posterior, save_posterior
 from bayes_jackal.report import _criticism_table
 from bayes_jackal.simulate import simulate_experiment
 
@@ -51,6 +53,36 @@ def posteriors(tmp_path_factory) -> dict[str, Path]:
     short = save_posterior(idata, folder / "short.nc")
     idata.posterior.attrs["converged"] = 1
     return {"short": short, "converged": save_posterior(idata, folder / "converged.nc")}
+
+
+def test_the_envelope_holds_each_bins_min_and_max(monkeypatch):
+    monkeypatch.setattr(plots, "MAX_POINTS", 8)  # 4 bins
+    t = np.arange(10.0)
+    y = np.random.default_rng(2).normal(size=10)
+    centres, low, high = plots._envelope(t, y, -y)
+    edges = [0, 2, 5, 7, 10]  # np.linspace(0, 10, 5) truncated
+    assert centres.tolist() == [0.0, 3.0, 5.0, 8.0]  # each bin's middle sample (lower one)
+    assert low.tolist() == [y[a:b].min() for a, b in itertools.pairwise(edges)]
+    assert high.tolist() == [(-y[a:b]).max() for a, b in itertools.pairwise(edges)]
+
+
+def test_a_long_run_is_drawn_with_at_most_max_points_per_curve(posteriors, monkeypatch):
+    monkeypatch.setattr(plots, "MAX_POINTS", 200)
+    idata = load_posterior(posteriors["converged"])
+    residuals = idata.observed_data["residual_yaw_0"].values
+    assert len(residuals) > 5 * plots.MAX_POINTS
+    for draw in (plots.plot_model_fit, plots.plot_residuals):
+        _, axes = draw(idata, 0)
+        lines = [line.get_xdata() for ax in axes for line in ax.lines]
+        paths = [path.vertices for ax in axes for c in ax.collections for path in c.get_paths()]
+        assert paths
+        # fill_between closes its polygon with a few vertices more than 2 x points.
+        assert max(map(len, lines), default=0) <= plots.MAX_POINTS
+        assert max(map(len, paths)) <= 2 * plots.MAX_POINTS + 4
+    # The residuals' envelope spans them exactly.
+    (envelope,) = axes[0].collections
+    vertices = envelope.get_paths()[0].vertices[:, 1]
+    assert (vertices.min(), vertices.max()) == (residuals.min(), residuals.max())
 
 
 def _report(paths, out: Path, *extra) -> tuple[int, str]:

@@ -3,18 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
 from .._files import write_json
 from ..bag_writer import write_bag
+from ..comparison import compare_groups
 from ..criticism import criticise
 from ..demo import DEMO_TRUTH, run_demo
-from ..errors import InputError, each_input
-from ..evidence import compare_families
+from ..errors import InputError, describe, each_input
+from ..executors import Executor, executor_for
 from ..experiment import Experiment, write_netcdf
 from ..export import export_prior, write_prior
 from ..gridsearch import damping_grid, grid_search
@@ -40,7 +44,7 @@ from .output import (
     print_criticism,
     residual_table,
 )
-from .paths import check_named_outputs
+from .paths import check_named_outputs, family_files, group_name, summary_file
 
 
 def _robot(args: argparse.Namespace) -> RobotProfile:
@@ -167,43 +171,90 @@ def cmd_residuals(args: argparse.Namespace) -> int:
     return code
 
 
-def _run_sample(
-    likelihood: ResidualLikelihood,
-    settings: SamplerSettings,
-    seed: int | None,
-    out_path: Path,
-    say: Callable[[str], None],
-    prior_overrides: dict | None = None,
-) -> dict:
-    """Sample, save the posterior (chain beside it), print and return the summary."""
-    say(
-        f"sampling {', '.join(e.name for e in likelihood.experiments)} on channels "
-        f"{', '.join(likelihood.channels)} -> {out_path}"
-    )
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ConvergenceWarning)
-        idata = sample_posterior(
-            likelihood,
-            settings,
-            seed=seed,
-            chain_file=chain_path(out_path),
-            prior_overrides=prior_overrides,
-            say=say,
-        )
-    save_posterior(idata, out_path)
+@dataclasses.dataclass(frozen=True)
+class _Sampling:
+    """One posterior of ``sample`` (picklable: a job of an executor).
+
+    Called with the experiments of one posterior; returns the posterior and
+    its convergence messages, or the exception that stopped it (so that one
+    experiment's failure does not stop the others on a cluster).
+    """
+
+    robot: RobotProfile
+    family: str
+    likelihood_options: dict
+    settings: SamplerSettings
+    seed: int | None
+    prior_overrides: dict
+    out: Path
+    each: bool  # one posterior per experiment, named after it
+    say: Callable[[str], None] | None = None  # in this process only
+    chain: bool = True  # the chain file beside the posterior (not on a cluster)
+
+    def path(self, group: list[Experiment]) -> Path:
+        """The posterior file of ``group``."""
+        if not self.each:
+            return self.out
+        return self.out.with_name(f"{self.out.stem}.{group[0].name}.nc")
+
+    def __call__(self, group: list[Experiment]):
+        """(posterior, messages, None) or (None, [], the exception)."""
+        path = self.path(group)
+        try:
+            likelihood = ResidualLikelihood(
+                group, self.robot, family=self.family, **self.likelihood_options
+            )
+            if self.say is not None:
+                self.say(
+                    f"sampling {', '.join(e.name for e in group)} on channels "
+                    f"{', '.join(likelihood.channels)} -> {path}"
+                )
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", ConvergenceWarning)
+                idata = sample_posterior(
+                    likelihood,
+                    self.settings,
+                    seed=self.seed,
+                    chain_file=chain_path(path) if self.chain else None,
+                    prior_overrides=self.prior_overrides,
+                    say=self.say,
+                )
+        except Exception as exc:  # raised again where the result is used
+            return None, [], exc
+        messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
+        return idata, messages, None
+
+
+def _save_sample(result: tuple, path: Path, say: Callable[[str], None]) -> dict:
+    """Save a :class:`_Sampling` result (the chain is beside it), print and return its summary."""
+    idata, messages, error = result
+    if error is not None:
+        raise error
+    save_posterior(idata, path)
     summary = summarize(idata)
     posterior_table(summary, say)
-    for warning in caught:
-        if issubclass(warning.category, ConvergenceWarning):
-            print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
+    for message in messages:
+        print(f"bayes-jackal: WARNING: {message}", file=sys.stderr)
     print_criticism(summary["warnings"])
     return summary
 
 
 def _sampler_settings(args: argparse.Namespace) -> SamplerSettings:
+    """Walkers, step cap and progress (none on a cluster: its workers have no terminal)."""
     return SamplerSettings(
-        walkers=args.walkers, max_steps=args.max_steps, progress=not args.no_progress
+        walkers=args.walkers,
+        max_steps=args.max_steps,
+        progress=not args.no_progress and args.scheduler is None,
     )
+
+
+def _executor(args: argparse.Namespace, processes: int = 1) -> Executor:
+    """``--scheduler``'s Dask cluster, else local processes (``processes`` at once).
+
+    Use it as a context manager: the cluster is reached (or refused, exit 2)
+    before any work, and the connection closed after.
+    """
+    return executor_for(args.scheduler, processes=processes)
 
 
 def _likelihood_options(args: argparse.Namespace) -> dict:
@@ -221,12 +272,20 @@ def _each_experiment(
     say: Callable[[str], None],
     work: Callable[[Experiment], Any],
     outputs: Callable[[Experiment], list[Path]] | None = None,
+    *,
+    results: Callable[..., AbstractContextManager[Iterable[tuple[str, Any]]]] | None = None,
 ) -> tuple[list[tuple[Experiment, Any]], dict[str, str], int]:
     """Without pooling: read and process each experiment on its own.
 
     A bad input is reported on stderr as it is met, and the others finish.
     ``outputs`` gives the files an experiment's work writes: they are checked
     for every experiment before any work (:func:`.paths.check_named_outputs`).
+    ``results(loaded, fail)``: the experiments' jobs (e.g. all at once on an
+    executor), a context holding (input, value) pairs as each input's jobs
+    finish; ``loaded`` maps input -> Experiment, and ``fail(input,
+    exception)`` reports an input whose jobs failed. ``work`` is then
+    called as ``work(experiment, value)`` in this process; without
+    ``results``, as ``work(experiment)`` on each in turn.
 
     Returns
     -------
@@ -245,124 +304,185 @@ def _each_experiment(
             on_failure=failures,
         )
         loaded, failed = {given: loaded[given] for given in checked}, failed | refused
-    done, crashed = each_input(
-        loaded, lambda given: work(loaded[given]), catch=Exception, on_failure=failures
-    )
-    failed |= crashed
+
+    def fail(given: str, exc: Exception) -> None:
+        failed[given] = describe(exc, given)
+        failures(given, exc)
+
+    done: dict[str, Any] = {}
+    in_turn = contextlib.nullcontext((given, None) for given in loaded)
+    with in_turn if results is None else results(loaded, fail) as finished:
+        for given, value in finished:  # in the order they finish
+            inputs = (loaded[given],) if results is None else (loaded[given], value)
+            result, crashed = each_input(
+                [given], lambda _, i=inputs: work(*i), catch=Exception, on_failure=failures
+            )
+            done |= result
+            failed |= crashed
+    done = {given: done[given] for given in loaded if given in done}
     if failed:
         total = len(args.experiments)
         say(f"{len(done)} of {total} experiments done; failed: {', '.join(failed)}")
     return [(loaded[given], result) for given, result in done.items()], failed, failures.code
 
 
+@dataclasses.dataclass(frozen=True)
+class _Labelled:
+    """(input, ``job([experiment])``) of an (input, experiment) pair (picklable)."""
+
+    job: Callable[[list[Experiment]], Any]
+
+    def __call__(self, item: tuple[str, Experiment]) -> tuple[str, Any]:
+        given, experiment = item
+        return given, self.job([experiment])
+
+
 def _print_each(
     args: argparse.Namespace,
     out: Reporter,
-    work: Callable[[Experiment], Any],
+    work: Callable[..., Any],
     outputs: Callable[[Experiment], list[Path]],
+    **options,
 ) -> int:
     """:func:`_each_experiment`; JSON: ``experiments`` (name -> result) and ``failed``."""
-    done, failed, code = _each_experiment(args, out.say, work, outputs)
+    done, failed, code = _each_experiment(args, out.say, work, outputs, **options)
     out.result({"experiments": {e.name: result for e, result in done}, "failed": failed})
     return code
 
 
 def cmd_sample(args: argparse.Namespace) -> int:
+    """Without ``--pooled``, one posterior per experiment: one job each on the executor.
+
+    Locally they run one after the other in this process, the chain file
+    beside each posterior; on a cluster (``--scheduler``) all at once, with
+    no chain file (the workers need not share this file system). Each
+    posterior is saved as it finishes.
+    """
     out = Reporter(args.json)
-    robot = _robot(args)
-    out_path = Path(args.out)
-    settings = _sampler_settings(args)
-    overrides = _prior_overrides(args.prior)
-
-    def run(group: list, path: Path) -> dict:
-        likelihood = ResidualLikelihood(
-            group, robot, family=args.family, **_likelihood_options(args)
-        )
-        return _run_sample(likelihood, settings, args.seed, path, out.say, overrides)
-
-    if args.pooled or len(args.experiments) == 1:
-        out.result(run(_load(args), out_path))
-        return EXIT_OK
-
-    def path(experiment: Experiment) -> Path:
-        return out_path.with_name(f"{out_path.stem}.{experiment.name}.nc")
-
-    return _print_each(
-        args,
-        out,
-        lambda e: run([e], path(e)),
-        lambda e: [path(e), chain_path(path(e))],
+    local = args.scheduler is None
+    sampling = _Sampling(
+        _robot(args),
+        args.family,
+        _likelihood_options(args),
+        _sampler_settings(args),
+        args.seed,
+        _prior_overrides(args.prior),
+        Path(args.out),
+        each=not args.pooled and len(args.experiments) > 1,
+        say=out.say if local else None,
+        chain=local,
     )
+    with _executor(args) as executor:
+        if not local:
+            out.say(f"sampling on the Dask cluster at {args.scheduler}")
+        if not sampling.each:
+            group = _load(args)
+            with executor.run(sampling, [group]) as finished:
+                out.result(_save_sample(next(finished), sampling.path(group), out.say))
+            return EXIT_OK
+
+        def outputs(experiment: Experiment) -> list[Path]:
+            path = sampling.path([experiment])
+            return [path, chain_path(path)]
+
+        return _print_each(
+            args,
+            out,
+            lambda e, result: _save_sample(result, sampling.path([e]), out.say),
+            outputs,
+            results=lambda loaded, _: executor.run(_Labelled(sampling), list(loaded.items())),
+        )
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    out = Reporter(args.json)
-    robot = _robot(args)
-    folder = Path(args.out) if args.out else None
-    overrides = _prior_overrides(args.prior)
+    """Every (experiment, family) a job of the executor, all at once (``--pooled``: one group).
 
-    def compare(name: str, group: list) -> dict:
+    With ``--out``, each family's posterior is saved as it finishes (and
+    reused on a rerun), each experiment's summary as soon as its families
+    are done.
+    """
+    out = Reporter(args.json)
+    folder = Path(args.out) if args.out else None
+    executor = _executor(args, args.processes)
+
+    def announce(group: list[Experiment]) -> None:
         channels = resolve_channels(group, args.channels)
         out.say(
-            f"comparing {', '.join(args.families)} on {name}, channels {', '.join(channels)} "
-            "(bridge sampling)"
+            f"comparing {', '.join(args.families)} on {group_name(group)}, channels "
+            f"{', '.join(channels)} (bridge sampling)"
         )
 
-        def finished(family, evidence, idata) -> None:
-            out.say(f"  {family}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+    @contextlib.contextmanager
+    def comparisons(groups: dict[str, list[Experiment]], on_failure=None):
+        names = {key: group_name(group) for key, group in groups.items()}
+
+        def finished(key: str, family: str, evidence, idata) -> None:
+            label = f"{names[key]} {family}" if len(groups) > 1 else family
+            out.say(f"  {label}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
             if folder is not None:  # saved at once: an interruption keeps it
                 criticise(idata)  # cached in its attrs: the file carries it
-                save_posterior(idata, _family_files(folder, name, [family])[family])
+                save_posterior(idata, family_files(folder, names[key], [family])[family])
 
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ConvergenceWarning)
-            comparison = compare_families(
-                group,
-                robot,
-                args.families,
-                _sampler_settings(args),
-                args.seed,
-                overrides,
-                finished,
+        reuse = folder and {k: family_files(folder, n, args.families) for k, n in names.items()}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)  # report() prints them
+            each = compare_groups(
+                groups,
+                _robot(args),
+                families=args.families,
+                settings=_sampler_settings(args),
+                seed=args.seed,
+                prior_overrides=_prior_overrides(args.prior),
+                likelihood_options=_likelihood_options(args),
                 cross_check=args.nested,
-                processes=args.processes,
-                reuse=None if folder is None else _family_files(folder, name, args.families),
+                executor=executor,
+                reuse=reuse,
+                on_family=finished,
+                on_failure=on_failure,
                 say=out.say,
-                **_likelihood_options(args) | {"channels": channels},
             )
-        for warning in caught:
-            if issubclass(warning.category, ConvergenceWarning):
-                print(f"bayes-jackal: WARNING: {warning.message}", file=sys.stderr)
-        result = comparison.to_dict() | {"channels": list(channels)}
+            with contextlib.closing(each):
+                yield each
+
+    def report(group: list[Experiment], comparison) -> dict:
+        for message in comparison.convergence_messages():
+            print(f"bayes-jackal: WARNING: {message}", file=sys.stderr)
+        result = comparison.to_dict() | {"channels": list(resolve_channels(group, args.channels))}
         comparison_table(result, out.say)
         print_criticism(result["warnings"])
         if folder is not None:
-            write_json(_summary_file(folder, name), result)
+            name = group_name(group)
+            write_json(summary_file(folder, name), result)
             out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
         return result
+
+    def each_experiment(loaded: dict[str, Experiment], fail) -> AbstractContextManager:
+        announced, _ = each_input(
+            loaded, lambda given: announce([loaded[given]]), catch=Exception, on_failure=fail
+        )
+        return comparisons({given: [loaded[given]] for given in announced}, fail)
 
     def outputs(name: str) -> list[Path]:
         if folder is None:
             return []
-        return [*_family_files(folder, name, args.families).values(), _summary_file(folder, name)]
+        return [*family_files(folder, name, args.families).values(), summary_file(folder, name)]
 
-    if args.pooled or len(args.experiments) == 1:
-        experiments = _load(args)
-        name = "pooled" if len(experiments) > 1 else experiments[0].name
-        check_named_outputs(args, outputs(name))
-        out.result(compare(name, experiments))
-        return EXIT_OK
-    return _print_each(args, out, lambda e: compare(e.name, [e]), lambda e: outputs(e.name))
-
-
-def _family_files(folder: Path, name: str, families) -> dict[str, Path]:
-    """Where ``compare --out`` keeps each family's posterior (and finds it on a rerun)."""
-    return {family: folder / f"{name}.{family}.nc" for family in families}
-
-
-def _summary_file(folder: Path, name: str) -> Path:
-    """Where ``compare --out`` writes the comparison of ``name``."""
-    return folder / f"{name}.compare.json"
+    with executor:  # a cluster is reached (or refused) before any work
+        if args.pooled or len(args.experiments) == 1:
+            experiments = _load(args)
+            check_named_outputs(args, outputs(group_name(experiments)))
+            announce(experiments)
+            with comparisons({"pooled": experiments}) as each:
+                [(_, comparison)] = each
+            out.result(report(experiments, comparison))
+            return EXIT_OK
+        return _print_each(
+            args,
+            out,
+            lambda e, comparison: report([e], comparison),
+            lambda e: outputs(e.name),
+            results=each_experiment,
+        )
 
 
 def cmd_export_prior(args: argparse.Namespace) -> int:
@@ -406,22 +526,23 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = _robot_with_topics(args)
     options = _likelihood_options(args)
-    result = analyse_logs(
-        args.inputs,
-        args.out,
-        robot=robot,
-        families=args.families,
-        channels=options.pop("channels"),
-        settings=_sampler_settings(args),
-        seed=args.seed,
-        processes=args.processes,
-        prior_overrides=_prior_overrides(args.prior),
-        likelihood_options=options,
-        window=args.window,
-        max_gap=args.max_gap,
-        read_options=_read_options(args),
-        say=out.say,
-    )
+    with _executor(args, args.processes) as executor:
+        result = analyse_logs(
+            args.inputs,
+            args.out,
+            robot=robot,
+            families=args.families,
+            channels=options.pop("channels"),
+            settings=_sampler_settings(args),
+            seed=args.seed,
+            executor=executor,
+            prior_overrides=_prior_overrides(args.prior),
+            likelihood_options=options,
+            window=args.window,
+            max_gap=args.max_gap,
+            read_options=_read_options(args),
+            say=out.say,
+        )
     return analysis_text(result, out)
 
 

@@ -205,6 +205,14 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
         help="override a prior range, e.g. --prior d_lat 10 2000",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the tasks (each experiment's posterior; for compare and analyse each "
+        "family) on a Dask cluster, e.g. tcp://127.0.0.1:8786 (`dask scheduler` and "
+        "`dask worker`; pip install 'bayes-jackal[cluster]'); no progress bars there. "
+        "Default: this machine",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -239,7 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--processes",
         type=_count,
         default=os.cpu_count() or 1,
-        help="families sampled at once (default: the number of cores)",
+        help="families sampled at once (default: the number of cores; not with --scheduler)",
     )
     _add_bag_flags(analysis, max_gap=None)
     _add_input_flags(analysis)
@@ -374,7 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--processes",
         type=_count,
         default=os.cpu_count() or 1,
-        help="families sampled at once, one per process (default: the number of cores)",
+        help="tasks sampled at once, one per process (default: the number of cores; not "
+        "with --scheduler)",
     )
     compare.add_argument(
         "--nested",

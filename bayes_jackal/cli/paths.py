@@ -13,6 +13,7 @@ import contextlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from ..experiment import Experiment
 from ..inference import chain_path
 from ..outputs import Output, OutputLock, check_outputs, protected
 
@@ -59,6 +60,21 @@ def check_named_outputs(args: argparse.Namespace, paths: Iterable[Path]) -> None
     the inputs are read, and checked then, before the work they belong to.
     """
     check_outputs([Output(Path(path)) for path in paths], inputs=command_inputs(args))
+
+
+def group_name(group: list[Experiment]) -> str:
+    """What ``compare`` calls a group of experiments: its one experiment's name, or ``pooled``."""
+    return "pooled" if len(group) > 1 else group[0].name
+
+
+def family_files(folder: Path, name: str, families: Iterable[str]) -> dict[str, Path]:
+    """Where ``compare --out`` keeps each family's posterior (and finds it on a rerun)."""
+    return {family: folder / f"{name}.{family}.nc" for family in families}
+
+
+def summary_file(folder: Path, name: str) -> Path:
+    """Where ``compare --out`` writes the comparison of ``name``."""
+    return folder / f"{name}.compare.json"
 
 
 @contextlib.contextmanager

@@ -1,0 +1,178 @@
+"""Posterior-predictive series and model states of a posterior, in bounded memory.
+
+Each posterior draw carries a series as long as the run: a replicated
+residual series (:func:`predictive_series`, :func:`predictive_statistics`)
+or the model's states (:func:`model_percentiles`). For an hour at 72 Hz
+(259,200 samples) and 200 draws those would be 400 MB per array, and the
+circulant embedding of the replicated series several times that. So the
+draws are made and reduced in chunks of at most :data:`CHUNK_SAMPLES`
+draws x samples, and only the small per-draw
+statistics (autocorrelation at a few lags, spectra, percentiles) are kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping, Sequence
+
+import numpy as np
+
+from ._chunks import chunks
+from .kernels import as_rng
+from .likelihood import ResidualLikelihood, sample_stationary
+from .physics import simulate
+from .posterior import (
+    az,
+    model_autocovariance,
+    posterior_experiments,
+    posterior_likelihood,
+    posterior_robot,
+    thinned_draws,
+)
+
+__all__ = [
+    "CHUNK_SAMPLES",
+    "model_percentiles",
+    "predictive_series",
+    "predictive_statistics",
+]
+
+#: Samples held at once where each posterior draw carries a series of a
+#: whole run (replicated residuals, model states): a chunk of draws holds at
+#: most this many draws x samples, ~3 MB per array.
+CHUNK_SAMPLES = 400_000
+
+
+def predictive_series(
+    likelihood: ResidualLikelihood,
+    index: int,
+    channel: str,
+    theta: np.ndarray,
+    n: int,
+    rng: np.random.Generator | int | None = None,
+) -> Iterator[tuple[slice, np.ndarray]]:
+    """Posterior-predictive residual series of one experiment and channel, chunk by chunk.
+
+    For each draw of ``theta``, one series of ``n`` samples drawn exactly
+    from the model's residual covariance
+    (:func:`bayes_jackal.likelihood.sample_stationary`). Series i comes from
+    the i-th of ``len(theta)`` generators spawned from ``rng``, so every
+    series is the same whatever the chunks.
+
+    Parameters
+    ----------
+    likelihood : ResidualLikelihood
+        As rebuilt by :func:`posterior_likelihood`.
+    index : int
+        Experiment index.
+    channel : {"yaw", "vx", "vy"}
+    theta : ndarray, shape (B, P)
+        Parameter vectors in natural units.
+    n : int
+        Samples per series.
+    rng : numpy.random.Generator, int or None
+
+    Yields
+    ------
+    part : slice
+        The chunk's draws in ``theta``.
+    series : ndarray, shape (len(part), n)
+        Their series [channel unit].
+    """
+    generators = as_rng(rng).spawn(len(theta))
+    for part in chunks(len(theta), n, budget=CHUNK_SAMPLES):
+        acov = model_autocovariance(likelihood, index, channel, theta[part], n)
+        yield (
+            part,
+            np.concatenate(
+                [sample_stationary(row, g) for row, g in zip(acov, generators[part], strict=True)]
+            ),
+        )
+
+
+def predictive_statistics(
+    idata: az.InferenceData,
+    index: int,
+    channel: str,
+    statistics: Mapping[str, Callable[[np.ndarray], np.ndarray]],
+    *,
+    count: int = 200,
+    rng: np.random.Generator | int | None = None,
+) -> dict[str, np.ndarray]:
+    """Statistics of posterior-predictive one-step residuals of one experiment and channel.
+
+    For each of ``count`` posterior draws, one series as long as the observed
+    residuals (:func:`predictive_series`): what the fitted noise filter says
+    the residuals should look like. The series are made and reduced chunk by
+    chunk, so only the statistics of all draws are held at once, never the
+    draws x samples of the series.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+    index : int
+        Experiment index.
+    channel : {"yaw", "vx", "vy"}
+    statistics : mapping of str to callable
+        Each maps series of shape (B, n) to statistics of shape (B, ...).
+    count : int
+        Posterior draws (evenly spaced, :func:`thinned_draws`).
+    rng : numpy.random.Generator, int or None
+
+    Returns
+    -------
+    dict of str to ndarray
+        Each statistic of every draw, shape (count, ...), under its key.
+    """
+    likelihood = posterior_likelihood(idata)
+    theta = thinned_draws(idata, count)
+    n = idata.observed_data[f"residual_{channel}_{index}"].size
+    chunks = [
+        {name: function(series) for name, function in statistics.items()}
+        for _, series in predictive_series(likelihood, index, channel, theta, n, rng)
+    ]
+    return {name: np.concatenate([chunk[name] for chunk in chunks]) for name in statistics}
+
+
+def model_percentiles(
+    idata: az.InferenceData, index: int, percentiles: Sequence[float], *, count: int = 50
+) -> np.ndarray:
+    """Percentiles over ``count`` posterior draws of the damping of the model's states.
+
+    The deterministic model (no process noise) driven by the measured wheel
+    speeds from the measured initial state, as in thesis figs. 5-5,
+    5-13..5-16. It runs over consecutive time segments of the experiment,
+    each from the last state of the one before, with at most
+    :data:`CHUNK_SAMPLES` draws x samples per segment: the states of all
+    draws over the whole run are never held at once.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+    index : int
+        Experiment index.
+    percentiles : sequence of float
+        In [0, 100].
+    count : int
+        Posterior draws (evenly spaced, :func:`thinned_draws`).
+
+    Returns
+    -------
+    ndarray, shape (len(percentiles), N, 3)
+        Percentiles of (vx, vy, yaw rate) [m/s, m/s, rad/s] at each sample.
+    """
+    experiment = posterior_experiments(idata)[index]
+    robot = posterior_robot(idata)
+    theta = thinned_draws(idata, count)
+    x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
+    state = np.array([*x0, experiment.yaw_rate[0]])
+    inputs = experiment.inputs
+    step = max(1, CHUNK_SAMPLES // len(theta) - 1)
+    parts = []
+    for start in range(0, len(inputs) - 1, step):
+        # Samples start..start + step; the last one starts the next segment.
+        segment = inputs[start : start + step + 1]
+        states = simulate(robot, theta[:, 0], theta[:, 1], segment, state, dt=experiment.dt)
+        state = states[:, -1]
+        parts.append(np.percentile(states[:, : len(segment) - 1], percentiles, axis=0))
+    last = np.percentile(state, percentiles, axis=0)[:, None]
+    return np.concatenate([*parts, last], axis=1)

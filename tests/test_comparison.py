@@ -1,0 +1,128 @@
+"""Families compared on several groups at once: the same numbers as one group at a time.
+
+The runs are tiny (simulated v2 runs of 26 s, yaw channel, 200 steps): the
+point is the bookkeeping of many (group, family) jobs, not the posterior.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from bayes_jackal import load_profile
+from bayes_jackal.cli import main
+from bayes_jackal.comparison import compare_families, compare_groups
+from bayes_jackal.executors import ProcessExecutor, SerialExecutor
+from bayes_jackal.experiment import write_netcdf
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
+from bayes_jackal.simulate import simulate_experiment
+
+ROBOT = load_profile()
+FAMILIES = ("white", "exponential")
+SETTINGS = SamplerSettings(max_steps=200, progress=False)
+OPTIONS = {"channels": ("yaw",)}
+#: Flags of a quick comparison, the families in this process one after the other.
+QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "200"]
+QUICK += ["--channels", "yaw", "--no-progress", "--json", "--processes", "1"]
+
+
+@pytest.fixture(scope="module")
+def runs():
+    """Two groups of one simulated v2 run each, their noise drawn from seeds 1 and 2."""
+    return {
+        f"run{seed}": [simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=seed, name=f"v2_{seed}")]
+        for seed in (1, 2)
+    }
+
+
+def test_every_group_equals_its_comparison_alone(runs):
+    """All jobs at once in two processes, against each group alone in this process."""
+    finished = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # 200 steps do not converge
+        together = dict(
+            compare_groups(
+                runs,
+                ROBOT,
+                families=FAMILIES,
+                settings=SETTINGS,
+                seed=3,
+                likelihood_options=OPTIONS,
+                executor=ProcessExecutor(2),  # four jobs, two at a time
+                on_family=lambda key, family, *_: finished.append((key, family)),
+            )
+        )
+        alone = {
+            key: compare_families(
+                group, ROBOT, FAMILIES, SETTINGS, 3, executor=SerialExecutor(), **OPTIONS
+            )
+            for key, group in runs.items()
+        }
+    assert sorted(finished) == sorted((key, family) for key in runs for family in FAMILIES)
+    assert together.keys() == alone.keys()
+    for key, comparison in together.items():
+        assert comparison.experiments == alone[key].experiments == [runs[key][0].name]
+        assert comparison.evidence == alone[key].evidence
+        assert list(comparison.evidence) == list(FAMILIES)
+        assert comparison.convergence_messages() == alone[key].convergence_messages()
+        for family in FAMILIES:
+            mine, theirs = comparison.posteriors[family], alone[key].posteriors[family]
+            for name, values in theirs.posterior.data_vars.items():
+                np.testing.assert_array_equal(mine.posterior[name].values, values.values)
+    # Different data, different numbers: the groups did not share a job.
+    assert together["run1"].evidence["white"] != together["run2"].evidence["white"]
+
+
+def test_a_group_that_fails_is_reported_and_the_others_go_on(runs):
+    def save(key, family, evidence, idata):
+        if key == "run1":
+            raise OSError("disk full")  # a write error while saving run1's family
+
+    failed = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        done = list(
+            compare_groups(
+                runs,
+                ROBOT,
+                families=("white",),
+                settings=SamplerSettings(max_steps=80, progress=False),
+                seed=3,
+                likelihood_options=OPTIONS,
+                on_family=save,
+                on_failure=lambda key, exc: failed.append((key, str(exc))),
+            )
+        )
+    assert failed == [("run1", "disk full")]
+    assert [key for key, _ in done] == ["run2"]
+    with pytest.raises(OSError, match="disk full"):  # without on_failure it propagates
+        list(compare_groups(runs, ROBOT, families=("white",), settings=SETTINGS, on_family=save))
+
+
+def test_compare_of_two_runs_saves_both_and_a_rerun_reuses_every_family(runs, tmp_path, capsys):
+    names = [group[0].name for group in runs.values()]
+    paths = [
+        str(write_netcdf(group[0], tmp_path / f"{group[0].name}.nc")) for group in runs.values()
+    ]
+    command = ["compare", *paths, *QUICK, "--out", str(tmp_path / "out")]
+    assert main(command) == 0
+    done = capsys.readouterr()
+    result = json.loads(done.out)
+    assert list(result["experiments"]) == names and result["failed"] == {}
+    for name in names:
+        summary = json.loads((tmp_path / "out" / f"{name}.compare.json").read_text())
+        assert summary == result["experiments"][name]
+        assert set(summary["families"]) == set(FAMILIES)
+        for family in FAMILIES:
+            assert (tmp_path / "out" / f"{name}.{family}.nc").is_file()
+            assert f"  {name} {family}: log Z =" in done.err
+    assert main(command) == 0
+    rerun = capsys.readouterr()
+    for name in names:
+        for family in FAMILIES:
+            assert f"reusing {family} from {tmp_path / 'out' / f'{name}.{family}.nc'}" in rerun.err
+    assert "log Z =" not in rerun.err  # no family ran again
+    assert json.loads(rerun.out) == result

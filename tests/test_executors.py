@@ -1,0 +1,185 @@
+"""Executors: the same results in this process, in local processes and on a Dask cluster.
+
+The cluster tests start a real ``distributed.LocalCluster`` and, through the
+console script, a real ``dask scheduler`` and ``dask worker`` on 127.0.0.1,
+each stopped by its own process id. The runs are tiny (one v2 run of 26 s,
+yaw channel, 200 steps): the point is the plumbing and the equality of the
+numbers, not the posterior.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayes_jackal import load_profile
+from bayes_jackal.comparison import compare_families
+from bayes_jackal.errors import InputError
+from bayes_jackal.executors import DaskExecutor, ProcessExecutor, SerialExecutor
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
+from bayes_jackal.simulate import simulate_experiment
+
+distributed = pytest.importorskip("distributed")
+
+ROBOT = load_profile()
+FAMILIES = ("white", "exponential")
+#: Where the console scripts of this environment live.
+BIN = Path(sys.executable).parent
+#: A port nothing listens on: 1 is reserved (tcpmux) and unused on test machines.
+DEAD_ADDRESS = "tcp://127.0.0.1:1"
+#: One simulated v2 run (26 s at 72 Hz), and flags of a quick comparison.
+TINY_RUN = ["--v1", "0", "--v2", "1", "--seed", "1"]
+QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "200"]
+QUICK += ["--channels", "yaw", "--json"]
+
+
+def _compare(run, executor):
+    settings = SamplerSettings(max_steps=200, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # 200 steps do not converge
+        return compare_families(
+            [run], ROBOT, FAMILIES, settings, 3, channels=("yaw",), executor=executor
+        )
+
+
+@pytest.mark.slow  # ~40 s: three comparisons, process and cluster start-ups
+def test_same_evidence_and_chains_on_every_executor():
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=1)
+    serial = _compare(run, SerialExecutor())
+    local = _compare(run, ProcessExecutor(2))
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+    ) as cluster:
+        clustered = _compare(run, DaskExecutor(cluster))
+        assert cluster.status.name == "running"  # our client closed, the cluster not
+    for family in FAMILIES:
+        assert serial.evidence[family] == local.evidence[family] == clustered.evidence[family]
+        for other in (local, clustered):
+            np.testing.assert_array_equal(
+                other.posteriors[family].posterior.d_lat.values,
+                serial.posteriors[family].posterior.d_lat.values,
+            )
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _start(command: list[str]) -> subprocess.Popen:
+    return subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+
+
+def _stop(process: subprocess.Popen) -> None:
+    """Stop a process we started, by its own id (SIGTERM, then SIGKILL)."""
+    if process.poll() is None:
+        os.kill(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _wait_for_worker(address: str, seconds: float = 60.0) -> None:
+    with distributed.Client(address, timeout=seconds, set_as_default=False) as client:
+        client.wait_for_workers(1, timeout=seconds)
+
+
+@pytest.mark.slow  # ~30 s: a scheduler, a worker and three commands
+def test_compare_on_a_dask_scheduler_through_the_console_script(tmp_path):
+    subprocess.run(
+        [BIN / "bayes-jackal", "simulate", "--out", tmp_path / "runs", *TINY_RUN],
+        check=True,
+        capture_output=True,
+    )
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = _start(
+        [BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
+    )
+    worker = None
+    try:
+        worker = _start(
+            [
+                BIN / "dask",
+                "worker",
+                address,
+                "--nworkers",
+                "1",
+                "--nthreads",
+                "1",
+                "--no-dashboard",
+            ]
+        )
+        _wait_for_worker(address)
+        command = [
+            BIN / "bayes-jackal",
+            "compare",
+            tmp_path / "runs" / "v2_01.nc",
+            *QUICK,
+            "--out",
+            tmp_path / "out",
+            "--scheduler",
+            address,
+        ]
+        done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+        # The finished families were saved as they came back: a rerun reuses them.
+        rerun = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                _stop(process)
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert set(result["families"]) == set(FAMILIES)
+    for family in FAMILIES:  # each saved as it finished: a rerun reuses it
+        assert (tmp_path / "out" / f"v2_01.{family}.nc").is_file()
+    assert (tmp_path / "out" / "v2_01.compare.json").is_file()
+    assert "\r" not in done.stderr  # no progress bars from the cluster
+    assert rerun.returncode == 0, rerun.stderr
+    for family in FAMILIES:
+        assert f"reusing {family}" in rerun.stderr
+    assert json.loads(rerun.stdout)["families"] == result["families"]
+
+
+def test_unreachable_scheduler_is_bad_input_named_fast(tmp_path):
+    start = time.perf_counter()
+    done = subprocess.run(
+        [BIN / "bayes-jackal", "compare", tmp_path / "missing.nc", "--scheduler", DEAD_ADDRESS],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert DEAD_ADDRESS in done.stderr and "dask scheduler" in done.stderr
+    assert time.perf_counter() - start < 30
+
+
+def test_dask_executor_without_a_scheduler_address_refused():
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler at 'nowhere'"):
+        with DaskExecutor("nowhere", timeout=1.0):
+            pass
+
+
+def test_dask_executor_without_the_extra_names_it(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
+    with pytest.raises(InputError, match=r"pip install 'bayes-jackal\[cluster\]'"):
+        DaskExecutor(DEAD_ADDRESS)
