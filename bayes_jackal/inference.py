@@ -431,6 +431,7 @@ def sample_posterior(
         )
         if backend.iteration == 0:
             centre = find_map(log_posterior, rng, settings.design_points)
+            interrupt.check()  # a signal swallowed in the search (scipy's Cython code)
             initial = laplace_walkers(log_posterior, centre, walkers, rng)
             moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
             start = emcee.State(initial, random_state=moves_state)

@@ -74,10 +74,13 @@ def _run(argv: list[str] | None) -> int:
 
         print(f"bayes-jackal {__version__}")
         return 0
+    from .. import interrupt
     from ..errors import InputError
     from .output import EXIT_BAD_INPUT, print_failure
     from .parser import build_parser
     from .paths import command_inputs, guarded
+
+    interrupt.check()  # a signal swallowed during the imports (code that cannot raise)
 
     try:
         args = build_parser().parse_args(argv)
