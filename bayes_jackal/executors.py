@@ -257,8 +257,13 @@ class DaskExecutor(Executor):
     def run(self, work: Callable[[T], R], jobs: Sequence[T]) -> Iterator[Iterator[R]]:
         with self if self._client is None else contextlib.nullcontext():
             client = self._client
-            # pure=False: a job is run even when an identical one ran before.
-            futures = [client.submit(work, job, pure=False) for job in jobs]
+            # pure=False: a job is run even when an identical one ran before;
+            # priorities keep the order the jobs were handed out in (Dask's
+            # scheduler would otherwise pick among them freely).
+            futures = [
+                client.submit(work, job, pure=False, priority=len(jobs) - index)
+                for index, job in enumerate(jobs)
+            ]
             try:
                 finished = self._distributed.as_completed(futures, loop=client.loop)
                 yield (future.result() for future in finished)

@@ -58,7 +58,7 @@ CEPSTRUM_TOLERANCE = 1e-10
 #: geometrically (or end), so the lags dropped past size/2 are far smaller
 #: still; measured against ``exact``: within 2e-8 nats on 1e5 residuals.
 ACOV_TOLERANCE = 1e-13
-#: Predictor coefficients below this are dropped from the boundary terms.
+#: A set's predictor taps past its last one above this are dropped.
 PREDICTOR_TOLERANCE = 1e-14
 #: Elements of the largest work array of one chunk of parameter sets
 #: (2^22 doubles: 32 MiB).
