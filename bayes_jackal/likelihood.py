@@ -438,15 +438,24 @@ class ResidualLikelihood:
 
     def _reference(self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray) -> np.ndarray:
         """The ``exact`` or ``whittle`` engine, in chunks of parameter sets."""
+        if self.engine == "exact":
+            return self._recursion(block, noise, c)
         loglike = np.empty(len(c))
         for rows in chunks(len(c), block.count * block.n, budget=spectral.CHUNK_ELEMENTS):
             acov = self._autocovariance(block, noise[rows], block.n)
-            if self.engine == "exact":
-                loglike[rows] = toeplitz_loglike(acov, block.residuals(c[rows])).sum(axis=-1)
-            else:
-                cc = c[rows, :, None] * c[rows, None, :]
-                periodogram = cc.reshape(len(cc), 16) @ block.periodogram.T
-                loglike[rows] = debiased_whittle_loglike(acov, periodogram, block.count)
+            cc = c[rows, :, None] * c[rows, None, :]
+            periodogram = cc.reshape(len(cc), 16) @ block.periodogram.T
+            loglike[rows] = debiased_whittle_loglike(acov, periodogram, block.count)
+        return loglike
+
+    def _recursion(
+        self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray, tol: float | None = None
+    ) -> np.ndarray:
+        """The Durbin-Levinson recursion (:func:`toeplitz_loglike`) in chunks of sets."""
+        loglike = np.empty(len(c))
+        for rows in chunks(len(c), block.count * block.n, budget=spectral.CHUNK_ELEMENTS):
+            acov = self._autocovariance(block, noise[rows], block.n)
+            loglike[rows] = toeplitz_loglike(acov, block.residuals(c[rows]), tol).sum(axis=-1)
         return loglike
 
     def _fast(self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -469,15 +478,9 @@ class ResidualLikelihood:
                 values, converged = spectral_loglike(acov, block, c[chunk], size)
                 loglike[chunk[converged]] = values[converged]
                 certified.append(converged)
-            pending = pending[~np.concatenate(certified)] if certified else pending
+            pending = pending[~np.concatenate(certified)]
             if not len(pending):
                 return loglike
         if self.fallback:
-            for rows in chunks(
-                len(pending), block.count * block.n, budget=spectral.CHUNK_ELEMENTS
-            ):
-                chunk = pending[rows]
-                acov = self._autocovariance(block, noise[chunk], block.n)
-                residuals = block.residuals(c[chunk])
-                loglike[chunk] = toeplitz_loglike(acov, residuals, FAST_TOLERANCE).sum(axis=-1)
+            loglike[pending] = self._recursion(block, noise[pending], c[pending], FAST_TOLERANCE)
         return loglike

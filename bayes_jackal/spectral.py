@@ -116,6 +116,10 @@ class ResidualBlock:
         """Each series' regressor means mu_e, shape (E, 4)."""
         return self.regressors.mean(axis=1)
 
+    def _deviations(self) -> np.ndarray:
+        """D_e = Z_e - mu_e, shape (E, n, 4) (not kept: each use is once)."""
+        return self.regressors - self.means[:, None, :]
+
     @cached_property
     def deviation_gram(self) -> np.ndarray:
         """sum_e sum_i D_e[i] D_e[i+l]' (symmetrised) for l = 0..n-1, shape (n, 16).
@@ -123,8 +127,7 @@ class ResidualBlock:
         D_e = Z_e - mu_e; from the deviations' cross-periodogram on >= 2n
         points, so the lags are not circular.
         """
-        deviations = self.regressors - self.means[:, None, :]
-        spectra = sum(cross_periodogram(d, self.size) for d in deviations).reshape(-1, 16)
+        spectra = sum(cross_periodogram(d, self.size) for d in self._deviations()).reshape(-1, 16)
         return np.ascontiguousarray(scipy.fft.irfft(spectra, self.size, axis=0)[: self.n])
 
     @cached_property
@@ -133,7 +136,7 @@ class ResidualBlock:
 
         As the deviations sum to zero: -(sum of the first l) - (sum of the last l).
         """
-        deviations = self.regressors - self.means[:, None, :]
+        deviations = self._deviations()
         zero = np.zeros((self.count, 1, 4))
         head = np.concatenate([zero, np.cumsum(deviations[:, :-1], axis=1)], axis=1)
         tail = np.concatenate([zero, np.cumsum(deviations[:, :0:-1], axis=1)], axis=1)
