@@ -8,6 +8,9 @@ midst: emcee's ``except:`` around the log-probability prints the walkers on
 stdout, and its ``random_state`` setter swallows the interrupt whole. Such
 code runs inside :func:`deferred`, where a signal only records a stop that
 :func:`check` raises between steps; a second signal raises at once.
+A stop raised where Python cannot propagate it (a finaliser, a weakref
+callback of the garbage collector, Cython) is sent again as soon as that
+code has returned.
 
 Worker processes call :func:`quiet_worker` first: they ignore SIGINT (the
 terminal sends Ctrl-C to them too; the main process stops them) and die
@@ -19,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
+import threading
 from collections.abc import Iterator
 
 __all__ = [
@@ -55,33 +59,64 @@ class Interrupted(KeyboardInterrupt):
 
 _pending: int | None = None
 _deferring = 0
+_resent = False  # the next signal is a swallowed stop sent again, not a second one
 
 
 def _handler(signum: int, frame) -> None:
-    global _pending
-    first, _pending = _pending is None, signum  # kept until check() raises it
+    global _pending, _resent
+    first = _pending is None or _resent
+    _pending, _resent = signum, False  # kept until check() raises it
     if _deferring and first:
         return
     raise Interrupted(signum)
 
 
 def _unraisable(hook: sys.UnraisableHookArgs) -> None:
-    """Drop an :class:`Interrupted` raised where Python cannot propagate it.
+    """Drop an :class:`Interrupted` raised where Python cannot propagate it, and resend it.
 
-    A signal landing in a finaliser or in Cython code that cannot raise
-    (scipy's Sobol set-up reads its tables so) raises there, and Python
-    would print "Exception ignored" and carry on: the stop stays pending
-    instead, and :func:`check` (or the CLI, when the command returns)
-    raises it.
+    A signal landing in a finaliser, a weakref callback run by the garbage
+    collector (matplotlib's figures hold many), or Cython code that cannot
+    raise (scipy's Sobol set-up reads its tables so) raises there, and
+    Python would print "Exception ignored" and carry on for as long as the
+    command has left (6.7 s of report figures, in CI). The stop stays
+    pending instead and :func:`_resend` delivers it again once the code
+    that swallowed it has returned.
     """
-    if not isinstance(hook.exc_value, Interrupted):
+    if isinstance(hook.exc_value, Interrupted):
+        _resend(hook.exc_value.signum)
+    else:
         _previous_hooks["unraisablehook"](hook)
 
 
 def _excepthook(kind, value, traceback) -> None:
     """As :func:`_unraisable`, for Cython's print of such an exception's traceback."""
-    if not isinstance(value, Interrupted):
+    if isinstance(value, Interrupted):
+        _resend(value.signum)
+    else:
         _previous_hooks["excepthook"](kind, value, traceback)
+
+
+#: Seconds before a swallowed stop is sent again: the hook that saw it swallowed
+#: must have returned, or the handler would raise inside the hook itself.
+RESEND_DELAY = 0.01
+
+
+def _resend(signum: int) -> None:
+    """Signal the main thread again after :data:`RESEND_DELAY` s, unless :func:`check` raised it.
+
+    A real signal (not ``_thread.interrupt_main``), so that it also wakes a
+    main thread blocked in a system call.
+    """
+
+    def send() -> None:
+        global _resent
+        if _pending is not None:
+            _resent = True
+            signal.pthread_kill(threading.main_thread().ident, signum)
+
+    timer = threading.Timer(RESEND_DELAY, send)
+    timer.daemon = True
+    timer.start()
 
 
 #: sys hooks in place before :func:`install`.

@@ -98,12 +98,34 @@ class _RaisesWhenCollected:
         os.kill(os.getpid(), signal.SIGINT)  # raised in a finaliser: Python cannot propagate it
 
 
-def test_a_stop_raised_where_python_cannot_propagate_it_is_silent_and_pending(handlers, capsys):
-    _RaisesWhenCollected()  # collected at once: "Exception ignored in ..." without the hook
-    assert capsys.readouterr().err == ""
+def test_a_stop_raised_where_python_cannot_propagate_it_is_silent_and_sent_again(handlers, capsys):
+    started = time.monotonic()
     with pytest.raises(interrupt.Interrupted) as stop:
-        interrupt.check()
+        _RaisesWhenCollected()  # collected at once: "Exception ignored in ..." without the hook
+        time.sleep(5)  # the stop is sent again once the finaliser has returned: never reached
+    # RESEND_DELAY is 0.01 s; 1 s leaves room for a loaded machine.
+    assert time.monotonic() - started < 1.0
     assert stop.value.signum == signal.SIGINT
+    assert capsys.readouterr().err == ""
+
+
+def test_a_swallowed_stop_sent_again_inside_deferred_is_held_as_the_first(handlers):
+    _RaisesWhenCollected()
+    with interrupt.deferred():
+        time.sleep(0.5)  # sent again here: held (a second signal would raise at once)
+        assert interrupt.pending() == signal.SIGINT
+        with pytest.raises(interrupt.Interrupted):
+            interrupt.check()
+        time.sleep(0.1)
+    interrupt.check()  # nothing left
+
+
+def test_a_swallowed_stop_raised_by_check_is_not_sent_again(handlers):
+    _RaisesWhenCollected()
+    with pytest.raises(interrupt.Interrupted):
+        interrupt.check()  # before the resend's 0.01 s
+    time.sleep(0.2)  # no second stop: nothing raised
+    assert interrupt.pending() is None
 
 
 def test_emcee_catch_alls_neither_swallow_nor_print_an_interrupt(handlers, capsys):
