@@ -8,27 +8,41 @@ from __future__ import annotations
 
 import importlib
 
+#: The one place the version is kept: pyproject.toml reads it from here.
 __version__ = "0.1.0"
 
 #: Public name -> the module that defines it.
 _LAZY = {
+    # the workflow (bayes_jackal.api): logs in, posteriors, evidence, priors, reports out
+    "load_experiments": ".api",
+    "sample": ".api",
+    "compare": ".api",
+    "export_prior": ".export",
+    "write_prior": ".export",
+    "write_report": ".report",
+    "analyse_logs": ".workflow",
+    # what it takes and gives
+    "Comparison": ".comparison",
+    "ConvergenceWarning": ".inference",
+    "Experiment": ".experiment",
+    "FAMILIES": ".kernels",
+    "NoiseSettings": ".simulate",
+    "RobotProfile": ".robot",
+    "SamplerSettings": ".inference",
+    "load_posterior": ".posterior",
+    "load_profile": ".robot",
+    "save_posterior": ".posterior",
+    "simulate_experiment": ".simulate",
+    "summarize": ".posterior",
+    "write_csv": ".tables",
+    # errors
     "DataError": ".errors",
     "InputError": ".errors",
     "OutputError": ".errors",
     "ProfileError": ".errors",
-    "RobotProfile": ".robot",
-    "load_profile": ".robot",
 }
 
-__all__ = [
-    "DataError",
-    "InputError",
-    "OutputError",
-    "ProfileError",
-    "RobotProfile",
-    "__version__",
-    "load_profile",
-]
+__all__ = ["__version__", *sorted(_LAZY)]
 
 
 def __getattr__(name: str):

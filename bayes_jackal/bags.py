@@ -92,6 +92,8 @@ SMOOTHING_ORDER = 2
 QUATERNION_TOLERANCE = 0.01
 #: Shortest usable run after cutting at dropouts [s].
 MIN_DURATION = 1.0
+#: Longest tolerated dropout of a topic [s] (``--max-gap``): 18 IMU samples at 72 Hz.
+MAX_GAP = 0.25
 
 _FORMATS = ("ros1", "ros2")
 #: What rosbags raises on unreadable or corrupt files (its readers check some
@@ -146,7 +148,7 @@ def read_bag(
     path: str | Path,
     robot: RobotProfile,
     window: tuple[float, float] | None = None,
-    max_gap: float = 0.25,
+    max_gap: float = MAX_GAP,
     progress: bool = False,
 ) -> Experiment:
     """Read a recorded run from a ROS bag (see the module text for the steps).

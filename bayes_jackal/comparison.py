@@ -33,9 +33,18 @@ from .evidence import Evidence, bridge_sampling, evidence_strength, nested_sampl
 from .executors import Executor, ProcessExecutor, SerialExecutor
 from .experiment import Experiment
 from .inference import ConvergenceWarning, SamplerSettings, run_identity, sample_posterior
-from .kernels import FAMILIES, get_family
+from .kernels import FAMILIES
 from .likelihood import ResidualLikelihood
-from .posterior import HDI_PROB, az, interval, load_posterior, parameter_draws, summarize
+from .posterior import (
+    HDI_PROB,
+    az,
+    interval,
+    load_posterior,
+    parameter_draws,
+    posterior_metadata,
+    store_comparison,
+    summarize,
+)
 from .priors import LogPosterior, Prior
 from .robot import RobotProfile
 
@@ -85,7 +94,7 @@ class Comparison:
         return [
             f"{family}: {message}"
             for family, idata in self.posteriors.items()
-            for message in json.loads(idata.posterior.attrs.get("convergence_messages", "[]"))
+            for message in posterior_metadata(idata).convergence_messages
         ]
 
     def log_bayes_factor(self, family: str, other: str) -> tuple[float, float]:
@@ -128,7 +137,7 @@ class Comparison:
                 self.log_bayes_factor(name, "white")[0] if "white" in self.evidence else None
             )
             entry["width"] = _width_summary(self.posteriors[name], name)
-            entry["converged"] = bool(self.posteriors[name].posterior.attrs["converged"])
+            entry["converged"] = posterior_metadata(self.posteriors[name]).convergence.converged
             entry["warnings"] = summarize(self.posteriors[name])["warnings"]
             if name in self.nested:
                 entry["log_evidence_nested"] = self.nested[name].log_evidence
@@ -152,13 +161,12 @@ class Comparison:
 
 def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
     """Posterior mean, sd and HDI of a family's width(s) [s]; None for white noise."""
-    width_name = get_family(family).width_name
-    if width_name is None:
+    layout = posterior_metadata(idata).layout
+    if layout.width_name is None:
         return None
     summary = summarize(idata)
-    return {
-        label: interval(row) for label, row in summary.items() if label.split("[")[0] == width_name
-    } | {"hdi_prob": HDI_PROB}
+    widths = layout.names_of(layout.width_name)
+    return {name: interval(summary[name]) for name in widths} | {"hdi_prob": HDI_PROB}
 
 
 #: The order tasks are handed to the executor: the families that usually take
@@ -244,25 +252,16 @@ class _FamilyRun:
             evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
             nested = nested_sampling(likelihood, prior, rng) if self.cross_check else None
         messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
-        idata.posterior.attrs |= {
-            "evidence": json.dumps(evidence.to_dict()),
-            "evidence_nested": json.dumps(nested and nested.to_dict()),
-            "convergence_messages": json.dumps(messages),
-            "task": json.dumps(self.task(family)),
-        }
+        store_comparison(
+            idata, evidence=evidence, nested=nested, messages=messages, task=self.task(family)
+        )
         return self._stored(family, idata)
 
     @staticmethod
     def _stored(family: str, idata: az.InferenceData):
         """(family, evidence, posterior, nested or None) from the posterior's attributes."""
-        attrs = idata.posterior.attrs
-        nested = json.loads(attrs["evidence_nested"])
-        return (
-            family,
-            Evidence.from_dict(json.loads(attrs["evidence"])),
-            idata,
-            None if nested is None else Evidence.from_dict(nested),
-        )
+        metadata = posterior_metadata(idata)
+        return family, metadata.evidence, idata, metadata.evidence_nested
 
     def reuse(self, family: str, path: Path, say: Callable[[str], None]):
         """The result saved in ``path`` when its task is this one's, else None (saying why)."""
@@ -270,7 +269,7 @@ class _FamilyRun:
             return None
         try:
             idata = load_posterior(path)
-            stored = json.loads(idata.posterior.attrs.get("task", "{}"))
+            stored = posterior_metadata(idata).task or {}
         except (DataError, ValueError) as exc:
             say(f"  recomputing {family}: {exc}")
             return None

@@ -15,7 +15,6 @@ InferenceData as written by :mod:`bayes_jackal.posterior` and returns a
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,13 +32,16 @@ from .criticism_statistics import (
 )
 from .experiment import Experiment
 from .kernels import as_rng
-from .likelihood import ResidualLikelihood
 from .posterior import (
     HDI_PROB,
+    PosteriorMetadata,
     az,
     model_autocovariance,
+    observed_residuals,
     parameter_draws,
-    posterior_likelihood,
+    posterior_experiments,
+    posterior_metadata,
+    store_criticism,
     thinned_draws,
 )
 from .predictive import predictive_series
@@ -125,18 +127,17 @@ def prior_boundary(idata: az.InferenceData) -> Check:
     Rule: :func:`boundary_density` at a bound is at least
     :data:`BOUNDARY_DENSITY`. Numbers: the two density ratios per parameter.
     """
-    attrs = idata.posterior.attrs
-    names = json.loads(attrs["parameter_names"])
-    priors = json.loads(attrs["prior"])
+    metadata = posterior_metadata(idata)
+    prior, layout = metadata.prior, metadata.layout
     draws, _ = parameter_draws(idata)
     check = Check()
-    for j, name in enumerate(names):
-        prior = priors[name]
+    for j, name in enumerate(layout.names):
+        bounds = {"low": float(prior.low[j]), "high": float(prior.high[j])}
         ratios = boundary_density(
             draws[..., j],
-            prior["low"],
-            prior["high"],
-            log=prior["kind"] == "log-uniform",
+            bounds["low"],
+            bounds["high"],
+            log=bool(prior.log_uniform[j]),
             prob=HDI_PROB,
             strip=BOUNDARY_STRIP,
         )
@@ -145,13 +146,14 @@ def prior_boundary(idata: az.InferenceData) -> Check:
         hdi_range = tuple(float(v) for v in az.hdi(draws[..., j].ravel(), hdi_prob=HDI_PROB))
         for side, ratio in zip(("low", "high"), ratios, strict=True):
             if ratio >= BOUNDARY_DENSITY:
-                check.warnings.append(_boundary_warning(name, float(prior[side]), side, hdi_range))
+                key = layout.prior_key(layout.bases[j])
+                check.warnings.append(_boundary_warning(name, key, bounds[side], side, hdi_range))
     return check
 
 
-def _boundary_warning(name: str, bound: float, side: str, interval: tuple) -> dict:
-    base = name.split("[")[0]
-    flag = f"--prior {'sigma_h' if base == 'width' else base} LOW HIGH"
+def _boundary_warning(name: str, key: str, bound: float, side: str, interval: tuple) -> dict:
+    """The warning of parameter ``name``, whose prior range is ``key``'s."""
+    flag = f"--prior {key} LOW HIGH"
     where = f"the prior's {'lower' if side == 'low' else 'upper'} bound {bound:g}"
     hdi_text = f"94 % HDI [{interval[0]:.4g}, {interval[1]:.4g}]"
     if side == "low":
@@ -205,19 +207,19 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
     over lags), ``sd`` per input, ``band`` (per-lag z), ``threshold``,
     ``max_abs_z``. An input that is constant over the run is left out.
     """
-    likelihood = posterior_likelihood(idata)
+    metadata = posterior_metadata(idata)
     theta = _posterior_median(idata)[None]
     band = float(scipy.stats.norm.isf((1.0 - RESIDUAL_INPUT_LEVEL) / 2.0))
     check = Check()
-    for index, experiment in enumerate(likelihood.experiments):
+    for index, experiment in enumerate(posterior_experiments(idata)):
         inputs = {name: u for name, u in _input_series(experiment).items() if np.ptp(u) > 0}
         rows = {}
-        for channel in likelihood.channels:
+        for channel in metadata.channels:
             residual = channel_residuals(
-                experiment, likelihood.robot, theta[0, 0], theta[0, 1], channel, steady=False
+                experiment, metadata.robot, theta[0, 0], theta[0, 1], channel, steady=False
             )
             n = len(residual)
-            acov = model_autocovariance(likelihood, index, channel, theta, n)[0]
+            acov = model_autocovariance(metadata, index, channel, theta, n)[0]
             length = min(lags, n - 1)
             sd = {
                 name: float(cross_correlation_sd(acov / acov[0], u)) for name, u in inputs.items()
@@ -305,21 +307,21 @@ def predictive_acf(
     ``p_values``, ``draws``, ``alarm``, ``tail_level`` (per tail) and
     ``window`` (the residuals checked, first and last index + 1).
     """
-    likelihood = posterior_likelihood(idata)
+    metadata = posterior_metadata(idata)
     theta = thinned_draws(idata, count)
     rng = as_rng(rng)  # one generator: every channel spawns its own series from it
     check = Check()
-    for index, experiment in enumerate(likelihood.experiments):
+    for index, experiment in enumerate(posterior_experiments(idata)):
         rows = {}
-        for channel in likelihood.channels:
-            total = idata.observed_data[f"residual_{channel}_{index}"].size
+        for channel in metadata.channels:
+            total = observed_residuals(idata, index, channel).size
             n = min(total, PREDICTIVE_WINDOW)
             window = slice((total - n) // 2, (total - n) // 2 + n)
             lags = tuple(k for k in PREDICTIVE_LAGS if k < n // 2)
             portmanteau = min(PORTMANTEAU_LAGS, n // 2)
             names = _statistic_names(lags, portmanteau)
             p_values = _p_values(
-                likelihood, (index, channel, window), theta, lags, portmanteau, rng
+                metadata, experiment, (index, channel, window), theta, lags, portmanteau, rng
             )
             rows[channel] = {
                 "statistics": names,
@@ -331,7 +333,7 @@ def predictive_acf(
             }
             flags = predictive_flags(p_values, len(theta), alarm=PREDICTIVE_ALARM)
             check.warnings += [
-                _predictive_warning(experiment.name, channel, name, p, len(theta), likelihood)
+                _predictive_warning(experiment.name, channel, name, p, len(theta), metadata.family)
                 for name, p, flag in zip(names, p_values, flags, strict=True)
                 if flag
             ]
@@ -340,7 +342,8 @@ def predictive_acf(
 
 
 def _p_values(
-    likelihood: ResidualLikelihood,
+    metadata: PosteriorMetadata,
+    experiment: Experiment,
     series: tuple[int, str, slice],
     theta: np.ndarray,
     lags: tuple[int, ...],
@@ -349,24 +352,23 @@ def _p_values(
 ) -> np.ndarray:
     """:func:`predictive_p_values` over the draws ``theta``, from chunks of their series.
 
-    ``series`` is (experiment index, channel, window of the residuals
+    ``series`` is (``experiment``'s index, channel, window of the residuals
     checked). Per chunk of draws, the observed residuals in the window at
     each draw's damping and the replicated series of the window's length
     are reduced to their :func:`acf_statistics`; only those (draws x
     statistics) are kept.
     """
     index, channel, window = series
-    experiment = likelihood.experiments[index]
     n = window.stop - window.start
     observed, replicated = [], []
-    for part, draws in predictive_series(likelihood, index, channel, theta, n, rng):
+    for part, draws in predictive_series(metadata, index, channel, theta, n, rng):
         residuals = channel_residuals(
             experiment,
-            likelihood.robot,
+            metadata.robot,
             theta[part, 0],
             theta[part, 1],
             channel,
-            likelihood.steady,
+            metadata.steady,
             window,
         )
         observed.append(acf_statistics(residuals, lags=lags, portmanteau=portmanteau))
@@ -380,7 +382,7 @@ def _predictive_warning(
     name: str,
     p: float,
     draws: int,
-    likelihood: ResidualLikelihood,
+    family: str,
 ) -> dict:
     side = "higher" if p < 0.5 else "lower"
     beaten = round((1.0 - p if p < 0.5 else p) * draws)
@@ -394,7 +396,7 @@ def _predictive_warning(
             f"{experiment}, {channel}: the residuals' {name} is {side} than in {beaten} of "
             f"{draws} posterior-predictive series (p = {p:.3f}; flagged at a family-wise "
             f"{100 * PREDICTIVE_ALARM:g} % over this channel's statistics): the fitted "
-            f"{likelihood.family} noise does not reproduce the residuals' colour"
+            f"{family} noise does not reproduce the residuals' colour"
         ),
     }
 
@@ -410,10 +412,10 @@ def steady_windows(idata: az.InferenceData) -> Check:
     (None when the wheels stand still), ``yaw_drift`` (:func:`steadiness`),
     ``duration`` [s], and the tolerances.
     """
-    likelihood = posterior_likelihood(idata)
+    steady = posterior_metadata(idata).steady
     check = Check()
-    for experiment in likelihood.experiments:
-        window = experiment.steady() if likelihood.steady else experiment
+    for experiment in posterior_experiments(idata):
+        window = experiment.steady() if steady else experiment
         deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
         duration = float(window.t[-1] - window.t[0])
         check.numbers[experiment.name] = {
@@ -426,7 +428,7 @@ def steady_windows(idata: az.InferenceData) -> Check:
         failures = _steadiness_failures(deviation, drift)
         if not failures:
             continue
-        span = "steady window" if likelihood.steady and experiment.steady_window else "run"
+        span = "steady window" if steady and experiment.steady_window else "run"
         check.warnings.append(
             {
                 "kind": "not-steady",
@@ -483,9 +485,9 @@ def damping_scale(idata: az.InferenceData) -> Check:
     experiment measured (the posterior's stored data). Numbers:
     ``channels``, ``identified``, ``measured``.
     """
-    attrs = idata.posterior.attrs
-    channels = json.loads(attrs["channels"])
-    count = len(json.loads(attrs["experiments"]))
+    metadata = posterior_metadata(idata)
+    channels = list(metadata.channels)
+    count = len(metadata.experiments)
     data = idata.constant_data
     stored = {"yaw": "yaw_rate", "vx": "vx", "vy": "vy"}
     measured = [
@@ -526,9 +528,9 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     its ``criticism`` attribute (a saved file carries it); ``rng`` seeds the
     replicated series (fixed by default, so the numbers are reproducible).
     """
-    attrs = idata.posterior.attrs
-    if "criticism" in attrs:
-        return json.loads(attrs["criticism"])
+    stored = posterior_metadata(idata).criticism
+    if stored is not None:
+        return stored
     checks = {
         "damping_scale": damping_scale(idata),
         "prior_boundary": prior_boundary(idata),
@@ -540,5 +542,5 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
         "warnings": [w for check in checks.values() for w in check.warnings],
         "criticism": {name: check.numbers for name, check in checks.items()},
     }
-    attrs["criticism"] = json.dumps(result)
+    store_criticism(idata, result)
     return result

@@ -40,7 +40,6 @@ s_c = sigma_c A / (Ad - 1) [channel units / s] is its sd; ``Pi`` uses s_c.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -51,12 +50,14 @@ from . import __version__
 from ._files import write_json
 from .errors import InputError
 from .kernels import get_family
+from .parameters import DAMPING
 from .physics import CHANNELS, continuous_matrices, discrete_matrices
 from .posterior import (
+    ROBOT_CONSTANTS,
     az,
     interval,
     parameter_draws,
-    posterior_likelihood,
+    posterior_metadata,
     summarize,
     thinned_indices,
 )
@@ -197,21 +198,23 @@ def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarra
 
 
 def export_prior(
-    idata: az.InferenceData, order: int | None = 2, source: str | None = None
+    idata: az.InferenceData, *, order: int | None = AUTO_ORDER, source: str | None = None
 ) -> dict:
     """The Active Inference prior of a posterior, as a JSON-ready dict.
 
     Parameters
     ----------
     idata : arviz.InferenceData
-        A posterior written by ``bayes-jackal sample`` (shared noise: one
-        noise group per channel).
+        A posterior of ``bayes-jackal sample`` or :func:`bayes_jackal.sample`,
+        in memory or read by :func:`~bayes_jackal.posterior.load_posterior`
+        (shared noise: one noise group per channel).
     order : int or None
-        Embedding order P of the generalised coordinates (P + 1 of them).
+        Embedding order P of the generalised coordinates (P + 1 of them);
+        by default :data:`AUTO_ORDER` (2, as ``export-prior --order``).
         None: the highest order :func:`allowed_orders` gives for this
         posterior, at most :data:`AUTO_ORDER`.
     source : str, optional
-        Where the posterior was read from.
+        Where the posterior was read from (written into the prior).
 
     Returns
     -------
@@ -222,23 +225,36 @@ def export_prior(
     ------
     InputError
         For an order the family cannot give, or noise per experiment.
+
+    Examples
+    --------
+    The prior of a simulated run's posterior, written for a DEM filter. The
+    chain is capped at 200 steps to keep the example quick, far from
+    converged (a ConvergenceWarning); real use takes the default cap.
+
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="exponential", channels=["yaw"], max_steps=200, seed=1)
+    >>> prior = bj.export_prior(posterior, order=0)  # the exponential family allows order 0
+    >>> prior["noise"]["family"], prior["generalised_coordinates"]["order"], prior["dt"]
+    ('exponential', 0, 0.013888888889)
+    >>> bj.write_prior(prior, "prior.json")  # doctest: +SKIP
+    PosixPath('prior.json')
     """
-    attrs = idata.posterior.attrs
-    family = str(attrs["family"])
-    channels = json.loads(attrs["channels"])
-    names = json.loads(attrs["parameter_names"])
+    metadata = posterior_metadata(idata)
+    layout = metadata.layout
+    family, channels, names = layout.family, list(layout.channels), layout.names
     if order is not None:
         _check_order(family, order)
-    width_name = get_family(family).width_name
-    likelihood = posterior_likelihood(idata)
-    if len(likelihood.noise_groups) != len(channels):
+    width_name = layout.width_name
+    if len(layout.groups) != len(channels):
         raise InputError(
             "noise parameters per experiment have no single prior: sample with shared noise",
             source=source,
             field="shared_noise",
         )
-    robot = likelihood.robot
-    dts = {round(e["dt"], 12) for e in json.loads(attrs["experiments"])}
+    robot = metadata.robot
+    dts = {round(e.dt, 12) for e in metadata.experiments}
     if len(dts) != 1:
         raise InputError(f"experiments differ in sample time: {sorted(dts)} s", source=source)
     dt = dts.pop()
@@ -253,7 +269,7 @@ def export_prior(
     gain = pole / (Ad_draws[:, index, index] - 1.0)
     # Shared noise: group c is channel c; white noise has unit widths.
     width, sigma_c, _ = np.stack(
-        [likelihood.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
+        [layout.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
     )
     continuous_sd = sigma_c * gain
     if order is None:
@@ -277,12 +293,7 @@ def export_prior(
     Ad, Bd = discrete_matrices(robot, *mean_d, dt)
     summary = summarize(idata)
     kept = thinned_indices(len(draws), MAX_DRAWS)
-    label = (lambda base, c: base) if n == 1 else (lambda base, c: f"{base}[{c}]")
-    noise_stats = {
-        label(base, c): interval(summary[label(base, c)])
-        for c in channels
-        for base in likelihood.noise_parameter_names
-    }
+    noise_stats = {name: interval(summary[name]) for name in names[len(DAMPING) :]}
     continuous_stats = {
         c: {"mean": float(continuous_sd[:, k].mean()), "sd": float(continuous_sd[:, k].std())}
         for k, c in enumerate(channels)
@@ -291,9 +302,9 @@ def export_prior(
         "format": PRIOR_FORMAT,
         "bayes_jackal_version": __version__,
         "source": source,
-        "converged": bool(attrs["converged"]),
-        "experiments": [e["name"] for e in json.loads(attrs["experiments"])],
-        "robot": json.loads(attrs["robot"]),
+        "converged": metadata.convergence.converged,
+        "experiments": [e.name for e in metadata.experiments],
+        "robot": {key: getattr(robot, key) for key in ROBOT_CONSTANTS},
         "dt": dt,
         "states": list(CHANNELS),
         "inputs": ["omega_r", "omega_l"],
@@ -319,9 +330,9 @@ def export_prior(
             "width_name": width_name,
             "channels": channels,
             "parameters": noise_stats,
-            "sigma_c_is": "process" if "sigma_n" in likelihood.noise_parameter_names else "total",
+            "sigma_c_is": "process" if "sigma_n" in layout.noise_bases else "total",
             "process_sd_continuous": continuous_stats,
-            "sensor": str(attrs["sensor"]),
+            "sensor": layout.sensor,
         },
         "generalised_coordinates": {
             "order": order,

@@ -54,6 +54,7 @@ from ._chunks import chunks
 from .errors import DataError, InputError
 from .experiment import Experiment
 from .kernels import Family, as_rng, get_family
+from .parameters import ParameterLayout
 from .physics import channel_coefficients
 from .residuals import check_residual_window, residual_regressors
 from .robot import RobotProfile
@@ -281,9 +282,11 @@ class ResidualLikelihood:
     """Log-likelihood of the one-step residuals of experiments and channels.
 
     The damping (d_lat, d_long) is shared; each channel has its own noise
-    parameters (:attr:`noise_parameter_names`), shared across experiments
-    (``shared_noise=True``) or separate per experiment. Log-likelihoods of
-    experiments add: series are never concatenated.
+    parameters, shared across experiments (``shared_noise=True``) or
+    separate per experiment: :attr:`layout` (a
+    :class:`~bayes_jackal.parameters.ParameterLayout`) names them, their
+    groups and columns. Log-likelihoods of experiments add: series are never
+    concatenated.
 
     Parameters
     ----------
@@ -317,7 +320,7 @@ class ResidualLikelihood:
     engine: str = "fast"
     steady: bool = True
     fallback: bool = True
-    noise_groups: list[tuple[str, str]] = field(init=False)
+    layout: ParameterLayout = field(init=False)
     blocks: list[ResidualBlock] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -331,59 +334,43 @@ class ResidualLikelihood:
         if not self.experiments:
             raise InputError("no experiments given", field="experiments")
         self.channels = resolve_channels(self.experiments, self.channels)
-        self.noise_groups, self.blocks = self._build_blocks()
+        self.layout = ParameterLayout(
+            self.family,
+            self.sensor,
+            self.channels,
+            tuple(e.name for e in self.experiments),
+            self.shared_noise,
+        )
+        self.blocks = self._build_blocks()
 
-    def _build_blocks(self) -> tuple[list[tuple[str, str]], list[ResidualBlock]]:
-        groups: dict[tuple[str, str], int] = {}
+    def _build_blocks(self) -> list[ResidualBlock]:
         series: dict[tuple[str, int, float, int], list[np.ndarray]] = {}
         for experiment in self.experiments:
             for channel in self.channels:
-                key = (channel, "all" if self.shared_noise else experiment.name)
-                group = groups.setdefault(key, len(groups))
+                group = self.layout.group(channel, experiment.name)
                 check_residual_window(experiment, channel, MIN_RESIDUALS, self.steady)
                 regressors = residual_regressors(experiment, channel, self.steady)
                 dt = round(experiment.dt, 12)
                 series.setdefault((channel, group, dt, len(regressors)), []).append(regressors)
-        blocks = [
+        return [
             ResidualBlock(channel, group, dt, np.stack(members))
             for (channel, group, dt, _), members in series.items()
         ]
-        return list(groups), blocks
+
+    @property
+    def noise_groups(self) -> list[tuple[str, str]]:
+        """Noise groups as (channel, experiment or "all"): :attr:`ParameterLayout.groups`."""
+        return list(self.layout.groups)
 
     @property
     def noise_parameter_names(self) -> list[str]:
-        """Base names of one group's noise parameters: (width,) sigma_c(, sigma_n).
-
-        White noise with the diagonal sensor term has the covariance
-        (sigma_c^2 + sigma_n^2) I: one variance, which two parameters would
-        split along a flat ridge that the data cannot inform. That model
-        has one sd, ``sigma_c``: the total sd of the residual.
-        """
-        width = [self._family.width_name] if self._family.has_width else []
-        one_sd = not self._family.has_width and self.sensor == "diagonal"
-        return [*width, "sigma_c", *([] if one_sd else ["sigma_n"])]
-
-    @property
-    def n_noise_parameters(self) -> int:
-        """Noise parameters per group (see :attr:`noise_parameter_names`)."""
-        return len(self.noise_parameter_names)
+        """Base names of one group's noise parameters (:attr:`ParameterLayout.noise_bases`)."""
+        return list(self.layout.noise_bases)
 
     @property
     def parameter_names(self) -> list[str]:
-        """Names in parameter-vector order: d_lat, d_long, then each group's noise."""
-        names = ["d_lat", "d_long"]
-        for channel, experiment in self.noise_groups:
-            suffix = self.group_label(channel, experiment)
-            names += [f"{name}{suffix}" for name in self.noise_parameter_names]
-        return names
-
-    def group_label(self, channel: str, experiment: str) -> str:
-        """Suffix of a noise group's parameter names ('' when there is one group)."""
-        if len(self.noise_groups) == 1:
-            return ""
-        if self.shared_noise:
-            return f"[{channel}]"
-        return f"[{experiment}, {channel}]" if len(self.channels) > 1 else f"[{experiment}]"
+        """Names in parameter-vector order (:attr:`ParameterLayout.names`)."""
+        return list(self.layout.names)
 
     @property
     def n_residuals(self) -> int:
@@ -391,17 +378,8 @@ class ResidualLikelihood:
         return sum(block.regressors.shape[0] * block.regressors.shape[1] for block in self.blocks)
 
     def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:
-        """(width, sigma_c, sigma_n) of one noise group, each shape (B,).
-
-        White noise has unit width (ignored); where sigma_n is not a
-        parameter (white noise with the diagonal term) it is zero, and
-        sigma_c is the total sd.
-        """
-        start = 2 + group * self.n_noise_parameters
-        columns = theta[:, start : start + self.n_noise_parameters].T
-        values = dict(zip(self.noise_parameter_names, columns, strict=True))
-        width = values.get(self._family.width_name, np.ones(len(theta)))
-        return width, values["sigma_c"], values.get("sigma_n", np.zeros(len(theta)))
+        """(width, sigma_c, sigma_n) of one group: :meth:`ParameterLayout.noise_parameters`."""
+        return self.layout.noise_parameters(theta, group)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Log-likelihood of each parameter vector.

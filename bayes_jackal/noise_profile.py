@@ -102,19 +102,12 @@ def profile_starts(
     theta[:, :2] = damping
     total = np.zeros(damping_points)
     for group in range(len(likelihood.noise_groups)):
-        columns = _noise_columns(likelihood, group)
+        columns = likelihood.layout.noise_columns(group)
         loglike, noise = _group_profile(likelihood, group, damping, low[columns], high[columns])
         total += loglike
         theta[:, columns] = noise
     order = np.argsort(np.where(np.isnan(total), -np.inf, total))[::-1][:starts]
     return np.clip(theta[order], low, high), total[order]
-
-
-def _noise_columns(likelihood: ResidualLikelihood, group: int) -> list[int]:
-    """Columns of one group's noise parameters, in ``noise_parameter_names`` order."""
-    suffix = likelihood.group_label(*likelihood.noise_groups[group])
-    names = likelihood.parameter_names
-    return [names.index(f"{name}{suffix}") for name in likelihood.noise_parameter_names]
 
 
 def _group_profile(

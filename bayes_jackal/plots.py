@@ -6,7 +6,6 @@ nothing here opens a window or depends on a display.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,16 @@ from .errors import InputError
 from .gridsearch import GridResult
 from .noise import autocorrelation_bounds, sample_autocorrelation, spectrum
 from .physics import CHANNELS
-from .posterior import THESIS_RATIO, parameter_draws, posterior_experiments, posterior_truth
+from .posterior import (
+    THESIS_RATIO,
+    ExperimentRecord,
+    observed_residuals,
+    parameter_draws,
+    posterior_experiments,
+    posterior_layout,
+    posterior_metadata,
+    posterior_truth,
+)
 from .predictive import model_percentiles, predictive_statistics
 
 __all__ = [
@@ -194,7 +202,7 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     channels = _channels(idata)
     fig, axes = _figures(axes, len(channels), figsize=(7.0, 1.0 + 1.8 * len(channels)))
     for ax, channel in zip(axes, channels, strict=True):
-        residuals = idata.observed_data[f"residual_{channel}_{index}"].values
+        residuals = observed_residuals(idata, index, channel)
         start = experiment.steady_window[0] if experiment.steady_window else experiment.t[0]
         t = start + experiment.dt * np.arange(1, len(residuals) + 1)
         _curve(ax, t, residuals, color=_DATA_COLOUR, lw=0.6)
@@ -206,7 +214,7 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
 
 def _channels(idata) -> list[str]:
-    return json.loads(idata.posterior.attrs["channels"])
+    return list(posterior_metadata(idata).channels)
 
 
 def predictive_bands(
@@ -236,7 +244,7 @@ def predictive_bands(
         ``acf``, shape (200, lags + 1), and ``psd``, shape (200, F)
         [(channel unit)^2 / Hz].
     """
-    dt = _experiment(idata, index)["dt"]
+    dt = _experiment(idata, index).dt
     return predictive_statistics(
         idata,
         index,
@@ -275,7 +283,7 @@ def plot_autocorrelation(
         When ``predictive`` holds the autocorrelation at other lags.
     """
     fig, ax = _figure(ax, figsize=(6.0, 3.6))
-    residuals = idata.observed_data[f"residual_{channel}_{index}"].values
+    residuals = observed_residuals(idata, index, channel)
     predicted = (predictive or predictive_bands(idata, index, channel, lags=lags, rng=rng))["acf"]
     if predicted.shape[-1] != lags + 1:
         raise InputError(
@@ -301,7 +309,7 @@ def plot_autocorrelation(
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xlabel("lag [samples]")
     ax.set_ylabel("autocorrelation")
-    ax.set_title(f"{_experiment(idata, index)['name']}: {channel} residual autocorrelation")
+    ax.set_title(f"{_experiment(idata, index).name}: {channel} residual autocorrelation")
     ax.legend(fontsize="small")
     return fig, ax
 
@@ -326,8 +334,8 @@ def plot_spectrum(
     fig, ax
     """
     fig, ax = _figure(ax, figsize=(6.0, 3.6))
-    dt = _experiment(idata, index)["dt"]
-    residuals = idata.observed_data[f"residual_{channel}_{index}"].values
+    dt = _experiment(idata, index).dt
+    residuals = observed_residuals(idata, index, channel)
     frequency, observed = spectrum(residuals, dt)
     predicted = (predictive or predictive_bands(idata, index, channel, rng=rng))["psd"]
     low, median, high = np.percentile(predicted[:, 1:], [BAND[0], 50.0, BAND[1]], axis=0)
@@ -338,14 +346,14 @@ def plot_spectrum(
     ax.loglog(frequency[1:], observed[1:], color=_DATA_COLOUR, lw=0.8, label="residuals")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"PSD [({_UNITS[channel]})²/Hz]")
-    ax.set_title(f"{_experiment(idata, index)['name']}: {channel} residual spectrum")
+    ax.set_title(f"{_experiment(idata, index).name}: {channel} residual spectrum")
     ax.legend(fontsize="small")
     return fig, ax
 
 
-def _experiment(idata, index: int) -> dict:
+def _experiment(idata, index: int) -> ExperimentRecord:
     """The stored description (name, dt, window, truth) of one experiment."""
-    return json.loads(idata.posterior.attrs["experiments"])[index]
+    return posterior_metadata(idata).experiments[index]
 
 
 def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
@@ -356,12 +364,15 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     fig, axes
     """
     draws, _ = parameter_draws(idata)
-    names = json.loads(idata.posterior.attrs["parameter_names"])
+    layout = posterior_layout(idata)
+    names = layout.names
     fig, axes = _figures(axes, len(names), figsize=(7.0, 1.0 + 1.2 * len(names)))
-    for ax, name, values in zip(axes, names, np.moveaxis(draws, -1, 0), strict=True):
+    for ax, name, values, log in zip(
+        axes, names, np.moveaxis(draws, -1, 0), layout.log_uniform, strict=True
+    ):
         ax.plot(values, lw=0.4, alpha=0.5, rasterized=True)
         ax.set_ylabel(name, fontsize="small")
-        if not name.startswith(("d_lat", "d_long")):
+        if log:  # the noise parameters, log-uniform a priori
             ax.set_yscale("log")
     axes[0].set_title("walkers (kept draws)")
     axes[-1].set_xlabel("draw")

@@ -1,41 +1,46 @@
-"""Posterior files: arviz InferenceData built from a chain, saved, loaded, summarised.
+"""Posterior files: built from a chain, saved, loaded, read (docs/design.md §7).
 
-Layout of a posterior (NetCDF through arviz, groups):
-
-- ``posterior``: ``d_lat``, ``d_long`` [N s/m]; the noise parameters
-  (``sigma_h`` or ``width`` [s], ``sigma_c``, ``sigma_n`` [channel units];
-  white noise with the diagonal sensor term has no ``sigma_n``, its
-  ``sigma_c`` is the total sd), scalars when one noise group, else along
-  ``noise_group``; derived
-  ``ratio`` = d_lat / d_long, ``Ad`` (diagonal, along ``state``) and ``Bd``
-  (``state`` x ``wheel``). Walkers are arviz chains.
-- ``sample_stats``: ``lp`` (log posterior in sampling coordinates) and
-  ``log_likelihood_total`` (the log-likelihood of each draw).
-- ``observed_data``: ``residual_<channel>_<i>``, the one-step residuals of
-  experiment i on its steady window at the posterior median of the damping.
-- ``constant_data``: the measured experiments, ``<field>_<i>``.
-- ``attrs`` of ``posterior``: format, model settings, priors, robot,
-  experiments (each with its provenance: source file, time base and
-  repairs) and convergence diagnostics (dicts as JSON strings).
+A posterior is an arviz InferenceData (NetCDF on disk) with the groups
+``posterior`` (the parameters, derived ``ratio``, ``Ad``, ``Bd``),
+``sample_stats`` (``lp``, ``log_likelihood_total``), ``observed_data``
+(the residuals at the posterior median) and ``constant_data`` (the measured
+experiments). Its metadata are attributes of ``posterior``, owned by
+:mod:`bayes_jackal.posterior_format` (re-exported here):
+:func:`posterior_metadata` gives them typed (the robot, priors, parameter
+layout, experiments, noise groups, convergence, and the results stored
+later by :func:`store_comparison` and :func:`store_criticism`). No other
+module parses them.
 """
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from . import __version__
 from ._files import write_hdf5
 from .errors import DataError
 from .experiment import REQUIRED, Experiment
 from .kernels import get_family
 from .likelihood import ResidualLikelihood, residual_autocovariance
+from .parameters import ParameterLayout
 from .physics import CHANNELS, channel_coefficients, discrete_matrices
+from .posterior_format import (
+    FORMAT,
+    READABLE_FORMATS,
+    ROBOT_CONSTANTS,
+    Convergence,
+    ExperimentRecord,
+    PosteriorMetadata,
+    file_attributes,
+    posterior_layout,
+    posterior_metadata,
+    store_comparison,
+    store_criticism,
+)
 from .residuals import channel_residuals
-from .robot import RobotProfile, load_profile
+from .robot import RobotProfile
 
 with warnings.catch_warnings():
     # arviz 0.2x announces its 1.x refactor on import (docs/design.md §4 pins arviz<1).
@@ -45,24 +50,33 @@ with warnings.catch_warnings():
 __all__ = [
     "FORMAT",
     "INTERVAL_FIELDS",
+    "READABLE_FORMATS",
+    "ROBOT_CONSTANTS",
+    "Convergence",
+    "ExperimentRecord",
+    "PosteriorMetadata",
     "az",
     "build_inference_data",
     "interval",
     "load_posterior",
     "model_autocovariance",
+    "observed_residuals",
     "parameter_draws",
     "parameter_variables",
     "posterior_experiments",
+    "posterior_layout",
     "posterior_likelihood",
+    "posterior_metadata",
     "posterior_robot",
     "posterior_truth",
     "save_posterior",
+    "store_comparison",
+    "store_criticism",
     "summarize",
     "thinned_draws",
     "thinned_indices",
 ]
 
-FORMAT = "bayes_jackal.posterior/1"
 #: The thesis' ridge ratio d_lat / d_long (ch. 5-2-2).
 THESIS_RATIO = 11.0 / 3.0
 #: Credible mass of the reported highest-density intervals (arviz's default).
@@ -72,15 +86,13 @@ _SUMMARY_FIELDS = ("mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r
 INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
 
 
-def _noise_variables(likelihood: ResidualLikelihood, draws: np.ndarray) -> tuple[dict, dict]:
+def _noise_variables(layout: ParameterLayout, draws: np.ndarray) -> tuple[dict, dict]:
     """Noise parameters as variables: scalars for one group, else along noise_group."""
-    bases = likelihood.noise_parameter_names
-    per_group = len(bases)
-    groups = len(likelihood.noise_groups)
+    groups = range(len(layout.groups))
     variables, dims = {}, {}
-    for i, base in enumerate(bases):
-        columns = draws[..., 2 + i :: per_group][..., :groups]
-        if groups == 1:
+    for base in layout.noise_bases:
+        columns = draws[..., [layout.column(base, g) for g in groups]]
+        if len(groups) == 1:
             variables[base] = columns[..., 0]
         else:
             variables[base] = columns
@@ -111,7 +123,7 @@ def build_inference_data(
     """
     draws = np.swapaxes(prior.to_natural(chain), 0, 1)  # (walkers, draws, P)
     d_lat, d_long = draws[..., 0], draws[..., 1]
-    noise, dims = _noise_variables(likelihood, draws)
+    noise, dims = _noise_variables(likelihood.layout, draws)
     dt = likelihood.experiments[0].dt
     Ad, Bd = discrete_matrices(likelihood.robot, d_lat, d_long, dt)
     posterior = {
@@ -123,8 +135,11 @@ def build_inference_data(
         "Bd": Bd,
     }
     dims |= {"Ad": ["state"], "Bd": ["state", "wheel"]}
-    labels = [likelihood.group_label(c, e).strip("[]") or c for c, e in likelihood.noise_groups]
-    coords = {"noise_group": labels, "state": list(CHANNELS), "wheel": ["right", "left"]}
+    coords = {
+        "noise_group": list(likelihood.layout.labels),
+        "state": list(CHANNELS),
+        "wheel": ["right", "left"],
+    }
     observed, constant = _data_groups(
         likelihood, float(np.median(d_lat)), float(np.median(d_long))
     )
@@ -151,8 +166,21 @@ def build_inference_data(
             | {name: [f"step_{name.rsplit('_', 1)[1]}"] for name in observed}
             | {name: [f"time_{name.rsplit('_', 1)[1]}"] for name in constant},
         )
-    idata.posterior.attrs.update(_attributes(likelihood, prior, diagnostics))
+    idata.posterior.attrs.update(file_attributes(likelihood, prior, diagnostics))
     return idata
+
+
+def _residual_key(index: int, channel: str) -> str:
+    return f"residual_{channel}_{index}"
+
+
+def observed_residuals(idata: az.InferenceData, index: int, channel: str) -> np.ndarray:
+    """The stored one-step residuals of experiment ``index`` in ``channel``.
+
+    At the posterior median of the damping, on the steady window when the
+    likelihood used it [channel unit].
+    """
+    return idata.observed_data[_residual_key(index, channel)].values
 
 
 def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
@@ -160,7 +188,7 @@ def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
     observed, constant = {}, {}
     for i, experiment in enumerate(likelihood.experiments):
         for channel in likelihood.channels:
-            observed[f"residual_{channel}_{i}"] = channel_residuals(
+            observed[_residual_key(i, channel)] = channel_residuals(
                 experiment, likelihood.robot, d_lat, d_long, channel, likelihood.steady
             )
         for key in (*REQUIRED, "vx", "vy"):
@@ -168,72 +196,6 @@ def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
             if values is not None:
                 constant[f"{key}_{i}"] = np.asarray(values)
     return observed, constant
-
-
-#: Robot-profile fields a posterior keeps, enough to rebuild its model.
-_ROBOT_CONSTANTS = (
-    "name",
-    "mass",
-    "yaw_inertia",
-    "half_wheelbase",
-    "half_track",
-    "wheel_radius",
-    "wheel_separation",
-    "wheel_separation_multiplier",
-    "conversion",
-    "rate",
-    "source",
-)
-
-
-def _attributes(likelihood: ResidualLikelihood, prior, diagnostics: dict) -> dict:
-    robot = likelihood.robot
-    experiments = [
-        {
-            "name": e.name,
-            "source": e.source,
-            "series": e.series,
-            "steady_window": e.steady_window,
-            "dt": e.dt,
-            "truth": e.truth,
-            "provenance": e.provenance,
-        }
-        for e in likelihood.experiments
-    ]
-    values = {
-        "format": FORMAT,
-        "bayes_jackal_version": __version__,
-        "family": likelihood.family,
-        "channels": list(likelihood.channels),
-        "shared_noise": likelihood.shared_noise,
-        "sensor": likelihood.sensor,
-        "engine": likelihood.engine,
-        "steady": likelihood.steady,
-        "parameter_names": list(prior.names),
-        "prior": {
-            name: {"low": lo, "high": hi, "kind": "log-uniform" if log else "uniform"}
-            for name, lo, hi, log in zip(
-                prior.names,
-                prior.low.tolist(),
-                prior.high.tolist(),
-                prior.log_uniform,
-                strict=True,
-            )
-        },
-        "robot": {key: getattr(robot, key) for key in _ROBOT_CONSTANTS},
-        "experiments": experiments,
-        **diagnostics,
-    }
-    return {key: _attribute_value(value) for key, value in values.items()}
-
-
-def _attribute_value(value):
-    """NetCDF attributes hold strings and numbers: dicts, lists and None as JSON, bools as 0/1."""
-    if isinstance(value, (dict, list, tuple)) or value is None:
-        return json.dumps(value)
-    if isinstance(value, (bool, np.bool_)):
-        return int(value)
-    return value
 
 
 def parameter_variables(idata: az.InferenceData) -> list[str]:
@@ -248,20 +210,18 @@ def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     draws : ndarray, shape (draws, walkers, P)
-        Parameters in natural units, ordered as the ``parameter_names``
-        attribute (d_lat, d_long, then each noise group's parameters).
+        Parameters in natural units, ordered as the layout's names
+        (:func:`posterior_layout`: d_lat, d_long, then each noise group's).
     lp : ndarray, shape (draws, walkers)
         Log posterior in sampling coordinates (z = log theta).
     """
     posterior = idata.posterior
-    names = json.loads(posterior.attrs["parameter_names"])
-    bases = [name.split("[")[0] for name in names]
-    per_group = len(dict.fromkeys(bases[2:]))
+    layout = posterior_layout(idata)
     columns = []
-    for j, base in enumerate(bases):
+    for base, group in zip(layout.bases, layout.column_groups, strict=True):
         variable = posterior[base]
         if "noise_group" in variable.dims:
-            variable = variable.isel(noise_group=(j - 2) // per_group)
+            variable = variable.isel(noise_group=group)
         columns.append(variable.transpose("draw", "chain").values)
     return np.stack(columns, axis=-1), idata.sample_stats["lp"].transpose("draw", "chain").values
 
@@ -273,53 +233,61 @@ def interval(row: dict) -> dict:
 
 def posterior_truth(idata: az.InferenceData) -> dict | None:
     """The shared truth of simulated experiments, when every one has it."""
-    truths = [e.get("truth") for e in json.loads(idata.posterior.attrs["experiments"])]
-    return truths[0] if truths and all(truths) else None
+    return posterior_metadata(idata).truth
 
 
 def posterior_robot(idata: az.InferenceData) -> RobotProfile:
-    """The robot profile a posterior was sampled with (its constants, validated)."""
-    stored = json.loads(idata.posterior.attrs["robot"])
-    return load_profile().replace(**{k: v for k, v in stored.items() if k in _ROBOT_CONSTANTS})
+    """The robot profile a posterior was sampled with (:attr:`PosteriorMetadata.robot`).
+
+    Rebuilt from the file alone. Files written before the whole profile was
+    stored (bayes_jackal 0.1.0 before docs/design.md §7) keep the body
+    constants only; their priors, topics and wheel joints are then the
+    installed default profile's, which do not enter the model.
+    """
+    return posterior_metadata(idata).robot
 
 
 def posterior_experiments(idata: az.InferenceData) -> list[Experiment]:
     """The measured experiments a posterior was sampled from, with names and windows."""
     data = idata.constant_data
     experiments = []
-    for i, meta in enumerate(json.loads(idata.posterior.attrs["experiments"])):
+    for i, record in enumerate(posterior_metadata(idata).experiments):
         arrays = {
             key: data[f"{key}_{i}"].values
             for key in (*REQUIRED, "vx", "vy")
             if f"{key}_{i}" in data
         }
-        window = meta.get("steady_window")
         experiments.append(
             Experiment(
                 **arrays,
-                name=meta["name"],
-                series=meta.get("series"),
-                steady_window=None if window is None else tuple(window),
-                truth=meta.get("truth"),
-                provenance=meta.get("provenance") or {},
-                source=meta.get("source") or "<memory>",
+                name=record.name,
+                series=record.series,
+                steady_window=record.steady_window,
+                truth=record.truth,
+                provenance=record.provenance,
+                source=record.source or "<memory>",
             )
         )
     return experiments
 
 
 def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
-    """The likelihood a posterior was sampled with, rebuilt from its file."""
-    attrs = idata.posterior.attrs
+    """The likelihood a posterior was sampled with, rebuilt from its file.
+
+    It prepares the likelihood's data (lagged sums, spectra): what needs
+    only the parameters reads :func:`posterior_metadata` instead.
+    """
+    metadata = posterior_metadata(idata)
+    layout = metadata.layout
     return ResidualLikelihood(
         posterior_experiments(idata),
-        posterior_robot(idata),
-        family=str(attrs["family"]),
-        channels=tuple(json.loads(attrs["channels"])),
-        shared_noise=bool(attrs["shared_noise"]),
-        sensor=str(attrs["sensor"]),
-        engine=str(attrs["engine"]),
-        steady=bool(attrs["steady"]),
+        metadata.robot,
+        family=layout.family,
+        channels=layout.channels,
+        shared_noise=layout.shared_noise,
+        sensor=layout.sensor,
+        engine=metadata.engine,
+        steady=metadata.steady,
     )
 
 
@@ -336,19 +304,19 @@ def thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
 
 
 def model_autocovariance(
-    likelihood: ResidualLikelihood, index: int, channel: str, theta: np.ndarray, n: int
+    metadata: PosteriorMetadata, index: int, channel: str, theta: np.ndarray, n: int
 ) -> np.ndarray:
     """The model's autocovariance of one experiment's one-step residuals in one channel.
 
     Parameters
     ----------
-    likelihood : ResidualLikelihood
-        As rebuilt by :func:`posterior_likelihood`.
+    metadata : PosteriorMetadata
+        Of the posterior (:func:`posterior_metadata`).
     index : int
         Experiment index.
     channel : {"yaw", "vx", "vy"}
     theta : ndarray, shape (B, P)
-        Parameter vectors in natural units (``parameter_names`` order).
+        Parameter vectors in natural units (the layout's order).
     n : int
         Number of lags.
 
@@ -357,23 +325,12 @@ def model_autocovariance(
     ndarray, shape (B, n)
         Autocovariance at lags 0..n-1 [channel unit squared].
     """
-    experiment = likelihood.experiments[index]
-    key = (channel, "all" if likelihood.shared_noise else experiment.name)
-    width, sigma_c, sigma_n = likelihood.noise_parameters(
-        theta, likelihood.noise_groups.index(key)
-    )
-    alpha, _ = channel_coefficients(
-        likelihood.robot, theta[:, 0], theta[:, 1], channel, experiment.dt
-    )
+    record = metadata.experiments[index]
+    layout = metadata.layout
+    width, sigma_c, sigma_n = layout.noise_parameters(theta, layout.group(channel, record.name))
+    alpha, _ = channel_coefficients(metadata.robot, theta[:, 0], theta[:, 1], channel, record.dt)
     return residual_autocovariance(
-        get_family(likelihood.family),
-        width,
-        sigma_c,
-        sigma_n,
-        alpha,
-        experiment.dt,
-        n,
-        likelihood.sensor,
+        get_family(layout.family), width, sigma_c, sigma_n, alpha, record.dt, n, layout.sensor
     )
 
 
@@ -383,12 +340,14 @@ def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:
 
 
 def load_posterior(path: str | Path) -> az.InferenceData:
-    """Read a posterior written by :func:`save_posterior`.
+    """Read a posterior written by :func:`save_posterior`, its attributes checked.
 
     Raises
     ------
     DataError
-        When the file is missing, unreadable, or not a bayes_jackal posterior.
+        When the file is missing, unreadable, not a bayes_jackal posterior,
+        of a format this version does not read (naming it), or its
+        attributes are malformed; the message names the file.
     """
     path = Path(path)
     if not path.is_file():
@@ -399,11 +358,16 @@ def load_posterior(path: str | Path) -> az.InferenceData:
             idata = az.from_netcdf(str(path))
     except (OSError, ValueError, KeyError) as exc:
         raise DataError(f"not a readable posterior file ({exc})", source=str(path)) from None
-    posterior = getattr(idata, "posterior", None)
-    if posterior is None or posterior.attrs.get("format") != FORMAT:
+    if getattr(idata, "posterior", None) is None:
         raise DataError(
-            "not a bayes_jackal posterior (written by `bayes-jackal sample`)", source=str(path)
+            "not a bayes_jackal posterior (no posterior group; posteriors are written by "
+            "`bayes-jackal sample` and `compare --out`)",
+            source=str(path),
         )
+    try:
+        posterior_metadata(idata)
+    except DataError as exc:
+        raise DataError(str(exc), source=str(path)) from None
     return idata
 
 
@@ -422,7 +386,8 @@ def summarize(idata: az.InferenceData) -> dict:
     """
     from .criticism import criticise  # criticism builds on this module
 
-    attrs = idata.posterior.attrs
+    metadata = posterior_metadata(idata)
+    convergence = metadata.convergence
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         table = az.summary(
@@ -431,19 +396,18 @@ def summarize(idata: az.InferenceData) -> dict:
             hdi_prob=HDI_PROB,
             round_to="none",
         )
-    ess_autocorr = json.loads(attrs["ess_autocorr"])
     summary: dict = {}
     for label, row in table.iterrows():
         summary[label] = {key: float(row[key]) for key in _SUMMARY_FIELDS}
-        if label in ess_autocorr:
-            summary[label]["ess_autocorr"] = ess_autocorr[label]
+        if label in convergence.ess_autocorr:
+            summary[label]["ess_autocorr"] = convergence.ess_autocorr[label]
     posterior = idata.posterior
     d_lat, d_long = posterior["d_lat"].values.ravel(), posterior["d_long"].values.ravel()
     summary["ratio"]["thesis"] = THESIS_RATIO
     summary["corr_d_lat_d_long"] = float(np.corrcoef(d_lat, d_long)[0, 1])
-    summary["autocorr_time"] = json.loads(attrs["autocorr_time"])
-    summary["n_steps"] = int(attrs["n_steps"])
-    summary["converged"] = bool(attrs["converged"])
-    summary["family"] = str(attrs["family"])
-    summary["channels"] = json.loads(attrs["channels"])
+    summary["autocorr_time"] = convergence.autocorr_time
+    summary["n_steps"] = convergence.n_steps
+    summary["converged"] = convergence.converged
+    summary["family"] = metadata.family
+    summary["channels"] = list(metadata.channels)
     return summary | criticise(idata)

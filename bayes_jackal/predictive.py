@@ -18,14 +18,15 @@ import numpy as np
 
 from ._chunks import chunks
 from .kernels import as_rng
-from .likelihood import ResidualLikelihood, sample_stationary
+from .likelihood import sample_stationary
 from .physics import simulate
 from .posterior import (
+    PosteriorMetadata,
     az,
     model_autocovariance,
+    observed_residuals,
     posterior_experiments,
-    posterior_likelihood,
-    posterior_robot,
+    posterior_metadata,
     thinned_draws,
 )
 
@@ -43,7 +44,7 @@ CHUNK_SAMPLES = 400_000
 
 
 def predictive_series(
-    likelihood: ResidualLikelihood,
+    metadata: PosteriorMetadata,
     index: int,
     channel: str,
     theta: np.ndarray,
@@ -60,8 +61,8 @@ def predictive_series(
 
     Parameters
     ----------
-    likelihood : ResidualLikelihood
-        As rebuilt by :func:`posterior_likelihood`.
+    metadata : PosteriorMetadata
+        Of the posterior (:func:`~bayes_jackal.posterior.posterior_metadata`).
     index : int
         Experiment index.
     channel : {"yaw", "vx", "vy"}
@@ -80,7 +81,7 @@ def predictive_series(
     """
     generators = as_rng(rng).spawn(len(theta))
     for part in chunks(len(theta), n, budget=CHUNK_SAMPLES):
-        acov = model_autocovariance(likelihood, index, channel, theta[part], n)
+        acov = model_autocovariance(metadata, index, channel, theta[part], n)
         yield (
             part,
             np.concatenate(
@@ -123,12 +124,12 @@ def predictive_statistics(
     dict of str to ndarray
         Each statistic of every draw, shape (count, ...), under its key.
     """
-    likelihood = posterior_likelihood(idata)
+    metadata = posterior_metadata(idata)
     theta = thinned_draws(idata, count)
-    n = idata.observed_data[f"residual_{channel}_{index}"].size
+    n = observed_residuals(idata, index, channel).size
     chunks = [
         {name: function(series) for name, function in statistics.items()}
-        for _, series in predictive_series(likelihood, index, channel, theta, n, rng)
+        for _, series in predictive_series(metadata, index, channel, theta, n, rng)
     ]
     return {name: np.concatenate([chunk[name] for chunk in chunks]) for name in statistics}
 
@@ -161,7 +162,7 @@ def model_percentiles(
         Percentiles of (vx, vy, yaw rate) [m/s, m/s, rad/s] at each sample.
     """
     experiment = posterior_experiments(idata)[index]
-    robot = posterior_robot(idata)
+    robot = posterior_metadata(idata).robot
     theta = thinned_draws(idata, count)
     x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
     state = np.array([*x0, experiment.yaw_rate[0]])

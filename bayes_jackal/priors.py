@@ -9,13 +9,14 @@ The MAP search uses them in :mod:`bayes_jackal.map_search`, the sampler in
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.stats
 
-from .errors import InputError
 from .likelihood import ResidualLikelihood
+from .parameters import prior_overrides, prior_range
 from .robot import RobotProfile
 
 __all__ = ["LogPosterior", "Prior"]
@@ -33,7 +34,7 @@ class Prior:
     Attributes
     ----------
     names : tuple of str
-        Parameter names, as :attr:`ResidualLikelihood.parameter_names`.
+        Parameter names (:attr:`bayes_jackal.parameters.ParameterLayout.names`).
     low, high : ndarray, shape (P,)
         Bounds in natural units.
     log_uniform : ndarray of bool, shape (P,)
@@ -47,32 +48,25 @@ class Prior:
 
     @classmethod
     def for_likelihood(
-        cls, likelihood: ResidualLikelihood, robot: RobotProfile, overrides: dict | None = None
+        cls,
+        likelihood: ResidualLikelihood,
+        robot: RobotProfile,
+        overrides: Mapping[str, Sequence[float]] | None = None,
     ) -> Prior:
         """Priors of every parameter of ``likelihood`` from the robot profile.
 
-        ``overrides`` maps a base name (``d_lat``, ``d_long``, ``sigma_h``,
-        ``sigma_c``, ``sigma_n``) to a (low, high) pair. Every noise family's
+        ``overrides`` maps a prior key (``d_lat``, ``d_long``, ``sigma_h``,
+        ``sigma_c``, ``sigma_n``; ``width`` for ``sigma_h``) to a (low, high)
+        pair that replaces the profile's, validated by
+        :func:`~bayes_jackal.parameters.prior_overrides`: an unknown key is
+        an :class:`InputError` naming the keys allowed. Every noise family's
         width takes the ``sigma_h`` range.
         """
-        ranges = {**robot.priors, **(overrides or {})}
-        low, high, log_uniform = [], [], []
-        for name in likelihood.parameter_names:
-            base = name.split("[")[0]
-            key = "sigma_h" if base == "width" else base
-            lo, hi = (float(v) for v in ranges[key])
-            if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
-                raise InputError(
-                    f"prior range must satisfy 0 < low < high, got [{lo}, {hi}]: it excludes "
-                    "every value",
-                    field=f"priors.{key}",
-                )
-            low.append(lo)
-            high.append(hi)
-            log_uniform.append(base not in ("d_lat", "d_long"))
-        return cls(
-            tuple(likelihood.parameter_names), np.array(low), np.array(high), np.array(log_uniform)
-        )
+        layout = likelihood.layout
+        ranges = {**robot.priors, **prior_overrides(overrides)}
+        keys = [layout.prior_key(base) for base in layout.bases]
+        low, high = np.array([prior_range(key, ranges[key]) for key in keys]).T
+        return cls(layout.names, low, high, np.array(layout.log_uniform))
 
     @property
     def z_low(self) -> np.ndarray:

@@ -18,9 +18,8 @@ import base64
 import datetime
 import html
 import io
-import json
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +32,7 @@ from .physics import CHANNELS, discrete_matrices
 from .posterior import (
     az,
     load_posterior,
-    posterior_robot,
-    posterior_truth,
+    posterior_metadata,
     summarize,
 )
 
@@ -196,8 +194,9 @@ def _model_truth(idata: az.InferenceData, truth: dict | None) -> dict | None:
     """
     if not truth or "sigma_n" in idata.posterior.data_vars:
         return truth
-    dt = json.loads(idata.posterior.attrs["experiments"])[0]["dt"]
-    Ad, _ = discrete_matrices(posterior_robot(idata), truth["d_lat"], truth["d_long"], dt)
+    metadata = posterior_metadata(idata)
+    dt = metadata.experiments[0].dt
+    Ad, _ = discrete_matrices(metadata.robot, truth["d_lat"], truth["d_long"], dt)
     total = {
         c: float(np.hypot(truth["sigma_c"][c], truth["sigma_n"][c] * np.hypot(1.0, Ad[i, i])))
         for i, c in enumerate(CHANNELS)
@@ -237,14 +236,14 @@ def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:
         ],
         rows,
     )
-    attrs = idata.posterior.attrs
+    convergence = posterior_metadata(idata).convergence
     taus = summary["autocorr_time"]
     diagnostics = (
-        f"<p>{summary['n_steps']} steps of {attrs['walkers']} walkers; longest "
+        f"<p>{summary['n_steps']} steps of {convergence.walkers} walkers; longest "
         f"autocorrelation time {max(taus.values()):.0f} steps "
         f"({summary['n_steps'] / max(taus.values()):.0f} tau; converged when > "
-        f"{json.loads(attrs['settings'])['autocorr_multiple']:g} and stable); acceptance "
-        f"{float(attrs['acceptance_fraction']):.2f}; corr(d_lat, d_long) = "
+        f"{convergence.settings['autocorr_multiple']:g} and stable); acceptance "
+        f"{convergence.acceptance_fraction:.2f}; corr(d_lat, d_long) = "
         f"{summary['corr_d_lat_d_long']:.3f}; thesis ratio 11/3 = 3.667. R-hat over walkers "
         "is a secondary check: emcee's walkers are not independent chains.</p>"
     )
@@ -255,13 +254,13 @@ def _evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
     """Evidence tables, one per data set, from posteriors that carry one."""
     data_sets: dict[tuple, list] = {}
     for path, idata in posteriors:
-        attrs = idata.posterior.attrs
-        if "evidence" in attrs:
-            names = tuple(e["name"] for e in json.loads(attrs["experiments"]))
-            data_sets.setdefault(names, []).append((path, attrs))
+        metadata = posterior_metadata(idata)
+        if metadata.evidence is not None:
+            names = tuple(e.name for e in metadata.experiments)
+            data_sets.setdefault(names, []).append((path, metadata))
     parts = []
     for names, members in data_sets.items():
-        evidence = {str(a["family"]): json.loads(a["evidence"]) for _, a in members}
+        evidence = {m.family: m.evidence.to_dict() for _, m in members}
         best = max(evidence.values(), key=lambda e: e["log_evidence"])["log_evidence"]
         white = evidence.get("white", {}).get("log_evidence")
         rows = [
@@ -360,24 +359,25 @@ def _criticism_table(criticism: dict) -> str:
 
 
 def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, lags: int) -> str:
-    attrs = idata.posterior.attrs
-    experiments = json.loads(attrs["experiments"])
-    channels = json.loads(attrs["channels"])
-    family = str(attrs["family"])
+    metadata = posterior_metadata(idata)
+    experiments = metadata.experiments
+    channels = metadata.channels
+    family = metadata.family
     title = f"{path.name}: {family} noise on {', '.join(channels)}"
-    truth = posterior_truth(idata)
+    truth = metadata.truth
     parts = [f"<section><h2>{html.escape(title)}</h2>"]
-    if not bool(attrs["converged"]):
+    if not metadata.convergence.converged:
         parts.append(
             '<div class="not-converged">NOT CONVERGED: the chain stopped at '
-            f"{attrs['n_steps']} steps, fewer than the convergence criterion needs. Treat "
-            "every number below as preliminary; resume the run with more steps.</div>"
+            f"{metadata.convergence.n_steps} steps, fewer than the convergence criterion "
+            "needs. Treat every number below as preliminary; resume the run with more "
+            "steps.</div>"
         )
-    names = ", ".join(e["name"] for e in experiments)
+    names = ", ".join(e.name for e in experiments)
     parts.append(
         f"<p>Experiments ({len(experiments)}{', pooled' if len(experiments) > 1 else ''})"
-        f": {html.escape(names)}. Sensor noise {attrs['sensor']}, engine "
-        f"{attrs['engine']}."
+        f": {html.escape(names)}. Sensor noise {metadata.layout.sensor}, engine "
+        f"{metadata.engine}."
         + (
             ""
             if "sigma_n" in idata.posterior.data_vars
@@ -414,7 +414,7 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
         figures.html(f"{prefix}-traces", "walker traces", lambda: plots.plot_traces(idata))
     )
     for i, experiment in enumerate(experiments):
-        name = experiment["name"]
+        name = experiment.name
         parts.append(f"<h3>{html.escape(name)}</h3>")
         parts.append(
             figures.html(
@@ -464,7 +464,7 @@ def render_report(
         f"{html.escape(', '.join(str(p) for p, _ in posteriors))}. Figures as PNG and SVG in "
         f"<code>{html.escape(figures.folder.name)}/</code>.</p>",
     ]
-    stale = [p.name for p, idata in posteriors if not bool(idata.posterior.attrs["converged"])]
+    stale = [p.name for p, i in posteriors if not posterior_metadata(i).convergence.converged]
     if stale:
         body.append(
             f'<div class="not-converged">NOT CONVERGED: {html.escape(", ".join(stale))}. '
@@ -480,19 +480,62 @@ def render_report(
     )
 
 
+#: The posteriors :func:`write_report` takes (see there).
+Posteriors = str | Path | az.InferenceData | Sequence[str | Path | az.InferenceData] | Mapping
+
+
+def _labelled(
+    posteriors: Posteriors,
+) -> tuple[list[tuple[Path, az.InferenceData]], dict[str, str], int]:
+    """(label, posterior) pairs in order, unreadable inputs (path -> reason), input count."""
+    if isinstance(posteriors, Mapping) and not isinstance(posteriors, az.InferenceData):
+        items = [(str(label), item) for label, item in posteriors.items()]  # (a Mapping too)
+    else:
+        many = isinstance(posteriors, Sequence) and not isinstance(posteriors, str)
+        items = [(None, item) for item in (posteriors if many else [posteriors])]
+    labelled, failed, taken = [], {}, set()
+    for label, item in items:
+        if isinstance(item, az.InferenceData):
+            name = label or posterior_metadata(item).family
+            free, count = name, 1
+            while Path(free).stem in taken:
+                count += 1
+                free = f"{name}-{count}"
+            found = [(Path(free), item)]
+        elif isinstance(item, str | Path) and label is None:
+            found, unreadable = read_posteriors([item])
+            failed |= unreadable
+        else:
+            raise InputError(
+                "expected posterior files or folders, posteriors in memory "
+                f"(arviz.InferenceData) or a mapping of labels to them, got {item!r:.80}",
+                field="posteriors",
+            )
+        taken |= {path.stem for path, _ in found}
+        labelled += found
+    return labelled, failed, len(items)
+
+
 def write_report(
-    paths: list[str | Path],
+    posteriors: Posteriors,
     out: str | Path,
+    *,
     formats: tuple[str, ...] = FIGURE_FORMATS,
     lags: int = 30,
 ) -> Path:
-    """Write the HTML report of posterior files, and its figures beside it.
+    """Write the HTML report of posteriors, in files or in memory, and its figures beside it.
 
     Parameters
     ----------
-    paths : list of str or Path
-        Posterior files (``bayes-jackal sample`` or ``compare --out``) or
-        folders of them.
+    posteriors : path, arviz.InferenceData, sequence of them, or mapping
+        Posterior files (``bayes-jackal sample`` or ``compare --out``),
+        folders of them (their ``*.nc`` files, sorted), posteriors in memory
+        (:func:`bayes_jackal.sample`), or a mapping of labels to posteriors
+        in memory, e.g. a comparison's ``posteriors`` (family -> posterior).
+        The report names each posterior where a file's name would be (its
+        section title, the list of posteriors, figure file names): a file by
+        its path, a posterior in memory by its mapping key, else by its
+        noise family (``gaussian``; ``gaussian-2`` for a second one).
     out : str or Path
         The HTML file; figures go to ``<out stem>_figures/``.
     formats : tuple of str
@@ -509,11 +552,27 @@ def write_report(
     ------
     InputError
         Naming every missing file, empty folder and file that is not a
-        posterior (:func:`read_posteriors`).
+        posterior (:func:`read_posteriors`), or an input of another type.
+
+    Examples
+    --------
+    A posterior in memory (200 steps for a quick example, far from
+    converged, as the report says in red; real use takes the default cap):
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=200, seed=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = bj.write_report(posterior, Path(folder) / "report.html", formats=("png",))
+    ...     text = path.read_text()
+    ...     print(path.name, "white: white noise on yaw" in text, "NOT CONVERGED" in text)
+    report.html True True
     """
-    posteriors, failed = read_posteriors(paths)
-    refuse(failed, len(paths))
-    return save_report(posteriors, out, formats, lags)
+    labelled, failed, count = _labelled(posteriors)
+    refuse(failed, count)
+    return save_report(labelled, out, formats, lags)
 
 
 def save_report(

@@ -19,7 +19,7 @@ and record what they did in ``provenance["time_base"]`` and
 from __future__ import annotations
 
 import csv
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +36,7 @@ __all__ = [
     "ROLES",
     "check_column_roles",
     "check_sample_time",
+    "check_unique_names",
     "load_experiment",
     "load_experiments",
     "read_csv",
@@ -441,15 +442,25 @@ def read_experiments(
         ),
         on_failure=on_failure,
     )
-    names = [e.name for e in experiments.values()]
+    check_unique_names(experiments.values())
+    return experiments, failed
+
+
+def check_unique_names(experiments: Iterable[Experiment]) -> None:
+    """Refuse experiments that share a name (a posterior and its files name them).
+
+    Raises
+    ------
+    DataError
+        Naming each shared name and the files of its experiments.
+    """
+    experiments = list(experiments)
+    names = [e.name for e in experiments]
     duplicated = {
-        n: [e.source for e in experiments.values() if e.name == n]
-        for n in names
-        if names.count(n) > 1
+        n: [e.source for e in experiments if e.name == n] for n in names if names.count(n) > 1
     }
     if duplicated:
         raise DataError(f"experiment names are not unique: {duplicated}", field="name")
-    return experiments, failed
 
 
 def load_experiments(

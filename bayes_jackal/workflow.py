@@ -53,7 +53,7 @@ from .report import write_report
 from .robot import RobotProfile, load_profile
 from .tables import load_experiment
 
-__all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "analyse_logs", "ingest_logs"]
+__all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "analyse_logs", "ingest_logs", "read_log"]
 
 #: Families compared by default: the thesis' question, coloured or not.
 DEFAULT_FAMILIES = ("white", "gaussian")
@@ -63,19 +63,38 @@ BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
 
 
-def _read(
-    path: Path,
+def read_log(
+    path: str | Path,
     robot: RobotProfile,
-    window: tuple[float, float] | None,
-    max_gap: float | None,
-    progress: bool,
-    read_options: Mapping,
+    *,
+    window: tuple[float, float] | None = None,
+    max_gap: float | None = None,
+    progress: bool = False,
+    read_options: Mapping | None = None,
 ) -> Experiment:
-    """One input as an experiment: a bag through ingest, or an experiment file."""
+    """One input as an experiment: a bag as ``ingest`` reads it, or an experiment file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A bag (:data:`BAG_SUFFIXES`, or a ROS2 bag folder) or an experiment
+        file (``.csv``, ``.mat``, ``.nc``).
+    robot : RobotProfile
+        Topics and wheel joints of a bag; the rate an experiment file's
+        sample time must agree with (:func:`~bayes_jackal.tables.check_sample_time`).
+    window, max_gap, progress, read_options
+        As in :func:`ingest_logs`.
+
+    Returns
+    -------
+    Experiment
+    """
+    path = Path(path)
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
         gap = {} if max_gap is None else {"max_gap": max_gap}
         return read_bag(path, robot, window=window, progress=progress, **gap)
-    experiment = load_experiment(path, max_gap=max_gap, **{"robot": robot, **read_options})
+    options = {"robot": robot, **(read_options or {})}
+    experiment = load_experiment(path, max_gap=max_gap, **options)
     if window is None:
         return experiment
     experiment.window(*window)  # raises DataError when it holds too few samples
@@ -166,7 +185,14 @@ def ingest_logs(
 
     def ingest(given: str | Path) -> Experiment:
         path = Path(given)
-        experiment = _read(path, robot, window, max_gap, progress, read_options or {})
+        experiment = read_log(
+            path,
+            robot,
+            window=window,
+            max_gap=max_gap,
+            progress=progress,
+            read_options=read_options,
+        )
         name, target = _target(experiment.name, Path(folder), path, inputs, owners)
         experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
         if name != experiment.name:  # two inputs of one name: both kept, the second renamed

@@ -38,7 +38,7 @@ import numpy as np
 from bayes_jackal import load_profile
 from bayes_jackal.experiment import write_netcdf
 from bayes_jackal.inference import chain_path
-from bayes_jackal.posterior import load_posterior
+from bayes_jackal.posterior import load_posterior, posterior_metadata
 from bayes_jackal.simulate import Series, simulate_experiment
 
 ROBOT = load_profile()
@@ -86,7 +86,7 @@ def sample(path: Path, folder: Path, seed: int, *extra: str) -> dict:
     result = run(
         ["sample", str(path), "--out", str(out), "--seed", str(seed), "--no-progress", *extra]
     )
-    tau = json.loads(load_posterior(out).posterior.attrs["autocorr_time"])
+    tau = posterior_metadata(load_posterior(out)).convergence.autocorr_time
     return result | {"tau": max(tau.values())}
 
 
@@ -165,11 +165,11 @@ def main() -> None:
             f"{result['peak_mb']:7.0f} MB (largest process)"
         )
         for posterior in sorted(out.glob("*.nc")):
-            attrs = load_posterior(posterior).posterior.attrs
-            tau = max(json.loads(attrs["autocorr_time"]).values())
+            convergence = posterior_metadata(load_posterior(posterior)).convergence
+            tau = max(convergence.autocorr_time.values())
             print(
-                f"  {posterior.stem.split('.')[-1]:<14s} {attrs['n_steps']:>6} steps "
-                f"tau {tau:.0f} converged={bool(attrs['converged'])}"
+                f"  {posterior.stem.split('.')[-1]:<14s} {convergence.n_steps:>6} steps "
+                f"tau {tau:.0f} converged={convergence.converged}"
             )
     if "khz" in cases:
         path = make_run(folder, 16.0, rate=1000.0)

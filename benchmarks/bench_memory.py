@@ -113,11 +113,11 @@ def run_step(step: str, path: Path) -> None:
     """One post-processing step on the posterior file ``path``."""
     from bayes_jackal import plots
     from bayes_jackal.criticism import criticise
-    from bayes_jackal.posterior import load_posterior, posterior_likelihood
+    from bayes_jackal.posterior import load_posterior, posterior_likelihood, posterior_metadata
     from bayes_jackal.report import write_report
 
     idata = load_posterior(path)
-    channels = json.loads(idata.posterior.attrs["channels"])
+    channels = posterior_metadata(idata).channels
     if step == "load":
         posterior_likelihood(idata)
     elif step == "criticise":

@@ -9,6 +9,10 @@ small ripple, and white sensor noise, sampled at the Jackal IMU's 72 Hz for
 38 s (thesis ch. 7-3-1). Only the robot's constants come from the package's
 profile. Tests that pass on these runs pass on data the package did not
 generate.
+
+Also shared: ``thesis_discrete_model`` (the same model's (Ad, Bd), for
+checks of residuals and model curves) and ``simulated`` (two small runs
+written by ``bayes-jackal simulate``, for the tests of the command line).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import pytest
 import scipy.linalg
 import scipy.signal
 
+from bayes_jackal.cli import main
 from bayes_jackal.experiment import Experiment
 from bayes_jackal.robot import RobotProfile
 
@@ -149,3 +154,23 @@ def simulate_thesis_like(
 def thesis_like_simulator():
     """The independent simulator :func:`simulate_thesis_like`."""
     return simulate_thesis_like
+
+
+@pytest.fixture(scope="session")
+def thesis_discrete_model():
+    """``(Ad, Bd) = model(robot, d_lat, d_long, dt)``: eq. 4-32 held over dt, as above."""
+    return lambda robot, d_lat, d_long, dt: zero_order_hold(
+        *thesis_matrices(robot, d_lat, d_long), dt
+    )
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory) -> list[str]:
+    """Two simulated NetCDF experiments (v1_01, v2_01) written by the CLI, once per module.
+
+    tests/test_bags.py and tests/test_criticism.py define their own
+    ``simulated`` (one Experiment in memory), which overrides this one there.
+    """
+    folder = tmp_path_factory.mktemp("simulated")
+    assert main(["simulate", "--out", str(folder), "--seed", "1", "--v1", "1", "--v2", "1"]) == 0
+    return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]

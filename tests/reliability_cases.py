@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 import re
 import shutil
@@ -1885,15 +1884,6 @@ CASES: list[Case] = [
     *GARBAGE_CASES,
     *SPECIAL_CASES,
 ]
-
-
-def strict_json(text: str) -> object:
-    """Parse JSON refusing NaN and Infinity (which json.loads accepts by default)."""
-
-    def refuse(name: str):
-        raise ValueError(f"not valid JSON: {name}")
-
-    return json.loads(text, parse_constant=refuse)
 
 
 def words_missing(case: Case, stderr: str, words=None) -> list[str]:

@@ -6,11 +6,13 @@ import json
 import re
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
+from cli_helpers import strict_json
 
 from bayes_jackal.cli import build_parser, main
 from bayes_jackal.experiment import Experiment, read_netcdf
@@ -21,14 +23,6 @@ from bayes_jackal.tables import read_csv, write_csv
 SMALL = ["--v1", "1", "--v2", "1"]
 GRID = ["--d-lat", "50", "200", "10", "--d-long", "10", "60", "5"]
 ARRAYS = ("t", "yaw_rate", "omega_r", "omega_l", "vx", "vy")
-
-
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory) -> list[str]:
-    """Two simulated NetCDF experiments (v1_01, v2_01), written once per module."""
-    folder = tmp_path_factory.mktemp("simulated")
-    assert main(["simulate", "--out", str(folder), "--seed", "1", *SMALL]) == 0
-    return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
 
 
 def assert_usage_error(code: int, captured, command: str, pattern: str) -> None:
@@ -583,6 +577,56 @@ def test_debug_shows_the_traceback(simulated, capsys, failing_chi2, where):
     assert last == f"bayes-jackal: failed: RuntimeError: simulated failure ({simulated[0]})"
 
 
+# --- warnings and the version (issue 13) ---------------------------------------
+
+#: matplotlib's warning when plots.plot_grid sets the limits of a one-value grid.
+SINGULAR_XLIMS = (
+    "Attempting to set identical low and high xlims makes transformation singular; "
+    "automatically expanding."
+)
+
+
+@pytest.mark.parametrize("debug", [False, True])
+def test_a_library_warning_reaches_stderr_as_one_line(simulated, tmp_path, capsys, debug):
+    argv = ["grid", simulated[0], "--d-lat", "110", "110", "10", "--d-long", "30", "30", "5"]
+    argv += ["--plot", str(tmp_path / "grid.png"), *(["--debug"] if debug else [])]
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")  # Python's default action, not pytest's "error"
+        code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 0 and (tmp_path / "grid.png").exists()
+    [line] = [line for line in err.splitlines() if "xlims" in line]
+    where = r" \(UserWarning at .*plots\.py:\d+\)" if debug else ""
+    assert re.fullmatch(f"bayes-jackal: WARNING: {re.escape(SINGULAR_XLIMS)}{where}", line)
+    assert "Warning:" not in err.replace("bayes-jackal: WARNING:", "")  # no raw form
+
+
+def test_a_warning_is_shown_once(capsys):
+    from bayes_jackal.cli import _warnings_shown
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # Python alone would show each
+        with _warnings_shown(debug=False):
+            warnings.warn("the same message", UserWarning, stacklevel=1)
+            warnings.warn("the same message", UserWarning, stacklevel=1)
+            warnings.warn("another message", RuntimeWarning, stacklevel=1)
+    assert capsys.readouterr().err.splitlines() == [
+        "bayes-jackal: WARNING: the same message",
+        "bayes-jackal: WARNING: another message",
+    ]
+
+
+def test_version_is_the_installed_distributions(capsys):
+    import importlib.metadata
+
+    import bayes_jackal
+
+    version = importlib.metadata.version("bayes-jackal")
+    assert version == bayes_jackal.__version__
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out == f"bayes-jackal {version}\n"
+
+
 # --- numeric flags and strict JSON (issue 11) ----------------------------------
 
 
@@ -618,15 +662,6 @@ def test_bad_numeric_flags_are_refused_before_any_work(
     assert captured.out == "" and not (tmp_path / "out").exists()
 
 
-def _strict_json(text: str) -> object:
-    """json.loads that refuses NaN and Infinity, as every JSON parser but Python's does."""
-
-    def refuse(constant: str) -> None:
-        raise ValueError(f"not JSON: {constant}")
-
-    return json.loads(text, parse_constant=refuse)
-
-
 def test_every_json_output_maps_non_finite_numbers_to_null(tmp_path, capsys):
     from bayes_jackal._files import json_text, write_json
     from bayes_jackal.cli.output import Reporter
@@ -638,12 +673,12 @@ def test_every_json_output_maps_non_finite_numbers_to_null(tmp_path, capsys):
     }
     expected = {"sd": None, "p": [None, 1.5, None], "n": [None]}
     Reporter(True).result(payload)
-    assert _strict_json(capsys.readouterr().out) == expected
-    assert _strict_json(write_json(tmp_path / "x.json", payload).read_text()) == expected
-    assert _strict_json(json_text(payload, indent=None)) == expected
+    assert strict_json(capsys.readouterr().out) == expected
+    assert strict_json(write_json(tmp_path / "x.json", payload).read_text()) == expected
+    assert strict_json(json_text(payload, indent=None)) == expected
 
 
 def test_command_json_parses_strictly(simulated, capsys):
     for command in (["grid", *GRID], ["residuals", "--channels", "yaw,vx"]):
         assert main([command[0], simulated[0], *command[1:], "--json"]) == 0
-        assert _strict_json(capsys.readouterr().out)
+        assert strict_json(capsys.readouterr().out)

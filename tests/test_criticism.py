@@ -33,6 +33,7 @@ from bayes_jackal.posterior import (
     az,
     model_autocovariance,
     posterior_likelihood,
+    posterior_metadata,
     summarize,
     thinned_draws,
 )
@@ -254,7 +255,7 @@ def test_chunked_p_values_equal_the_draw_by_draw_computation(simulated, monkeypa
     exceed = 0
     for row, generator in zip(theta, generators, strict=True):
         observed = channel_residuals(experiment, ROBOT, row[0], row[1], "yaw", steady=True)
-        acov = model_autocovariance(likelihood, 0, "yaw", row[None], n)
+        acov = model_autocovariance(posterior_metadata(idata), 0, "yaw", row[None], n)
         replicated = sample_stationary(acov, generator)[0]
         exceed += acf_statistics(replicated, **options) >= acf_statistics(observed, **options)
     assert chunked["draws"] == 50

@@ -1,10 +1,13 @@
 """Every script in examples/ runs (quick settings) and prints what it promises."""
 
+import ast
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+import bayes_jackal as bj
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -31,3 +34,22 @@ def test_example_runs(script, tmp_path):
 def test_thesis_example_prints_table_6_1(tmp_path):
     result = run_example(EXAMPLES / "thesis_chapters_5_6.py", tmp_path)
     assert "table 6-1 zoh  : 0.0000 0.0144 0.0274 0.0392" in result.stdout
+
+
+def test_workflow_example_uses_top_level_names_only():
+    # The issue's promise: the whole workflow with `import bayes_jackal as bj` alone.
+    tree = ast.parse((EXAMPLES / "bayesian_workflow.py").read_text())
+    imported = [
+        (node.module if isinstance(node, ast.ImportFrom) else alias.name, alias.asname)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Import | ast.ImportFrom)
+        for alias in node.names
+    ]
+    assert [i for i in imported if "bayes_jackal" in (i[0] or "")] == [("bayes_jackal", "bj")]
+    used = {
+        node.attr
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and getattr(node.value, "id", None) == "bj"
+    }
+    assert {"load_experiments", "sample", "export_prior", "write_report", "compare"} <= used
+    assert used <= set(bj.__all__), used - set(bj.__all__)

@@ -7,7 +7,6 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -16,12 +15,12 @@ import h5py
 import numpy as np
 import pytest
 import xarray as xr
+from cli_helpers import CLI
 
 from bayes_jackal import interrupt
 from bayes_jackal.inference import BufferedHDFBackend, SamplerSettings, _run_until_converged
 
 #: The console script's entry point, run in a fresh interpreter.
-CLI = [sys.executable, "-m", "bayes_jackal.cli"]
 #: One experiment, short chains, two families: the cheapest runs of every command.
 QUICK = ["--seed", "3", "--max-steps", "200", "--channels", "yaw", "--no-progress", "--json"]
 FAMILIES = ["--families", "white,exponential"]

@@ -39,21 +39,12 @@ ROBOT = load_profile()
 DT = 1.0 / 72.0
 TRUTH = (110.0, 30.0)
 NOISE_FREE = NoiseSettings(sigma_c=(0.0, 0.0, 0.0), sigma_n=(0.0, 0.0, 0.0))
-SMALL = ["--v1", "1", "--v2", "1"]
 
 
 @pytest.fixture(scope="module")
 def noisy() -> Experiment:
     """A default (thesis-like, sensor noise included) v2 run."""
     return simulate_experiment(ROBOT, *TRUTH, "v2", rng=7)
-
-
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory) -> list[str]:
-    """Two simulated NetCDF experiments (v1_01, v2_01) written by the CLI."""
-    folder = tmp_path_factory.mktemp("simulated")
-    assert main(["simulate", "--out", str(folder), "--seed", "1", *SMALL]) == 0
-    return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
 
 
 def bartlett_covariance(rho: np.ndarray, lags: int, n: int) -> np.ndarray:

@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from cli_helpers import CLI
 
 from bayes_jackal._files import write_json
 from bayes_jackal.cli import main
@@ -36,7 +37,6 @@ from bayes_jackal.outputs import (
     protected,
 )
 
-CLI = [sys.executable, "-m", "bayes_jackal.cli"]
 #: A cheap chain: white noise, 200 steps (two flushes of 100).
 CHEAP = ["--family", "white", "--max-steps", "200", "--no-progress", "--seed", "1"]
 

@@ -11,7 +11,12 @@ from bayes_jackal._chunks import chunks
 from bayes_jackal.likelihood import sample_stationary
 from bayes_jackal.noise import sample_autocorrelation
 from bayes_jackal.physics import simulate
-from bayes_jackal.posterior import model_autocovariance, posterior_likelihood, thinned_draws
+from bayes_jackal.posterior import (
+    model_autocovariance,
+    posterior_likelihood,
+    posterior_metadata,
+    thinned_draws,
+)
 from bayes_jackal.predictive import (
     model_percentiles,
     predictive_series,
@@ -46,25 +51,25 @@ def test_a_series_longer_than_the_budget_is_one_draw_per_chunk():
 
 def _reference_series(idata, seed: int) -> np.ndarray:
     """Series i drawn alone from the i-th generator spawned from the seed."""
-    likelihood = posterior_likelihood(idata)
+    metadata = posterior_metadata(idata)
     theta = thinned_draws(idata, DRAWS)
     n = idata.observed_data["residual_yaw_0"].size
     generators = np.random.default_rng(seed).spawn(DRAWS)
     return np.concatenate(
         [
-            sample_stationary(model_autocovariance(likelihood, 0, "yaw", row[None], n), g)
+            sample_stationary(model_autocovariance(metadata, 0, "yaw", row[None], n), g)
             for row, g in zip(theta, generators, strict=True)
         ]
     )
 
 
 def test_predictive_series_do_not_depend_on_the_chunks(idata, monkeypatch):
-    likelihood = posterior_likelihood(idata)
+    metadata = posterior_metadata(idata)
     theta = thinned_draws(idata, DRAWS)
     n = idata.observed_data["residual_yaw_0"].size
-    whole = list(predictive_series(likelihood, 0, "yaw", theta, n, rng=3))
+    whole = list(predictive_series(metadata, 0, "yaw", theta, n, rng=3))
     monkeypatch.setattr(predictive, "CHUNK_SAMPLES", 5 * n)  # chunks of 5, 5 and 2 draws
-    chunks = list(predictive_series(likelihood, 0, "yaw", theta, n, rng=3))
+    chunks = list(predictive_series(metadata, 0, "yaw", theta, n, rng=3))
     assert len(whole) == 1 and [part.stop - part.start for part, _ in chunks] == [5, 5, 2]
     chunked = np.concatenate([series for _, series in chunks])
     # Every series comes from its own generator; only the autocovariance of a

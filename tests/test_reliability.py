@@ -31,11 +31,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from reliability_cases import CASES, Case, Library, mat, strict_json, words_missing
+from cli_helpers import CLI as MODULE
+from cli_helpers import strict_json
+from reliability_cases import CASES, Case, Library, mat, words_missing
 
 ENV = os.environ | {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 EXEC_ALL = os.environ.get("BAYES_JACKAL_RELIABILITY_EXEC") == "1"
-MODULE = [sys.executable, "-m", "bayes_jackal.cli"]
 SCRIPT = [str(Path(sys.executable).with_name("bayes-jackal"))]
 #: Seconds a command may take to stop after SIGINT/SIGTERM (issue: "about a second").
 STOP_WITHIN = 2.0

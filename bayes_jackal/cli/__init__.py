@@ -2,16 +2,20 @@
 
 Commands, flags, JSON keys and exit codes follow docs/design.md §6. Exit codes:
 0 success, 2 bad input (the message names file, field and value), 1 any
-other failure; no traceback reaches the user (unless ``--debug``). The parser lives in
-:mod:`.parser`, the commands in :mod:`.commands`, what they print in
-:mod:`.output`.
+other failure; no traceback reaches the user (unless ``--debug``). A Python
+warning that reaches the top is one ``bayes-jackal: WARNING:`` line. The
+parser lives in :mod:`.parser`, the commands in :mod:`.commands`, what they
+print in :mod:`.output`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import signal
 import sys
+import warnings
+from collections.abc import Iterator
 
 __all__ = ["build_parser", "console", "main"]
 
@@ -87,13 +91,38 @@ def _run(argv: list[str] | None) -> int:
     except SystemExit as exc:  # usage errors (2) and --help/--version (0)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
-        with guarded(args):  # outputs checked, inputs protected, main output locked
+        # Warnings on stderr; outputs checked, inputs protected, main output locked.
+        with _warnings_shown(debug=args.debug), guarded(args):
             return args.func(args)
     except InputError as exc:  # names its file, field and value
         return print_failure(exc, debug=args.debug)
     except Exception as exc:  # one line naming the input (exit 1); --debug: the traceback
         source = getattr(exc, "input_source", None) or ", ".join(command_inputs(args))
         return print_failure(exc, source, debug=args.debug)
+
+
+@contextlib.contextmanager
+def _warnings_shown(*, debug: bool) -> Iterator[None]:
+    """Each Python warning that reaches the top as one line on stderr, in the CLI's style.
+
+    ``bayes-jackal: WARNING: message``, as the convergence and criticism
+    warnings (:func:`.output.print_criticism`); with ``--debug``, followed by
+    its category and where it was raised. A message already shown is not
+    shown again. Python's filters still decide which warnings are shown
+    (``-W``, ``PYTHONWARNINGS``).
+    """
+    shown: set[tuple[type[Warning], str]] = set()
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        if (category, str(message)) in shown:
+            return
+        shown.add((category, str(message)))
+        where = f" ({category.__name__} at {filename}:{lineno})" if debug else ""
+        print(f"bayes-jackal: WARNING: {message}{where}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from .._files import write_json
+from ..api import likelihood_options
 from ..bag_writer import write_bag
 from ..comparison import compare_groups
 from ..criticism import criticise
@@ -25,10 +26,11 @@ from ..gridsearch import damping_grid, grid_search
 from ..inference import ConvergenceWarning, SamplerSettings, chain_path, sample_posterior
 from ..likelihood import ResidualLikelihood, resolve_channels
 from ..noise import analyse
+from ..parameters import prior_overrides
 from ..plots import save_grid_plot
 from ..posterior import load_posterior, save_posterior, summarize
 from ..report import read_posteriors, save_report
-from ..robot import DEFAULT_PRIORS, RobotProfile, load_profile
+from ..robot import RobotProfile, load_profile
 from ..simulate import NoiseSettings, simulate_series
 from ..tables import check_column_roles, load_experiments, read_experiments, write_csv
 from ..workflow import analyse_logs, ingest_logs
@@ -258,13 +260,10 @@ def _executor(args: argparse.Namespace, processes: int = 1) -> Executor:
 
 
 def _likelihood_options(args: argparse.Namespace) -> dict:
-    """ResidualLikelihood keywords from the shared modelling flags."""
-    return {
-        "channels": args.channels,
-        "shared_noise": args.noise == "shared",
-        "sensor": args.sensor_noise,
-        "engine": args.engine,
-    }
+    """ResidualLikelihood keywords from the shared modelling flags, as the library's."""
+    return likelihood_options(
+        channels=args.channels, noise=args.noise, sensor=args.sensor_noise, engine=args.engine
+    )
 
 
 def _each_experiment(
@@ -488,7 +487,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_export_prior(args: argparse.Namespace) -> int:
     out = Reporter(False)
     idata = load_posterior(args.posterior)
-    prior = export_prior(idata, args.order, source=args.posterior)
+    prior = export_prior(idata, order=args.order, source=args.posterior)
     path = write_prior(prior, args.out)
     noise = prior["noise"]
     size = len(prior["generalised_coordinates"]["precision"])
@@ -506,20 +505,8 @@ def cmd_export_prior(args: argparse.Namespace) -> int:
 
 
 def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
-    """``--prior NAME LOW HIGH`` items as {name: (low, high)}, validated."""
-    overrides = {}
-    for name, low, high in items:
-        if name not in DEFAULT_PRIORS:
-            raise InputError(
-                f"unknown prior {name!r}; use one of {list(DEFAULT_PRIORS)}", field="--prior"
-            )
-        try:
-            overrides[name] = (float(low), float(high))
-        except ValueError:
-            raise InputError(
-                f"{name}: LOW and HIGH must be numbers, got {low!r} {high!r}", field="--prior"
-            ) from None
-    return overrides
+    """``--prior NAME LOW HIGH`` items as {name: (low, high)}, validated by the library."""
+    return prior_overrides({name: (low, high) for name, low, high in items}, field="--prior")
 
 
 def cmd_analyse(args: argparse.Namespace) -> int:

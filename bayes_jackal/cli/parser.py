@@ -8,7 +8,19 @@ import os
 from collections.abc import Callable
 
 from .. import __version__
+from ..api import (
+    COMPARED_FAMILIES,
+    ENGINE,
+    FAMILY,
+    MAX_STEPS,
+    NOISE,
+    NOISE_SHARING,
+    SENSOR,
+    WALKERS,
+)
+from ..bags import MAX_GAP
 from ..errors import InputError
+from ..export import AUTO_ORDER
 from ..gridsearch import METHODS, damping_grid
 from ..kernels import FAMILIES
 from ..likelihood import DEFAULT_CHANNEL_ORDER, ENGINES, SENSOR_MODELS
@@ -16,6 +28,7 @@ from ..physics import CHANNELS
 from ..report import FIGURE_FORMATS
 from ..robot import CONVERSIONS
 from ..simulate import SERIES, NoiseSettings
+from ..stamps import MAX_GAP_STEPS
 from ..tables import ROLES
 from ..workflow import DEFAULT_FAMILIES
 from .commands import (
@@ -133,7 +146,7 @@ def _add_input_flags(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = 0.25) -> None:
+def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = MAX_GAP) -> None:
     """Flags of reading bags, shared by ingest and analyse: window, gaps, topics."""
     parser.add_argument(
         "--window",
@@ -148,7 +161,11 @@ def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = 0.25
         type=_positive,
         default=max_gap,
         help="longest tolerated dropout [s] "
-        + (f"({max_gap:g})" if max_gap else "(bags 0.25, experiment files 5 sample steps)"),
+        + (
+            f"({max_gap:g})"
+            if max_gap
+            else f"(bags {MAX_GAP:g}, experiment files {MAX_GAP_STEPS} sample steps)"
+        ),
     )
     parser.add_argument(
         "--topic",
@@ -175,8 +192,8 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
     parser.add_argument(
         "--sensor-noise",
         choices=SENSOR_MODELS,
-        default="ma1",
-        help="sensor-noise footprint: ma1 (default) or a diagonal nugget",
+        default=SENSOR,
+        help=f"sensor-noise footprint: ma1 or a diagonal nugget ({SENSOR})",
     )
     if pooling:
         parser.add_argument(
@@ -184,18 +201,23 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
         )
     parser.add_argument(
         "--noise",
-        choices=("shared", "per-experiment"),
-        default="shared",
-        help="pooled: noise parameters shared or per experiment",
+        choices=NOISE_SHARING,
+        default=NOISE,
+        help=f"pooled: noise parameters shared or per experiment ({NOISE})",
     )
     parser.add_argument(
-        "--engine", choices=ENGINES, default="fast", help="likelihood engine (fast)"
+        "--engine", choices=ENGINES, default=ENGINE, help=f"likelihood engine ({ENGINE})"
     )
     parser.add_argument("--seed", type=_natural, default=None, help="seed: same seed, same chain")
     parser.add_argument(
-        "--walkers", type=_natural, default=0, help="ensemble size (default 0: 32 or more)"
+        "--walkers",
+        type=_natural,
+        default=WALKERS,
+        help=f"ensemble size (default {WALKERS}: max(32, 4 x parameters))",
     )
-    parser.add_argument("--max-steps", type=_count, default=20_000, help="step cap (20000)")
+    parser.add_argument(
+        "--max-steps", type=_count, default=MAX_STEPS, help=f"step cap ({MAX_STEPS})"
+    )
     parser.add_argument(
         "--prior",
         nargs=3,
@@ -360,7 +382,9 @@ def build_parser() -> argparse.ArgumentParser:
         "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
     )
     sample.add_argument("--out", required=True, metavar="POSTERIOR.nc", help="posterior file")
-    sample.add_argument("--family", choices=list(FAMILIES), default="gaussian")
+    sample.add_argument(
+        "--family", choices=list(FAMILIES), default=FAMILY, help=f"noise family ({FAMILY})"
+    )
     _add_input_flags(sample)
     _add_model_flags(sample)
     _add_common(sample)
@@ -373,9 +397,9 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument(
         "--families",
         type=_family_list,
-        default=tuple(FAMILIES),
+        default=COMPARED_FAMILIES,
         metavar="white,gaussian,...",
-        help=f"comma-separated families ({','.join(FAMILIES)})",
+        help=f"comma-separated families ({','.join(COMPARED_FAMILIES)})",
     )
     compare.add_argument("--out", metavar="DIR", help="save each family's posterior here")
     compare.add_argument(
@@ -401,8 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument(
         "--order",
         type=_natural,
-        default=2,
-        help="embedding order P of generalised coordinates (2)",
+        default=AUTO_ORDER,
+        help=f"embedding order P of generalised coordinates ({AUTO_ORDER})",
     )
     _add_common(export, json_flag=False)
     export.set_defaults(func=cmd_export_prior)

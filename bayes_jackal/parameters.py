@@ -1,0 +1,283 @@
+"""The parameter layout: names, noise groups, columns and prior keys (docs/design.md §4).
+
+A parameter vector is (d_lat, d_long, then each noise group's noise
+parameters). A noise group is one channel's noise, shared by every
+experiment (``shared_noise``, group key :data:`SHARED_GROUP`) or one per
+experiment and channel. Each group has the family's width (none for white
+noise), ``sigma_c`` and ``sigma_n`` (none for white noise with the diagonal
+sensor term, where ``sigma_c`` is the total sd). :class:`ParameterLayout`
+is the one place that knows this: the likelihood, the priors, the posterior
+file and everything that reads one ask it for names, groups and columns
+instead of building or splitting names. :func:`prior_overrides` validates
+the prior ranges a user gives, for the library and the command line alike.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .errors import InputError
+from .kernels import Family, get_family
+from .robot import DEFAULT_PRIORS
+
+__all__ = [
+    "DAMPING",
+    "PRIOR_KEYS",
+    "SHARED_GROUP",
+    "WIDTH_ALIAS",
+    "WIDTH_PRIOR",
+    "ParameterLayout",
+    "prior_overrides",
+    "prior_range",
+]
+
+#: The damping parameters, first in every parameter vector [N s/m].
+DAMPING = ("d_lat", "d_long")
+#: Experiment key of a noise group shared by every experiment.
+SHARED_GROUP = "all"
+#: The prior keys of a robot profile and of prior overrides.
+PRIOR_KEYS = tuple(DEFAULT_PRIORS)
+#: The prior key of every family's width (the thesis' Gaussian sigma_h).
+WIDTH_PRIOR = "sigma_h"
+#: Accepted for :data:`WIDTH_PRIOR` in prior overrides: the width's name in
+#: every family but the Gaussian.
+WIDTH_ALIAS = "width"
+
+
+@dataclass(frozen=True)
+class ParameterLayout:
+    """Names, noise groups and columns of a model's parameter vector.
+
+    Parameters
+    ----------
+    family : str
+        Noise family name (:data:`bayes_jackal.kernels.FAMILIES`).
+    sensor : {"ma1", "diagonal"}
+        Sensor-noise term.
+    channels : tuple of str
+        The channels, in likelihood order.
+    experiments : tuple of str
+        Experiment names, in order.
+    shared_noise : bool
+        One noise group per channel (True) or per experiment and channel.
+
+    The derived names and groups are computed once per layout.
+
+    Examples
+    --------
+    >>> layout = ParameterLayout("gaussian", "ma1", ("yaw", "vx"), ("v1",), True)
+    >>> layout.names[:5]
+    ('d_lat', 'd_long', 'sigma_h[yaw]', 'sigma_c[yaw]', 'sigma_n[yaw]')
+    >>> layout.column("sigma_c", layout.group("vx", "v1"))
+    6
+    """
+
+    family: str
+    sensor: str
+    channels: tuple[str, ...]
+    experiments: tuple[str, ...]
+    shared_noise: bool
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "channels", tuple(self.channels))
+        object.__setattr__(self, "experiments", tuple(self.experiments))
+        get_family(self.family)  # an InputError naming the known families
+
+    @property
+    def _family(self) -> Family:
+        return get_family(self.family)
+
+    @property
+    def width_name(self) -> str | None:
+        """The family's width parameter (``sigma_h`` or ``width``); None for white noise."""
+        return self._family.width_name
+
+    @cached_property
+    def groups(self) -> tuple[tuple[str, str], ...]:
+        """Noise groups as (channel, experiment name or :data:`SHARED_GROUP`), in order."""
+        keys = (
+            (channel, SHARED_GROUP if self.shared_noise else experiment)
+            for experiment in self.experiments
+            for channel in self.channels
+        )
+        return tuple(dict.fromkeys(keys))
+
+    def group(self, channel: str, experiment: str) -> int:
+        """Index of the noise group of ``channel`` in the experiment named ``experiment``."""
+        key = (channel, SHARED_GROUP if self.shared_noise else experiment)
+        if key not in self.groups:
+            raise InputError(f"no noise group {key}; the groups are {list(self.groups)}")
+        return self.groups.index(key)
+
+    @cached_property
+    def noise_bases(self) -> tuple[str, ...]:
+        """Base names of one group's noise parameters: (width,) sigma_c(, sigma_n).
+
+        White noise with the diagonal sensor term has the covariance
+        (sigma_c^2 + sigma_n^2) I: one variance, which two parameters would
+        split along a flat ridge that the data cannot inform. That model
+        has one sd, ``sigma_c``: the total sd of the residual.
+        """
+        family = self._family
+        width = (family.width_name,) if family.has_width else ()
+        one_sd = not family.has_width and self.sensor == "diagonal"
+        return (*width, "sigma_c", *(() if one_sd else ("sigma_n",)))
+
+    def label(self, group: int) -> str:
+        """Coordinate label of a noise group: its channel, experiment, or both."""
+        channel, experiment = self.groups[group]
+        if self.shared_noise or len(self.groups) == 1:
+            return channel
+        return f"{experiment}, {channel}" if len(self.channels) > 1 else experiment
+
+    @cached_property
+    def labels(self) -> tuple[str, ...]:
+        """The groups' coordinate labels (``noise_group`` of the posterior file)."""
+        return tuple(self.label(g) for g in range(len(self.groups)))
+
+    @cached_property
+    def names(self) -> tuple[str, ...]:
+        """Names in parameter-vector order: ``sigma_h[yaw]`` (no suffix for one group)."""
+        single = len(self.groups) == 1
+        return DAMPING + tuple(
+            base if single else f"{base}[{self.label(g)}]"
+            for g in range(len(self.groups))
+            for base in self.noise_bases
+        )
+
+    @cached_property
+    def bases(self) -> tuple[str, ...]:
+        """Base name of each column (``sigma_h`` for ``sigma_h[yaw]``)."""
+        return DAMPING + self.noise_bases * len(self.groups)
+
+    def names_of(self, base: str) -> tuple[str, ...]:
+        """The names of parameter ``base`` in every group (``sigma_h[yaw]``, ``sigma_h[vx]``)."""
+        return tuple(n for n, b in zip(self.names, self.bases, strict=True) if b == base)
+
+    @cached_property
+    def column_groups(self) -> tuple[int | None, ...]:
+        """Noise group of each column; None for the damping."""
+        per_group = len(self.noise_bases)
+        return (None,) * len(DAMPING) + tuple(
+            g for g in range(len(self.groups)) for _ in range(per_group)
+        )
+
+    def column(self, base: str, group: int | None = None) -> int:
+        """Column of parameter ``base`` (of noise group ``group``) in the vector."""
+        if base in DAMPING:
+            return DAMPING.index(base)
+        if base not in self.noise_bases or group is None or not 0 <= group < len(self.groups):
+            raise InputError(
+                f"no parameter {base!r} of group {group}; this model has {list(self.names)}"
+            )
+        return len(DAMPING) + group * len(self.noise_bases) + self.noise_bases.index(base)
+
+    def noise_columns(self, group: int) -> list[int]:
+        """Columns of one group's noise parameters, in :attr:`noise_bases` order."""
+        return [self.column(base, group) for base in self.noise_bases]
+
+    def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:
+        """(width [s], sigma_c, sigma_n) of one noise group, each shape (B,).
+
+        White noise has unit width (ignored); where sigma_n is not a
+        parameter (white noise with the diagonal term) it is zero, and
+        sigma_c is the total sd.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (B, P)
+            Parameter vectors in natural units, in :attr:`names` order.
+        group : int
+        """
+        values = dict(zip(self.noise_bases, theta[:, self.noise_columns(group)].T, strict=True))
+        width = values.get(self.width_name, np.ones(len(theta)))
+        return width, values["sigma_c"], values.get("sigma_n", np.zeros(len(theta)))
+
+    def prior_key(self, base: str) -> str:
+        """The prior range a parameter takes: its base, or :data:`WIDTH_PRIOR` for a width."""
+        return WIDTH_PRIOR if base == self.width_name else base
+
+    @property
+    def log_uniform(self) -> tuple[bool, ...]:
+        """Whether each column's prior is log-uniform (all but the damping's)."""
+        return tuple(base not in DAMPING for base in self.bases)
+
+
+def prior_range(key: str, value: Sequence[float]) -> tuple[float, float]:
+    """A prior range (low, high), validated: numbers with 0 < low < high, finite.
+
+    Raises
+    ------
+    InputError
+        Naming ``priors.<key>`` and the values.
+    """
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"low and high must be numbers, got {value!r}", field=f"priors.{key}"
+        ) from None
+    if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
+        raise InputError(
+            f"prior range must satisfy 0 < low < high, got [{low}, {high}]: it excludes "
+            "every value",
+            field=f"priors.{key}",
+        )
+    return low, high
+
+
+def prior_overrides(
+    overrides: Mapping[str, Sequence[float]] | None, *, field: str = "prior_overrides"
+) -> dict[str, tuple[float, float]]:
+    """Prior ranges that replace a profile's, validated and keyed on :data:`PRIOR_KEYS`.
+
+    Keys: ``d_lat``, ``d_long`` [N s/m], ``sigma_h`` [s] (every family's
+    width), ``sigma_c``, ``sigma_n`` [channel units]; ``width`` is accepted
+    for ``sigma_h`` (the width's name in every family but the Gaussian). A
+    range for a parameter a model lacks (white noise has no width) is valid
+    and unused, so that one set of overrides serves every family compared.
+
+    Parameters
+    ----------
+    overrides : mapping of str to (low, high), optional
+    field : str
+        Names the option in an error about a key (``--prior`` on the
+        command line).
+
+    Returns
+    -------
+    dict of str to (float, float)
+
+    Raises
+    ------
+    InputError
+        For an unknown key (naming it and the keys allowed), both ``width``
+        and ``sigma_h``, or a range that is not numbers with 0 < low < high.
+
+    Examples
+    --------
+    >>> prior_overrides({"width": (0.01, 0.5)})
+    {'sigma_h': (0.01, 0.5)}
+    """
+    allowed = [*PRIOR_KEYS, WIDTH_ALIAS]
+    given = dict(overrides or {})
+    for key in given:
+        if key not in allowed:
+            raise InputError(
+                f"unknown prior {key!r}; use one of {allowed} ({WIDTH_ALIAS} is "
+                f"{WIDTH_PRIOR}: every family's width)",
+                field=field,
+            )
+    if WIDTH_ALIAS in given and WIDTH_PRIOR in given:
+        raise InputError(
+            f"{WIDTH_ALIAS} and {WIDTH_PRIOR} are the same prior (every family's width): give one",
+            field=field,
+        )
+    if WIDTH_ALIAS in given:
+        given[WIDTH_PRIOR] = given.pop(WIDTH_ALIAS)
+    return {key: prior_range(key, value) for key, value in given.items()}

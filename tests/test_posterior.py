@@ -1,0 +1,210 @@
+"""The posterior file: round trip, typed metadata, old files, refused files (docs/design.md §7)."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from bayes_jackal import DataError, load_profile
+from bayes_jackal.evidence import Evidence
+from bayes_jackal.experiment import write_netcdf
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.posterior import (
+    FORMAT,
+    ROBOT_CONSTANTS,
+    Convergence,
+    build_inference_data,
+    load_posterior,
+    parameter_draws,
+    posterior_experiments,
+    posterior_metadata,
+    save_posterior,
+    store_comparison,
+    store_criticism,
+    summarize,
+)
+from bayes_jackal.priors import Prior
+from bayes_jackal.simulate import Series, simulate_experiment
+
+ROBOT = load_profile()
+#: A posterior written by bayes_jackal 0.1.0 before the format had an owner,
+#: and what that version's summarize said of it (tests/data/README.md).
+OLD_FILE = Path(__file__).parent / "data" / "posterior_format1_v0.nc"
+OLD_SUMMARY = {
+    ("d_lat", "mean"): 36.408558802366834,
+    ("sigma_c", "sd"): 0.00015590805711891196,
+    ("ratio", "hdi_97%"): 3.6803520895780584,
+}
+#: Diagnostics as the sampler writes them (bayes_jackal.inference), every field set.
+WALKERS, DRAWS = 8, 6
+
+
+@pytest.fixture(scope="module")
+def sampled():
+    """(likelihood, prior, chain, diagnostics, posterior): two 10 s runs, noise per run."""
+    runs = [
+        simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, np.deg2rad(22.5), 10.0), rng=k, name=n)
+        for k, n in ((4, "v1_01"), (5, "v1_02"))
+    ]
+    likelihood = ResidualLikelihood(
+        runs, ROBOT, family="exponential", channels=("yaw", "vx"), shared_noise=False
+    )
+    prior = Prior.for_likelihood(likelihood, ROBOT, {"width": (0.002, 0.5)})
+    rng = np.random.default_rng(3)
+    theta = [110.0, 30.0, *[0.05, 0.01, 0.005] * len(likelihood.layout.groups)]
+    chain = np.log(theta) + 0.02 * rng.normal(size=(DRAWS, WALKERS, len(theta)))
+    names = prior.names
+    diagnostics = {
+        "converged": False,
+        "n_steps": 400,
+        "walkers": WALKERS,
+        "discard": 200,
+        "thin": 33,
+        "autocorr_time": dict.fromkeys(names, 66.0),
+        "ess_autocorr": dict.fromkeys(names, 24.2),
+        "acceptance_fraction": 0.31,
+        "seed": 7,
+        "settings": {"max_steps": 400, "autocorr_multiple": 50.0},
+    }
+    lp = rng.normal(size=(DRAWS, WALKERS))
+    idata = build_inference_data(likelihood, prior, chain, lp, diagnostics)
+    return likelihood, prior, chain, diagnostics, idata
+
+
+def test_the_typed_metadata_are_what_was_sampled(sampled):
+    likelihood, prior, _, diagnostics, idata = sampled
+    metadata = posterior_metadata(idata)
+    assert metadata.format == FORMAT
+    assert metadata.layout == likelihood.layout
+    assert metadata.layout.groups == (
+        ("yaw", "v1_01"),
+        ("vx", "v1_01"),
+        ("yaw", "v1_02"),
+        ("vx", "v1_02"),
+    )
+    assert metadata.engine == "fast" and metadata.steady is True
+    assert metadata.prior.names == prior.names
+    np.testing.assert_array_equal(metadata.prior.low, prior.low)
+    np.testing.assert_array_equal(metadata.prior.high, prior.high)
+    np.testing.assert_array_equal(metadata.prior.log_uniform, prior.log_uniform)
+    # The "width" override is the exponential width's range.
+    assert metadata.prior.low[likelihood.layout.column("width", 3)] == 0.002
+    assert metadata.robot == ROBOT
+    assert [e.name for e in metadata.experiments] == ["v1_01", "v1_02"]
+    for record, run in zip(metadata.experiments, likelihood.experiments, strict=True):
+        assert record.dt == run.dt and record.steady_window == run.steady_window
+        assert record.truth == run.truth and record.series == run.series
+        assert record.provenance == run.provenance and record.source == run.source
+    assert metadata.convergence == Convergence(**diagnostics)
+    assert metadata.truth == likelihood.experiments[0].truth
+    assert metadata.evidence is None and metadata.criticism is None
+    assert metadata.convergence_messages == () and metadata.task is None
+
+
+def test_parameter_draws_follow_the_layout(sampled):
+    likelihood, _, chain, _, idata = sampled
+    draws, _ = parameter_draws(idata)
+    np.testing.assert_array_equal(draws, np.exp(chain))
+    layout = likelihood.layout
+    column = layout.column("sigma_c", layout.group("vx", "v1_02"))
+    assert layout.names[column] == "sigma_c[v1_02, vx]"
+    stored = idata.posterior["sigma_c"].sel(noise_group="v1_02, vx").transpose("draw", "chain")
+    np.testing.assert_array_equal(draws[..., column], stored.values)
+
+
+def test_a_saved_posterior_loads_with_the_same_metadata(sampled, tmp_path):
+    chain, idata = sampled[2], copy.deepcopy(sampled[-1])
+    store_comparison(
+        idata,
+        evidence=Evidence(-12.5, 0.03, "bridge"),
+        nested=None,
+        messages=["NOT CONVERGED: 400 steps"],
+        task={"family": "exponential"},
+    )
+    store_criticism(idata, {"warnings": [], "criticism": {"damping_scale": {}}})
+    loaded = load_posterior(save_posterior(idata, tmp_path / "p.nc"))
+    before, after = posterior_metadata(idata), posterior_metadata(loaded)
+    for field in dataclasses.fields(before):
+        if field.name != "prior":
+            assert getattr(after, field.name) == getattr(before, field.name), field.name
+    assert after.evidence == Evidence(-12.5, 0.03, "bridge") and after.evidence_nested is None
+    assert after.convergence_messages == ("NOT CONVERGED: 400 steps",)
+    assert after.task == {"family": "exponential"}
+    np.testing.assert_array_equal(parameter_draws(loaded)[0], np.exp(chain))
+    assert [e.name for e in posterior_experiments(loaded)] == ["v1_01", "v1_02"]
+
+
+def test_a_file_written_before_the_format_had_an_owner_loads_and_summarises():
+    idata = load_posterior(OLD_FILE)
+    metadata = posterior_metadata(idata)
+    assert metadata.format == "bayes_jackal.posterior/1"
+    assert metadata.layout.names == ("d_lat", "d_long", "sigma_c", "sigma_n")
+    assert metadata.layout.groups == (("yaw", "all"),)
+    assert [e.name for e in metadata.experiments] == ["v2_01"]
+    # Old files keep the body constants only: the rest is the installed profile's.
+    assert {key: getattr(metadata.robot, key) for key in ROBOT_CONSTANTS if key != "source"} == {
+        key: getattr(ROBOT, key) for key in ROBOT_CONSTANTS if key != "source"
+    }
+    assert metadata.robot.priors == ROBOT.priors
+    assert metadata.convergence.n_steps == 200 and metadata.convergence.walkers == 8
+    summary = summarize(idata)
+    assert summary["family"] == "white" and summary["channels"] == ["yaw"]
+    assert summary["n_steps"] == 200 and summary["converged"] is False
+    for (name, key), value in OLD_SUMMARY.items():
+        assert summary[name][key] == pytest.approx(value, rel=1e-12, abs=0), (name, key)
+    assert summary["corr_d_lat_d_long"] == pytest.approx(0.6383411792858013, rel=1e-12)
+    kinds = {"damping-scale-not-identified", "predictive-acf", "prior-boundary"}
+    assert len(summary["warnings"]) == 8 and {w["kind"] for w in summary["warnings"]} == kinds
+    draws, _ = parameter_draws(idata)
+    assert draws.shape[-1] == 4
+
+
+def test_a_netcdf_that_is_not_a_posterior_is_refused(tmp_path):
+    run = simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.4, 10.0), rng=1)
+    path = write_netcdf(run, tmp_path / "run.nc")
+    with pytest.raises(DataError, match=rf"{re.escape(str(path))}: .*not a bayes_jackal poster"):
+        load_posterior(path)
+    plain = tmp_path / "plain.nc"
+    xr.Dataset({"x": ("n", [1.0, 2.0])}).to_netcdf(plain, engine="h5netcdf")
+    with pytest.raises(DataError, match=rf"{re.escape(str(plain))}: .*not a bayes_jackal poster"):
+        load_posterior(plain)
+
+
+def test_a_posterior_of_an_unknown_format_is_refused_naming_it(sampled, tmp_path):
+    idata = copy.deepcopy(sampled[-1])
+    idata.posterior.attrs = dict(idata.posterior.attrs) | {"format": "bayes_jackal.posterior/9"}
+    path = save_posterior(idata, tmp_path / "future.nc")
+    pattern = (
+        rf"{re.escape(str(path))}: format: posterior format 'bayes_jackal.posterior/9' is "
+        r"not one this version .* reads: \['bayes_jackal.posterior/1'\]"
+    )
+    with pytest.raises(DataError, match=pattern):
+        load_posterior(path)
+
+
+@pytest.mark.parametrize(
+    ("attribute", "value", "pattern"),
+    [
+        ("prior", None, r"prior: missing attribute"),
+        ("experiments", "[{'name': 1", r"experiments: not a JSON text"),
+        ("parameter_names", '["d_lat"]', r"parameter_names: parameter names \['d_lat'\] do not"),
+    ],
+)
+def test_a_posterior_with_broken_attributes_is_refused_naming_the_attribute(
+    sampled, tmp_path, attribute, value, pattern
+):
+    idata = copy.deepcopy(sampled[-1])
+    attrs = dict(idata.posterior.attrs)
+    attrs.pop(attribute)
+    idata.posterior.attrs = attrs if value is None else attrs | {attribute: value}
+    path = save_posterior(idata, tmp_path / "broken.nc")
+    with pytest.raises(DataError, match=rf"{re.escape(str(path))}: {pattern}"):
+        load_posterior(path)
+    with pytest.raises(DataError, match=pattern):
+        posterior_metadata(idata)
