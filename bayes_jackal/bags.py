@@ -38,7 +38,7 @@ Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
    body frame: vx = cos(psi) x' + sin(psi) y', vy = -sin(psi) x' + cos(psi) y'.
 6. Everything is linearly interpolated onto the IMU clock: a uniform grid at
    the IMU's median rate through the IMU stamps.
-7. The steady window is detected (:func:`bayes_jackal.steady.detect_steady`)
+7. The steady window is detected (:func:`bayes_jackal.experiment.detect_steady`)
    unless given.
 
 The writer of simulated experiments as bags is :mod:`bayes_jackal.bag_writer`.
@@ -62,11 +62,10 @@ from rosbags.typesys import Stores, TypesysError, get_typestore
 from scipy.signal import savgol_filter
 
 from .errors import DataError, InputError
-from .experiment import Experiment
+from .experiment import Experiment, detect_steady
 from .progress import Progress
 from .robot import RobotProfile
 from .stamps import MIN_SAMPLES, longest_run, sort_stamps
-from .steady import detect_steady
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

@@ -32,7 +32,14 @@ from .errors import DataError, InputError
 from .evidence import Evidence, bridge_sampling, evidence_strength, nested_sampling
 from .executors import Executor, ProcessExecutor, SerialExecutor
 from .experiment import Experiment
-from .inference import ConvergenceWarning, SamplerSettings, run_identity, sample_posterior
+from .inference import (
+    ConvergenceWarning,
+    KeptWarnings,
+    SamplerSettings,
+    keep_warnings,
+    run_identity,
+    sample_posterior,
+)
 from .kernels import FAMILIES
 from .likelihood import ResidualLikelihood
 from .posterior import (
@@ -226,15 +233,15 @@ class _FamilyRun:
         return json.loads(json.dumps(task))
 
     def __call__(self, job: tuple[int, str]):
-        """(family, evidence, posterior, nested evidence or None).
+        """(family, evidence, posterior, nested evidence or None, kept warnings).
 
         ``job`` is (position, family): the position picks the progress line.
         The result, kept in the posterior's attributes, is that of
-        :meth:`_stored`.
+        :meth:`_stored`; the convergence messages are stored there, the
+        other warnings raised come back as :class:`KeptWarnings`.
         """
         position, family = job
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ConvergenceWarning)
+        with keep_warnings() as kept:
             likelihood, prior = self._model(family)
             # One labelled progress line per family (processes share the terminal).
             settings = dataclasses.replace(
@@ -251,17 +258,20 @@ class _FamilyRun:
             rng = np.random.default_rng(None if self.seed is None else [self.seed, key])
             evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
             nested = nested_sampling(likelihood, prior, rng) if self.cross_check else None
-        messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
         store_comparison(
-            idata, evidence=evidence, nested=nested, messages=messages, task=self.task(family)
+            idata,
+            evidence=evidence,
+            nested=nested,
+            messages=kept.convergence,
+            task=self.task(family),
         )
-        return self._stored(family, idata)
+        return self._stored(family, idata, kept)
 
     @staticmethod
-    def _stored(family: str, idata: az.InferenceData):
-        """(family, evidence, posterior, nested or None) from the posterior's attributes."""
+    def _stored(family: str, idata: az.InferenceData, kept: KeptWarnings | None = None):
+        """(family, evidence, posterior, nested or None, ``kept``) from the posterior's attrs."""
         metadata = posterior_metadata(idata)
-        return family, metadata.evidence, idata, metadata.evidence_nested
+        return family, metadata.evidence, idata, metadata.evidence_nested, kept or KeptWarnings()
 
     def reuse(self, family: str, path: Path, say: Callable[[str], None]):
         """The result saved in ``path`` when its task is this one's, else None (saying why)."""
@@ -450,7 +460,8 @@ def _comparisons(
             for family in families
             if family not in done[key]
         ),
-        key=lambda job: _LONGEST_FIRST.index(job[1]),
+        # A family not measured here (added to FAMILIES later) goes first.
+        key=lambda job: _LONGEST_FIRST.index(job[1]) if job[1] in _LONGEST_FIRST else -1,
     )
     lines = executor.slots(len(pending))
     runs = {key: dataclasses.replace(run, lines=lines) for key, run in runs.items()}
@@ -467,6 +478,7 @@ def _comparisons(
                 continue
             family, *result = outcome
             done[key][family] = result
+            result[3].issue(f"{runs[key].label}{family}: ")  # raised in a worker, shown here
             try:
                 if on_family is not None:
                     on_family(key, family, *result[:2])

@@ -30,7 +30,7 @@ from .criticism_statistics import (
     simultaneous_threshold,
     steadiness,
 )
-from .experiment import Experiment
+from .experiment import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, Experiment
 from .kernels import as_rng
 from .posterior import (
     HDI_PROB,
@@ -46,7 +46,6 @@ from .posterior import (
 )
 from .predictive import predictive_series
 from .residuals import channel_residuals
-from .steady import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE
 
 __all__ = [
     "BOUNDARY_DENSITY",

@@ -18,9 +18,9 @@ import scipy.fft
 import scipy.stats
 
 from .errors import InputError
-from .noise import ljung_box, sample_autocorrelation
+from .experiment import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
 from .posterior import az  # imported there with arviz's import warning silenced
-from .steady import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
+from .series_statistics import ljung_box, sample_autocorrelation
 
 __all__ = [
     "acf_statistics",
@@ -233,10 +233,10 @@ def predictive_flags(p_values: np.ndarray, draws: int, *, alarm: float) -> np.nd
 def steadiness(
     t: np.ndarray, yaw_rate: np.ndarray, inputs: np.ndarray
 ) -> tuple[float | None, float]:
-    """How far a window is from steady cornering, by the rule of ``steady.detect_steady``.
+    """How far a window is from steady cornering, by the rule of ``experiment.detect_steady``.
 
     Both signals are first smoothed as there
-    (:func:`bayes_jackal.steady.steady_smoothing`).
+    (:func:`bayes_jackal.experiment.steady_smoothing`).
 
     Parameters
     ----------

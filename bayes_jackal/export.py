@@ -15,14 +15,11 @@ and independent channels give the precision
 
 ordered derivative-major: row i * n_channels + c is derivative i of channel c.
 V exists up to order P only when rho has 2P derivatives at 0, i.e. when the
-noise is P times mean-square differentiable:
-
-- ``gaussian``: rho(t) = exp(-t^2 / (4 sigma_h^2)), every order:
-  rho^(2m)(0) = (-1)^m (2m)! / (m! (4 sigma_h^2)^m), so rho''(0) =
-  -1 / (2 sigma_h^2) and rho''''(0) = 3 / (4 sigma_h^4).
-- ``triangular`` (half-base w): order 1, rho''(0) = -3 / w^2.
-- ``exponential``, ``moving-average``, ``white``: order 0 only (rho has a
-  corner at 0: their noise has no derivative).
+noise is P times mean-square differentiable. Each family holds its highest
+order and its rho^(n)(0) (:class:`bayes_jackal.kernels.Family`: ``max_order``,
+``autocorrelation_derivatives``): every order for ``gaussian``, 1 for
+``triangular``, 0 for ``exponential``, ``moving-average`` and ``white``
+(rho has a corner at 0: their noise has no derivative).
 
 These are the continuous-time autocorrelations of which the sampled
 kernels' discrete ones are the samples (exactly so in the limit dt -> 0).
@@ -44,7 +41,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import scipy.special
 
 from . import __version__
 from ._files import write_json
@@ -81,34 +77,12 @@ PRIOR_FORMAT = "bayes_jackal.prior/1"
 #: condition grows ~1000-fold per order at the thesis' sigma_h = 0.047 s
 #: (order 4: 5e11, order 5: 1e15), so order 99 is noise or NaN.
 MAX_CONDITION = 1e12
-#: Highest embedding order with a defined V, per family (see the module doc);
-#: None: no limit but :data:`MAX_CONDITION` (:func:`allowed_orders`).
-MAX_ORDER = {
-    "gaussian": None,
-    "triangular": 1,
-    "exponential": 0,
-    "moving-average": 0,
-    "white": 0,
-}
 #: The order of ``export_prior(order=None)`` (``analyse``'s prior), where
 #: the family and :data:`MAX_CONDITION` allow it: position, velocity and
 #: acceleration of the noise, the embedding DEM filters commonly use.
 AUTO_ORDER = 2
 #: Posterior draws written beside the averaged matrices.
 MAX_DRAWS = 1000
-
-
-def _check_order(family: str, order: int) -> None:
-    limit = MAX_ORDER[get_family(family).name]
-    if not isinstance(order, (int, np.integer)) or order < 0:
-        raise InputError(f"embedding order must be an integer >= 0, got {order!r}", field="order")
-    if limit is not None and order > limit:
-        raise InputError(
-            f"the {family} family's autocorrelation has no derivative of order {2 * order} at "
-            f"lag 0 (its noise is not differentiable): generalised coordinates exist up to "
-            f"order {limit}, got {order}",
-            field="order",
-        )
 
 
 def _temporal_precision(
@@ -136,13 +110,13 @@ def allowed_orders(family: str, width: np.ndarray, continuous_sd: np.ndarray) ->
     """The embedding orders 0, 1, .. whose precision is finite and well conditioned.
 
     An order is allowed when the family's noise has that many derivatives
-    (:data:`MAX_ORDER`) and Pi's condition number is below
+    (:attr:`~bayes_jackal.kernels.Family.max_order`) and Pi's condition number is below
     :data:`MAX_CONDITION` at these draws of the width [s] and the
     continuous-time sd ``continuous_sd``, both shaped (draws, channels).
     The condition grows with the order, so the orders are counted up to the
     first one that fails.
     """
-    limit = MAX_ORDER[get_family(family).name]
+    limit = get_family(family).max_order
     orders = []
     while limit is None or len(orders) <= limit:
         if not _temporal_precision(family, width, continuous_sd, len(orders))[2] < MAX_CONDITION:
@@ -152,37 +126,13 @@ def allowed_orders(family: str, width: np.ndarray, continuous_sd: np.ndarray) ->
 
 
 def autocorrelation_derivatives(family: str, width: np.ndarray, order: int) -> np.ndarray:
-    """rho^(n)(0) for n = 0 .. 2 ``order`` of a family's continuous autocorrelation.
+    """rho^(n)(0), n = 0 .. 2 ``order``, of the family named ``family`` [1/s^n].
 
-    Parameters
-    ----------
-    family : str
-    width : array_like
-        Kernel width [s] (sigma_h of the Gaussian); ignored for white noise.
-    order : int
-        Embedding order P.
-
-    Returns
-    -------
-    ndarray, shape (..., 2 P + 1)
-        Derivatives [1/s^n]; the odd ones are zero (rho is even).
-
-    Raises
-    ------
-    InputError
-        When the family's noise is not P times differentiable.
+    :meth:`bayes_jackal.kernels.Family.autocorrelation_derivatives` of
+    :func:`~bayes_jackal.kernels.get_family` ``(family)``: parameters, shape
+    and errors are documented there.
     """
-    _check_order(family, order)
-    width = np.asarray(width, float)
-    n = np.arange(2 * order + 1)
-    m = n // 2
-    if family == "gaussian":
-        # eq. 7-5's kernel exp(-t^2 / (2 s^2)) has rho(t) = exp(-t^2 / (4 s^2)).
-        log_size = scipy.special.gammaln(2 * m + 1) - scipy.special.gammaln(m + 1)
-        even = (-1.0) ** m * np.exp(log_size) / (4 * width[..., None] ** 2) ** m
-    else:
-        even = np.where(m == 0, 1.0, -3.0 / width[..., None] ** 2)  # triangular, m <= 1
-    return np.where(n % 2 == 0, even, 0.0)
+    return get_family(family).autocorrelation_derivatives(width, order)
 
 
 def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarray:
@@ -245,7 +195,7 @@ def export_prior(
     layout = metadata.layout
     family, channels, names = layout.family, list(layout.channels), layout.names
     if order is not None:
-        _check_order(family, order)
+        get_family(family).check_order(order)
     width_name = layout.width_name
     if len(layout.groups) != len(channels):
         raise InputError(

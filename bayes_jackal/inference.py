@@ -20,8 +20,8 @@ import hashlib
 import json
 import math
 import warnings
-from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import emcee
@@ -41,8 +41,10 @@ from .progress import Progress
 __all__ = [
     "BufferedHDFBackend",
     "ConvergenceWarning",
+    "KeptWarnings",
     "SamplerSettings",
     "chain_path",
+    "keep_warnings",
     "run_identity",
     "sample_posterior",
 ]
@@ -50,6 +52,54 @@ __all__ = [
 
 class ConvergenceWarning(UserWarning):
     """The chain hit its step cap before the convergence criterion held."""
+
+
+@dataclass
+class KeptWarnings:
+    """The warnings raised in a block, kept to be issued elsewhere (picklable).
+
+    A job that runs in a worker process (:mod:`bayes_jackal.executors`) keeps
+    its warnings here and returns them with its result, so that they reach
+    the user from the main process instead of the worker's stderr.
+
+    Attributes
+    ----------
+    convergence : list of str
+        The :class:`ConvergenceWarning` messages, in order.
+    other : list of (type, str)
+        Every other warning's category and message, each pair once, in order.
+    """
+
+    convergence: list[str] = field(default_factory=list)
+    other: list[tuple[type[Warning], str]] = field(default_factory=list)
+
+    def issue(self, prefix: str = "", *, stacklevel: int = 2) -> None:
+        """Issue the other warnings again, here, each message after ``prefix``."""
+        for category, message in self.other:
+            warnings.warn(f"{prefix}{message}", category, stacklevel=stacklevel + 1)
+
+
+@contextlib.contextmanager
+def keep_warnings() -> Iterator[KeptWarnings]:
+    """Keep the warnings raised in the block, instead of showing them.
+
+    Python's filters still decide which warnings are raised (an "error"
+    filter still raises); every :class:`ConvergenceWarning` is kept. The
+    :class:`KeptWarnings` yielded is filled when the block ends, also when
+    it raises.
+    """
+    kept = KeptWarnings()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConvergenceWarning)
+        try:
+            yield kept
+        finally:
+            for caught_warning in caught:
+                pair = (caught_warning.category, str(caught_warning.message))
+                if issubclass(pair[0], ConvergenceWarning):
+                    kept.convergence.append(pair[1])
+                elif pair not in kept.other:
+                    kept.other.append(pair)
 
 
 @dataclass(frozen=True)

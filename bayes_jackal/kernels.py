@@ -7,7 +7,9 @@ autocorrelation of the kernel's discrete self-correlation,
 rho[l] = sum_j h[j] h[j + l]. That discrete form, not its continuous limit,
 is what the simulator and the likelihood share (docs/design.md §4).
 
-Families (thesis 7-4-1):
+Each family is a subclass of :class:`Family` holding all the package knows
+about it, registered in :data:`FAMILIES`, the one list that everything else
+reads (docs/families.md: adding a family). The families (thesis 7-4-1):
 
 - ``white``: h = delta; no width.
 - ``gaussian``: the thesis' filter (eq. 7-5), h(t) ~ exp(-t^2 / (2 sigma_h^2))
@@ -27,17 +29,24 @@ Families (thesis 7-4-1):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import abc
+from typing import ClassVar
 
 import numpy as np
 import scipy.fft
 import scipy.signal
+import scipy.special
 
 from .errors import InputError
 
 __all__ = [
     "FAMILIES",
+    "Exponential",
     "Family",
+    "Gaussian",
+    "MovingAverage",
+    "Triangular",
+    "White",
     "as_rng",
     "gaussian_kernel",
     "get_family",
@@ -63,61 +72,62 @@ def _check_widths(width, name: str) -> np.ndarray:
     return width
 
 
-def _gaussian_taps(width: np.ndarray, dt: float) -> np.ndarray:
-    # Taps |k| <= K = floor(reach) in full, |k| = K + 1 times the fraction
-    # reach - K: continuous in the width, eq. 7-5 itself where reach is whole.
-    reach = (GAUSSIAN_TRUNCATION * width / dt)[..., None]
-    k = np.arange(-int(reach.max()) - 1, int(reach.max()) + 2)
-    weight = np.clip(reach + 1.0 - np.abs(k), 0.0, 1.0)
-    return weight * np.exp(-((k * dt) ** 2) / (2.0 * width[..., None] ** 2))
+class Family(abc.ABC):
+    """A noise-filter family: everything the package knows about one kernel.
 
-
-def _triangular_taps(width: np.ndarray, dt: float) -> np.ndarray:
-    reach = int(np.ceil(width.max() / dt))
-    k = np.arange(-reach, reach + 1)
-    return np.clip(1.0 - np.abs(k) * dt / width[..., None], 0.0, None)
-
-
-def _moving_average_taps(width: np.ndarray, dt: float) -> np.ndarray:
-    samples = np.maximum(width / dt, 1.0)[..., None]
-    k = np.arange(int(np.ceil(samples.max())))
-    return np.clip(samples - k, 0.0, 1.0)
-
-
-def _white_taps(width: np.ndarray, dt: float) -> np.ndarray:
-    return np.ones((*width.shape, 1))
-
-
-@dataclass(frozen=True)
-class Family:
-    """A noise-filter family.
+    A subclass sets the class attributes and :meth:`_taps`; the
+    autocorrelation, PSD and generator follow from the taps, and a subclass
+    overrides them where it has a closed form. The Active Inference export
+    asks :attr:`max_order` and :meth:`autocorrelation_derivatives`. An
+    instance registered in :data:`FAMILIES` is usable everywhere
+    (docs/families.md shows how to add one).
 
     Attributes
     ----------
     name : str
-        ``white``, ``gaussian``, ``exponential``, ``triangular`` or
-        ``moving-average``.
+        Key in :data:`FAMILIES` and on the command line.
     width_name : str or None
-        Name of the width parameter (``sigma_h`` for the Gaussian, ``width``
-        otherwise); None for white noise, which has none.
+        Name of the width parameter [s] in the parameter layout and the
+        posterior file; None for a family without one (white noise).
     description : str
         What the width means.
+    max_order : int or None
+        Highest embedding order P of generalised coordinates: the noise is
+        P times mean-square differentiable, its autocorrelation has 2 P
+        derivatives at lag 0. None: every order (only the condition number
+        of the exported precision limits it).
     """
 
-    name: str
-    width_name: str | None
-    description: str
+    name: ClassVar[str]
+    width_name: ClassVar[str | None] = "width"
+    description: ClassVar[str]
+    max_order: ClassVar[int | None] = 0
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
 
     @property
     def has_width(self) -> bool:
         """Whether the family has a width parameter."""
         return self.width_name is not None
 
+    def widths(self, width: float | np.ndarray) -> np.ndarray:
+        """``width`` [s] as a validated array; 1.0 for a family without a width.
+
+        Raises
+        ------
+        InputError
+            For a width that is not positive and finite, naming
+            :attr:`width_name`.
+        """
+        return _check_widths(width if self.has_width else 1.0, self.width_name or "width")
+
+    @abc.abstractmethod
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        """Kernel taps of validated widths [s], any scale, shape (..., L), rows zero-padded."""
+
     def taps(self, width: float | np.ndarray, dt: float) -> np.ndarray:
         """Unit-energy kernel, shape (..., L); rows zero-padded to a common length.
-
-        The exponential family's kernel is infinite; its taps are cut where
-        the remaining energy is below 1e-16.
 
         Parameters
         ----------
@@ -126,21 +136,14 @@ class Family:
         dt : float
             Sample time [s].
         """
-        width = _check_widths(width if self.has_width else 1.0, self.width_name or "width")
-        if self.name == "exponential":
-            phi = np.exp(-dt / width)[..., None]
-            # phi^(2 L) = 1e-16 for the slowest decay: L = ln(1e16) tau / (2 dt).
-            length = int(np.ceil(np.log(1e16) * width.max() / (2 * dt))) + 1
-            taps = phi ** np.arange(length)
-        else:
-            taps = _TAPS[self.name](width, dt)
+        taps = self._taps(self.widths(width), dt)
         return taps / np.sqrt(np.sum(taps**2, axis=-1, keepdims=True))
 
     def autocorrelation(self, width: float | np.ndarray, dt: float, lags: int) -> np.ndarray:
         """Autocorrelation rho[0..lags-1] of white noise filtered by the kernel.
 
-        Exact for the sampled kernel: its discrete self-correlation, or
-        phi^l for the exponential family. Vectorised over ``width``.
+        Exact for the sampled kernel: its discrete self-correlation.
+        Vectorised over ``width``.
 
         Parameters
         ----------
@@ -155,11 +158,6 @@ class Family:
         -------
         ndarray, shape (..., lags)
         """
-        if self.name == "white":
-            return np.broadcast_to(np.arange(lags) == 0, (*np.shape(width), lags)).astype(float)
-        if self.name == "exponential":
-            width = _check_widths(width, self.width_name)
-            return np.exp(-dt / width)[..., None] ** np.arange(lags)
         taps = self.taps(width, dt)
         size = scipy.fft.next_fast_len(2 * taps.shape[-1], real=True)
         full = scipy.fft.irfft(np.abs(scipy.fft.rfft(taps, size)) ** 2, size)
@@ -187,9 +185,6 @@ class Family:
         ndarray, shape (..., F)
         """
         omega = 2.0 * np.pi * np.asarray(frequency, float) * dt
-        if self.name == "exponential":
-            phi = np.exp(-dt / _check_widths(width, self.width_name))[..., None]
-            return dt * (1.0 - phi**2) / np.abs(1.0 - phi * np.exp(-1j * omega)) ** 2
         taps = self.taps(width, dt)
         phases = np.exp(-1j * np.outer(np.arange(taps.shape[-1]), omega))
         return dt * np.abs(taps @ phases) ** 2
@@ -221,9 +216,148 @@ class Family:
         ndarray, shape (n,) or (n, C)
         """
         scale = np.asarray(scale, float)
-        if self.name != "exponential":
-            return _coloured_noise(self.taps(width, dt), n, scale, rng)
-        phi = float(np.exp(-dt / _check_widths(width, self.width_name)))
+        kernel = self.taps(width, dt)
+        white = as_rng(rng).standard_normal((n + len(kernel) - 1, *scale.shape))
+        shaped_kernel = kernel.reshape(-1, *([1] * scale.ndim))
+        return scale * scipy.signal.fftconvolve(white, shaped_kernel, mode="valid", axes=0)
+
+    def check_order(self, order: int) -> None:
+        """Refuse an embedding order the family's noise cannot give.
+
+        Raises
+        ------
+        InputError
+            For an order that is not an integer >= 0, or above :attr:`max_order`.
+        """
+        if not isinstance(order, (int, np.integer)) or order < 0:
+            raise InputError(
+                f"embedding order must be an integer >= 0, got {order!r}", field="order"
+            )
+        if self.max_order is not None and order > self.max_order:
+            raise InputError(
+                f"the {self.name} family's autocorrelation has no derivative of order "
+                f"{2 * order} at lag 0 (its noise is not differentiable): generalised "
+                f"coordinates exist up to order {self.max_order}, got {order}",
+                field="order",
+            )
+
+    def autocorrelation_derivatives(self, width: np.ndarray, order: int) -> np.ndarray:
+        """rho^(n)(0) for n = 0 .. 2 ``order`` of the continuous autocorrelation.
+
+        The continuous-time autocorrelation is the one of which the sampled
+        kernel's is the samples (exactly so as dt -> 0).
+
+        Parameters
+        ----------
+        width : array_like
+            Kernel width [s]; ignored for ``white``.
+        order : int
+            Embedding order P.
+
+        Returns
+        -------
+        ndarray, shape (..., 2 P + 1)
+            Derivatives [1/s^n]; the odd ones are zero (rho is even).
+
+        Raises
+        ------
+        InputError
+            When the family's noise is not P times differentiable.
+        """
+        self.check_order(order)
+        n = np.arange(2 * order + 1)
+        even = self._even_derivatives(np.asarray(width, float), n // 2)
+        return np.where(n % 2 == 0, even, 0.0)
+
+    def _even_derivatives(self, width: np.ndarray, m: np.ndarray) -> np.ndarray:
+        """rho^(2m)(0) [1/s^(2m)], shape (..., len(m)), for m <= :attr:`max_order`.
+
+        Every autocorrelation has rho(0) = 1, all that a family of
+        ``max_order = 0`` needs; a differentiable family overrides this.
+        """
+        return np.ones((*width.shape, len(m)))
+
+
+class White(Family):
+    """White noise: h = delta, no width."""
+
+    name = "white"
+    width_name = None
+    description = "white noise: no width"
+
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        return np.ones((*width.shape, 1))
+
+    def autocorrelation(self, width: float | np.ndarray, dt: float, lags: int) -> np.ndarray:
+        return np.broadcast_to(np.arange(lags) == 0, (*np.shape(width), lags)).astype(float)
+
+
+class Gaussian(Family):
+    """The thesis' filter (eq. 7-5), truncated at +-3 sigma_h, edge taps weighted.
+
+    Its continuous autocorrelation exp(-t^2 / (4 sigma_h^2)) is smooth, so
+    every embedding order exists: rho^(2m)(0) = (-1)^m (2m)! / (m!
+    (4 sigma_h^2)^m), e.g. rho''(0) = -1 / (2 sigma_h^2) and
+    rho''''(0) = 3 / (4 sigma_h^4).
+    """
+
+    name = "gaussian"
+    width_name = "sigma_h"
+    description = "sigma_h [s], the thesis' Gaussian filter (eq. 7-5)"
+    max_order = None
+
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        # Taps |k| <= K = floor(reach) in full, |k| = K + 1 times the fraction
+        # reach - K: continuous in the width, eq. 7-5 itself where reach is whole.
+        reach = (GAUSSIAN_TRUNCATION * width / dt)[..., None]
+        k = np.arange(-int(reach.max()) - 1, int(reach.max()) + 2)
+        weight = np.clip(reach + 1.0 - np.abs(k), 0.0, 1.0)
+        return weight * np.exp(-((k * dt) ** 2) / (2.0 * width[..., None] ** 2))
+
+    def _even_derivatives(self, width: np.ndarray, m: np.ndarray) -> np.ndarray:
+        # eq. 7-5's kernel exp(-t^2 / (2 s^2)) has rho(t) = exp(-t^2 / (4 s^2)).
+        log_size = scipy.special.gammaln(2 * m + 1) - scipy.special.gammaln(m + 1)
+        return (-1.0) ** m * np.exp(log_size) / (4 * width[..., None] ** 2) ** m
+
+
+class Exponential(Family):
+    """First-order low-pass: AR(1) / Ornstein-Uhlenbeck, phi = exp(-dt / tau).
+
+    rho[l] = phi^l and S(f) = dt (1 - phi^2) / |1 - phi exp(-i omega)|^2 in
+    closed form, and the noise comes from the AR(1) recursion. The
+    continuous autocorrelation exp(-|t| / tau) has a corner at 0: order 0.
+    """
+
+    name = "exponential"
+    description = "time constant tau [s] of a first-order low-pass"
+
+    def _phi(self, width: float | np.ndarray, dt: float) -> np.ndarray:
+        return np.exp(-dt / self.widths(width))
+
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        # The kernel is infinite: cut where the remaining energy is below 1e-16,
+        # phi^(2 L) = 1e-16 for the slowest decay: L = ln(1e16) tau / (2 dt).
+        length = int(np.ceil(np.log(1e16) * width.max() / (2 * dt))) + 1
+        return np.exp(-dt / width)[..., None] ** np.arange(length)
+
+    def autocorrelation(self, width: float | np.ndarray, dt: float, lags: int) -> np.ndarray:
+        return self._phi(width, dt)[..., None] ** np.arange(lags)
+
+    def psd(self, width: float | np.ndarray, dt: float, frequency: np.ndarray) -> np.ndarray:
+        omega = 2.0 * np.pi * np.asarray(frequency, float) * dt
+        phi = self._phi(width, dt)[..., None]
+        return dt * (1.0 - phi**2) / np.abs(1.0 - phi * np.exp(-1j * omega)) ** 2
+
+    def noise(
+        self,
+        width: float,
+        dt: float,
+        n: int,
+        scale: float | np.ndarray = 1.0,
+        rng: np.random.Generator | int | None = None,
+    ) -> np.ndarray:
+        scale = np.asarray(scale, float)
+        phi = float(self._phi(width, dt))
         white = as_rng(rng).standard_normal((n, *scale.shape))
         # AR(1) started in its stationary distribution: x[0] = white[0].
         initial = phi * white[:1]
@@ -233,23 +367,39 @@ class Family:
         return scale * np.concatenate([white[:1], filtered])
 
 
-_TAPS = {
-    "white": _white_taps,
-    "gaussian": _gaussian_taps,
-    "triangular": _triangular_taps,
-    "moving-average": _moving_average_taps,
-}
+class Triangular(Family):
+    """h(t) ~ 1 - |t| / w for |t| < w; rho''(0) = -3 / w^2, so order 1."""
 
-#: The filter families, by name.
-FAMILIES = {
+    name = "triangular"
+    description = "half-base w [s] of a triangular filter"
+    max_order = 1
+
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        reach = int(np.ceil(width.max() / dt))
+        k = np.arange(-reach, reach + 1)
+        return np.clip(1.0 - np.abs(k) * dt / width[..., None], 0.0, None)
+
+    def _even_derivatives(self, width: np.ndarray, m: np.ndarray) -> np.ndarray:
+        return np.where(m == 0, 1.0, -3.0 / width[..., None] ** 2)
+
+
+class MovingAverage(Family):
+    """Boxcar of duration w: floor(w / dt) unit taps and a fractional last tap."""
+
+    name = "moving-average"
+    description = "duration w [s] of a boxcar filter"
+
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        samples = np.maximum(width / dt, 1.0)[..., None]
+        k = np.arange(int(np.ceil(samples.max())))
+        return np.clip(samples - k, 0.0, 1.0)
+
+
+#: The filter families, by name: the one registry that the command line,
+#: the layout, the likelihood, the simulator, the export and the comparison read.
+FAMILIES: dict[str, Family] = {
     family.name: family
-    for family in (
-        Family("white", None, "white noise: no width"),
-        Family("gaussian", "sigma_h", "sigma_h [s], the thesis' Gaussian filter (eq. 7-5)"),
-        Family("exponential", "width", "time constant tau [s] of a first-order low-pass"),
-        Family("triangular", "width", "half-base w [s] of a triangular filter"),
-        Family("moving-average", "width", "duration w [s] of a boxcar filter"),
-    )
+    for family in (White(), Gaussian(), Exponential(), Triangular(), MovingAverage())
 }
 
 
@@ -292,12 +442,3 @@ def gaussian_kernel(sigma_h: float, dt: float) -> np.ndarray:
         non-zero (f > 0, and no underflow for sigma_h << dt).
     """
     return np.trim_zeros(FAMILIES["gaussian"].taps(float(_check_widths(sigma_h, "sigma_h")), dt))
-
-
-def _coloured_noise(
-    kernel: np.ndarray, n: int, scale: np.ndarray, rng: np.random.Generator | int | None
-) -> np.ndarray:
-    """``n`` samples of white Gaussian noise filtered by ``kernel``, times ``scale``."""
-    white = as_rng(rng).standard_normal((n + len(kernel) - 1, *scale.shape))
-    shaped_kernel = kernel.reshape(-1, *([1] * scale.ndim))
-    return scale * scipy.signal.fftconvolve(white, shaped_kernel, mode="valid", axes=0)

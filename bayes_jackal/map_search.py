@@ -130,8 +130,10 @@ def _sweep_widths(
     the best width, hundreds of nats lower, and a local search started in
     their basins stays there. A line scan of each width finds the best basin.
     """
+    layout = function.likelihood.layout
+    widths = layout.names_of(layout.width_name) if layout.width_name else ()
     for column, name in enumerate(prior.names):
-        if not name.startswith(("sigma_h", "width")):
+        if name not in widths:
             continue
         candidates = np.repeat(z[None], points + 1, axis=0)
         candidates[1:, column] = np.linspace(prior.z_low[column], prior.z_high[column], points)

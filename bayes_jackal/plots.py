@@ -17,7 +17,6 @@ from ._files import atomic_path
 from .criticism import criticise
 from .errors import InputError
 from .gridsearch import GridResult
-from .noise import autocorrelation_bounds, sample_autocorrelation, spectrum
 from .physics import CHANNELS
 from .posterior import (
     THESIS_RATIO,
@@ -30,6 +29,7 @@ from .posterior import (
     posterior_truth,
 )
 from .predictive import model_percentiles, predictive_statistics
+from .series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
 
 __all__ = [
     "plot_autocorrelation",
@@ -225,7 +225,7 @@ def predictive_bands(
     For each of 200 posterior-predictive residual series
     (:func:`bayes_jackal.predictive.predictive_statistics`, made and reduced
     in chunks): its sample autocorrelation at lags 0..``lags`` and its Welch
-    PSD estimated exactly as the data's (:func:`bayes_jackal.noise.spectrum`),
+    PSD estimated exactly as the data's (:func:`bayes_jackal.series_statistics.spectrum`),
     for :func:`plot_autocorrelation` and :func:`plot_spectrum`.
 
     Parameters

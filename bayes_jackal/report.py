@@ -402,7 +402,7 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
             lambda: plots.plot_damping(idata),
         )
     )
-    if family == "gaussian":
+    if "sigma_h" in metadata.layout.noise_bases:  # the thesis' width: the Gaussian's
         parts.append(
             figures.html(
                 f"{prefix}-sigma_h",

@@ -4,7 +4,7 @@ The one-step residual of a measured channel y is w[k] = y[k+1] - Ad y[k]
 - Bd u[k]: what the linear model leaves unexplained. It is linear in the
 regressors Z = [y[k+1], y[k], u_r[k], u_l[k]], w = Z (1, -Ad[c, c],
 -Bd[c, :]); the likelihood works on Z, the residual analysis
-(:mod:`bayes_jackal.noise`, thesis ch. 7), the posterior files and the
+(:mod:`bayes_jackal.residual_analysis`, thesis ch. 7), the posterior files and the
 model criticism on w.
 """
 

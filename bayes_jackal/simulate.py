@@ -205,7 +205,8 @@ def simulate_experiment(
             "d_long": float(d_long),
             "family": noise.family,
             "width": noise.width,
-            **({"sigma_h": noise.width} if noise.family == "gaussian" else {}),
+            # and under the family's name for it: sigma_h for the Gaussian
+            **({family.width_name: noise.width} if family.has_width else {}),
             "sigma_c": dict(zip(CHANNELS, map(float, noise.sigma_c), strict=True)),
             "sigma_n": dict(zip(CHANNELS, map(float, noise.sigma_n), strict=True)),
             "conversion": conversion or robot.conversion,

@@ -24,7 +24,7 @@ folder:
 - ``report.html``: the report of every family's posterior, best first.
 
 The demo (:mod:`bayes_jackal.demo`) is this function on the shipped bags.
-Not to be confused with :func:`bayes_jackal.noise.analyse`, the thesis'
+Not to be confused with :func:`bayes_jackal.residual_analysis.analyse`, the thesis'
 ch. 7 residual analysis.
 """
 
@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -45,7 +44,7 @@ from .executors import Executor, ProcessExecutor
 from .experiment import Experiment, write_netcdf
 from .export import export_prior, write_prior
 from .gridsearch import damping_grid, grid_search
-from .inference import ConvergenceWarning, SamplerSettings
+from .inference import SamplerSettings, keep_warnings
 from .likelihood import resolve_channels
 from .plots import save_grid_plot
 from .posterior import save_posterior, summarize
@@ -349,8 +348,7 @@ def analyse_logs(
         save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
         say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ConvergenceWarning)
+    with keep_warnings() as kept:
         comparison = compare_families(
             experiments,
             robot,
@@ -364,6 +362,7 @@ def analyse_logs(
             executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
             **{**(likelihood_options or {}), "channels": channels},
         )
+    kept.issue()  # the convergence warnings are in the result, the others reach the user
     best = comparison.best
     idata = comparison.posteriors[best]
     save_posterior(idata, folder / "posterior.nc")
@@ -378,11 +377,7 @@ def analyse_logs(
     say("writing the report (figures as PNG and SVG)...")
     ranked = [best, *(family for family in families if family != best)]
     report = write_report([paths_by_family[family] for family in ranked], folder / "report.html")
-    convergence = [
-        {"kind": "not-converged", "message": str(w.message)}
-        for w in caught
-        if issubclass(w.category, ConvergenceWarning)
-    ]
+    convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
     return {
         "experiments": {
             e.name: {

@@ -18,14 +18,9 @@ from matplotlib.figure import Figure
 
 from bayes_jackal import load_profile
 from bayes_jackal.kernels import get_family
-from bayes_jackal.noise import (
-    analyse,
-    autocorrelation_bounds,
-    fit_sigma_h,
-    sample_autocorrelation,
-    spectrum,
-)
+from bayes_jackal.residual_analysis import analyse, fit_sigma_h
 from bayes_jackal.residuals import channel_residuals
+from bayes_jackal.series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
 from bayes_jackal.simulate import NoiseSettings, simulate_series
 
 THESIS_TABLE_7_1 = {"v1": 0.051, "v2": 0.041, "all": 0.047}

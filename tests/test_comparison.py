@@ -7,6 +7,7 @@ point is the bookkeeping of many (group, family) jobs, not the posterior.
 from __future__ import annotations
 
 import json
+import pickle
 import warnings
 
 import numpy as np
@@ -14,10 +15,10 @@ import pytest
 
 from bayes_jackal import load_profile
 from bayes_jackal.cli import main
-from bayes_jackal.comparison import compare_families, compare_groups
+from bayes_jackal.comparison import _FamilyRun, compare_families, compare_groups
 from bayes_jackal.executors import ProcessExecutor, SerialExecutor
 from bayes_jackal.experiment import write_netcdf
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.simulate import simulate_experiment
 
 ROBOT = load_profile()
@@ -126,3 +127,51 @@ def test_compare_of_two_runs_saves_both_and_a_rerun_reuses_every_family(runs, tm
             assert f"reusing {family} from {tmp_path / 'out' / f'{name}.{family}.nc'}" in rerun.err
     assert "log Z =" not in rerun.err  # no family ran again
     assert json.loads(rerun.out) == result
+
+
+@pytest.fixture()
+def overflowing_sampler(monkeypatch):
+    """The sampler of the compare and sample commands, run after numpy's overflow warning.
+
+    No code of ours warns on valid data (numpy's warnings are silenced where
+    they are expected), so a real numpy warning, raised twice, is put in
+    front of the real sampler: the one monkeypatch, of our own function.
+    """
+
+    def overflowing(*args, **kwargs):
+        for _ in range(2):
+            np.exp(np.array([1000.0]))  # numpy: "overflow encountered in exp"
+        return sample_posterior(*args, **kwargs)
+
+    monkeypatch.setattr("bayes_jackal.comparison.sample_posterior", overflowing)
+    monkeypatch.setattr("bayes_jackal.cli.commands.sample_posterior", overflowing)
+
+
+def test_a_warning_raised_while_sampling_is_kept_once_and_carried_back(runs, overflowing_sampler):
+    run = _FamilyRun(runs["run1"], ROBOT, SETTINGS, 3, None, False, OPTIONS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # each raised warning recorded, not pytest's "error"
+        *_, kept = run((0, "white"))
+    kept = pickle.loads(pickle.dumps(kept))  # as it comes back from a worker process
+    assert kept.other == [(RuntimeWarning, "overflow encountered in exp")]
+    [message] = kept.convergence  # 200 steps do not converge; kept apart, as before
+    assert message.startswith("NOT CONVERGED")
+
+
+@pytest.mark.parametrize("command", ["compare", "sample"])
+def test_a_warning_raised_while_sampling_reaches_the_user_once(
+    runs, tmp_path, capsys, overflowing_sampler, command
+):
+    path = str(write_netcdf(runs["run1"][0], tmp_path / "run1.nc"))
+    argv = [command, path, "--seed", "3", "--max-steps", "200", "--channels", "yaw"]
+    out = tmp_path / ("out" if command == "compare" else "out.nc")  # a folder, a posterior
+    argv += ["--no-progress", "--out", str(out)]
+    argv += ["--families", "white", "--processes", "1"] if command == "compare" else []
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")  # Python's default action, not pytest's "error"
+        assert main(argv) == 0
+    err = capsys.readouterr().err.splitlines()
+    named = "white: " if command == "compare" else ""  # compare names the family
+    shown = [line for line in err if "overflow" in line]
+    assert shown == [f"bayes-jackal: WARNING: {named}overflow encountered in exp"]
+    assert any("WARNING: " in line and "NOT CONVERGED" in line for line in err)

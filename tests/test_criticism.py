@@ -26,7 +26,7 @@ from bayes_jackal.criticism_statistics import (
     steadiness,
 )
 from bayes_jackal.evidence import Evidence
-from bayes_jackal.experiment import Experiment, write_netcdf
+from bayes_jackal.experiment import Experiment, detect_steady, write_netcdf
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood, sample_stationary
 from bayes_jackal.posterior import (
@@ -39,7 +39,6 @@ from bayes_jackal.posterior import (
 )
 from bayes_jackal.residuals import channel_residuals
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
-from bayes_jackal.steady import detect_steady
 
 ROBOT = load_profile()
 #: Short chains: the checks need a posterior near the fit, not a converged one.

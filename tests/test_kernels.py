@@ -1,10 +1,18 @@
 """Noise-filter families: kernels, exact autocorrelations, PSDs and generators."""
 
+import warnings
+
 import numpy as np
 import pytest
 
-from bayes_jackal import InputError
-from bayes_jackal.kernels import FAMILIES, gaussian_kernel, get_family
+import bayes_jackal as bj
+from bayes_jackal import InputError, load_profile
+from bayes_jackal.export import autocorrelation_derivatives
+from bayes_jackal.inference import ConvergenceWarning
+from bayes_jackal.kernels import FAMILIES, Family, gaussian_kernel, get_family
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.priors import Prior
+from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 
 DT = 1.0 / 72.0
 #: Widths [s] below one sample, at a whole Gaussian tap count (3 w / dt = 10) and between.
@@ -182,3 +190,71 @@ def test_bad_family_and_widths_are_rejected():
             FAMILIES[name].autocorrelation(np.array([0.1, -0.1]), DT, 5)
         with pytest.raises(InputError, match="got nan"):
             FAMILIES[name].noise(np.nan, DT, 5)
+
+
+class Boxcar(Family):
+    """A sixth family, defined here only: the moving-average kernel renamed.
+
+    Its own name and width name, and taps written independently of the
+    package's, so that every number it gives has a reference: the
+    moving-average family's.
+    """
+
+    name = "boxcar"
+    width_name = "duration"
+    description = "duration [s] of a boxcar filter"
+
+    def _taps(self, width: np.ndarray, dt: float) -> np.ndarray:
+        samples = np.maximum(width / dt, 1.0)[..., None]
+        return np.clip(samples - np.arange(int(np.ceil(samples.max()))), 0.0, 1.0)
+
+
+def test_a_family_registered_in_families_needs_no_other_change(monkeypatch):
+    # docs/families.md: a new family is a Family subclass and a FAMILIES entry.
+    # The simulator, the parameter layout, the priors, the likelihood and the
+    # export then take it by name, each through the registry alone.
+    monkeypatch.setitem(FAMILIES, "boxcar", Boxcar())
+    robot = load_profile()
+    run = simulate_experiment(
+        robot, 110.0, 30.0, "v1", NoiseSettings(width=0.1, family="boxcar"), rng=5
+    )
+    assert run.truth["duration"] == run.truth["width"] == 0.1
+    channels = ("yaw", "vx")
+    likelihood = ResidualLikelihood([run], robot, family="boxcar", channels=channels)
+    assert likelihood.layout.names == (
+        "d_lat",
+        "d_long",
+        "duration[yaw]",
+        "sigma_c[yaw]",
+        "sigma_n[yaw]",
+        "duration[vx]",
+        "sigma_c[vx]",
+        "sigma_n[vx]",
+    )
+    prior = Prior.for_likelihood(likelihood, robot, {"width": (0.02, 0.5)})
+    np.testing.assert_array_equal(prior.low[[2, 5]], 0.02)
+    # Two points: the truth-like one and a longer kernel with more sensor noise.
+    theta = np.array(
+        [
+            [110.0, 30.0, 0.1, 0.01, 0.005, 0.1, 0.005, 0.003],
+            [150.0, 40.0, 0.3, 0.02, 0.01, 0.05, 0.004, 0.006],
+        ]
+    )
+    for engine in ("fast", "exact"):
+        reference = ResidualLikelihood(
+            [run], robot, family="moving-average", channels=channels, engine=engine
+        )
+        value = ResidualLikelihood([run], robot, family="boxcar", channels=channels, engine=engine)
+        np.testing.assert_allclose(value(theta), reference(theta), rtol=1e-12)
+    assert autocorrelation_derivatives("boxcar", 0.1, 0).tolist() == [1.0]
+    with pytest.raises(InputError, match=r"boxcar family.*up to order 0"):
+        autocorrelation_derivatives("boxcar", 0.1, 1)
+    # ... and compare, which hands out its measured families longest first:
+    # one it has not measured goes first. 60 steps only exercise the path.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        comparison = bj.compare(
+            run, families=("white", "boxcar"), channels=["yaw"], max_steps=60, seed=1
+        )
+    assert set(comparison.evidence) == {"white", "boxcar"}
+    assert np.isfinite(comparison.evidence["boxcar"].log_evidence)

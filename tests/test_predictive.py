@@ -9,7 +9,6 @@ from synthetic_posteriors import ROBOT, posterior_at
 from bayes_jackal import predictive
 from bayes_jackal._chunks import chunks
 from bayes_jackal.likelihood import sample_stationary
-from bayes_jackal.noise import sample_autocorrelation
 from bayes_jackal.physics import simulate
 from bayes_jackal.posterior import (
     model_autocovariance,
@@ -22,6 +21,7 @@ from bayes_jackal.predictive import (
     predictive_series,
     predictive_statistics,
 )
+from bayes_jackal.series_statistics import sample_autocorrelation
 from bayes_jackal.simulate import Series, simulate_experiment
 
 #: Damping, then (sigma_h, sigma_c, sigma_n) of yaw: the simulator's truth.

@@ -23,13 +23,19 @@ from ..executors import Executor, executor_for
 from ..experiment import Experiment, write_netcdf
 from ..export import export_prior, write_prior
 from ..gridsearch import damping_grid, grid_search
-from ..inference import ConvergenceWarning, SamplerSettings, chain_path, sample_posterior
+from ..inference import (
+    ConvergenceWarning,
+    SamplerSettings,
+    chain_path,
+    keep_warnings,
+    sample_posterior,
+)
 from ..likelihood import ResidualLikelihood, resolve_channels
-from ..noise import analyse
 from ..parameters import prior_overrides
 from ..plots import save_grid_plot
 from ..posterior import load_posterior, save_posterior, summarize
 from ..report import read_posteriors, save_report
+from ..residual_analysis import analyse
 from ..robot import RobotProfile, load_profile
 from ..simulate import NoiseSettings, simulate_series
 from ..tables import check_column_roles, load_experiments, read_experiments, write_csv
@@ -177,9 +183,10 @@ def cmd_residuals(args: argparse.Namespace) -> int:
 class _Sampling:
     """One posterior of ``sample`` (picklable: a job of an executor).
 
-    Called with the experiments of one posterior; returns the posterior and
-    its convergence messages, or the exception that stopped it (so that one
-    experiment's failure does not stop the others on a cluster).
+    Called with the experiments of one posterior; returns the posterior, or
+    the exception that stopped it (so that one experiment's failure does not
+    stop the others on a cluster), with the warnings raised on the way
+    (:class:`~bayes_jackal.inference.KeptWarnings`: a worker's would be lost).
     """
 
     robot: RobotProfile
@@ -200,19 +207,18 @@ class _Sampling:
         return self.out.with_name(f"{self.out.stem}.{group[0].name}.nc")
 
     def __call__(self, group: list[Experiment]):
-        """(posterior, messages, None) or (None, [], the exception)."""
+        """(posterior, kept warnings, None) or (None, kept warnings, the exception)."""
         path = self.path(group)
-        try:
-            likelihood = ResidualLikelihood(
-                group, self.robot, family=self.family, **self.likelihood_options
-            )
-            if self.say is not None:
-                self.say(
-                    f"sampling {', '.join(e.name for e in group)} on channels "
-                    f"{', '.join(likelihood.channels)} -> {path}"
+        with keep_warnings() as kept:
+            try:
+                likelihood = ResidualLikelihood(
+                    group, self.robot, family=self.family, **self.likelihood_options
                 )
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", ConvergenceWarning)
+                if self.say is not None:
+                    self.say(
+                        f"sampling {', '.join(e.name for e in group)} on channels "
+                        f"{', '.join(likelihood.channels)} -> {path}"
+                    )
                 idata = sample_posterior(
                     likelihood,
                     self.settings,
@@ -221,21 +227,21 @@ class _Sampling:
                     prior_overrides=self.prior_overrides,
                     say=self.say,
                 )
-        except Exception as exc:  # raised again where the result is used
-            return None, [], exc
-        messages = [str(w.message) for w in caught if issubclass(w.category, ConvergenceWarning)]
-        return idata, messages, None
+            except Exception as exc:  # raised again where the result is used
+                return None, kept, exc
+        return idata, kept, None
 
 
 def _save_sample(result: tuple, path: Path, say: Callable[[str], None]) -> dict:
     """Save a :class:`_Sampling` result (the chain is beside it), print and return its summary."""
-    idata, messages, error = result
+    idata, kept, error = result
+    kept.issue()  # raised where it ran (maybe a worker), shown here
     if error is not None:
         raise error
     save_posterior(idata, path)
     summary = summarize(idata)
     posterior_table(summary, say)
-    for message in messages:
+    for message in kept.convergence:
         print(f"bayes-jackal: WARNING: {message}", file=sys.stderr)
     print_criticism(summary["warnings"])
     return summary

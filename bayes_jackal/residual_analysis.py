@@ -1,4 +1,4 @@
-"""Residual analysis: the thesis' look at the one-step noise (ch. 7).
+"""The thesis' ch. 7 residual analysis: its look at the one-step noise, table 7-1.
 
 The one-step residual w[k] = y[k+1] - Ad y[k] - Bd u[k] (eq. 7-3) of a
 measured channel y is what the model leaves unexplained. The thesis reads
@@ -9,7 +9,9 @@ autocorrelation and the filter's over the first 30 lags (eq. 7-6, table 7-1).
 This module reproduces those steps, adds the Ljung-Box test as a number for
 "is it white?", and uses the filter's exact autocorrelation (the sampled
 kernel's self-correlation, :mod:`bayes_jackal.kernels`) instead of the
-thesis' long simulated noise.
+thesis' long simulated noise. The statistics of a series it reads
+(autocorrelation, bounds, spectra, Ljung-Box) are generic and live in
+:mod:`bayes_jackal.series_statistics`.
 
 The fit ignores sensor noise, as the thesis does ("the measurement noise will
 be ignored", ch. 7-2-2). A white sensor noise n adds n[k+1] - Ad n[k] to the
@@ -23,10 +25,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.fft
-import scipy.signal
-import scipy.special
-import scipy.stats
 
 from .errors import DataError, InputError
 from .experiment import CHANNEL_FIELDS, UNLABELLED, Experiment
@@ -34,232 +32,29 @@ from .kernels import get_family
 from .physics import CHANNELS
 from .residuals import channel_residuals, check_residual_window
 from .robot import RobotProfile
+from .series_statistics import (
+    _check_dt,
+    _check_lags,
+    _ljung_box,
+    autocorrelation_bounds,
+    sample_autocorrelation,
+)
 
 __all__ = [
     "FIRST_LAGS",
-    "MATLAB_LEVEL",
     "SIGMA_H_GRID",
-    "WELCH_SEGMENT",
     "analyse",
-    "autocorrelation_bounds",
     "average_per_series",
     "fit_sigma_h",
-    "ljung_box",
-    "magnitude_spectrum",
-    "sample_autocorrelation",
     "sigma_h_table",
-    "spectrum",
 ]
 
 #: The thesis' sigma_h grid: 0.001..1 s in steps of 0.001 s (ch. 7-3-1).
 #: Written as k / 1000 so that every value is the correctly rounded decimal.
 SIGMA_H_GRID = np.arange(1, 1001) / 1000.0
 SIGMA_H_GRID.setflags(write=False)
-#: Confidence level of MATLAB's ``autocorr`` bounds: 2 standard errors
-#: (``NumSTD = 2``), i.e. erf(sqrt(2)) = 0.9545.
-MATLAB_LEVEL = float(scipy.special.erf(np.sqrt(2.0)))
-#: Samples per Welch segment (3.6 s at 72 Hz: 0.28 Hz resolution).
-WELCH_SEGMENT = 256
 #: Autocorrelations (lags 1..FIRST_LAGS) reported by :func:`analyse`.
 FIRST_LAGS = 5
-
-
-def _check_lags(lags) -> int:
-    if isinstance(lags, bool) or not isinstance(lags, (int, np.integer)) or lags < 1:
-        raise InputError(f"number of lags must be an integer >= 1, got {lags!r}", field="lags")
-    return int(lags)
-
-
-def _check_series(x, lags: int) -> np.ndarray:
-    """A finite, non-constant series (..., n) with n >= lags + 1."""
-    x = np.asarray(x, float)
-    if x.ndim < 1 or x.shape[-1] < lags + 1:
-        n = x.shape[-1] if x.ndim else 0
-        raise InputError(
-            f"{n} samples are too few for {lags} lags (at least {lags + 1} are needed)",
-            field="lags",
-        )
-    if not np.isfinite(x).all():
-        raise InputError("series holds non-finite values", field="x")
-    if (np.ptp(x, axis=-1) == 0).any():
-        raise InputError("series is constant: its autocorrelation is undefined", field="x")
-    return x
-
-
-def _check_dt(dt) -> float:
-    dt = float(dt)
-    if not (np.isfinite(dt) and dt > 0):
-        raise InputError(f"sample time must be positive, got {dt!r} s", field="dt")
-    return dt
-
-
-def sample_autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
-    """Normalised sample autocorrelation r[0..lags] (r[0] = 1), by FFT.
-
-    The biased estimator of the thesis' ``autocorr``: the mean is removed and
-    every lag is divided by the same sum, r[k] = sum_t x_c[t] x_c[t+k] /
-    sum_t x_c[t]^2. The FFT is zero-padded to at least n + lags points, so
-    no circular wrap reaches the returned lags.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., n)
-        Series, vectorised over leading axes.
-    lags : int
-        Largest lag, >= 1; n >= lags + 1.
-
-    Returns
-    -------
-    ndarray, shape (..., lags + 1)
-
-    Raises
-    ------
-    InputError
-        For lags < 1, too short, non-finite or constant series.
-    """
-    lags = _check_lags(lags)
-    x = _check_series(x, lags)
-    centred = x - x.mean(axis=-1, keepdims=True)
-    size = scipy.fft.next_fast_len(x.shape[-1] + lags, real=True)
-    power = np.abs(scipy.fft.rfft(centred, size)) ** 2
-    covariance = scipy.fft.irfft(power, size)[..., : lags + 1]
-    return covariance / covariance[..., :1]
-
-
-def autocorrelation_bounds(n: int, level: float = 0.95) -> float:
-    """White-noise confidence bound +-z / sqrt(n) of a sample autocorrelation.
-
-    For white noise sqrt(n) r[k] is asymptotically N(0, 1) at every lag
-    k >= 1, so r[k] lies within +-z / sqrt(n) with probability ``level``,
-    z = Phi^-1((1 + level) / 2). MATLAB's ``autocorr`` (thesis figs.
-    7-10..7-18) draws 2 standard errors, +-2 / sqrt(n): pass
-    ``level=MATLAB_LEVEL`` for exactly that; 0.95 gives 1.96 / sqrt(n).
-
-    Parameters
-    ----------
-    n : int
-        Length of the series.
-    level : float
-        Two-sided confidence level, 0 < level < 1.
-
-    Returns
-    -------
-    float
-        The bound (its negative is the lower bound).
-    """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise InputError(f"series length must be an integer >= 1, got {n!r}", field="n")
-    if not 0.0 < level < 1.0:
-        raise InputError(f"confidence level must be in (0, 1), got {level!r}", field="level")
-    return float(scipy.stats.norm.ppf(0.5 + 0.5 * level) / np.sqrt(n))
-
-
-def spectrum(
-    x: np.ndarray, dt: float, segment: int = WELCH_SEGMENT
-) -> tuple[np.ndarray, np.ndarray]:
-    """One-sided power spectral density by Welch's method.
-
-    ``scipy.signal.welch`` with a Hann window of ``min(segment, n)`` samples,
-    50 % overlap, the mean of each segment removed (``detrend="constant"``),
-    density scaling and a one-sided spectrum (bins other than 0 and Nyquist
-    doubled), so that sum(psd) * df is about the variance of ``x``.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., n)
-        Series [unit], vectorised over leading axes.
-    dt : float
-        Sample time [s].
-    segment : int
-        Samples per segment (256: 3.6 s and 0.28 Hz resolution at 72 Hz).
-
-    Returns
-    -------
-    frequency : ndarray, shape (F,)
-        [Hz], 0..1 / (2 dt).
-    psd : ndarray, shape (..., F)
-        [unit^2 / Hz].
-    """
-    dt = _check_dt(dt)
-    x = np.asarray(x, float)
-    if isinstance(segment, bool) or not isinstance(segment, (int, np.integer)) or segment < 2:
-        raise InputError(f"segment must be an integer >= 2, got {segment!r}", field="segment")
-    if x.ndim < 1 or x.shape[-1] < 2:
-        raise InputError(f"spectrum needs at least 2 samples, got shape {x.shape}", field="x")
-    nperseg = min(int(segment), x.shape[-1])
-    return scipy.signal.welch(
-        x,
-        fs=1.0 / dt,
-        window="hann",
-        nperseg=nperseg,
-        noverlap=nperseg // 2,
-        detrend="constant",
-        return_onesided=True,
-        scaling="density",
-        axis=-1,
-    )
-
-
-def magnitude_spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Single-sided amplitude spectrum |FFT| (thesis figs. 7-7..7-9, 7-13..7-15).
-
-    MATLAB's recipe: |X| / n of the whole series (no window, mean kept),
-    bins other than 0 and Nyquist doubled, so that a sine of amplitude A at a
-    bin frequency shows as A.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., n)
-        Series [unit], vectorised over leading axes.
-    dt : float
-        Sample time [s].
-
-    Returns
-    -------
-    frequency : ndarray, shape (n // 2 + 1,)
-        [Hz].
-    magnitude : ndarray, shape (..., n // 2 + 1)
-        [unit].
-    """
-    dt = _check_dt(dt)
-    x = np.asarray(x, float)
-    if x.ndim < 1 or x.shape[-1] < 2:
-        raise InputError(f"spectrum needs at least 2 samples, got shape {x.shape}", field="x")
-    n = x.shape[-1]
-    magnitude = np.abs(scipy.fft.rfft(x, axis=-1)) / n
-    magnitude[..., 1 : (n + 1) // 2] *= 2.0  # the Nyquist bin (even n) has no mirror
-    return scipy.fft.rfftfreq(n, dt), magnitude
-
-
-def _ljung_box(r: np.ndarray, n: int, lags: int) -> tuple[np.ndarray, np.ndarray]:
-    k = np.arange(1, lags + 1)
-    statistic = n * (n + 2.0) * np.sum(r[..., 1 : lags + 1] ** 2 / (n - k), axis=-1)
-    return statistic, scipy.stats.chi2.sf(statistic, lags)
-
-
-def ljung_box(x: np.ndarray, lags: int) -> tuple[np.ndarray, np.ndarray]:
-    """Ljung-Box portmanteau test of whiteness.
-
-    Q = n (n + 2) sum_{k=1..h} r_k^2 / (n - k) with the sample
-    autocorrelation r (:func:`sample_autocorrelation`), h = ``lags``; under
-    white noise Q is asymptotically chi^2 with h degrees of freedom. (No
-    degrees of freedom are removed for fitted parameters: d is fixed here.)
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., n)
-        Series, vectorised over leading axes.
-    lags : int
-        h >= 1; n >= h + 1.
-
-    Returns
-    -------
-    Q : ndarray, shape (...)
-    p_value : ndarray, shape (...)
-        P(chi^2_h >= Q); small values reject whiteness.
-    """
-    r = sample_autocorrelation(x, lags)
-    return _ljung_box(r, np.shape(x)[-1], lags)
 
 
 def _gaussian_autocorrelation(grid: np.ndarray, dt: float, lags: int) -> np.ndarray:

@@ -1,4 +1,7 @@
-"""Residual analysis (thesis ch. 7): residuals, autocorrelation, Ljung-Box, sigma_h fit, CLI."""
+"""Thesis ch. 7 residual analysis and the series statistics it reads.
+
+Residuals, autocorrelation, spectra, Ljung-Box, the sigma_h fit, the ``residuals`` command.
+"""
 
 import json
 import re
@@ -12,26 +15,28 @@ from bayes_jackal import DataError, InputError, load_profile
 from bayes_jackal.cli import main
 from bayes_jackal.experiment import Experiment
 from bayes_jackal.kernels import get_family
-from bayes_jackal.noise import (
-    MATLAB_LEVEL,
-    SIGMA_H_GRID,
-    analyse,
-    autocorrelation_bounds,
-    average_per_series,
-    fit_sigma_h,
-    ljung_box,
-    magnitude_spectrum,
-    sample_autocorrelation,
-    sigma_h_table,
-    spectrum,
-)
 from bayes_jackal.physics import (
     CHANNELS,
     channel_coefficients,
     discrete_matrices,
     one_step_residuals,
 )
+from bayes_jackal.residual_analysis import (
+    SIGMA_H_GRID,
+    analyse,
+    average_per_series,
+    fit_sigma_h,
+    sigma_h_table,
+)
 from bayes_jackal.residuals import channel_residuals
+from bayes_jackal.series_statistics import (
+    MATLAB_LEVEL,
+    autocorrelation_bounds,
+    ljung_box,
+    magnitude_spectrum,
+    sample_autocorrelation,
+    spectrum,
+)
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
 from bayes_jackal.tables import read_csv, write_csv
 
