@@ -38,6 +38,7 @@ from .posterior import (
 
 __all__ = [
     "FIGURE_FORMATS",
+    "LAGS",
     "read_posteriors",
     "render_report",
     "save_report",
@@ -45,6 +46,8 @@ __all__ = [
 ]
 
 FIGURE_FORMATS = ("png", "svg")
+#: Lags of the report's autocorrelation figures.
+LAGS = 30
 #: Resolution of the embedded and saved PNGs [dots per inch].
 DPI = 130
 
@@ -454,7 +457,7 @@ def _posterior_section(path: Path, idata: az.InferenceData, figures: _Figures, l
 
 
 def render_report(
-    posteriors: list[tuple[Path, az.InferenceData]], figures: _Figures, lags: int = 30
+    posteriors: list[tuple[Path, az.InferenceData]], figures: _Figures, lags: int = LAGS
 ) -> str:
     """The HTML text of a report on loaded posteriors."""
     created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -521,7 +524,7 @@ def write_report(
     out: str | Path,
     *,
     formats: tuple[str, ...] = FIGURE_FORMATS,
-    lags: int = 30,
+    lags: int = LAGS,
 ) -> Path:
     """Write the HTML report of posteriors, in files or in memory, and its figures beside it.
 
@@ -579,7 +582,7 @@ def save_report(
     posteriors: list[tuple[Path, az.InferenceData]],
     out: str | Path,
     formats: tuple[str, ...] = FIGURE_FORMATS,
-    lags: int = 30,
+    lags: int = LAGS,
 ) -> Path:
     """Write the HTML report of posteriors already read (:func:`read_posteriors`).
 

@@ -42,6 +42,7 @@ from .series_statistics import (
 
 __all__ = [
     "FIRST_LAGS",
+    "LAGS",
     "SIGMA_H_GRID",
     "analyse",
     "average_per_series",
@@ -53,6 +54,8 @@ __all__ = [
 #: Written as k / 1000 so that every value is the correctly rounded decimal.
 SIGMA_H_GRID = np.arange(1, 1001) / 1000.0
 SIGMA_H_GRID.setflags(write=False)
+#: Lags of the Ljung-Box test and of the sigma_h fit (thesis ch. 7-3).
+LAGS = 30
 #: Autocorrelations (lags 1..FIRST_LAGS) reported by :func:`analyse`.
 FIRST_LAGS = 5
 
@@ -87,7 +90,7 @@ def _check_grid(grid) -> np.ndarray:
 
 
 def fit_sigma_h(
-    x: np.ndarray, dt: float, lags: int = 30, grid: np.ndarray | None = None
+    x: np.ndarray, dt: float, lags: int = LAGS, grid: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The thesis' sigma_h: least squares between autocorrelations (eq. 7-6).
 
@@ -192,7 +195,7 @@ def sigma_h_table(
     robot: RobotProfile,
     d_lat: float,
     d_long: float,
-    lags: int = 30,
+    lags: int = LAGS,
 ) -> dict:
     """Thesis table 7-1: sigma_h of the yaw-rate residuals, per series and over all.
 
@@ -270,7 +273,7 @@ def analyse(
     d_lat: float,
     d_long: float,
     channels: Sequence[str] = ("yaw",),
-    lags: int = 30,
+    lags: int = LAGS,
 ) -> dict:
     """Residual analysis of thesis ch. 7 for several experiments (JSON-ready).
 

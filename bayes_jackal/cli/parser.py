@@ -26,6 +26,7 @@ from ..kernels import FAMILIES
 from ..likelihood import DEFAULT_CHANNEL_ORDER, ENGINES, SENSOR_MODELS
 from ..physics import CHANNELS
 from ..report import FIGURE_FORMATS
+from ..residual_analysis import LAGS as RESIDUAL_LAGS
 from ..robot import CONVERSIONS
 from ..simulate import SERIES, NoiseSettings
 from ..stamps import MAX_GAP_STEPS
@@ -371,7 +372,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="comma-separated channels to analyse (yaw)",
     )
     res.add_argument(
-        "--lags", type=_count, default=30, help="lags of the Ljung-Box test and sigma_h fit (30)"
+        "--lags",
+        type=_count,
+        default=RESIDUAL_LAGS,
+        help=f"lags of the Ljung-Box test and sigma_h fit ({RESIDUAL_LAGS})",
     )
     _add_input_flags(res)
     _add_common(res)
