@@ -22,8 +22,8 @@ _LAZY = {
     "write_report": ".report",
     "analyse_logs": ".workflow",
     # what it takes and gives
-    "Comparison": ".comparison",
-    "ConvergenceWarning": ".inference",
+    "Comparison": ".comparison_result",
+    "ConvergenceWarning": ".sampler_warnings",
     "Experiment": ".experiment",
     "FAMILIES": ".kernels",
     "NoiseSettings": ".simulate",

@@ -1,8 +1,8 @@
 """The workflow's front door: ``import bayes_jackal as bj`` is enough for all of it.
 
 Logs in, posteriors, evidence, priors and reports out, with keyword-only
-options whose defaults are the command line's (the constants below, which
-``bayes-jackal``'s flags read)::
+options whose defaults are the command line's (the constants of
+:mod:`bayes_jackal.defaults`, which ``bayes-jackal``'s flags read)::
 
     runs = bj.load_experiments(["run1.csv", "run2.bag"])
     posterior = bj.sample(runs, seed=1)  # bayes-jackal sample --pooled
@@ -22,11 +22,19 @@ experiment.
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from .comparison import Comparison, compare_families
+from .defaults import (
+    ENGINE,
+    FAMILY,
+    MAX_STEPS,
+    NOISE,
+    NOISE_SHARING,
+    SENSOR,
+    WALKERS,
+)
 from .errors import InputError, each_input, refuse
 from .executors import Executor
 from .experiment import Experiment
@@ -39,7 +47,6 @@ from .tables import check_column_roles, check_unique_names
 from .workflow import read_log
 
 __all__ = [
-    "COMPARED_FAMILIES",
     "ENGINE",
     "FAMILY",
     "MAX_STEPS",
@@ -50,30 +57,9 @@ __all__ = [
     "compare",
     "likelihood_options",
     "load_experiments",
+    "read_logs",
     "sample",
 ]
-
-_LIKELIHOOD_DEFAULTS = {
-    f.name: f.default for f in dataclasses.fields(ResidualLikelihood) if f.init
-}
-_SAMPLER_DEFAULTS = SamplerSettings()
-
-#: Noise family of :func:`sample` (``sample --family``).
-FAMILY: str = _LIKELIHOOD_DEFAULTS["family"]
-#: Families :func:`compare` ranks (``compare --families``): every one.
-COMPARED_FAMILIES: tuple[str, ...] = tuple(FAMILIES)
-#: Sensor-noise footprint (``--sensor-noise``): ``ma1`` or ``diagonal``.
-SENSOR: str = _LIKELIHOOD_DEFAULTS["sensor"]
-#: Likelihood engine (``--engine``): ``fast``, ``exact`` or ``whittle``.
-ENGINE: str = _LIKELIHOOD_DEFAULTS["engine"]
-#: Noise parameters of pooled experiments (``--noise``): shared, or each experiment's own.
-NOISE_SHARING = ("shared", "per-experiment")
-#: ... and the default.
-NOISE: str = NOISE_SHARING[0 if _LIKELIHOOD_DEFAULTS["shared_noise"] else 1]
-#: Step cap of each chain (``--max-steps``); a chain that reaches it is NOT CONVERGED.
-MAX_STEPS: int = _SAMPLER_DEFAULTS.max_steps
-#: Ensemble size (``--walkers``); 0: max(32, 4 x parameters).
-WALKERS: int = _SAMPLER_DEFAULTS.walkers
 
 
 def _profile(robot: RobotProfile | str | Path | None) -> RobotProfile:
@@ -199,19 +185,89 @@ def load_experiments(
     >>> loaded.name, loaded.channels, round(1 / loaded.dt)
     ('v1_01', ('vx', 'vy', 'yaw'), 72)
     """
-    paths = [paths] if isinstance(paths, str | Path) else list(paths)
-    robot = _profile(robot)
-    check_column_roles(columns)
-    options = {"columns": columns, "rate": rate}
-    experiments, failed = each_input(
+    paths = _paths(paths)
+    experiments, failed = read_logs(
         paths,
+        robot=robot,
+        columns=columns,
+        rate=rate,
+        max_gap=max_gap,
+        window=window,
+        progress=progress,
+    )
+    refuse(failed, len(paths))
+    return list(experiments.values())
+
+
+def read_logs(
+    paths: str | Path | Sequence[str | Path],
+    *,
+    robot: RobotProfile | str | Path | None = None,
+    columns: Mapping[str, str] | None = None,
+    rate: float | None = None,
+    max_gap: float | None = None,
+    window: tuple[float, float] | None = None,
+    progress: bool = False,
+    on_failure: Callable[[str, Exception], None] | None = None,
+) -> tuple[dict[str, Experiment], dict[str, str]]:
+    """Read each log on its own, past the bad ones (:func:`load_experiments`: all or none).
+
+    The reader of ``bayes-jackal sample``, ``compare``, ``grid`` and
+    ``residuals``, which go on with the good inputs when they process each
+    on its own.
+
+    Parameters
+    ----------
+    paths, robot, columns, rate, max_gap, window, progress
+        As in :func:`load_experiments`.
+    on_failure : callable, optional
+        ``on_failure(path, exception)``, called as each bad input is met.
+
+    Returns
+    -------
+    experiments : dict of str to Experiment
+        By path as given, in order.
+    failed : dict of str to str
+        Why each bad input cannot be used (the reason names it), by path.
+
+    Raises
+    ------
+    DataError
+        When two experiments that could be read share a name.
+    InputError
+        For an unknown column role.
+
+    Examples
+    --------
+    A simulated run written as CSV, and a file that is not there:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.api import read_logs
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1, name="v1_01")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     csv = str(bj.write_csv(run, Path(folder) / "v1_01.csv"))
+    ...     experiments, failed = read_logs([csv, "missing.nc"])
+    >>> [e.name for e in experiments.values()], list(failed)
+    (['v1_01'], ['missing.nc'])
+    """
+    robot = _profile(robot)
+    options = {"columns": check_column_roles(columns), "rate": rate}
+    experiments, failed = each_input(
+        _paths(paths),
         lambda path: read_log(
             path, robot, window=window, max_gap=max_gap, progress=progress, read_options=options
         ),
+        on_failure=on_failure,
     )
-    refuse(failed, len(paths))
     check_unique_names(experiments.values())
-    return list(experiments.values())
+    return experiments, failed
+
+
+def _paths(paths: str | Path | Sequence[str | Path]) -> list[str | Path]:
+    """One path, or several, as a list."""
+    return [paths] if isinstance(paths, str | Path) else list(paths)
 
 
 def sample(
@@ -317,7 +373,7 @@ def sample(
 def compare(
     experiments: Experiment | Sequence[Experiment],
     *,
-    families: Sequence[str] = COMPARED_FAMILIES,
+    families: Sequence[str] | None = None,
     channels: Sequence[str] | None = None,
     noise: str = NOISE,
     sensor: str = SENSOR,
@@ -342,9 +398,9 @@ def compare(
     ----------
     experiments : Experiment or sequence of them
         Several are pooled: one damping for all.
-    families : sequence of str
-        Keys of :data:`bayes_jackal.FAMILIES`, distinct (``--families``;
-        :data:`COMPARED_FAMILIES`, all five).
+    families : sequence of str, optional
+        Keys of :data:`bayes_jackal.FAMILIES`, distinct (``--families``);
+        None: every registered family, in the registry's order.
     channels, noise, sensor, engine, seed, max_steps, walkers, priors, robot, progress
         As in :func:`sample`; the seed seeds every family's chain and the
         bridges' proposal draws.
@@ -389,7 +445,7 @@ def compare(
     return compare_families(
         _experiments(experiments),
         _profile(robot),
-        families=tuple(families),
+        families=tuple(FAMILIES if families is None else families),
         settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
         seed=seed,
         prior_overrides=priors,

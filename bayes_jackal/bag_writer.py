@@ -64,6 +64,27 @@ class BagMessage:
         Receive (bag) time [ns since the epoch].
     message : object
         A message of the typestore of the bag format.
+
+    Examples
+    --------
+    A velocity command, written as a bag and read back with rosbags:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from rosbags.highlevel import AnyReader
+    >>> from bayes_jackal.bag_writer import BagMessage, write_messages
+    >>> from bayes_jackal.bags import typestore
+    >>> store = typestore("ros2")
+    >>> Twist, Vector3 = (store.types[f"geometry_msgs/msg/{n}"] for n in ("Twist", "Vector3"))
+    >>> twist = Twist(linear=Vector3(x=0.3, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.39))
+    >>> message = BagMessage("/cmd_vel", "geometry_msgs/msg/Twist", 1_700_000_000 * 10**9, twist)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_messages([message], Path(folder) / "cmd.mcap")
+    ...     with AnyReader([path], default_typestore=store) as reader:
+    ...         [(connection, time, raw)] = reader.messages()
+    ...         read = reader.deserialize(raw, connection.msgtype)
+    >>> print(connection.topic, time, read.angular.z)
+    /cmd_vel 1700000000000000000 0.39
     """
 
     topic: str
@@ -107,6 +128,25 @@ def bag_messages(
     -------
     list of BagMessage
         Sorted by receive time.
+
+    Examples
+    --------
+    The messages of a short simulated run (8 s): IMU and joint states at
+    72 Hz, motion capture at 360 Hz (a few poses twice), cmd_vel at 18 Hz:
+
+    >>> from collections import Counter
+    >>> from bayes_jackal.bag_writer import bag_messages
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> messages = bag_messages(run, robot, "ros1", rng=1)
+    >>> for topic, count in sorted(Counter(m.topic for m in messages).items()):
+    ...     print(topic, count)
+    /cmd_vel 145
+    /imu/data 577
+    /joint_states 577
+    /mocap_node/Jackal/pose 2892
     """
     missing = [
         k for k in ("vx_state", "vy_state", "yaw_state") if k not in experiment.truth_arrays
@@ -260,6 +300,29 @@ def write_messages(
     Returns
     -------
     Path
+
+    Examples
+    --------
+    A bag with the topics of a run but no messages on one of them (a
+    ``message`` of None declares the topic only):
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from rosbags.highlevel import AnyReader
+    >>> from bayes_jackal.bag_writer import BagMessage, bag_messages, write_messages
+    >>> from bayes_jackal.bags import typestore
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> kept = [m for m in bag_messages(run, robot, "ros1", rng=1) if m.topic != "/cmd_vel"]
+    >>> silent = BagMessage("/cmd_vel", "geometry_msgs/msg/Twist", 0, None)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_messages([silent, *kept], Path(folder) / "run.bag", "ros1")
+    ...     with AnyReader([path], default_typestore=typestore("ros1")) as reader:
+    ...         counts = {c.topic: c.msgcount for c in reader.connections}
+    >>> counts["/cmd_vel"], counts["/imu/data"]
+    (0, 577)
     """
     path = Path(path)
     store = typestore(format)
@@ -335,6 +398,28 @@ def write_bag(
     Returns
     -------
     Path
+
+    Examples
+    --------
+    A short simulated run (8 s) as a ROS1 bag, read back: the yaw rate
+    survives the IMU message's round trip to ~1e-7 rad/s:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from bayes_jackal.bag_writer import write_bag
+    >>> from bayes_jackal.bags import read_bag
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1, name="short")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     bag = write_bag(run, Path(folder) / "short.bag", robot, "ros1", rng=1)
+    ...     back = read_bag(bag, robot)
+    >>> print(bag.name, len(back.t), back.channels)
+    short.bag 577 ('vx', 'vy', 'yaw')
+    >>> np.allclose(back.yaw_rate, run.yaw_rate, atol=1e-6)
+    True
     """
     messages = bag_messages(experiment, robot, format, rng)
     return write_messages(messages, path, format, compression)

@@ -61,6 +61,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 from scipy.signal import savgol_filter
 
+from .defaults import BAG_FORMATS, MAX_GAP
 from .errors import DataError, InputError
 from .experiment import Experiment, detect_steady
 from .progress import Progress
@@ -91,10 +92,7 @@ SMOOTHING_ORDER = 2
 QUATERNION_TOLERANCE = 0.01
 #: Shortest usable run after cutting at dropouts [s].
 MIN_DURATION = 1.0
-#: Longest tolerated dropout of a topic [s] (``--max-gap``): 18 IMU samples at 72 Hz.
-MAX_GAP = 0.25
 
-_FORMATS = ("ros1", "ros2")
 #: What rosbags raises on unreadable or corrupt files (its readers check some
 #: record fields with ``assert``, hence AssertionError).
 _READ_ERRORS = (
@@ -134,9 +132,18 @@ class _Stream:
 
 
 def typestore(format: str) -> Typestore:
-    """The rosbags typestore of a bag format (``"ros1"``: Noetic, ``"ros2"``: Humble)."""
-    if format not in _FORMATS:
-        raise InputError(f"unknown bag format {format!r}; use one of {_FORMATS}", field="format")
+    """The rosbags typestore of a bag format (``"ros1"``: Noetic, ``"ros2"``: Humble).
+
+    Examples
+    --------
+    >>> from bayes_jackal.bags import typestore
+    >>> "sensor_msgs/msg/Imu" in typestore("ros1").types
+    True
+    """
+    if format not in BAG_FORMATS:
+        raise InputError(
+            f"unknown bag format {format!r}; use one of {BAG_FORMATS}", field="format"
+        )
     return get_typestore(Stores.ROS1_NOETIC if format == "ros1" else Stores.ROS2_HUMBLE)
 
 
@@ -177,6 +184,31 @@ def read_bag(
     ------
     DataError
         Naming the file, the topic and the time of the problem.
+
+    Examples
+    --------
+    A bag written from a short simulated run (8 s, :func:`~bayes_jackal.bag_writer.write_bag`):
+    the IMU clock, the velocities derived from the motion-capture pose, the
+    detected steady window, and the repairs (duplicated poses):
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.bag_writer import write_bag
+    >>> from bayes_jackal.bags import read_bag
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1, name="short")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     bag = write_bag(run, Path(folder) / "short.bag", robot, "ros1", rng=1)
+    ...     experiment = read_bag(bag, robot)
+    >>> print(experiment.name, len(experiment.t), round(1 / experiment.dt, 3), experiment.channels)
+    short 577 72.0 ('vx', 'vy', 'yaw')
+    >>> print("steady window {:.2f}-{:.2f} s".format(*experiment.steady_window))
+    steady window 1.99-6.03 s
+    >>> print(experiment.provenance["repairs"][0])
+    /mocap_node/Jackal/pose: 11 duplicate stamps (first at message 324, stamp ...);
+    kept the first message of each
     """
     path = Path(path)
     source = str(path)

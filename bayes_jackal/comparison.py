@@ -9,11 +9,10 @@ cluster busy, and each group's :class:`Comparison` comes back as soon as its
 families are done. :func:`compare_families` is its case of one group. A
 job's chain is seeded by ``seed`` and its bridge's proposal draws by
 ``[seed, the family's index in FAMILIES]``: its result depends on nothing
-else, not on the executor nor on the other groups or families.
-
-Bayes factors are read on Kass & Raftery's (1995) scale, in natural-log
-units: below 1 not worth more than a bare mention, 1-3 positive, 3-5
-strong, above 5 very strong.
+else, not on the executor nor on the other groups or families. The result
+object, its Bayes factors and its verdict are
+:mod:`bayes_jackal.comparison_result`'s (:class:`Comparison` is importable
+from here too).
 """
 
 from __future__ import annotations
@@ -22,14 +21,15 @@ import dataclasses
 import json
 import warnings
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
 
+from .comparison_result import Comparison
 from .errors import DataError, InputError
-from .evidence import Evidence, bridge_sampling, evidence_strength, nested_sampling
+from .evidence import Evidence, bridge_sampling, nested_sampling
 from .executors import Executor, ProcessExecutor, SerialExecutor
 from .experiment import Experiment
 from .inference import (
@@ -43,14 +43,11 @@ from .inference import (
 from .kernels import FAMILIES
 from .likelihood import ResidualLikelihood
 from .posterior import (
-    HDI_PROB,
     az,
-    interval,
     load_posterior,
     parameter_draws,
     posterior_metadata,
     store_comparison,
-    summarize,
 )
 from .priors import LogPosterior, Prior
 from .robot import RobotProfile
@@ -58,123 +55,6 @@ from .robot import RobotProfile
 __all__ = ["Comparison", "compare_families", "compare_groups"]
 
 K = TypeVar("K", bound=Hashable)
-
-#: A family is called coloured when it beats white noise by more than this
-#: (ln B, "strong" on Kass & Raftery's scale) after two standard errors.
-COLOURED_LOG_BF = 3.0
-#: ... and white noise wins when every coloured family loses by more than
-#: this ("positive") after two standard errors.
-WHITE_LOG_BF = 1.0
-
-
-@dataclass
-class Comparison:
-    """Noise-filter families of one data set, each with its posterior and evidence.
-
-    Attributes
-    ----------
-    experiments : list of str
-        Names of the experiments (several when pooled).
-    evidence : dict of str to Evidence
-        Bridge-sampling evidence per family.
-    posteriors : dict of str to arviz.InferenceData
-    nested : dict of str to Evidence
-        Nested-sampling evidence per family, when cross-checked.
-    """
-
-    experiments: list[str]
-    evidence: dict[str, Evidence]
-    posteriors: dict[str, az.InferenceData]
-    nested: dict[str, Evidence] = field(default_factory=dict)
-
-    @property
-    def best(self) -> str:
-        """The family of highest evidence."""
-        return max(self.evidence, key=lambda name: self.evidence[name].log_evidence)
-
-    def convergence_messages(self) -> list[str]:
-        """Each family's chain that hit its step cap, as ``"<family>: <message>"``.
-
-        Read from the posteriors' ``convergence_messages`` attributes (kept
-        by :func:`compare_groups`, also in a saved and reused posterior).
-        """
-        return [
-            f"{family}: {message}"
-            for family, idata in self.posteriors.items()
-            for message in posterior_metadata(idata).convergence_messages
-        ]
-
-    def log_bayes_factor(self, family: str, other: str) -> tuple[float, float]:
-        """ln B of ``family`` over ``other`` and its standard error [nats]."""
-        a, b = self.evidence[family], self.evidence[other]
-        return a.log_evidence - b.log_evidence, float(np.hypot(a.error, b.error))
-
-    def verdict(self) -> tuple[str, str]:
-        """Is the noise coloured? ('coloured' | 'not coloured' | 'inconclusive', sentence).
-
-        The best coloured family is set against white noise. 'coloured' needs
-        ln B - 2 se > 3 (strong), 'not coloured' needs ln B + 2 se < -1
-        (white better by positive evidence); anything between is
-        inconclusive, so a noisy estimate never gives a confident answer.
-        """
-        coloured = [name for name in self.evidence if name != "white"]
-        if "white" not in self.evidence or not coloured:
-            return "inconclusive", "white noise and a coloured family must both be compared"
-        rival = max(coloured, key=lambda name: self.evidence[name].log_evidence)
-        value, error = self.log_bayes_factor(rival, "white")
-        words = f"ln B = {value:.1f} +- {error:.2f}, {evidence_strength(value)}"
-        if value - 2 * error > COLOURED_LOG_BF:
-            return "coloured", f"coloured: {rival} over white, {words}"
-        if value + 2 * error < -WHITE_LOG_BF:
-            return "not coloured", f"not coloured: white over {rival}, {words}"
-        return "inconclusive", f"inconclusive: {rival} against white, {words}"
-
-    def to_dict(self) -> dict:
-        """The ``compare --json`` object (docs/design.md §6).
-
-        Each family carries its model-criticism ``warnings``
-        (:func:`bayes_jackal.criticism.criticise`); the top-level ``warnings``
-        lists them all, each with its ``family``.
-        """
-        families = {}
-        for name, evidence in self.evidence.items():
-            entry = evidence.to_dict()
-            entry["log_bayes_factor_vs_best"] = self.log_bayes_factor(name, self.best)[0]
-            entry["log_bayes_factor_vs_white"] = (
-                self.log_bayes_factor(name, "white")[0] if "white" in self.evidence else None
-            )
-            entry["width"] = _width_summary(self.posteriors[name], name)
-            entry["converged"] = posterior_metadata(self.posteriors[name]).convergence.converged
-            entry["warnings"] = summarize(self.posteriors[name])["warnings"]
-            if name in self.nested:
-                entry["log_evidence_nested"] = self.nested[name].log_evidence
-                entry["log_evidence_nested_err"] = self.nested[name].error
-            families[name] = entry
-        label, sentence = self.verdict()
-        return {
-            "experiments": self.experiments,
-            "families": families,
-            "best": self.best,
-            "log_bayes_factor_vs_white": families[self.best]["log_bayes_factor_vs_white"],
-            "verdict": label,
-            "verdict_text": sentence,
-            "warnings": [
-                {"family": name} | warning
-                for name, entry in families.items()
-                for warning in entry["warnings"]
-            ],
-        }
-
-
-def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
-    """Posterior mean, sd and HDI of a family's width(s) [s]; None for white noise."""
-    layout = posterior_metadata(idata).layout
-    if layout.width_name is None:
-        return None
-    summary = summarize(idata)
-    widths = layout.names_of(layout.width_name)
-    return {name: interval(summary[name]) for name in widths} | {"hdi_prob": HDI_PROB}
-
 
 #: The order tasks are handed to the executor: the families that usually take
 #: longest first, so that the short ones fill the workers at the end (a
@@ -395,6 +275,26 @@ def compare_groups(
     InputError
         For families that are not distinct names of ``FAMILIES`` (at once,
         before any job).
+
+    Examples
+    --------
+    One comparison per run, here of white noise alone (a real campaign
+    compares several families) on chains kept short on purpose (100 steps):
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.comparison import compare_groups
+    >>> robot = bj.load_profile()
+    >>> runs = {
+    ...     name: [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed, name=name)]
+    ...     for seed, name in enumerate(["v1_01", "v1_02"], start=1)
+    ... }
+    >>> for key, comparison in compare_groups(
+    ...     runs, robot, families=["white"], settings=bj.SamplerSettings(max_steps=100), seed=1,
+    ...     likelihood_options={"channels": ["yaw"]},
+    ... ):
+    ...     print(key, comparison.experiments, list(comparison.evidence))
+    v1_01 ['v1_01'] ['white']
+    v1_02 ['v1_02'] ['white']
     """
     unknown = [name for name in families if name not in FAMILIES]
     if unknown or not families or len(set(families)) != len(families):
@@ -573,6 +473,24 @@ def compare_families(
         (``evidence``, ``evidence_nested``), its ``task`` and its
         ``convergence_messages``. Families that hit the step cap re-issue their
         :class:`~bayes_jackal.inference.ConvergenceWarning` here.
+
+    Examples
+    --------
+    Two families on a chain budget kept short on purpose (100 steps, far
+    from converged), so that the example is quick:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.comparison import compare_families
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> comparison = compare_families(
+    ...     [run], robot, ("white", "exponential"), bj.SamplerSettings(max_steps=100), seed=1,
+    ...     channels=["yaw"],
+    ... )
+    >>> list(comparison.evidence), comparison.best
+    (['white', 'exponential'], 'exponential')
+    >>> comparison.verdict()[0]
+    'coloured'
     """
     [(_, comparison)] = compare_groups(
         {0: experiments},

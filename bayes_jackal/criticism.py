@@ -9,34 +9,36 @@ InferenceData as written by :mod:`bayes_jackal.posterior` and returns a
 ``not-steady`` (:func:`steady_windows`) and ``damping-scale-not-identified``
 (:func:`damping_scale`). :func:`criticise` runs them all;
 :func:`bayes_jackal.posterior.summarize` reports it under ``warnings`` and
-``criticism``. The array-level statistics behind the checks are in
-:mod:`bayes_jackal.criticism_statistics`.
+``criticism``. The array-level statistics behind the checks, and
+:class:`Check`, are in :mod:`bayes_jackal.criticism_statistics`; the two
+checks of the inputs' path (:func:`residual_input`, :func:`steady_windows`)
+are :mod:`bayes_jackal.criticism_inputs`'s. All are importable from here.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
-import scipy.stats
 
+from .criticism_inputs import (
+    INPUTS,
+    RESIDUAL_INPUT_LAGS,
+    RESIDUAL_INPUT_LEVEL,
+    residual_input,
+    steady_windows,
+)
 from .criticism_statistics import (
+    Check,
     acf_statistics,
     boundary_density,
-    cross_correlation,
-    cross_correlation_sd,
     predictive_flags,
     predictive_p_values,
-    simultaneous_threshold,
-    steadiness,
 )
-from .experiment import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, Experiment
+from .experiment import Experiment
 from .kernels import as_rng
 from .posterior import (
     HDI_PROB,
     PosteriorMetadata,
     az,
-    model_autocovariance,
     observed_residuals,
     parameter_draws,
     posterior_experiments,
@@ -74,13 +76,6 @@ BOUNDARY_STRIP = 0.1
 #: is at least this fraction of their mean density over the HDI. For a normal
 #: posterior that is a bound within 1.5 sd of the mode (it cuts off >= 6 %).
 BOUNDARY_DENSITY = 0.5
-#: Lags -L..L of the residual-input cross-correlation (MATLAB ``resid``: 25).
-RESIDUAL_INPUT_LAGS = 25
-#: Level of the per-lag band, and family-wise level of the warning.
-RESIDUAL_INPUT_LEVEL = 0.99
-#: Inputs the residuals are correlated with: wheel-speed sum (forward drive,
-#: rad/s) and difference (turning), the two directions of B.
-INPUTS = ("sum", "difference")
 #: Lags of the posterior-predictive autocorrelation statistics, and the
 #: largest lag of the Ljung-Box portmanteau statistic (the report's figure).
 PREDICTIVE_LAGS = (1, 2, 5, 10)
@@ -102,21 +97,6 @@ PREDICTIVE_WINDOW = 16_384
 PREDICTIVE_ALARM = 0.05
 
 
-@dataclass
-class Check:
-    """The result of one check: JSON-ready numbers and warnings.
-
-    Attributes
-    ----------
-    numbers : dict
-    warnings : list of dict
-        Each with ``kind`` and ``message`` and the fields that locate it.
-    """
-
-    numbers: dict = field(default_factory=dict)
-    warnings: list[dict] = field(default_factory=list)
-
-
 # --- prior boundary -----------------------------------------------------------------
 
 
@@ -125,6 +105,22 @@ def prior_boundary(idata: az.InferenceData) -> Check:
 
     Rule: :func:`boundary_density` at a bound is at least
     :data:`BOUNDARY_DENSITY`. Numbers: the two density ratios per parameter.
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism import prior_boundary
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> check = prior_boundary(posterior)
+    >>> [(w["parameter"], w["side"]) for w in check.warnings]  # yaw alone: d_long runs free
+    [('d_long', 'low'), ('sigma_n', 'low')]
+    >>> {name: round(ratios["low"], 2) for name, ratios in check.numbers.items()}
+    {'d_lat': 0.0, 'd_long': 2.56, 'sigma_c': 0.0, 'sigma_n': 0.99}
     """
     metadata = posterior_metadata(idata)
     prior, layout = metadata.prior, metadata.layout
@@ -175,100 +171,6 @@ def _boundary_warning(name: str, key: str, bound: float, side: str, interval: tu
     }
 
 
-# --- residual-input cross-correlation -------------------------------------------------
-
-
-def _input_series(experiment: Experiment) -> dict[str, np.ndarray]:
-    """Wheel-speed sum and difference at the residuals' times k = 0..N-2 [rad/s]."""
-    u = experiment.inputs[:-1]
-    return dict(zip(INPUTS, (u[:, 0] + u[:, 1], u[:, 0] - u[:, 1]), strict=True))
-
-
-def _posterior_median(idata: az.InferenceData) -> np.ndarray:
-    draws, _ = parameter_draws(idata)
-    return np.median(draws.reshape(-1, draws.shape[-1]), axis=0)
-
-
-def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) -> Check:
-    """Cross-correlation of the one-step residuals with the inputs, per experiment and channel.
-
-    The residuals and the model are taken at the posterior median, over the
-    whole run: in a steady window the wheel speeds are constant, and a
-    wrong input gain is absorbed by the damping there; only where the input
-    varies can the residuals betray it. The residual autocorrelation in the
-    band (:func:`cross_correlation_sd`) is the fitted model's, so the band
-    is exact under the model. Each input's z(k) = r(k) / sd is flagged when
-    max |z| over both inputs and lags -L..L exceeds
-    :func:`simultaneous_threshold` (family-wise level 99 %); the per-lag
-    99 % band is +-2.58 sd, as MATLAB's ``resid`` draws it.
-
-    Numbers per experiment and channel: ``lags``, ``z`` per input (list
-    over lags), ``sd`` per input, ``band`` (per-lag z), ``threshold``,
-    ``max_abs_z``. An input that is constant over the run is left out.
-    """
-    metadata = posterior_metadata(idata)
-    theta = _posterior_median(idata)[None]
-    band = float(scipy.stats.norm.isf((1.0 - RESIDUAL_INPUT_LEVEL) / 2.0))
-    check = Check()
-    for index, experiment in enumerate(posterior_experiments(idata)):
-        inputs = {name: u for name, u in _input_series(experiment).items() if np.ptp(u) > 0}
-        rows = {}
-        for channel in metadata.channels:
-            residual = channel_residuals(
-                experiment, metadata.robot, theta[0, 0], theta[0, 1], channel, steady=False
-            )
-            n = len(residual)
-            acov = model_autocovariance(metadata, index, channel, theta, n)[0]
-            length = min(lags, n - 1)
-            sd = {
-                name: float(cross_correlation_sd(acov / acov[0], u)) for name, u in inputs.items()
-            }
-            z = {
-                name: cross_correlation(residual, u, length) / sd[name]
-                for name, u in inputs.items()
-            }
-            threshold = simultaneous_threshold(
-                max(1, len(z)) * (2 * length + 1), level=RESIDUAL_INPUT_LEVEL
-            )
-            worst = max(z, key=lambda name: np.abs(z[name]).max(), default=None)
-            peak = 0.0 if worst is None else float(np.abs(z[worst]).max())
-            rows[channel] = {
-                "lags": length,
-                "z": {name: values.tolist() for name, values in z.items()},
-                "sd": sd,
-                "band": band,
-                "threshold": threshold,
-                "max_abs_z": peak,
-            }
-            if peak > threshold:
-                check.warnings.append(
-                    _input_warning(experiment.name, channel, worst, z[worst], threshold)
-                )
-        check.numbers[experiment.name] = rows
-    return check
-
-
-def _input_warning(
-    experiment: str, channel: str, name: str, z: np.ndarray, threshold: float
-) -> dict:
-    index = int(np.argmax(np.abs(z)))
-    lag = index - len(z) // 2
-    return {
-        "kind": "residual-input",
-        "experiment": experiment,
-        "channel": channel,
-        "input": name,
-        "lag": lag,
-        "z": float(z[index]),
-        "message": (
-            f"{experiment}, {channel}: the one-step residuals correlate with the wheel-speed "
-            f"{name} at lag {lag} (z = {z[index]:.1f}; 99 % over all lags: |z| < "
-            f"{threshold:.1f}): the model's input path is wrong (wheel radius, input "
-            "conversion, track width or a missing dynamic)"
-        ),
-    }
-
-
 # --- posterior-predictive autocorrelation ------------------------------------------
 
 
@@ -305,6 +207,23 @@ def predictive_acf(
     Numbers per experiment and channel: ``statistics`` (names),
     ``p_values``, ``draws``, ``alarm``, ``tail_level`` (per tail) and
     ``window`` (the residuals checked, first and last index + 1).
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism import predictive_acf
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> check = predictive_acf(posterior)
+    >>> row = check.numbers["v1"]["yaw"]
+    >>> row["statistics"], row["draws"]
+    (['acf[1]', 'acf[2]', 'acf[5]', 'acf[10]', 'Q[1..30]'], 200)
+    >>> [(w["statistic"], w["p_value"]) for w in check.warnings]  # white misses the colour
+    [('acf[1]', 0.0), ('acf[2]', 0.0), ('acf[5]', 0.0), ('acf[10]', 1.0), ('Q[1..30]', 0.0)]
     """
     metadata = posterior_metadata(idata)
     theta = thinned_draws(idata, count)
@@ -400,68 +319,6 @@ def _predictive_warning(
     }
 
 
-# --- steadiness ----------------------------------------------------------------------
-
-
-def steady_windows(idata: az.InferenceData) -> Check:
-    """Warnings for analysed windows that are not steady cornering (thesis ch. 5).
-
-    The window is each experiment's steady window when the posterior used
-    them, else the whole run. Numbers per experiment: ``input_deviation``
-    (None when the wheels stand still), ``yaw_drift`` (:func:`steadiness`),
-    ``duration`` [s], and the tolerances.
-    """
-    steady = posterior_metadata(idata).steady
-    check = Check()
-    for experiment in posterior_experiments(idata):
-        window = experiment.steady() if steady else experiment
-        deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
-        duration = float(window.t[-1] - window.t[0])
-        check.numbers[experiment.name] = {
-            "input_deviation": deviation,
-            "yaw_drift": drift,
-            "duration": duration,
-            "input_tolerance": STEADY_INPUT_TOLERANCE,
-            "yaw_tolerance": STEADY_YAW_TOLERANCE,
-        }
-        failures = _steadiness_failures(deviation, drift)
-        if not failures:
-            continue
-        span = "steady window" if steady and experiment.steady_window else "run"
-        check.warnings.append(
-            {
-                "kind": "not-steady",
-                "experiment": experiment.name,
-                "input_deviation": deviation,
-                "yaw_drift": drift,
-                "message": (
-                    f"{experiment.name}: the analysed {span} ({duration:.1f} s) is not steady: "
-                    f"{' and '.join(failures)}; the thesis' analysis assumes steady circles "
-                    "(ch. 5): transients test the model where it is least sure"
-                ),
-            }
-        )
-    return check
-
-
-def _steadiness_failures(deviation: float | None, drift: float) -> list[str]:
-    """The steadiness criteria a window fails, in words."""
-    failures = []
-    if deviation is None:
-        failures.append("the wheels stand still")
-    elif deviation > STEADY_INPUT_TOLERANCE:
-        failures.append(
-            f"the wheel speeds depart from their median by {100 * deviation:.0f} % "
-            f"(tolerance {100 * STEADY_INPUT_TOLERANCE:.0f} %)"
-        )
-    if drift > STEADY_YAW_TOLERANCE:
-        failures.append(
-            f"the yaw rate drifts by {100 * drift:.0f} % "
-            f"(tolerance {100 * STEADY_YAW_TOLERANCE:.0f} %)"
-        )
-    return failures
-
-
 # --- identification -----------------------------------------------------------------
 
 #: What each channel alone identifies of the damping, and what it does not.
@@ -481,17 +338,28 @@ def damping_scale(idata: az.InferenceData) -> Check:
     The yaw rate's steady state depends on d_lat / d_long only: it
     identifies the ratio, not the scale. vx identifies d_long and vy d_lat.
     Any two channels identify both. The advice names the channels every
-    experiment measured (the posterior's stored data). Numbers:
-    ``channels``, ``identified``, ``measured``.
+    experiment measured (:attr:`~bayes_jackal.posterior.PosteriorMetadata.measured_channels`).
+    Numbers: ``channels``, ``identified``, ``measured``.
+
+    Examples
+    --------
+    A yaw-only posterior of a run that also measured vx and vy (a 20-step
+    chain, short on purpose: the check reads the file's layout, not the draws):
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism import damping_scale
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> check = damping_scale(posterior)
+    >>> check.numbers
+    {'channels': ['yaw'], 'identified': False, 'measured': ['yaw', 'vx', 'vy']}
+    >>> print(check.warnings[0]["message"])
+    yaw alone identifies ...; add vx or vy (--channels yaw,vx,vy)
     """
     metadata = posterior_metadata(idata)
     channels = list(metadata.channels)
-    count = len(metadata.experiments)
-    data = idata.constant_data
-    stored = {"yaw": "yaw_rate", "vx": "vx", "vy": "vy"}
-    measured = [
-        c for c in ("yaw", "vx", "vy") if all(f"{stored[c]}_{i}" in data for i in range(count))
-    ]
+    # Yaw first: the channel a single-channel posterior usually has.
+    measured = [c for c in ("yaw", "vx", "vy") if c in metadata.measured_channels]
     identified = len(channels) >= 2
     check = Check({"channels": channels, "identified": identified, "measured": measured})
     if identified:
@@ -526,6 +394,22 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     ``damping_scale``. The result is computed once per posterior and kept in
     its ``criticism`` attribute (a saved file carries it); ``rng`` seeds the
     replicated series (fixed by default, so the numbers are reproducible).
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism import criticise
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> result = criticise(posterior)
+    >>> sorted(result["criticism"])
+    ['damping_scale', 'predictive_acf', 'prior_boundary', 'residual_input', 'steadiness']
+    >>> sorted({warning["kind"] for warning in result["warnings"]})
+    ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
     stored = posterior_metadata(idata).criticism
     if stored is not None:

@@ -38,7 +38,18 @@ MANIFEST = "manifest.json"
 
 
 def demo_folder() -> Path:
-    """The installed folder of the demo bags and their manifest."""
+    """The installed folder of the demo bags and their manifest.
+
+    Examples
+    --------
+    >>> import json
+    >>> from bayes_jackal.demo import demo_folder
+    >>> sorted(path.name for path in demo_folder().iterdir())
+    ['manifest.json', 'v1_01.bag', 'v2_01.bag']
+    >>> manifest = json.loads((demo_folder() / "manifest.json").read_text())
+    >>> manifest["simulated"], manifest["runs"]["v1_01"]["truth"]["d_lat"]
+    (True, 110.0)
+    """
     return Path(str(resources.files("bayes_jackal.data") / "demo"))
 
 
@@ -49,6 +60,20 @@ def make_demo_bags(folder: str | Path, robot: RobotProfile | None = None) -> Pat
     -------
     Path
         The manifest.
+
+    Examples
+    --------
+    The bags are made again from the fixed seed: the same runs and truth as
+    the shipped ones (about 3 s: two full runs, bz2-compressed):
+
+    >>> import json
+    >>> import tempfile
+    >>> from bayes_jackal.demo import demo_folder, make_demo_bags
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     manifest = json.loads(make_demo_bags(folder).read_text())
+    >>> shipped = json.loads((demo_folder() / "manifest.json").read_text())
+    >>> sorted(manifest["runs"]), manifest["runs"] == shipped["runs"]
+    (['v1_01', 'v2_01'], True)
     """
     folder = Path(folder)
     robot = robot or load_profile()
@@ -85,6 +110,19 @@ def run_demo(folder: str | Path, say: Callable[[str], None], progress: bool = Tr
     -------
     dict
         As :func:`~bayes_jackal.workflow.analyse_logs` returns.
+
+    Examples
+    --------
+    The demo takes about 5 minutes on 2 cores, so its call is not run here
+    (``tests/test_workflow.py`` runs it and checks the truth is recovered):
+
+    >>> import tempfile
+    >>> from bayes_jackal.demo import DEMO_FAMILIES, run_demo
+    >>> DEMO_FAMILIES
+    ('white', 'gaussian')
+    >>> result = run_demo(tempfile.mkdtemp(), print, progress=False)  # doctest: +SKIP
+    >>> result["best"], result["channels"]  # doctest: +SKIP
+    ('gaussian', ['yaw', 'vx', 'vy'])
     """
     source = demo_folder()
     manifest = json.loads((source / MANIFEST).read_text())

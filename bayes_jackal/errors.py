@@ -17,6 +17,16 @@ from typing import TypeVar
 T = TypeVar("T")
 R = TypeVar("R")
 
+__all__ = [
+    "DataError",
+    "InputError",
+    "OutputError",
+    "ProfileError",
+    "describe",
+    "each_input",
+    "refuse",
+]
+
 
 class InputError(ValueError):
     """Bad user input: a file, a field in it, or a parameter value.
@@ -29,6 +39,17 @@ class InputError(ValueError):
         The file (or other origin) the bad input came from.
     field : str, optional
         The column, key or parameter name.
+
+    Examples
+    --------
+    The message starts with the file and the field; it is a ``ValueError``:
+
+    >>> from bayes_jackal.errors import InputError
+    >>> try:
+    ...     raise InputError("must be > 0, got -72", source="run.csv", field="rate")
+    ... except ValueError as exc:
+    ...     print(exc)
+    run.csv: rate: must be > 0, got -72
     """
 
     def __init__(self, message: str, *, source: str | None = None, field: str | None = None):
@@ -39,11 +60,31 @@ class InputError(ValueError):
 
 
 class ProfileError(InputError):
-    """A robot profile is missing a constant or holds a non-physical one."""
+    """A robot profile is missing a constant or holds a non-physical one.
+
+    Examples
+    --------
+    >>> from bayes_jackal.errors import InputError, ProfileError
+    >>> try:
+    ...     raise ProfileError("must be > 0, got -17", source="jackal.toml", field="mass")
+    ... except InputError as exc:
+    ...     print(exc, isinstance(exc, ValueError))
+    jackal.toml: mass: must be > 0, got -17 True
+    """
 
 
 class DataError(InputError):
-    """An experiment file (CSV, NetCDF, bag) cannot be used as it is."""
+    """An experiment file (CSV, NetCDF, bag) cannot be used as it is.
+
+    Examples
+    --------
+    >>> from bayes_jackal.errors import DataError
+    >>> try:
+    ...     raise DataError("non-finite value nan in row 12", source="run.csv", field="yaw_rate")
+    ... except ValueError as exc:
+    ...     print(exc)
+    run.csv: yaw_rate: non-finite value nan in row 12
+    """
 
 
 class OutputError(OSError):
@@ -60,6 +101,18 @@ class OutputError(OSError):
         Why it cannot be written, in words.
     code : int, optional
         The ``errno`` of the failure (``errno.ENOSPC``, ``errno.EFBIG``...).
+
+    Examples
+    --------
+    An ``OSError`` whose message names the user's path:
+
+    >>> import errno
+    >>> from bayes_jackal.errors import OutputError
+    >>> try:
+    ...     raise OutputError("posterior.nc", "no space left on device", code=errno.ENOSPC)
+    ... except OSError as exc:
+    ...     print(exc, exc.errno == errno.ENOSPC)
+    posterior.nc: cannot write: no space left on device True
     """
 
     def __init__(self, path, reason: str, *, code: int | None = None):
@@ -81,6 +134,14 @@ def describe(exc: Exception, source: str | None = None) -> str:
     An :class:`InputError` names its file already (``source`` is put in front
     when it does not), an :class:`OutputError` the output it could not write;
     any other exception reads ``Type: message (source)``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.errors import DataError, describe
+    >>> describe(DataError("too few samples", field="t"), "run.csv")
+    'run.csv: t: too few samples'
+    >>> describe(KeyError("yaw_rate"), "run.mat")
+    "KeyError: 'yaw_rate' (run.mat)"
     """
     if isinstance(exc, InputError):
         return f"{source}: {exc}" if source and not exc.source else str(exc)
@@ -118,6 +179,21 @@ def each_input(
     failed : dict of str to str
         ``str(input)`` -> why it failed (:func:`describe`: the reason names it);
         an input given twice fails the second time.
+
+    Examples
+    --------
+    A bad input is recorded with its reason; the others are done:
+
+    >>> from bayes_jackal.errors import InputError, each_input
+    >>> def inverse(text):
+    ...     if float(text) == 0:
+    ...         raise InputError("cannot invert 0", field="value")
+    ...     return 1 / float(text)
+    >>> results, failed = each_input(["2", "0", "4"], inverse)
+    >>> results
+    {'2': 0.5, '4': 0.25}
+    >>> failed
+    {'0': '0: value: cannot invert 0'}
     """
     results: dict[str, R] = {}
     failed: dict[str, str] = {}
@@ -147,6 +223,16 @@ def refuse(failed: Mapping[str, str], total: int) -> None:
         Input -> reason, as :func:`each_input` returns.
     total : int
         How many inputs there were.
+
+    Examples
+    --------
+    >>> from bayes_jackal.errors import DataError, refuse
+    >>> refuse({}, 3)  # nothing failed: nothing raised
+    >>> try:
+    ...     refuse({"b.csv": "b.csv: t: too few samples"}, 3)
+    ... except DataError as exc:
+    ...     print(exc)
+    1 of 3 inputs cannot be used: b.csv: t: too few samples
     """
     if len(failed) == 1 and total == 1:
         raise DataError(next(iter(failed.values())))

@@ -55,6 +55,14 @@ def single_threaded_children() -> Iterator[None]:
     A process per core with threaded BLAS in each oversubscribes the cores:
     five families on 2 cores took 85 s that way and 48 s with one thread each.
     (The demo's two families, one 4x slower, took 74 s threaded and 83 s not.)
+
+    Examples
+    --------
+    >>> import os
+    >>> from bayes_jackal.executors import single_threaded_children
+    >>> with single_threaded_children():
+    ...     os.environ["OPENBLAS_NUM_THREADS"]
+    '1'
     """
     saved = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
     os.environ.update(dict.fromkeys(_THREAD_VARIABLES, "1"))
@@ -81,6 +89,20 @@ def in_processes(
     The workers ignore SIGINT and die quietly on SIGTERM
     (:func:`bayes_jackal.interrupt.quiet_worker`); on any exception here,
     an interrupt included, they are terminated at once.
+
+    Examples
+    --------
+    Three jobs in two spawned processes (``abs`` is picklable); the workers are
+    gone when the block ends:
+
+    >>> import multiprocessing
+    >>> from bayes_jackal.executors import in_processes
+    >>> before = set(multiprocessing.active_children())
+    >>> with in_processes(abs, [-1, 2, -3], workers=2) as results:
+    ...     sorted(results)
+    [1, 2, 3]
+    >>> set(multiprocessing.active_children()) <= before
+    True
     """
     context = multiprocessing.get_context("spawn")
     before = set(multiprocessing.active_children())
@@ -111,6 +133,15 @@ class Executor:
     terminal : bool
         Whether the jobs share the caller's terminal (progress bars make
         sense); False on a cluster, whose workers have none.
+
+    Examples
+    --------
+    Results come as the jobs finish; the base class runs them here, in order:
+
+    >>> from bayes_jackal.executors import Executor
+    >>> with Executor().run(abs, [-1, 2, -3]) as results:
+    ...     sorted(results)
+    [1, 2, 3]
     """
 
     terminal = True
@@ -138,7 +169,18 @@ class Executor:
 
 
 class SerialExecutor(Executor):
-    """Every job in this process, one after the other (what :class:`Executor` does)."""
+    """Every job in this process, one after the other (what :class:`Executor` does).
+
+    Examples
+    --------
+    >>> from bayes_jackal.executors import SerialExecutor
+    >>> executor = SerialExecutor()
+    >>> with executor.run(abs, [-1, 2, -3]) as results:
+    ...     sorted(results)
+    [1, 2, 3]
+    >>> executor.slots(3)  # one job at a time
+    1
+    """
 
 
 class ProcessExecutor(Executor):
@@ -153,6 +195,18 @@ class ProcessExecutor(Executor):
     ----------
     processes : int
         Jobs at once, one per process (e.g. one per core), >= 1.
+
+    Examples
+    --------
+    Two processes for five jobs; a single job runs in this process:
+
+    >>> from bayes_jackal.executors import ProcessExecutor
+    >>> executor = ProcessExecutor(2)
+    >>> executor.slots(5), executor.slots(1)
+    (2, 1)
+    >>> with executor.run(abs, [-4]) as results:
+    ...     list(results)
+    [4]
     """
 
     def __init__(self, processes: int):
@@ -202,6 +256,15 @@ class DaskExecutor(Executor):
     ------
     InputError
         Without dask installed (naming the extra to install).
+
+    Examples
+    --------
+    An executor for a scheduler (none is reached until it runs jobs):
+
+    >>> from bayes_jackal.executors import DaskExecutor
+    >>> executor = DaskExecutor("tcp://127.0.0.1:8786", timeout=10.0)
+    >>> executor.slots(5), executor.terminal  # the scheduler spreads the jobs; no terminal
+    (5, False)
     """
 
     terminal = False
@@ -280,5 +343,14 @@ def executor_for(scheduler: Any = None, *, processes: int = 1) -> Executor:
         As in :class:`DaskExecutor`.
     processes : int
         Jobs at once without a scheduler (:class:`ProcessExecutor`).
+
+    Examples
+    --------
+    >>> from bayes_jackal.executors import executor_for
+    >>> executor = executor_for(processes=2)
+    >>> type(executor).__name__, executor.processes
+    ('ProcessExecutor', 2)
+    >>> type(executor_for("tcp://127.0.0.1:8786")).__name__
+    'DaskExecutor'
     """
     return ProcessExecutor(processes) if scheduler is None else DaskExecutor(scheduler)

@@ -44,6 +44,7 @@ import numpy as np
 
 from . import __version__
 from ._files import write_json
+from .defaults import AUTO_ORDER
 from .errors import InputError
 from .kernels import get_family
 from .parameters import DAMPING
@@ -77,10 +78,6 @@ PRIOR_FORMAT = "bayes_jackal.prior/1"
 #: condition grows ~1000-fold per order at the thesis' sigma_h = 0.047 s
 #: (order 4: 5e11, order 5: 1e15), so order 99 is noise or NaN.
 MAX_CONDITION = 1e12
-#: The order of ``export_prior(order=None)`` (``analyse``'s prior), where
-#: the family and :data:`MAX_CONDITION` allow it: position, velocity and
-#: acceleration of the noise, the embedding DEM filters commonly use.
-AUTO_ORDER = 2
 #: Posterior draws written beside the averaged matrices.
 MAX_DRAWS = 1000
 
@@ -115,6 +112,18 @@ def allowed_orders(family: str, width: np.ndarray, continuous_sd: np.ndarray) ->
     continuous-time sd ``continuous_sd``, both shaped (draws, channels).
     The condition grows with the order, so the orders are counted up to the
     first one that fails.
+
+    Examples
+    --------
+    At the thesis' sigma_h = 0.047 s the Gaussian family allows orders up to 4
+    (order 5 is too ill-conditioned); the exponential family's noise has no
+    derivative:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.export import allowed_orders
+    >>> width, sd = np.full((10, 1), 0.047), np.full((10, 1), 0.1)  # (draws, channels)
+    >>> allowed_orders("gaussian", width, sd), allowed_orders("exponential", width, sd)
+    ([0, 1, 2, 3, 4], [0])
     """
     limit = get_family(family).max_order
     orders = []
@@ -131,6 +140,17 @@ def autocorrelation_derivatives(family: str, width: np.ndarray, order: int) -> n
     :meth:`bayes_jackal.kernels.Family.autocorrelation_derivatives` of
     :func:`~bayes_jackal.kernels.get_family` ``(family)``: parameters, shape
     and errors are documented there.
+
+    Examples
+    --------
+    The Gaussian filter's autocorrelation is exp(-t^2 / (4 sigma_h^2)), so
+    rho''(0) = -1 / (2 sigma_h^2):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.export import autocorrelation_derivatives
+    >>> rho = autocorrelation_derivatives("gaussian", np.array(0.047), 1)
+    >>> rho.shape, np.allclose(rho, [1.0, 0.0, -1 / (2 * 0.047**2)])
+    ((3,), True)
     """
     return get_family(family).autocorrelation_derivatives(width, order)
 
@@ -141,6 +161,17 @@ def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarra
     Returns
     -------
     ndarray, shape (..., P + 1, P + 1)
+
+    Examples
+    --------
+    The covariance of the Gaussian noise and its derivative, per unit variance:
+    the derivative's variance is -rho''(0) = 1 / (2 sigma_h^2) [1/s^2]:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.export import temporal_covariance
+    >>> V = temporal_covariance("gaussian", np.array(0.047), 1)
+    >>> V.shape, np.allclose(V, [[1.0, 0.0], [0.0, 1 / (2 * 0.047**2)]])
+    ((2, 2), True)
     """
     derivatives = autocorrelation_derivatives(family, width, order)
     i, j = np.indices((order + 1, order + 1))
@@ -179,12 +210,12 @@ def export_prior(
     Examples
     --------
     The prior of a simulated run's posterior, written for a DEM filter. The
-    chain is capped at 200 steps to keep the example quick, far from
-    converged (a ConvergenceWarning); real use takes the default cap.
+    chain is capped at 20 steps to keep the example quick, far from
+    converged on purpose (a ConvergenceWarning); real use takes the default cap.
 
     >>> import bayes_jackal as bj
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="exponential", channels=["yaw"], max_steps=200, seed=1)
+    >>> posterior = bj.sample([run], family="exponential", channels=["yaw"], max_steps=20, seed=1)
     >>> prior = bj.export_prior(posterior, order=0)  # the exponential family allows order 0
     >>> prior["noise"]["family"], prior["generalised_coordinates"]["order"], prior["dt"]
     ('exponential', 0, 0.013888888889)
@@ -301,5 +332,23 @@ def export_prior(
 
 
 def write_prior(prior: dict, path: str | Path) -> Path:
-    """Write an exported prior as JSON, atomically."""
+    """Write an exported prior as JSON, atomically.
+
+    Examples
+    --------
+    The prior of a posterior, written as JSON. The 20-step chain is short on
+    purpose:
+
+    >>> import json
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = bj.write_prior(bj.export_prior(posterior, order=0), Path(folder) / "prior.json")
+    ...     stored = json.loads(path.read_text())
+    >>> path.name, stored["format"], stored["noise"]["family"]
+    ('prior.json', 'bayes_jackal.prior/1', 'white')
+    """
     return write_json(path, prior, indent=1)

@@ -20,8 +20,8 @@ import hashlib
 import json
 import math
 import warnings
-from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import emcee
@@ -30,6 +30,7 @@ import numpy as np
 
 from . import interrupt
 from ._files import check_space
+from .defaults import MAX_STEPS, WALKERS
 from .errors import InputError, OutputError
 from .likelihood import ResidualLikelihood
 from .map_search import find_map, laplace_walkers
@@ -37,6 +38,7 @@ from .outputs import OutputLock
 from .posterior import az, build_inference_data
 from .priors import LogPosterior, Prior
 from .progress import Progress
+from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
 
 __all__ = [
     "BufferedHDFBackend",
@@ -48,58 +50,6 @@ __all__ = [
     "run_identity",
     "sample_posterior",
 ]
-
-
-class ConvergenceWarning(UserWarning):
-    """The chain hit its step cap before the convergence criterion held."""
-
-
-@dataclass
-class KeptWarnings:
-    """The warnings raised in a block, kept to be issued elsewhere (picklable).
-
-    A job that runs in a worker process (:mod:`bayes_jackal.executors`) keeps
-    its warnings here and returns them with its result, so that they reach
-    the user from the main process instead of the worker's stderr.
-
-    Attributes
-    ----------
-    convergence : list of str
-        The :class:`ConvergenceWarning` messages, in order.
-    other : list of (type, str)
-        Every other warning's category and message, each pair once, in order.
-    """
-
-    convergence: list[str] = field(default_factory=list)
-    other: list[tuple[type[Warning], str]] = field(default_factory=list)
-
-    def issue(self, prefix: str = "", *, stacklevel: int = 2) -> None:
-        """Issue the other warnings again, here, each message after ``prefix``."""
-        for category, message in self.other:
-            warnings.warn(f"{prefix}{message}", category, stacklevel=stacklevel + 1)
-
-
-@contextlib.contextmanager
-def keep_warnings() -> Iterator[KeptWarnings]:
-    """Keep the warnings raised in the block, instead of showing them.
-
-    Python's filters still decide which warnings are raised (an "error"
-    filter still raises); every :class:`ConvergenceWarning` is kept. The
-    :class:`KeptWarnings` yielded is filled when the block ends, also when
-    it raises.
-    """
-    kept = KeptWarnings()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ConvergenceWarning)
-        try:
-            yield kept
-        finally:
-            for caught_warning in caught:
-                pair = (caught_warning.category, str(caught_warning.message))
-                if issubclass(pair[0], ConvergenceWarning):
-                    kept.convergence.append(pair[1])
-                elif pair not in kept.other:
-                    kept.other.append(pair)
 
 
 @dataclass(frozen=True)
@@ -129,10 +79,25 @@ class SamplerSettings:
         The bar's label.
     progress_line : int
         The bar's line on the terminal (one per process sampling at once).
+
+    Examples
+    --------
+    A step cap of 5000; the default ensemble has max(32, 4 x parameters)
+    walkers:
+
+    >>> import bayes_jackal as bj
+    >>> settings = bj.SamplerSettings(max_steps=5000)
+    >>> settings.max_steps, settings.n_walkers(4), settings.n_walkers(10)
+    (5000, 32, 40)
+    >>> try:
+    ...     bj.SamplerSettings(max_steps=0)
+    ... except bj.InputError as error:
+    ...     print(error)
+    max_steps: must be an integer >= 1, got 0
     """
 
-    walkers: int = 0
-    max_steps: int = 20_000
+    walkers: int = WALKERS
+    max_steps: int = MAX_STEPS
     check_every: int = 100
     autocorr_multiple: float = 50.0
     tau_rtol: float = 0.01
@@ -164,7 +129,14 @@ class SamplerSettings:
 
 
 def chain_path(posterior: str | Path) -> Path:
-    """Where ``sample`` keeps the chain of a posterior file: ``p.nc`` -> ``p.chain.h5``."""
+    """Where ``sample`` keeps the chain of a posterior file: ``p.nc`` -> ``p.chain.h5``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.inference import chain_path
+    >>> chain_path("fits/posterior.nc").as_posix()
+    'fits/posterior.chain.h5'
+    """
     return Path(posterior).with_suffix(".chain.h5")
 
 
@@ -185,6 +157,23 @@ def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, see
 
     Keys ``data``, ``robot``, ``family``, ``likelihood``, ``priors``,
     ``walkers`` and ``seed``: a resumed or reused run must match on all.
+
+    Examples
+    --------
+    What defines a chain; a resumed run must match it on every key:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import run_identity
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.priors import Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw",))
+    >>> identity = run_identity(likelihood, Prior.for_likelihood(likelihood, robot), 32, 1)
+    >>> sorted(identity)
+    ['data', 'family', 'likelihood', 'priors', 'robot', 'seed', 'walkers']
+    >>> identity["family"], identity["likelihood"]["channels"], len(identity["data"])
+    ('white', ['yaw'], 64)
     """
     data = hashlib.sha256()
     for experiment in likelihood.experiments:
@@ -237,6 +226,25 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
     with an :class:`~bayes_jackal.errors.OutputError` naming the chain file,
     which is left as it was: the steps stored so far resume. The refused
     batch (at most ``flush_every`` steps) is dropped.
+
+    Examples
+    --------
+    The chain file of a run, read back: every one of its 20 steps is stored.
+    The 20-step chain is short on purpose:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import BufferedHDFBackend
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     chain = Path(folder) / "posterior.chain.h5"
+    ...     posterior = bj.sample(
+    ...         [run], family="white", channels=["yaw"], max_steps=20, seed=1, chain_file=chain
+    ...     )
+    ...     backend = BufferedHDFBackend(str(chain), flush_every=100)
+    ...     int(backend.iteration), backend.get_chain().shape
+    (20, (20, 32, 4))
     """
 
     def __init__(self, filename: str, flush_every: int):
@@ -458,6 +466,23 @@ def sample_posterior(
         ``sample_stats`` (lp, log_likelihood_total), ``observed_data`` (residuals at
         the posterior median), ``constant_data`` (the measured experiments);
         ``attrs`` hold convergence diagnostics and the settings.
+
+    Examples
+    --------
+    The posterior of a white-noise model of one run's yaw rate. The 20-step
+    chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import SamplerSettings, sample_posterior
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw",))
+    >>> posterior = sample_posterior(likelihood, SamplerSettings(max_steps=20), seed=1)
+    >>> sorted(posterior.groups())
+    ['constant_data', 'observed_data', 'posterior', 'sample_stats']
+    >>> dict(posterior.posterior.sizes)
+    {'chain': 32, 'draw': 15, 'state': 3, 'wheel': 2}
     """
     settings = settings or SamplerSettings()
     robot = likelihood.robot

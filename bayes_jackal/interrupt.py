@@ -49,6 +49,16 @@ class Interrupted(KeyboardInterrupt):
         The signal (SIGINT or SIGTERM).
     exit_code : int
         128 + signum: 130 for SIGINT, 143 for SIGTERM.
+
+    Examples
+    --------
+    A :class:`KeyboardInterrupt` that carries the command's exit code:
+
+    >>> import signal
+    >>> from bayes_jackal.interrupt import Interrupted
+    >>> stop = Interrupted(signal.SIGTERM)
+    >>> print(stop, stop.exit_code, isinstance(stop, KeyboardInterrupt))
+    SIGTERM 143 True
     """
 
     def __init__(self, signum: int):
@@ -124,7 +134,30 @@ _previous_hooks = {"unraisablehook": sys.unraisablehook, "excepthook": sys.excep
 
 
 def pending() -> int | None:
-    """The signal of a stop that was requested and not yet raised by :func:`check`."""
+    """The signal of a stop that was requested and not yet raised by :func:`check`.
+
+    Examples
+    --------
+    A signal inside :func:`deferred` is pending until :func:`check` raises it
+    (the handlers installed for the example, and put back after):
+
+    >>> import signal
+    >>> from bayes_jackal import interrupt
+    >>> previous = interrupt.install()
+    >>> try:
+    ...     with interrupt.deferred():
+    ...         print(interrupt.pending())
+    ...         signal.raise_signal(signal.SIGINT)
+    ...         print(interrupt.pending() == signal.SIGINT)
+    ...         interrupt.check()
+    ... except interrupt.Interrupted as stop:
+    ...     print(f"stopped by {stop}; pending: {interrupt.pending()}")
+    ... finally:
+    ...     interrupt.restore(previous)
+    None
+    True
+    stopped by SIGINT; pending: None
+    """
     return _pending
 
 
@@ -137,6 +170,21 @@ def install() -> dict:
         The previous handlers by signal, and the previous
         ``sys.unraisablehook`` and ``sys.excepthook`` (see
         :func:`_unraisable`), for :func:`restore`.
+
+    Examples
+    --------
+    The CLI installs the handlers once; here they are put back at once:
+
+    >>> import signal
+    >>> from bayes_jackal import interrupt
+    >>> previous = interrupt.install()
+    >>> signal.getsignal(signal.SIGTERM) is previous[signal.SIGTERM]
+    False
+    >>> signal.getsignal(signal.SIGXFSZ) == signal.SIG_IGN
+    True
+    >>> interrupt.restore(previous)
+    >>> signal.getsignal(signal.SIGTERM) is previous[signal.SIGTERM]
+    True
     """
     global _pending
     _pending = None
@@ -151,7 +199,24 @@ def install() -> dict:
 
 
 def restore(previous: dict) -> None:
-    """Put back the handlers :func:`install` returned."""
+    """Put back the handlers :func:`install` returned, and forget any stop they caught.
+
+    The command line checks for a held stop before it restores them, so none
+    is lost; a stop already raised is not raised again by a later
+    :func:`check`.
+
+    Examples
+    --------
+    >>> import signal
+    >>> from bayes_jackal import interrupt
+    >>> before = signal.getsignal(signal.SIGINT)
+    >>> previous = interrupt.install()
+    >>> interrupt.restore(previous)
+    >>> signal.getsignal(signal.SIGINT) is before
+    True
+    """
+    global _pending, _resent
+    _pending, _resent = None, False  # a stop raised or held under them ends with them
     previous = dict(previous)
     sys.unraisablehook = previous.pop("unraisablehook", sys.unraisablehook)
     sys.excepthook = previous.pop("excepthook", sys.excepthook)
@@ -160,7 +225,34 @@ def restore(previous: dict) -> None:
 
 
 def check() -> None:
-    """Raise the stop a signal recorded inside :func:`deferred`, if any."""
+    """Raise the stop a signal recorded inside :func:`deferred`, if any.
+
+    Examples
+    --------
+    Nothing pending: nothing raised.
+
+    >>> from bayes_jackal import interrupt
+    >>> interrupt.check()
+
+    A long loop checks between steps; a signal landing in a step is raised at
+    the next check (the handlers installed for the example, and put back after):
+
+    >>> import signal
+    >>> previous = interrupt.install()
+    >>> done = []
+    >>> try:
+    ...     for step in range(5):
+    ...         with interrupt.deferred():  # third-party code: not stopped midway
+    ...             done.append(step)
+    ...             if step == 2:
+    ...                 signal.raise_signal(signal.SIGTERM)
+    ...             interrupt.check()
+    ... except interrupt.Interrupted as stop:
+    ...     print(f"{stop} after steps {done}: exit code {stop.exit_code}")
+    ... finally:
+    ...     interrupt.restore(previous)
+    SIGTERM after steps [0, 1, 2]: exit code 143
+    """
     global _pending
     signum, _pending = _pending, None
     if signum is not None:
@@ -173,6 +265,25 @@ def deferred() -> Iterator[None]:
 
     Call :func:`check` where stopping is safe; leaving the outermost block
     normally raises a stop still pending. A second signal raises at once.
+
+    Examples
+    --------
+    The block runs on after a signal; leaving it raises the stop (the
+    handlers installed for the example, and put back after):
+
+    >>> import signal
+    >>> from bayes_jackal import interrupt
+    >>> previous = interrupt.install()
+    >>> try:
+    ...     with interrupt.deferred():
+    ...         signal.raise_signal(signal.SIGINT)
+    ...         print("the block finishes")
+    ... except interrupt.Interrupted as stop:
+    ...     print(f"then stops: exit code {stop.exit_code}")
+    ... finally:
+    ...     interrupt.restore(previous)
+    the block finishes
+    then stops: exit code 130
     """
     global _deferring
     _deferring += 1
@@ -185,7 +296,22 @@ def deferred() -> Iterator[None]:
 
 
 def quiet_worker() -> None:
-    """Initializer of worker processes: ignore SIGINT, die quietly on SIGTERM."""
+    """Initializer of worker processes: ignore SIGINT, die quietly on SIGTERM.
+
+    Examples
+    --------
+    A worker pool's initializer, e.g. of :class:`concurrent.futures.ProcessPoolExecutor`:
+
+    >>> import concurrent.futures
+    >>> import multiprocessing
+    >>> from bayes_jackal.interrupt import quiet_worker
+    >>> context = multiprocessing.get_context("spawn")
+    >>> with concurrent.futures.ProcessPoolExecutor(
+    ...     1, mp_context=context, initializer=quiet_worker
+    ... ) as pool:
+    ...     print(pool.submit(sum, [1, 2, 3]).result())
+    6
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)
@@ -198,6 +324,18 @@ def blocked() -> Iterator[None]:
     The children inherit the mask, so a signal during their start-up waits
     until :func:`quiet_worker` has set their handlers; here it is delivered
     when the block ends.
+
+    Examples
+    --------
+    SIGINT and SIGTERM wait while the block runs, e.g. while workers start:
+
+    >>> import signal
+    >>> from bayes_jackal.interrupt import blocked
+    >>> with blocked():
+    ...     print(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []))
+    True
+    >>> signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    False
     """
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
     try:

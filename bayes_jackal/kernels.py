@@ -57,7 +57,20 @@ GAUSSIAN_TRUNCATION = 3.0
 
 
 def as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
-    """A ``numpy.random.Generator`` from a generator, a seed or None."""
+    """A ``numpy.random.Generator`` from a generator, a seed or None.
+
+    Examples
+    --------
+    A seed gives numpy's generator for that seed; a generator passes through:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import as_rng
+    >>> bool(as_rng(1).standard_normal() == np.random.default_rng(1).standard_normal())
+    True
+    >>> rng = np.random.default_rng(2)
+    >>> as_rng(rng) is rng
+    True
+    """
     return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
 
 
@@ -96,6 +109,30 @@ class Family(abc.ABC):
         P times mean-square differentiable, its autocorrelation has 2 P
         derivatives at lag 0. None: every order (only the condition number
         of the exported precision limits it).
+
+    Examples
+    --------
+    The registered families, by name. Every kernel has unit energy, and its
+    PSD integrates to the unit variance over (-1/(2 dt), 1/(2 dt)): here as
+    the mean over a 1024-point frequency grid, exact for kernels shorter than
+    512 taps.
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import FAMILIES
+    >>> dt = 1 / 72
+    >>> frequency = np.fft.fftfreq(1024, dt)
+    >>> for name, family in FAMILIES.items():
+    ...     energy = np.sum(family.taps(0.05, dt) ** 2)
+    ...     variance = family.psd(0.05, dt, frequency).mean() / dt
+    ...     print(f"{name:15} {family.width_name!s:8} {family.max_order!s:5} "
+    ...           f"{energy:.12f} {variance:.12f}")
+    white           None     0     1.000000000000 1.000000000000
+    gaussian        sigma_h  None  1.000000000000 1.000000000000
+    exponential     width    0     1.000000000000 1.000000000000
+    triangular      width    1     1.000000000000 1.000000000000
+    moving-average  width    0     1.000000000000 1.000000000000
+
+    A new family is a subclass and a registry entry (docs/families.md).
     """
 
     name: ClassVar[str]
@@ -279,7 +316,21 @@ class Family(abc.ABC):
 
 
 class White(Family):
-    """White noise: h = delta, no width."""
+    """White noise: h = delta, no width.
+
+    Examples
+    --------
+    The autocorrelation is a delta, the PSD flat at dt (unit variance):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import White
+    >>> White().taps(1.0, 0.01).tolist()
+    [1.0]
+    >>> White().autocorrelation(1.0, 0.01, 4).tolist()
+    [1.0, 0.0, 0.0, 0.0]
+    >>> White().psd(1.0, 0.01, np.array([0.0, 25.0, 50.0])).tolist()
+    [0.01, 0.01, 0.01]
+    """
 
     name = "white"
     width_name = None
@@ -299,6 +350,22 @@ class Gaussian(Family):
     every embedding order exists: rho^(2m)(0) = (-1)^m (2m)! / (m!
     (4 sigma_h^2)^m), e.g. rho''(0) = -1 / (2 sigma_h^2) and
     rho''''(0) = 3 / (4 sigma_h^4).
+
+    Examples
+    --------
+    Where 3 sigma_h / dt is whole, the taps are eq. 7-5's exp(-t^2 /
+    (2 sigma_h^2)), normalised; the derivatives at lag 0 are the closed forms
+    above:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import Gaussian
+    >>> taps = Gaussian().taps(0.04, 0.01)  # 3 sigma_h / dt = 12
+    >>> t = np.arange(-13, 14) * 0.01
+    >>> h = np.exp(-(t**2) / (2 * 0.04**2)) * (np.abs(t) < 0.125)
+    >>> bool(np.allclose(taps, h / np.linalg.norm(h)))
+    True
+    >>> Gaussian().autocorrelation_derivatives(0.05, 2).round(6).tolist()
+    [1.0, 0.0, -200.0, 0.0, 120000.0]
     """
 
     name = "gaussian"
@@ -326,6 +393,23 @@ class Exponential(Family):
     rho[l] = phi^l and S(f) = dt (1 - phi^2) / |1 - phi exp(-i omega)|^2 in
     closed form, and the noise comes from the AR(1) recursion. The
     continuous autocorrelation exp(-|t| / tau) has a corner at 0: order 0.
+
+    Examples
+    --------
+    The closed-form autocorrelation phi^l equals the self-correlation of the
+    (truncated) taps that the base class would compute:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import Exponential, Family
+    >>> family, dt = Exponential(), 1 / 72
+    >>> rho = family.autocorrelation(0.1, dt, 50)
+    >>> bool(np.allclose(rho, Family.autocorrelation(family, 0.1, dt, 50), atol=1e-12))
+    True
+    >>> bool(np.isclose(rho[1], np.exp(-dt / 0.1)))
+    True
+    >>> noise = family.noise(0.1, dt, 20000, scale=0.01, rng=1)  # AR(1)
+    >>> round(float(noise.std()), 3)
+    0.01
     """
 
     name = "exponential"
@@ -368,7 +452,23 @@ class Exponential(Family):
 
 
 class Triangular(Family):
-    """h(t) ~ 1 - |t| / w for |t| < w; rho''(0) = -3 / w^2, so order 1."""
+    """h(t) ~ 1 - |t| / w for |t| < w; rho''(0) = -3 / w^2, so order 1.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import Triangular
+    >>> taps = Triangular().taps(0.03, 0.01)  # 1 - |t| / w at t = -0.03 .. 0.03
+    >>> (taps / taps.max()).round(4).tolist()
+    [0.0, 0.3333, 0.6667, 1.0, 0.6667, 0.3333, 0.0]
+    >>> Triangular().autocorrelation_derivatives(0.1, 1).round(6).tolist()
+    [1.0, 0.0, -300.0]
+    >>> try:
+    ...     Triangular().check_order(2)
+    ... except ValueError as error:
+    ...     print(str(error).split(": ", 1)[1][:48])
+    the triangular family's autocorrelation has no d
+    """
 
     name = "triangular"
     description = "half-base w [s] of a triangular filter"
@@ -384,7 +484,19 @@ class Triangular(Family):
 
 
 class MovingAverage(Family):
-    """Boxcar of duration w: floor(w / dt) unit taps and a fractional last tap."""
+    """Boxcar of duration w: floor(w / dt) unit taps and a fractional last tap.
+
+    Examples
+    --------
+    A duration of 3.5 samples: three unit taps and a half one, normalised to
+    unit energy:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import MovingAverage
+    >>> taps = MovingAverage().taps(0.035, 0.01)
+    >>> (taps * np.sqrt(3.25)).round(12).tolist()
+    [1.0, 1.0, 1.0, 0.5]
+    """
 
     name = "moving-average"
     description = "duration w [s] of a boxcar filter"
@@ -404,7 +516,21 @@ FAMILIES: dict[str, Family] = {
 
 
 def get_family(name: str) -> Family:
-    """The family called ``name``; an :class:`InputError` listing the known ones otherwise."""
+    """The family called ``name``; an :class:`InputError` listing the known ones otherwise.
+
+    Examples
+    --------
+    >>> from bayes_jackal.kernels import get_family
+    >>> family = get_family("gaussian")
+    >>> family, family.width_name, family.description
+    (Gaussian(), 'sigma_h', "sigma_h [s], the thesis' Gaussian filter (eq. 7-5)")
+    >>> try:
+    ...     get_family("pink")
+    ... except ValueError as error:
+    ...     print(error)
+    family: unknown noise family 'pink'; use one of
+    ['white', 'gaussian', 'exponential', 'triangular', 'moving-average']
+    """
     if name not in FAMILIES:
         raise InputError(
             f"unknown noise family {name!r}; use one of {list(FAMILIES)}", field="family"
@@ -440,5 +566,19 @@ def gaussian_kernel(sigma_h: float, dt: float) -> np.ndarray:
     ndarray, shape (2 K + 1,) or (2 K + 3,)
         Taps for k = -K..K, and the edge taps k = +-(K + 1) where they are
         non-zero (f > 0, and no underflow for sigma_h << dt).
+
+    Examples
+    --------
+    With 3 sigma_h / dt = 12 the kernel is eq. 7-5 itself, 25 taps of unit
+    energy:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import gaussian_kernel
+    >>> h = gaussian_kernel(0.04, 0.01)
+    >>> len(h), round(float(np.sum(h**2)), 12)
+    (25, 1.0)
+    >>> g = np.exp(-((np.arange(-12, 13) * 0.01) ** 2) / (2 * 0.04**2))
+    >>> bool(np.allclose(h, g / np.linalg.norm(g)))
+    True
     """
     return np.trim_zeros(FAMILIES["gaussian"].taps(float(_check_widths(sigma_h, "sigma_h")), dt))

@@ -51,6 +51,15 @@ import scipy.fft
 
 from . import spectral
 from ._chunks import chunks
+from .defaults import (
+    DEFAULT_CHANNEL_ORDER,
+    ENGINE,
+    ENGINES,
+    FAMILY,
+    SENSOR,
+    SENSOR_MODELS,
+    SHARED_NOISE,
+)
 from .errors import DataError, InputError
 from .experiment import Experiment
 from .kernels import Family, as_rng, get_family
@@ -73,10 +82,6 @@ __all__ = [
     "toeplitz_loglike",
 ]
 
-SENSOR_MODELS = ("ma1", "diagonal")
-ENGINES = ("fast", "exact", "whittle")
-#: Order of the default channels: the thesis' yaw rate, then vx and vy.
-DEFAULT_CHANNEL_ORDER = ("yaw", "vx", "vy")
 #: Fewest residuals a channel must have to enter the likelihood.
 MIN_RESIDUALS = 32
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -116,6 +121,21 @@ def residual_autocovariance(
     Returns
     -------
     ndarray, shape (B, n)
+
+    Examples
+    --------
+    White process noise and the MA(1) footprint of sensor noise:
+    sigma_c^2 + sigma_n^2 (1 + alpha^2) at lag 0, -sigma_n^2 alpha at lag 1:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import get_family
+    >>> from bayes_jackal.likelihood import residual_autocovariance
+    >>> one = np.ones(1)
+    >>> acov = residual_autocovariance(
+    ...     get_family("white"), one, 0.01 * one, 0.005 * one, 0.9 * one, dt=0.01, n=4
+    ... )
+    >>> bool(np.allclose(acov, [[1e-4 + 2.5e-5 * 1.81, -2.5e-5 * 0.9, 0.0, 0.0]]))
+    True
     """
     acov = sigma_c[:, None] ** 2 * family.autocorrelation(width, dt, n)
     if sensor == "ma1":
@@ -148,6 +168,19 @@ def sample_stationary(
     Returns
     -------
     ndarray, shape (B, n)
+
+    Examples
+    --------
+    Many draws of an AR(1) series (phi = 0.5) recover its lag-1 covariance:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.likelihood import sample_stationary
+    >>> acov = np.tile(0.5 ** np.arange(50), (2000, 1))
+    >>> x = sample_stationary(acov, rng=1)
+    >>> x.shape
+    (2000, 50)
+    >>> round(float(np.mean(x[:, :-1] * x[:, 1:])), 2)
+    0.5
     """
     acov = np.atleast_2d(acov)
     batch, n = acov.shape
@@ -194,6 +227,20 @@ def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) 
     -------
     ndarray, shape (B, E)
         log N(x; 0, T(acov)); -inf where T(acov) is not positive definite.
+
+    Examples
+    --------
+    Against the dense Gaussian density with covariance toeplitz(acov):
+
+    >>> import numpy as np
+    >>> import scipy.linalg
+    >>> import scipy.stats
+    >>> from bayes_jackal.likelihood import toeplitz_loglike
+    >>> acov = 0.5 ** np.arange(8)[None]  # one batch member
+    >>> x = np.random.default_rng(1).standard_normal((1, 3, 8))  # three series
+    >>> dense = scipy.stats.multivariate_normal(cov=scipy.linalg.toeplitz(acov[0]))
+    >>> bool(np.allclose(toeplitz_loglike(acov, x), dense.logpdf(x[0])))
+    True
     """
     batch, n = acov.shape
     phi = np.zeros((batch, n))
@@ -255,6 +302,21 @@ def resolve_channels(
     DataError
         When an experiment does not measure a requested channel, naming its
         file and the channels it has.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import resolve_channels
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v1", rng=1)
+    >>> resolve_channels([run])
+    ('yaw', 'vx', 'vy')
+    >>> resolve_channels([run], ["vx", "yaw"])
+    ('vx', 'yaw')
+    >>> try:
+    ...     resolve_channels([run], ["yaw", "yaw"])
+    ... except ValueError as error:
+    ...     print(error)
+    channels: channels must be distinct names among ('yaw', 'vx', 'vy'), got ('yaw', 'yaw')
     """
     if channels is None:
         return tuple(c for c in DEFAULT_CHANNEL_ORDER if all(c in e.channels for e in experiments))
@@ -309,15 +371,48 @@ class ResidualLikelihood:
         With the ``fast`` engine, evaluate parameter sets the spectral
         method cannot certify (long memory) by the recursion (True), or give
         them -inf (False: a quick, exact-where-defined scan of the prior).
+
+    Examples
+    --------
+    The yaw channel of a simulated run under the thesis' Gaussian filter; its
+    value is the residuals' Gaussian density under their Toeplitz covariance,
+    written out densely:
+
+    >>> import numpy as np
+    >>> import scipy.linalg
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.kernels import get_family
+    >>> from bayes_jackal.likelihood import ResidualLikelihood, residual_autocovariance
+    >>> from bayes_jackal.physics import channel_coefficients
+    >>> from bayes_jackal.residuals import channel_residuals
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="gaussian", channels=("yaw",))
+    >>> likelihood.parameter_names
+    ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n']
+    >>> theta = np.array([[110.0, 30.0, 0.047, 0.01, 0.005]])
+    >>> value = likelihood(theta)
+    >>> round(float(value[0]), 2)
+    8175.57
+    >>> residuals = channel_residuals(run, robot, 110.0, 30.0, "yaw")
+    >>> alpha, _ = channel_coefficients(robot, 110.0, 30.0, "yaw", run.dt)
+    >>> acov = residual_autocovariance(
+    ...     get_family("gaussian"), *theta[:, 2:].T, alpha[None], run.dt, len(residuals)
+    ... )
+    >>> L = np.linalg.cholesky(scipy.linalg.toeplitz(acov[0]))
+    >>> y = scipy.linalg.solve_triangular(L, residuals, lower=True)
+    >>> dense = -0.5 * (y @ y + 2 * np.log(np.diag(L)).sum() + len(y) * np.log(2 * np.pi))
+    >>> bool(abs(value[0] - dense) < 1e-6)
+    True
     """
 
     experiments: list[Experiment]
     robot: RobotProfile
-    family: str = "gaussian"
+    family: str = FAMILY
     channels: tuple[str, ...] | None = None
-    shared_noise: bool = True
-    sensor: str = "ma1"
-    engine: str = "fast"
+    shared_noise: bool = SHARED_NOISE
+    sensor: str = SENSOR
+    engine: str = ENGINE
     steady: bool = True
     fallback: bool = True
     layout: ParameterLayout = field(init=False)

@@ -60,6 +60,24 @@ def find_map(
     ------
     InputError
         When the log-posterior is -inf at every start.
+
+    Examples
+    --------
+    A simulated run (truth d_lat = 110, d_long = 30 N s/m, sigma_h =
+    0.047 s) on the yaw and vx channels; about a second:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.map_search import find_map
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw", "vx"))
+    >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
+    >>> z = find_map(log_posterior, np.random.default_rng(1), design_points=64)
+    >>> [f"{name} {value:.3g}" for name, value in zip(likelihood.parameter_names[:3], np.exp(z))]
+    ['d_lat 112', 'd_long 30.1', 'sigma_h[yaw] 0.0469']
     """
     prior = log_posterior.prior
     scan = replace(log_posterior.likelihood, engine="fast", fallback=False)
@@ -148,6 +166,28 @@ def laplace_walkers(
 
     A MAP on the prior's boundary (the damping ridge can run into it) has no
     Laplace approximation; the walkers then start in a small ball.
+
+    Examples
+    --------
+    Walkers around a point (here the truth of a simulated run), all inside
+    the prior and of finite posterior:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.map_search import laplace_walkers
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw",))
+    >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
+    >>> centre = np.log([110.0, 30.0, 0.047, 0.01, 0.005])
+    >>> walkers = laplace_walkers(log_posterior, centre, 12, np.random.default_rng(1))
+    >>> walkers.shape
+    (12, 5)
+    >>> inside = log_posterior.prior.inside(walkers)
+    >>> bool(inside.all() and np.isfinite(log_posterior(walkers)).all())
+    True
     """
     prior = log_posterior.prior
     span = prior.z_high - prior.z_low

@@ -49,7 +49,19 @@ __all__ = [
 
 
 class OutputLockedError(InputError):
-    """Another run holds the output: it is refused at once (exit 2)."""
+    """Another run holds the output: it is refused at once (exit 2).
+
+    Examples
+    --------
+    An InputError (so a ValueError): the command line exits with 2:
+
+    >>> from bayes_jackal.outputs import OutputLockedError
+    >>> try:
+    ...     raise OutputLockedError("is in use by another run", source="fit.nc")
+    ... except ValueError as error:
+    ...     print(error)
+    fit.nc: is in use by another run
+    """
 
 
 @dataclass(frozen=True)
@@ -65,6 +77,14 @@ class Output:
         A file's allowed suffixes (lower case, with the dot); empty: any.
     flag : str
         The option that named it, for messages (``--out``, ``--plot``).
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import Output
+    >>> output = Output(Path("fits/posterior.nc"), suffixes=(".nc",))
+    >>> output.kind, output.flag
+    ('file', '--out')
     """
 
     path: Path
@@ -124,6 +144,25 @@ def check_outputs(outputs: Sequence[Output], *, inputs: Iterable[str | Path]) ->
         file is wanted or the other way round, or two outputs share a path.
     OutputError
         A folder cannot be created (permission, read-only file system).
+
+    Examples
+    --------
+    An output that would replace an input is refused before any work:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import Output, check_outputs
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = Path(folder) / "run.csv"
+    ...     run.touch()
+    ...     check_outputs([Output(Path(folder) / "fits" / "p.nc")], inputs=[run])
+    ...     created = (Path(folder) / "fits").is_dir()
+    ...     try:
+    ...         check_outputs([Output(run)], inputs=[run])
+    ...     except ValueError as error:
+    ...         refused = str(error).endswith("an output never replaces an input, choose another")
+    >>> created, refused
+    (True, True)
     """
     known: dict[tuple[int, int] | Path, str] = {}
     for given in inputs:
@@ -154,7 +193,24 @@ _PROTECTED: contextvars.ContextVar[Mapping] = contextvars.ContextVar(
 
 @contextlib.contextmanager
 def protected(inputs: Iterable[str | Path]) -> Iterator[None]:
-    """Within the block, :func:`refuse_input` refuses to replace any of ``inputs``."""
+    """Within the block, :func:`refuse_input` refuses to replace any of ``inputs``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import protected, refuse_input
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = Path(folder) / "run.csv"
+    ...     run.touch()
+    ...     with protected([run]):
+    ...         try:
+    ...             refuse_input(run)
+    ...         except ValueError as error:
+    ...             print("refused")
+    ...     refuse_input(run)  # outside the block: allowed
+    refused
+    """
     identities = {}
     for given in inputs:
         if (identity := _identity(Path(given))) is not None:
@@ -167,7 +223,26 @@ def protected(inputs: Iterable[str | Path]) -> Iterator[None]:
 
 
 def refuse_input(path: Path) -> None:
-    """Raise InputError when writing ``path`` would replace a protected input."""
+    """Raise InputError when writing ``path`` would replace a protected input.
+
+    Examples
+    --------
+    A path that is no protected input passes; the input itself is refused:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import protected, refuse_input
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = Path(folder) / "run.csv"
+    ...     run.touch()
+    ...     with protected([run]):
+    ...         refuse_input(Path(folder) / "p.nc")
+    ...         try:
+    ...             refuse_input(run)
+    ...         except ValueError as error:
+    ...             print(str(error).split(": ", 1)[1])
+    writing it would replace the input ...run.csv; choose another output
+    """
     given = _PROTECTED.get().get(_identity(path))
     if given is not None:
         raise InputError(
@@ -199,6 +274,26 @@ class OutputLock:
         The output.
     folder : bool
         The output is a folder (it must exist): the lock file goes inside it.
+
+    Examples
+    --------
+    A second run on a locked output is refused at once, naming the holder:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import OutputLock, OutputLockedError
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     output = Path(folder) / "posterior.nc"
+    ...     with OutputLock(output) as lock:
+    ...         print(lock.lock_file.name)
+    ...         try:
+    ...             OutputLock(output).__enter__()
+    ...         except OutputLockedError as error:
+    ...             print("refused:", "is in use by another run (pid" in str(error))
+    ...     print(lock.lock_file.exists())
+    .posterior.nc.lock
+    refused: True
+    False
     """
 
     def __init__(self, path: str | Path, *, folder: bool = False):

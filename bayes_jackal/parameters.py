@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from .errors import InputError
-from .kernels import Family, get_family
+from .kernels import FAMILIES, Family, get_family
 from .robot import DEFAULT_PRIORS
 
 __all__ = [
@@ -70,6 +70,7 @@ class ParameterLayout:
 
     Examples
     --------
+    >>> from bayes_jackal.parameters import ParameterLayout
     >>> layout = ParameterLayout("gaussian", "ma1", ("yaw", "vx"), ("v1",), True)
     >>> layout.names[:5]
     ('d_lat', 'd_long', 'sigma_h[yaw]', 'sigma_c[yaw]', 'sigma_n[yaw]')
@@ -215,6 +216,18 @@ def prior_range(key: str, value: Sequence[float]) -> tuple[float, float]:
     ------
     InputError
         Naming ``priors.<key>`` and the values.
+
+    Examples
+    --------
+    >>> from bayes_jackal.parameters import prior_range
+    >>> prior_range("d_lat", [50, 500])
+    (50.0, 500.0)
+    >>> try:
+    ...     prior_range("sigma_n", (0.0, 1.0))
+    ... except ValueError as error:
+    ...     print(error)
+    priors.sigma_n: prior range must satisfy 0 < low < high, got [0.0, 1.0]:
+    it excludes every value
     """
     try:
         low, high = (float(v) for v in value)
@@ -231,16 +244,29 @@ def prior_range(key: str, value: Sequence[float]) -> tuple[float, float]:
     return low, high
 
 
+def _width_keys() -> tuple[str, ...]:
+    """The names of the one width prior, :data:`WIDTH_PRIOR` first.
+
+    Then :data:`WIDTH_ALIAS` and each registered family's width name, read
+    from ``FAMILIES`` at each call so that a family registered later
+    (docs/families.md) adds its own.
+    """
+    names = (WIDTH_PRIOR, WIDTH_ALIAS, *(f.width_name for f in FAMILIES.values() if f.has_width))
+    return tuple(dict.fromkeys(names))
+
+
 def prior_overrides(
     overrides: Mapping[str, Sequence[float]] | None, *, field: str = "prior_overrides"
 ) -> dict[str, tuple[float, float]]:
     """Prior ranges that replace a profile's, validated and keyed on :data:`PRIOR_KEYS`.
 
     Keys: ``d_lat``, ``d_long`` [N s/m], ``sigma_h`` [s] (every family's
-    width), ``sigma_c``, ``sigma_n`` [channel units]; ``width`` is accepted
-    for ``sigma_h`` (the width's name in every family but the Gaussian). A
-    range for a parameter a model lacks (white noise has no width) is valid
-    and unused, so that one set of overrides serves every family compared.
+    width), ``sigma_c``, ``sigma_n`` [channel units]. Every name of the width
+    (``width``, and each registered family's own width name, such as a
+    ``tau``) is accepted for ``sigma_h``; one width
+    prior serves every family, so give it under one name. A range for a
+    parameter a model lacks (white noise has no width) is valid and unused,
+    so that one set of overrides serves every family compared.
 
     Parameters
     ----------
@@ -256,28 +282,42 @@ def prior_overrides(
     Raises
     ------
     InputError
-        For an unknown key (naming it and the keys allowed), both ``width``
-        and ``sigma_h``, or a range that is not numbers with 0 < low < high.
+        For an unknown key (naming it and the keys allowed), two names of the
+        width (``width`` and ``sigma_h``), or a range that is not numbers with
+        0 < low < high.
 
     Examples
     --------
-    >>> prior_overrides({"width": (0.01, 0.5)})
-    {'sigma_h': (0.01, 0.5)}
+    Every family's width takes the ``sigma_h`` range, whatever it is called:
+
+    >>> from bayes_jackal.parameters import prior_overrides
+    >>> prior_overrides({"width": (0.01, 0.5), "d_lat": [50, 500]})
+    {'d_lat': (50.0, 500.0), 'sigma_h': (0.01, 0.5)}
+    >>> try:
+    ...     prior_overrides({"d_latt": (50, 500)})
+    ... except ValueError as error:
+    ...     print(error)
+    prior_overrides: unknown prior 'd_latt'; use one of
+    ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'width']
+    (width is sigma_h: every family's width)
     """
-    allowed = [*PRIOR_KEYS, WIDTH_ALIAS]
+    widths = _width_keys()
+    aliases = widths[1:]
+    allowed = list(dict.fromkeys([*PRIOR_KEYS, *aliases]))
     given = dict(overrides or {})
     for key in given:
         if key not in allowed:
             raise InputError(
-                f"unknown prior {key!r}; use one of {allowed} ({WIDTH_ALIAS} is "
-                f"{WIDTH_PRIOR}: every family's width)",
+                f"unknown prior {key!r}; use one of {allowed} ({' and '.join(aliases)} "
+                f"{'is' if len(aliases) == 1 else 'are'} {WIDTH_PRIOR}: every family's width)",
                 field=field,
             )
-    if WIDTH_ALIAS in given and WIDTH_PRIOR in given:
+    named = [key for key in given if key in widths]
+    if len(named) > 1:
         raise InputError(
-            f"{WIDTH_ALIAS} and {WIDTH_PRIOR} are the same prior (every family's width): give one",
+            f"{' and '.join(named)} are the same prior (every family's width): give one",
             field=field,
         )
-    if WIDTH_ALIAS in given:
-        given[WIDTH_PRIOR] = given.pop(WIDTH_ALIAS)
+    if named:
+        given[WIDTH_PRIOR] = given.pop(named[0])
     return {key: prior_range(key, value) for key, value in given.items()}

@@ -19,6 +19,7 @@ import scipy.fft
 import scipy.linalg
 import scipy.special
 
+from .defaults import CHANNELS
 from .errors import InputError
 from .robot import RobotProfile
 
@@ -36,8 +37,6 @@ __all__ = [
     "wheel_speeds",
 ]
 
-#: State channels in state-vector order.
-CHANNELS = ("vx", "vy", "yaw")
 
 Method = Literal["zoh", "euler"]
 
@@ -107,6 +106,27 @@ def continuous_matrices(
         Diagonal state matrix [1/s].
     B : ndarray, shape (..., 3, 2)
         Input matrix mapping wheel speeds [rad/s] to state derivatives.
+
+    Examples
+    --------
+    A is diagonal: the longitudinal pole is -4 d_long / m (eq. 4-29).
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import continuous_matrices
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> A, B = continuous_matrices(robot, 110.0, 30.0)
+    >>> A.shape, B.shape
+    ((3, 3), (3, 2))
+    >>> [round(float(a), 3) for a in np.diag(A)]
+    [-7.263, -26.63, -23.213]
+    >>> bool(np.isclose(A[0, 0], -4 * 30.0 / robot.mass))
+    True
+
+    Arrays of damping add leading axes:
+
+    >>> continuous_matrices(robot, [100.0, 110.0, 120.0], 30.0)[0].shape
+    (3, 3, 3)
     """
     d_lat, d_long = _check_damping(d_lat, d_long)
     poles = np.stack([_pole(robot, d_lat, d_long, i) for i in range(3)], axis=-1)
@@ -136,6 +156,25 @@ def discretise(
     -------
     Ad : ndarray, shape (..., n, n)
     Bd : ndarray, shape (..., n, m)
+
+    Examples
+    --------
+    The zero-order hold is the matrix exponential, Ad = expm(A dt) and
+    Bd = A^-1 (Ad - I) B for an invertible A (eq. 6-6):
+
+    >>> import numpy as np
+    >>> import scipy.linalg
+    >>> from bayes_jackal.physics import discretise
+    >>> A = np.array([[-1.0, 2.0], [0.0, -3.0]])
+    >>> B = np.array([[0.0], [1.0]])
+    >>> Ad, Bd = discretise(A, B, 0.1)
+    >>> bool(np.allclose(Ad, scipy.linalg.expm(0.1 * A)))
+    True
+    >>> bool(np.allclose(Bd, np.linalg.solve(A, (Ad - np.eye(2)) @ B)))
+    True
+    >>> Ad, Bd = discretise(A, B, 0.1, "euler")  # I + A dt, B dt (eq. 6-5)
+    >>> np.round(Ad, 12).tolist(), np.round(Bd, 12).tolist()
+    ([[0.9, 0.2], [0.0, 0.7]], [[0.0], [0.1]])
     """
     n, m = B.shape[-2:]
     if _check_method(method) == "euler":
@@ -175,6 +214,22 @@ def discrete_matrices(
     -------
     Ad : ndarray, shape (..., 3, 3)
     Bd : ndarray, shape (..., 3, 2)
+
+    Examples
+    --------
+    The closed form agrees with the general :func:`discretise`:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import continuous_matrices, discrete_matrices, discretise
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0)
+    >>> A, B = continuous_matrices(robot, 110.0, 30.0)
+    >>> Ad_general, Bd_general = discretise(A, B, robot.dt)
+    >>> bool(np.allclose(Ad, Ad_general) and np.allclose(Bd, Bd_general))
+    True
+    >>> [round(float(alpha), 4) for alpha in np.diag(Ad)]  # exp(a dt) at 72 Hz
+    [0.9041, 0.6908, 0.7244]
     """
     rows = [channel_coefficients(robot, d_lat, d_long, c, dt, method) for c in CHANNELS]
     alpha = np.stack([pole for pole, _ in rows], axis=-1)
@@ -211,6 +266,25 @@ def channel_coefficients(
     alpha : ndarray, shape (...)
     input_row : ndarray, shape (..., 2)
         Coefficients of (omega_r, omega_l).
+
+    Examples
+    --------
+    The yaw channel's pole is exp(A[2, 2] dt), and the wheels drive it with
+    opposite signs:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import channel_coefficients, continuous_matrices
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> alpha, row = channel_coefficients(robot, 110.0, 30.0, "yaw")
+    >>> A, _ = continuous_matrices(robot, 110.0, 30.0)
+    >>> bool(np.isclose(alpha, np.exp(A[2, 2] * robot.dt)))
+    True
+    >>> bool(row[0] == -row[1])
+    True
+    >>> alpha, _ = channel_coefficients(robot, 110.0, 30.0, "yaw", method="euler")
+    >>> bool(np.isclose(alpha, 1 + A[2, 2] * robot.dt))
+    True
     """
     index = _channel_index(channel)
     dt = robot.dt if dt is None else float(dt)
@@ -253,6 +327,21 @@ def wheel_speeds(
     -------
     omega_r, omega_l : ndarray
         Right and left wheel speeds [rad/s].
+
+    Examples
+    --------
+    ROS's formula: the wheels' speed difference times r_w / (s k) is the
+    commanded yaw rate.
+
+    >>> from bayes_jackal.physics import wheel_speeds
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> omega_r, omega_l = wheel_speeds(robot, 0.3, 0.4)
+    >>> round(float(omega_r), 3), round(float(omega_l), 3)
+    (4.211, 1.911)
+    >>> yaw_rate = (omega_r - omega_l) * robot.wheel_radius / robot.wheel_separation
+    >>> round(float(yaw_rate / robot.wheel_separation_multiplier), 12)
+    0.4
     """
     conversion = robot.conversion if conversion is None else conversion
     v, w = np.asarray(v, float), np.asarray(w, float)
@@ -287,6 +376,19 @@ def propagate(alpha: np.ndarray, drive: np.ndarray, x0: np.ndarray | float) -> n
     -------
     ndarray, shape (..., N)
         x[0..N-1].
+
+    Examples
+    --------
+    A constant drive b from x0 = 0 gives x[k] = b (1 - alpha^k) / (1 - alpha):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import propagate
+    >>> x = propagate(0.5, np.ones(5), 0.0)
+    >>> np.round(x, 12).tolist()
+    [0.0, 1.0, 1.5, 1.75, 1.875]
+    >>> k = np.arange(5)
+    >>> bool(np.allclose(x, (1 - 0.5**k) / (1 - 0.5)))
+    True
     """
     alpha = np.asarray(alpha, float)[..., None]
     drive = np.asarray(drive, float)
@@ -331,6 +433,24 @@ def simulate(
     -------
     ndarray, shape (..., N, 3)
         States (vx, vy, r) at each sample.
+
+    Examples
+    --------
+    Constant wheel speeds from rest: the state settles at the fixed point
+    -A^-1 B u of the continuous model.
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import continuous_matrices, simulate, wheel_speeds
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> u = np.column_stack(wheel_speeds(robot, 0.3, 0.4))
+    >>> inputs = np.repeat(u, 360, axis=0)  # 5 s at 72 Hz
+    >>> states = simulate(robot, 110.0, 30.0, inputs)
+    >>> states.shape
+    (360, 3)
+    >>> A, B = continuous_matrices(robot, 110.0, 30.0)
+    >>> bool(np.allclose(states[-1], -np.linalg.solve(A, B @ u[0])))
+    True
     """
     Ad, Bd = discrete_matrices(robot, d_lat, d_long, dt, method)
     alpha = np.diagonal(Ad, axis1=-2, axis2=-1)
@@ -360,6 +480,21 @@ def one_step_prediction(
     Returns
     -------
     ndarray, shape (..., N - 1, n)
+
+    Examples
+    --------
+    Without process noise every next state is predicted exactly:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import discrete_matrices, one_step_prediction, simulate
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> inputs = np.tile([4.0, 2.0], (100, 1))  # wheel speeds [rad/s]
+    >>> states = simulate(robot, 110.0, 30.0, inputs)
+    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0)
+    >>> predicted = one_step_prediction(Ad, Bd, states, inputs)
+    >>> predicted.shape, bool(np.allclose(predicted, states[1:]))
+    ((99, 3), True)
     """
     return np.einsum("...ij,kj->...ki", Ad, states[:-1]) + np.einsum(
         "...ij,kj->...ki", Bd, inputs[:-1]
@@ -372,5 +507,20 @@ def one_step_residuals(
     """One-step residuals w[k] = x[k+1] - Ad x[k] - Bd u[k] (eq. 7-3).
 
     Parameters and shapes as :func:`one_step_prediction`.
+
+    Examples
+    --------
+    At the true damping the residuals are the process noise itself (eq. 7-3):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import discrete_matrices, one_step_residuals, simulate
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> inputs = np.tile([4.0, 2.0], (100, 1))
+    >>> noise = 0.01 * np.random.default_rng(1).standard_normal((100, 3))
+    >>> states = simulate(robot, 110.0, 30.0, inputs, process_noise=noise)
+    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0)
+    >>> bool(np.allclose(one_step_residuals(Ad, Bd, states, inputs), noise[:-1]))
+    True
     """
     return states[1:] - one_step_prediction(Ad, Bd, states, inputs)

@@ -1,26 +1,26 @@
 """Figures. Every function takes an optional ``ax`` and returns ``(fig, ax)``.
 
 Figures are built on :class:`matplotlib.figure.Figure` without pyplot, so
-nothing here opens a window or depends on a display.
+nothing here opens a window or depends on a display. This module draws a
+posterior: the model against the data, the residuals, walker traces, the
+damping and sigma_h, and the model criticism. It also exports the figures
+of :mod:`bayes_jackal.grid_plots` (grid-search surfaces) and
+:mod:`bayes_jackal.predictive_plots` (the residuals' autocorrelation and
+spectrum against the fitted filter's band).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 from matplotlib.axes import Axes
-from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from ._files import atomic_path
+from ._plot_layout import BAND, DATA_COLOUR, MODEL_COLOUR, UNITS, new_axes
 from .criticism import criticise
-from .errors import InputError
-from .gridsearch import GridResult
+from .grid_plots import plot_grid, save_grid_plot
 from .physics import CHANNELS
 from .posterior import (
     THESIS_RATIO,
-    ExperimentRecord,
     observed_residuals,
     parameter_draws,
     posterior_experiments,
@@ -28,8 +28,8 @@ from .posterior import (
     posterior_metadata,
     posterior_truth,
 )
-from .predictive import model_percentiles, predictive_statistics
-from .series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
+from .predictive import model_percentiles
+from .predictive_plots import plot_autocorrelation, plot_spectrum, predictive_bands
 
 __all__ = [
     "plot_autocorrelation",
@@ -45,65 +45,6 @@ __all__ = [
     "save_grid_plot",
 ]
 
-
-def _figure(ax: Axes | None, **figure_options) -> tuple[Figure, Axes]:
-    if ax is not None:
-        return ax.figure, ax
-    fig = Figure(layout="constrained", **figure_options)
-    return fig, fig.add_subplot()
-
-
-def plot_grid(
-    result: GridResult, surface: np.ndarray | None = None, ax: Axes | None = None
-) -> tuple[Figure, Axes]:
-    """MSE surface over (d_long, d_lat) with its minimum and ridge line.
-
-    The ridge is the line d_lat = (d_lat / d_long at the minimum) x d_long,
-    along which the yaw rate's steady state is constant (thesis fig. 5-4).
-
-    Parameters
-    ----------
-    result : GridResult
-    surface : ndarray, shape (L, M), optional
-        One of ``result``'s surfaces; the total (eq. 5-3) by default.
-    ax : matplotlib.axes.Axes, optional
-
-    Returns
-    -------
-    fig, ax
-    """
-    fig, ax = _figure(ax, figsize=(6.0, 4.8))
-    surface = result.mse if surface is None else surface
-    floor = max(float(surface.min()), np.finfo(float).tiny)
-    mesh = ax.pcolormesh(
-        result.d_long, result.d_lat, np.maximum(surface, floor), shading="nearest", norm=LogNorm()
-    )
-    fig.colorbar(mesh, ax=ax, label=f"{result.method} MSE ({result.channel})")
-    d_lat, d_long, mse = result.argmin(surface)
-    ratio = d_lat / d_long
-    ax.plot(result.d_long, ratio * result.d_long, "w--", lw=1, label=f"d_lat = {ratio:.3g} d_long")
-    ax.plot(d_long, d_lat, "r*", ms=12, label=f"minimum ({d_lat:g}, {d_long:g}): {mse:.3g}")
-    ax.set_xlim(result.d_long[0], result.d_long[-1])
-    ax.set_ylim(result.d_lat[0], result.d_lat[-1])
-    ax.set_xlabel("d_long [N s/m]")
-    ax.set_ylabel("d_lat [N s/m]")
-    ax.legend(loc="lower right", fontsize="small", facecolor="0.75")
-    return fig, ax
-
-
-def save_grid_plot(result: GridResult, path: str | Path, dpi: int = 120) -> Path:
-    """Save :func:`plot_grid` of the total surface (png, svg, pdf by the suffix)."""
-    fig, _ = plot_grid(result)
-    path = Path(path)
-    with atomic_path(path) as temporary:
-        fig.savefig(temporary, dpi=dpi, format=path.suffix.lstrip(".").lower() or None)
-    return path
-
-
-#: Credible band drawn around posterior-predictive medians (the HDI mass).
-BAND = (3.0, 97.0)
-_UNITS = {"vx": "m/s", "vy": "m/s", "yaw": "rad/s"}
-_DATA_COLOUR, _MODEL_COLOUR = "0.25", "tab:red"
 #: Most points a curve over a whole run is drawn with. A longer series (past
 #: ~55 s at 72 Hz) is drawn as its envelope: the min and max of each of
 #: MAX_POINTS / 2 consecutive bins, filled, which at a figure's resolution
@@ -169,6 +110,21 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     Returns
     -------
     fig, axes
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.plots import plot_model_fit
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> fig, axes = plot_model_fit(posterior)
+    >>> [ax.get_ylabel() for ax in axes]
+    ['vx [m/s]', 'vy [m/s]', 'yaw [rad/s]']
+    >>> axes[0].get_title()
+    'v1: model at the posterior against the data'
     """
     experiment = posterior_experiments(idata)[index]
     t = experiment.t
@@ -178,10 +134,10 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
         _shade_window(ax, experiment)
         if channel in experiment.channels:
             measured = experiment.channel(channel)
-            _curve(ax, t, measured, color=_DATA_COLOUR, lw=0.6, label="measured")
-        _band(ax, t, low[:, i], high[:, i], color=_MODEL_COLOUR, alpha=0.3)
-        _curve(ax, t, median[:, i], color=_MODEL_COLOUR, lw=1.2, label="model (94 % band)")
-        ax.set_ylabel(f"{channel} [{_UNITS[channel]}]")
+            _curve(ax, t, measured, color=DATA_COLOUR, lw=0.6, label="measured")
+        _band(ax, t, low[:, i], high[:, i], color=MODEL_COLOUR, alpha=0.3)
+        _curve(ax, t, median[:, i], color=MODEL_COLOUR, lw=1.2, label="model (94 % band)")
+        ax.set_ylabel(f"{channel} [{UNITS[channel]}]")
     axes[0].legend(loc="lower right", fontsize="small")
     axes[0].set_title(f"{experiment.name}: model at the posterior against the data")
     axes[-1].set_xlabel("t [s]")
@@ -197,6 +153,19 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     Returns
     -------
     fig, axes
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.plots import plot_residuals
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> fig, axes = plot_residuals(posterior)
+    >>> len(axes), axes[0].get_ylabel()  # one channel sampled: one axes
+    (1, 'yaw residual [rad/s]')
     """
     experiment = posterior_experiments(idata)[index]
     channels = _channels(idata)
@@ -205,9 +174,9 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
         residuals = observed_residuals(idata, index, channel)
         start = experiment.steady_window[0] if experiment.steady_window else experiment.t[0]
         t = start + experiment.dt * np.arange(1, len(residuals) + 1)
-        _curve(ax, t, residuals, color=_DATA_COLOUR, lw=0.6)
+        _curve(ax, t, residuals, color=DATA_COLOUR, lw=0.6)
         ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_ylabel(f"{channel} residual [{_UNITS[channel]}]")
+        ax.set_ylabel(f"{channel} residual [{UNITS[channel]}]")
     axes[0].set_title(f"{experiment.name}: one-step residuals (eq. 7-3)")
     axes[-1].set_xlabel("t [s]")
     return fig, axes
@@ -217,151 +186,25 @@ def _channels(idata) -> list[str]:
     return list(posterior_metadata(idata).channels)
 
 
-def predictive_bands(
-    idata, index: int = 0, channel: str = "yaw", *, lags: int = 30, rng=0
-) -> dict[str, np.ndarray]:
-    """Per-draw statistics behind the predictive bands of the ACF and PSD figures.
-
-    For each of 200 posterior-predictive residual series
-    (:func:`bayes_jackal.predictive.predictive_statistics`, made and reduced
-    in chunks): its sample autocorrelation at lags 0..``lags`` and its Welch
-    PSD estimated exactly as the data's (:func:`bayes_jackal.series_statistics.spectrum`),
-    for :func:`plot_autocorrelation` and :func:`plot_spectrum`.
-
-    Parameters
-    ----------
-    idata : arviz.InferenceData
-    index : int
-        Experiment of the posterior.
-    channel : {"yaw", "vx", "vy"}
-    lags : int
-        Largest lag of the autocorrelation.
-    rng : numpy.random.Generator, int or None
-
-    Returns
-    -------
-    dict
-        ``acf``, shape (200, lags + 1), and ``psd``, shape (200, F)
-        [(channel unit)^2 / Hz].
-    """
-    dt = _experiment(idata, index).dt
-    return predictive_statistics(
-        idata,
-        index,
-        channel,
-        {"acf": lambda x: sample_autocorrelation(x, lags), "psd": lambda x: spectrum(x, dt)[1]},
-        rng=rng,
-    )
-
-
-def plot_autocorrelation(
-    idata,
-    index: int = 0,
-    channel: str = "yaw",
-    lags: int = 30,
-    ax: Axes | None = None,
-    rng=0,
-    predictive: dict[str, np.ndarray] | None = None,
-) -> tuple[Figure, Axes]:
-    """Residual autocorrelation with its white-noise bounds and the fitted filter's band.
-
-    Thesis figs. 7-12, 7-22..7-24 with the posterior added: the band spans
-    the central 94 % of the sample autocorrelations of 200 posterior-predictive
-    residual series (:func:`predictive_bands`), so it holds both the
-    parameter uncertainty and the sampling noise of an autocorrelation
-    estimate. Bounds: +-1.96 / sqrt(n). ``predictive`` passes
-    :func:`predictive_bands` of the same ``lags`` when already computed
-    (:func:`plot_spectrum` uses the same); else they are drawn with ``rng``.
-
-    Returns
-    -------
-    fig, ax
-
-    Raises
-    ------
-    InputError
-        When ``predictive`` holds the autocorrelation at other lags.
-    """
-    fig, ax = _figure(ax, figsize=(6.0, 3.6))
-    residuals = observed_residuals(idata, index, channel)
-    predicted = (predictive or predictive_bands(idata, index, channel, lags=lags, rng=rng))["acf"]
-    if predicted.shape[-1] != lags + 1:
-        raise InputError(
-            f"the predictive autocorrelation has lags 0..{predicted.shape[-1] - 1}, the "
-            f"figure {lags}",
-            field="predictive",
-        )
-    lag = np.arange(lags + 1)
-    low, median, high = np.percentile(predicted, [BAND[0], 50.0, BAND[1]], axis=0)
-    ax.fill_between(lag, low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %")
-    ax.plot(lag, median, color=_MODEL_COLOUR, lw=1)
-    ax.plot(
-        lag,
-        sample_autocorrelation(residuals, lags),
-        "o-",
-        color=_DATA_COLOUR,
-        ms=3,
-        lw=0.8,
-        label="residuals",
-    )
-    bound = autocorrelation_bounds(len(residuals))
-    ax.axhspan(-bound, bound, color="tab:blue", alpha=0.12, label="white-noise 95 % bounds")
-    ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("lag [samples]")
-    ax.set_ylabel("autocorrelation")
-    ax.set_title(f"{_experiment(idata, index).name}: {channel} residual autocorrelation")
-    ax.legend(fontsize="small")
-    return fig, ax
-
-
-def plot_spectrum(
-    idata,
-    index: int = 0,
-    channel: str = "yaw",
-    ax: Axes | None = None,
-    rng=0,
-    predictive: dict[str, np.ndarray] | None = None,
-) -> tuple[Figure, Axes]:
-    """Welch PSD of the residuals against the fitted filter's (thesis figs. 7-7..7-9).
-
-    The band spans the central 94 % of the Welch estimates of 200
-    posterior-predictive residual series, estimated exactly as the data's
-    (:func:`predictive_bands`; ``predictive`` and ``rng`` as in
-    :func:`plot_autocorrelation`).
-
-    Returns
-    -------
-    fig, ax
-    """
-    fig, ax = _figure(ax, figsize=(6.0, 3.6))
-    dt = _experiment(idata, index).dt
-    residuals = observed_residuals(idata, index, channel)
-    frequency, observed = spectrum(residuals, dt)
-    predicted = (predictive or predictive_bands(idata, index, channel, rng=rng))["psd"]
-    low, median, high = np.percentile(predicted[:, 1:], [BAND[0], 50.0, BAND[1]], axis=0)
-    ax.fill_between(
-        frequency[1:], low, high, color=_MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %"
-    )
-    ax.loglog(frequency[1:], median, color=_MODEL_COLOUR, lw=1)
-    ax.loglog(frequency[1:], observed[1:], color=_DATA_COLOUR, lw=0.8, label="residuals")
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(f"PSD [({_UNITS[channel]})²/Hz]")
-    ax.set_title(f"{_experiment(idata, index).name}: {channel} residual spectrum")
-    ax.legend(fontsize="small")
-    return fig, ax
-
-
-def _experiment(idata, index: int) -> ExperimentRecord:
-    """The stored description (name, dt, window, truth) of one experiment."""
-    return posterior_metadata(idata).experiments[index]
-
-
 def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     """Every walker's kept draws of every sampled parameter (after burn-in, thinned).
 
     Returns
     -------
     fig, axes
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.plots import plot_traces
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> fig, axes = plot_traces(posterior)
+    >>> [ax.get_ylabel() for ax in axes], axes[-1].get_yscale()
+    (['d_lat', 'd_long', 'sigma_c', 'sigma_n'], 'log')
     """
     draws, _ = parameter_draws(idata)
     layout = posterior_layout(idata)
@@ -385,8 +228,23 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
     Returns
     -------
     fig, ax
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.plots import plot_damping
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> fig, ax = plot_damping(posterior)
+    >>> ax.get_xlabel(), ax.get_ylabel()
+    ('d_long [N s/m]', 'd_lat [N s/m]')
+    >>> [text.get_text() for text in ax.get_legend().get_texts()][1:]
+    ['ridge d_lat = 3.650 d_long', 'thesis 11/3', 'truth (simulated)']
     """
-    fig, ax = _figure(ax, figsize=(5.5, 4.5))
+    fig, ax = new_axes(ax, figsize=(5.5, 4.5))
     d_lat = idata.posterior["d_lat"].values.ravel()
     d_long = idata.posterior["d_long"].values.ravel()
     ratio = float(np.median(d_lat / d_long))
@@ -402,7 +260,7 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
     )
     span = np.array([d_long.min(), d_long.max()]) * np.array([0.9, 1.1])
     ax.plot(
-        span, ratio * span, color=_MODEL_COLOUR, lw=1, label=f"ridge d_lat = {ratio:.3f} d_long"
+        span, ratio * span, color=MODEL_COLOUR, lw=1, label=f"ridge d_lat = {ratio:.3f} d_long"
     )
     ax.plot(span, THESIS_RATIO * span, "k--", lw=0.8, label="thesis 11/3")
     truth = posterior_truth(idata)
@@ -424,8 +282,22 @@ def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
     Returns
     -------
     fig, ax
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.plots import plot_sigma_h
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="gaussian", channels=["yaw"], max_steps=100, seed=1)
+    >>> fig, ax = plot_sigma_h(posterior)
+    >>> [text.get_text() for text in ax.get_legend().get_texts()]
+    ['posterior', 'thesis v1: 0.051 s', 'thesis v2: 0.041 s', 'thesis all 15: 0.047 s',
+     'truth (simulated)']
     """
-    fig, ax = _figure(ax, figsize=(6.0, 3.4))
+    fig, ax = new_axes(ax, figsize=(6.0, 3.4))
     variable = idata.posterior["sigma_h"]
     groups = variable["noise_group"].values if "noise_group" in variable.dims else [None]
     for group in groups:
@@ -435,7 +307,7 @@ def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
         ax.axvline(value, color="k", ls=style, lw=1, label=f"thesis {label}: {value} s")
     truth = posterior_truth(idata)
     if truth and truth.get("sigma_h"):
-        ax.axvline(truth["sigma_h"], color=_MODEL_COLOUR, lw=1.5, label="truth (simulated)")
+        ax.axvline(truth["sigma_h"], color=MODEL_COLOUR, lw=1.5, label="truth (simulated)")
     ax.set_xlabel("sigma_h [s]")
     ax.set_ylabel("density")
     ax.legend(fontsize="small")
@@ -462,6 +334,20 @@ def plot_criticism(idata, axes=None) -> tuple[Figure, np.ndarray]:
     Returns
     -------
     fig, axes
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.plots import plot_criticism
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> fig, axes = plot_criticism(posterior)
+    >>> axes.shape, [ax.get_title() for ax in axes[0]]  # a row per channel
+    ((1, 2), ['residual-input cross-correlation (99 % band)',
+     'posterior-predictive p-values of the residual ACF'])
     """
     criticism = criticise(idata)["criticism"]
     channels = _channels(idata)
@@ -487,8 +373,8 @@ def plot_criticism(idata, axes=None) -> tuple[Figure, np.ndarray]:
             values = rows[channel]
             right.plot(values["statistics"], values["p_values"], "o", color=f"C{number % 10}")
         tail = values["tail_level"]
-        right.axhspan(0.0, tail, color=_MODEL_COLOUR, alpha=0.2)
-        right.axhspan(1.0 - tail, 1.0, color=_MODEL_COLOUR, alpha=0.2)
+        right.axhspan(0.0, tail, color=MODEL_COLOUR, alpha=0.2)
+        right.axhspan(1.0 - tail, 1.0, color=MODEL_COLOUR, alpha=0.2)
         right.set_ylim(-0.02, 1.02)
         right.set_ylabel("p-value")
     axes[0, 0].set_title("residual-input cross-correlation (99 % band)", fontsize="medium")

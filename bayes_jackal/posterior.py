@@ -4,8 +4,8 @@ A posterior is an arviz InferenceData (NetCDF on disk) with the groups
 ``posterior`` (the parameters, derived ``ratio``, ``Ad``, ``Bd``),
 ``sample_stats`` (``lp``, ``log_likelihood_total``), ``observed_data``
 (the residuals at the posterior median) and ``constant_data`` (the measured
-experiments). Its metadata are attributes of ``posterior``, owned by
-:mod:`bayes_jackal.posterior_format` (re-exported here):
+experiments). Its metadata (attributes of ``posterior``) and the names in
+the data groups are owned by :mod:`bayes_jackal.posterior_format` (re-exported):
 :func:`posterior_metadata` gives them typed (the robot, priors, parameter
 layout, experiments, noise groups, convergence, and the results stored
 later by :func:`store_comparison` and :func:`store_criticism`). No other
@@ -21,7 +21,7 @@ import numpy as np
 
 from ._files import write_hdf5
 from .errors import DataError
-from .experiment import REQUIRED, Experiment
+from .experiment import Experiment
 from .kernels import get_family
 from .likelihood import ResidualLikelihood, residual_autocovariance
 from .parameters import ParameterLayout
@@ -33,13 +33,16 @@ from .posterior_format import (
     Convergence,
     ExperimentRecord,
     PosteriorMetadata,
+    experiment_arrays,
+    experiment_data,
     file_attributes,
+    observed_data,
+    observed_residuals,
     posterior_layout,
     posterior_metadata,
     store_comparison,
     store_criticism,
 )
-from .residuals import channel_residuals
 from .robot import RobotProfile
 
 with warnings.catch_warnings():
@@ -57,6 +60,8 @@ __all__ = [
     "PosteriorMetadata",
     "az",
     "build_inference_data",
+    "experiment_arrays",
+    "experiment_data",
     "interval",
     "load_posterior",
     "model_autocovariance",
@@ -120,6 +125,31 @@ def build_inference_data(
         Their log posterior.
     diagnostics : dict
         Convergence diagnostics and settings, stored as attributes.
+
+    Examples
+    --------
+    A posterior from draws made elsewhere, here 20 draws of 8 walkers scattered
+    about the truth in the sampling coordinates (log theta), with their log
+    posterior:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.posterior import build_inference_data
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw",))
+    >>> prior = Prior.for_likelihood(likelihood, robot)
+    >>> rng = np.random.default_rng(1)
+    >>> chain = np.log([110.0, 30.0, 0.01, 0.005]) + 0.01 * rng.normal(size=(20, 8, 4))
+    >>> lp = LogPosterior(likelihood, prior)(chain.reshape(-1, 4)).reshape(20, 8)
+    >>> diagnostics = {"converged": False, "n_steps": 20, "autocorr_time": {}, "ess_autocorr": {}}
+    >>> posterior = build_inference_data(likelihood, prior, chain, lp, diagnostics)
+    >>> dict(posterior.posterior.sizes)
+    {'chain': 8, 'draw': 20, 'state': 3, 'wheel': 2}
+    >>> round(float(posterior.posterior["ratio"].mean()), 1)
+    3.7
     """
     draws = np.swapaxes(prior.to_natural(chain), 0, 1)  # (walkers, draws, P)
     d_lat, d_long = draws[..., 0], draws[..., 1]
@@ -140,9 +170,10 @@ def build_inference_data(
         "state": list(CHANNELS),
         "wheel": ["right", "left"],
     }
-    observed, constant = _data_groups(
+    observed, observed_dims = observed_data(
         likelihood, float(np.median(d_lat)), float(np.median(d_long))
     )
+    constant, constant_dims = experiment_data(likelihood.experiments)
     log_likelihood = np.swapaxes(lp - prior.log_density(chain), 0, 1)
     # C order, as a saved and loaded file (or a worker's pickled result) has
     # it: numpy's sums depend on the layout in the last bits, and a resumed
@@ -162,44 +193,26 @@ def build_inference_data(
             observed_data=observed,
             constant_data=constant,
             coords=coords,
-            dims=dims
-            | {name: [f"step_{name.rsplit('_', 1)[1]}"] for name in observed}
-            | {name: [f"time_{name.rsplit('_', 1)[1]}"] for name in constant},
+            dims=dims | observed_dims | constant_dims,
         )
     idata.posterior.attrs.update(file_attributes(likelihood, prior, diagnostics))
     return idata
 
 
-def _residual_key(index: int, channel: str) -> str:
-    return f"residual_{channel}_{index}"
-
-
-def observed_residuals(idata: az.InferenceData, index: int, channel: str) -> np.ndarray:
-    """The stored one-step residuals of experiment ``index`` in ``channel``.
-
-    At the posterior median of the damping, on the steady window when the
-    likelihood used it [channel unit].
-    """
-    return idata.observed_data[_residual_key(index, channel)].values
-
-
-def _data_groups(likelihood: ResidualLikelihood, d_lat: float, d_long: float):
-    """Residuals at (d_lat, d_long) and the measured experiments, keyed by index."""
-    observed, constant = {}, {}
-    for i, experiment in enumerate(likelihood.experiments):
-        for channel in likelihood.channels:
-            observed[_residual_key(i, channel)] = channel_residuals(
-                experiment, likelihood.robot, d_lat, d_long, channel, likelihood.steady
-            )
-        for key in (*REQUIRED, "vx", "vy"):
-            values = getattr(experiment, key)
-            if values is not None:
-                constant[f"{key}_{i}"] = np.asarray(values)
-    return observed, constant
-
-
 def parameter_variables(idata: az.InferenceData) -> list[str]:
-    """The sampled parameters' variable names (d_lat, d_long, then the noise)."""
+    """The sampled parameters' variable names (d_lat, d_long, then the noise).
+
+    Examples
+    --------
+    The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import parameter_variables
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> parameter_variables(posterior)
+    ['d_lat', 'd_long', 'sigma_c', 'sigma_n']
+    """
     skip = {"ratio", "Ad", "Bd"}
     return [name for name in idata.posterior.data_vars if name not in skip]
 
@@ -214,6 +227,18 @@ def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
         (:func:`posterior_layout`: d_lat, d_long, then each noise group's).
     lp : ndarray, shape (draws, walkers)
         Log posterior in sampling coordinates (z = log theta).
+
+    Examples
+    --------
+    The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import parameter_draws
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> draws, lp = parameter_draws(posterior)
+    >>> draws.shape, lp.shape  # (draws, walkers, P): d_lat, d_long, sigma_c, sigma_n
+    ((15, 32, 4), (15, 32))
     """
     posterior = idata.posterior
     layout = posterior_layout(idata)
@@ -227,12 +252,40 @@ def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
 
 
 def interval(row: dict) -> dict:
-    """Mean, sd and 94 % HDI of a :func:`summarize` row."""
+    """Mean, sd and 94 % HDI of a :func:`summarize` row.
+
+    Examples
+    --------
+    The ratio d_lat / d_long, which the yaw rate alone identifies (truth
+    110 / 30 = 3.67). The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import interval
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> row = interval(bj.summarize(posterior)["ratio"])
+    >>> sorted(row), row["hdi_3%"] < 110 / 30 < row["hdi_97%"]
+    (['hdi_3%', 'hdi_97%', 'mean', 'sd'], True)
+    """
     return {key: row[key] for key in INTERVAL_FIELDS}
 
 
 def posterior_truth(idata: az.InferenceData) -> dict | None:
-    """The shared truth of simulated experiments, when every one has it."""
+    """The shared truth of simulated experiments, when every one has it.
+
+    Examples
+    --------
+    The simulator's truth, kept in the posterior of a simulated run. The
+    20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import posterior_truth
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> truth = posterior_truth(posterior)
+    >>> truth["d_lat"], truth["d_long"], truth["family"], truth["sigma_h"]
+    (110.0, 30.0, 'gaussian', 0.047)
+    """
     return posterior_metadata(idata).truth
 
 
@@ -243,23 +296,45 @@ def posterior_robot(idata: az.InferenceData) -> RobotProfile:
     stored (bayes_jackal 0.1.0 before docs/design.md §7) keep the body
     constants only; their priors, topics and wheel joints are then the
     installed default profile's, which do not enter the model.
+
+    Examples
+    --------
+    The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import posterior_robot
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> robot = posterior_robot(posterior)
+    >>> robot.name, robot.rate, robot == bj.load_profile()
+    ('jackal', 72.0, True)
     """
     return posterior_metadata(idata).robot
 
 
 def posterior_experiments(idata: az.InferenceData) -> list[Experiment]:
-    """The measured experiments a posterior was sampled from, with names and windows."""
-    data = idata.constant_data
+    """The measured experiments a posterior was sampled from, with names and windows.
+
+    Examples
+    --------
+    The 20-step chain is short on purpose:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import posterior_experiments
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> [stored] = posterior_experiments(posterior)
+    >>> stored.name, stored.channels, stored.steady_window
+    ('v1', ('vx', 'vy', 'yaw'), (3.0, 36.0))
+    >>> np.array_equal(stored.yaw_rate, run.yaw_rate)
+    True
+    """
     experiments = []
     for i, record in enumerate(posterior_metadata(idata).experiments):
-        arrays = {
-            key: data[f"{key}_{i}"].values
-            for key in (*REQUIRED, "vx", "vy")
-            if f"{key}_{i}" in data
-        }
         experiments.append(
             Experiment(
-                **arrays,
+                **experiment_arrays(idata, i),
                 name=record.name,
                 series=record.series,
                 steady_window=record.steady_window,
@@ -276,6 +351,18 @@ def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
 
     It prepares the likelihood's data (lagged sums, spectra): what needs
     only the parameters reads :func:`posterior_metadata` instead.
+
+    Examples
+    --------
+    The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import posterior_likelihood
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> likelihood = posterior_likelihood(posterior)
+    >>> likelihood.family, likelihood.channels, likelihood.engine
+    ('white', ('yaw',), 'fast')
     """
     metadata = posterior_metadata(idata)
     layout = metadata.layout
@@ -292,12 +379,35 @@ def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
 
 
 def thinned_indices(count: int, limit: int) -> np.ndarray:
-    """Evenly spaced indices of at most ``limit`` out of ``count`` draws."""
+    """Evenly spaced indices of at most ``limit`` out of ``count`` draws.
+
+    Examples
+    --------
+    Four evenly spaced draws out of ten:
+
+    >>> from bayes_jackal.posterior import thinned_indices
+    >>> thinned_indices(10, 4).tolist()
+    [0, 3, 6, 9]
+    >>> thinned_indices(3, 4).tolist()  # fewer draws than the limit: all of them
+    [0, 1, 2]
+    """
     return np.unique(np.linspace(0, count - 1, min(count, limit)).astype(int))
 
 
 def thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
-    """At most ``count`` evenly spaced posterior draws in natural units, shape (count, P)."""
+    """At most ``count`` evenly spaced posterior draws in natural units, shape (count, P).
+
+    Examples
+    --------
+    The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import thinned_draws
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> thinned_draws(posterior, 10).shape  # 10 of the kept draws, 4 parameters
+    (10, 4)
+    """
     draws, _ = parameter_draws(idata)
     draws = draws.reshape(-1, draws.shape[-1])
     return draws[thinned_indices(len(draws), count)]
@@ -324,6 +434,22 @@ def model_autocovariance(
     -------
     ndarray, shape (B, n)
         Autocovariance at lags 0..n-1 [channel unit squared].
+
+    Examples
+    --------
+    The model's autocovariance of the yaw-rate residuals at 5 posterior draws.
+    White process noise plus the MA(1) footprint of the sensor noise reach lag
+    1, no further. The 20-step chain is short on purpose:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import model_autocovariance, posterior_metadata, thinned_draws
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> theta = thinned_draws(posterior, 5)
+    >>> acov = model_autocovariance(posterior_metadata(posterior), 0, "yaw", theta, 3)
+    >>> acov.shape, bool(np.all(acov[:, 1] < 0)), np.allclose(acov[:, 2], 0)
+    ((5, 3), True, True)
     """
     record = metadata.experiments[index]
     layout = metadata.layout
@@ -335,7 +461,23 @@ def model_autocovariance(
 
 
 def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:
-    """Write a posterior as NetCDF, atomically."""
+    """Write a posterior as NetCDF, atomically.
+
+    Examples
+    --------
+    A posterior saved and read back. The 20-step chain is short on purpose:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = bj.save_posterior(posterior, Path(folder) / "posterior.nc")
+    ...     loaded = bj.load_posterior(path)
+    >>> path.name, loaded.posterior.equals(posterior.posterior)
+    ('posterior.nc', True)
+    """
     return write_hdf5(idata, path)
 
 
@@ -348,6 +490,26 @@ def load_posterior(path: str | Path) -> az.InferenceData:
         When the file is missing, unreadable, not a bayes_jackal posterior,
         of a format this version does not read (naming it), or its
         attributes are malformed; the message names the file.
+
+    Examples
+    --------
+    A posterior saved and read back; a file that is not one is refused. The
+    20-step chain is short on purpose:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     loaded = bj.load_posterior(bj.save_posterior(posterior, Path(folder) / "p.nc"))
+    ...     try:
+    ...         bj.load_posterior(Path(folder) / "missing.nc")
+    ...     except bj.DataError as error:
+    ...         print(str(error).endswith("missing.nc: no such file"))
+    True
+    >>> bj.summarize(loaded)["family"]
+    'white'
     """
     path = Path(path)
     if not path.is_file():
@@ -383,6 +545,26 @@ def summarize(idata: az.InferenceData) -> dict:
     thesis' 3 2/3. ``warnings`` lists the model-criticism warnings (dicts
     with ``kind`` and ``message``) and ``criticism`` their numbers
     (:func:`bayes_jackal.criticism.criticise`).
+
+    Examples
+    --------
+    The summary of a white-noise fit to one run's yaw rate. The 20-step chain
+    is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> summary = bj.summarize(posterior)
+    >>> summary["family"], summary["n_steps"], summary["converged"]
+    ('white', 20, False)
+    >>> round(summary["ratio"]["mean"], 1), round(summary["ratio"]["thesis"], 2)
+    (3.6, 3.67)
+
+    The criticism warns: yaw alone does not identify the damping's scale, and
+    the residuals are coloured (the simulated noise is Gaussian-filtered):
+
+    >>> sorted({warning["kind"] for warning in summary["warnings"]})
+    ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
     from .criticism import criticise  # criticism builds on this module
 

@@ -1,11 +1,15 @@
-"""The posterior file's attributes: format versions, typed records, reading and writing.
+"""The posterior file's attributes: format versions, reading and writing.
 
 A posterior's metadata are attributes of its ``posterior`` group: strings,
 numbers and JSON texts (docs/design.md §7 lists them with their types and
 the format versions). This module is the only one that writes or parses
-them; :mod:`bayes_jackal.posterior`, which builds, saves and loads the
-files, re-exports its public names. :func:`posterior_metadata` gives them
-typed; :func:`store_comparison` and :func:`store_criticism` add the results
+them, and the only one that names the arrays of the ``constant_data``
+(:func:`experiment_data`, :func:`experiment_arrays`) and ``observed_data``
+groups (:func:`observed_data`, :func:`observed_residuals`);
+:mod:`bayes_jackal.posterior`, which builds, saves and loads the files,
+re-exports its public names. :func:`posterior_metadata` gives them typed
+(the records of :mod:`bayes_jackal.posterior_records`);
+:func:`store_comparison` and :func:`store_criticism` add the results
 computed later.
 """
 
@@ -14,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,9 +25,13 @@ import numpy as np
 from . import __version__
 from .errors import DataError, InputError
 from .evidence import Evidence
+from .experiment import CHANNEL_FIELDS, OPTIONAL, REQUIRED, Experiment
 from .likelihood import ResidualLikelihood
 from .parameters import ParameterLayout
+from .physics import CHANNELS
+from .posterior_records import Convergence, ExperimentRecord, PosteriorMetadata
 from .priors import Prior
+from .residuals import channel_residuals
 from .robot import RobotProfile, load_profile
 
 if TYPE_CHECKING:  # arviz is imported by bayes_jackal.posterior
@@ -37,7 +44,11 @@ __all__ = [
     "Convergence",
     "ExperimentRecord",
     "PosteriorMetadata",
+    "experiment_arrays",
+    "experiment_data",
     "file_attributes",
+    "observed_data",
+    "observed_residuals",
     "posterior_layout",
     "posterior_metadata",
     "store_comparison",
@@ -65,137 +76,6 @@ ROBOT_CONSTANTS = (
 )
 
 
-@dataclass(frozen=True)
-class ExperimentRecord:
-    """What a posterior file says of one experiment (its arrays are in ``constant_data``).
-
-    Attributes
-    ----------
-    name : str
-    source : str or None
-        The file it was read from.
-    series : str or None
-        Its series label (``v1``...).
-    steady_window : (float, float) or None
-        Start and stop of the steady window [s].
-    dt : float
-        Sample time [s].
-    truth : dict or None
-        The simulator's parameters, for simulated data.
-    provenance : dict
-        Time base and repairs (docs/design.md §2).
-    """
-
-    name: str
-    source: str | None
-    series: str | None
-    steady_window: tuple[float, float] | None
-    dt: float
-    truth: dict | None
-    provenance: dict
-
-
-@dataclass(frozen=True)
-class Convergence:
-    """The sampler's convergence diagnostics and settings.
-
-    Attributes
-    ----------
-    converged : bool
-        Whether the autocorrelation criterion held.
-    n_steps : int
-        Steps run.
-    autocorr_time : dict of str to float
-        Integrated autocorrelation time per parameter [steps].
-    ess_autocorr : dict of str to float
-        The effective sample size it implies, per parameter.
-    walkers, discard, thin : int or None
-        Walkers; steps discarded as burn-in; thinning of the kept draws.
-    acceptance_fraction : float or None
-        Mean over walkers.
-    seed : int or None
-    settings : dict or None
-        The :class:`~bayes_jackal.inference.SamplerSettings`, as a dict.
-    """
-
-    converged: bool
-    n_steps: int
-    autocorr_time: dict[str, float]
-    ess_autocorr: dict[str, float]
-    walkers: int | None = None
-    discard: int | None = None
-    thin: int | None = None
-    acceptance_fraction: float | None = None
-    seed: int | None = None
-    settings: dict | None = None
-
-
-@dataclass(frozen=True)
-class PosteriorMetadata:
-    """Everything a posterior file says besides its draws (:func:`posterior_metadata`).
-
-    Attributes
-    ----------
-    format : str
-        The file format, e.g. ``bayes_jackal.posterior/1``.
-    version : str
-        The bayes_jackal version that wrote it.
-    layout : ParameterLayout
-        Parameter names, noise groups and columns; the family, sensor term,
-        channels and pooling.
-    engine : str
-        Likelihood engine.
-    steady : bool
-        Whether the likelihood used the steady windows.
-    prior : Prior
-        The priors sampled under.
-    robot : RobotProfile
-        The robot profile sampled with (for files that stored only the body
-        constants, the installed default profile's other fields).
-    experiments : tuple of ExperimentRecord
-    convergence : Convergence
-    evidence, evidence_nested : Evidence or None
-        Bridge-sampling and nested-sampling evidence (:func:`store_comparison`).
-    convergence_messages : tuple of str
-        The sampler's convergence warnings, kept by :func:`store_comparison`.
-    task : dict or None
-        What defined a comparison's result (:func:`store_comparison`).
-    criticism : dict or None
-        :func:`bayes_jackal.criticism.criticise`'s result (:func:`store_criticism`).
-    """
-
-    format: str
-    version: str
-    layout: ParameterLayout
-    engine: str
-    steady: bool
-    prior: Prior
-    robot: RobotProfile
-    experiments: tuple[ExperimentRecord, ...]
-    convergence: Convergence
-    evidence: Evidence | None = None
-    evidence_nested: Evidence | None = None
-    convergence_messages: tuple[str, ...] = ()
-    task: dict | None = None
-    criticism: dict | None = None
-
-    @property
-    def family(self) -> str:
-        """The noise family."""
-        return self.layout.family
-
-    @property
-    def channels(self) -> tuple[str, ...]:
-        """The channels, in likelihood order."""
-        return self.layout.channels
-
-    @property
-    def truth(self) -> dict | None:
-        """The shared truth of simulated experiments, when every one has it."""
-        truths = [e.truth for e in self.experiments]
-        return truths[0] if truths and all(truths) else None
-
-
 #: A prior's ``kind`` attribute by whether it is log-uniform.
 _PRIOR_KINDS = {False: "uniform", True: "log-uniform"}
 
@@ -204,6 +84,23 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
     """The attributes of a new file (docs/design.md §7): strings, numbers and JSON.
 
     ``diagnostics`` holds the :class:`Convergence` fields, JSON-ready.
+
+    Examples
+    --------
+    The attributes of a new file, for a likelihood and its priors (the sampler
+    adds its diagnostics):
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.posterior_format import file_attributes
+    >>> from bayes_jackal.priors import Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw",))
+    >>> prior = Prior.for_likelihood(likelihood, robot)
+    >>> attrs = file_attributes(likelihood, prior, {"converged": False, "n_steps": 0})
+    >>> attrs["format"], attrs["family"], attrs["channels"], attrs["steady"]
+    ('bayes_jackal.posterior/1', 'white', '["yaw"]', 1)
     """
     experiments = [
         {
@@ -309,6 +206,18 @@ def posterior_layout(idata: az.InferenceData) -> ParameterLayout:
     DataError
         For a file that is not a posterior this version reads, or whose
         attributes disagree.
+
+    Examples
+    --------
+    The parameter layout of a posterior. The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import posterior_layout
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> layout = posterior_layout(posterior)
+    >>> layout.family, layout.channels, layout.names
+    ('white', ('yaw',), ('d_lat', 'd_long', 'sigma_c', 'sigma_n'))
     """
     attrs = idata.posterior.attrs
     _check_format(attrs)
@@ -356,7 +265,154 @@ def _prior(layout: ParameterLayout, stored: dict) -> Prior:
     )
 
 
-def _experiment_record(stored: dict) -> ExperimentRecord:
+def _array_key(field: str, index: int) -> str:
+    """The ``constant_data`` name of an experiment's array: ``yaw_rate_0``."""
+    return f"{field}_{index}"
+
+
+def experiment_data(experiments: Sequence[Experiment]) -> tuple[dict, dict]:
+    """The ``constant_data`` group of a new file: the experiments' measured arrays.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        In the likelihood's order: experiment i's arrays are named
+        ``<field>_<i>`` along the dimension ``time_<i>``.
+
+    Returns
+    -------
+    arrays : dict of str to ndarray
+        Every measured field (``t``, ``yaw_rate``, ``omega_r``, ``omega_l``,
+        and ``vx``, ``vy`` when measured) of every experiment [its unit].
+    dims : dict of str to list of str
+        Each array's dimension.
+
+    Examples
+    --------
+    The arrays of a simulated run, as a new posterior file stores them:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import experiment_data
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> arrays, dims = experiment_data([run])
+    >>> sorted(arrays)
+    ['omega_l_0', 'omega_r_0', 't_0', 'vx_0', 'vy_0', 'yaw_rate_0']
+    >>> arrays["yaw_rate_0"].shape, dims["yaw_rate_0"]
+    ((2737,), ['time_0'])
+    """
+    arrays, dims = {}, {}
+    for i, experiment in enumerate(experiments):
+        for field in (*REQUIRED, *OPTIONAL):
+            values = getattr(experiment, field)
+            if values is not None:
+                arrays[_array_key(field, i)] = np.asarray(values)
+                dims[_array_key(field, i)] = [f"time_{i}"]
+    return arrays, dims
+
+
+def experiment_arrays(idata: az.InferenceData, index: int) -> dict[str, np.ndarray]:
+    """The measured arrays of experiment ``index`` that a posterior stores, by field name.
+
+    The fields of :class:`~bayes_jackal.experiment.Experiment`: ``t`` [s],
+    ``yaw_rate``, ``omega_r``, ``omega_l`` [rad/s], and ``vx``, ``vy``
+    [m/s] when measured (written by :func:`experiment_data`).
+
+    Examples
+    --------
+    The measured arrays stored in a posterior, read back. The 20-step chain is
+    short on purpose:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import experiment_arrays
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> arrays = experiment_arrays(posterior, 0)
+    >>> sorted(arrays)
+    ['omega_l', 'omega_r', 't', 'vx', 'vy', 'yaw_rate']
+    >>> np.array_equal(arrays["yaw_rate"], run.yaw_rate)
+    True
+    """
+    data = idata.constant_data
+    return {
+        field: data[_array_key(field, index)].values
+        for field in (*REQUIRED, *OPTIONAL)
+        if _array_key(field, index) in data
+    }
+
+
+def _residual_key(index: int, channel: str) -> str:
+    """The ``observed_data`` name of experiment ``index``'s residuals: ``residual_yaw_0``."""
+    return f"residual_{channel}_{index}"
+
+
+def observed_residuals(idata: az.InferenceData, index: int, channel: str) -> np.ndarray:
+    """The stored one-step residuals of experiment ``index`` in ``channel``.
+
+    At the posterior median of the damping, on the steady window when the
+    likelihood used it [channel unit].
+
+    Examples
+    --------
+    The stored yaw-rate residuals of the first experiment, at the posterior
+    median. The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import observed_residuals
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> residuals = observed_residuals(posterior, 0, "yaw")
+    >>> residuals.shape, f"{residuals.std():.4f} rad/s"
+    ((2376,), '0.0091 rad/s')
+    """
+    return idata.observed_data[_residual_key(index, channel)].values
+
+
+def observed_data(
+    likelihood: ResidualLikelihood, d_lat: float, d_long: float
+) -> tuple[dict, dict]:
+    """The ``observed_data`` group of a new file: the one-step residuals at (d_lat, d_long).
+
+    Parameters
+    ----------
+    likelihood : ResidualLikelihood
+    d_lat, d_long : float
+        The damping [N s/m]: the posterior median.
+
+    Returns
+    -------
+    residuals : dict of str to ndarray
+        Experiment i's residuals in each channel of the likelihood, on the
+        steady window when the likelihood uses it [channel unit], named
+        ``residual_<channel>_<i>``.
+    dims : dict of str to list of str
+        Each one's dimension, ``step_<i>``.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.posterior_format import observed_data
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw", "vx"))
+    >>> residuals, dims = observed_data(likelihood, 110.0, 30.0)
+    >>> sorted(residuals), dims["residual_yaw_0"], residuals["residual_yaw_0"].shape
+    (['residual_vx_0', 'residual_yaw_0'], ['step_0'], (2376,))
+    """
+    residuals, dims = {}, {}
+    for i, experiment in enumerate(likelihood.experiments):
+        for channel in likelihood.channels:
+            key = _residual_key(i, channel)
+            residuals[key] = channel_residuals(
+                experiment, likelihood.robot, d_lat, d_long, channel, likelihood.steady
+            )
+            dims[key] = [f"step_{i}"]
+    return residuals, dims
+
+
+def _experiment_record(stored: dict, data: Mapping, index: int) -> ExperimentRecord:
+    """Experiment ``index``'s record: its attribute ``stored``, its arrays' names in ``data``."""
     window = stored.get("steady_window")
     return ExperimentRecord(
         name=stored["name"],
@@ -366,6 +422,7 @@ def _experiment_record(stored: dict) -> ExperimentRecord:
         dt=float(stored["dt"]),
         truth=stored.get("truth"),
         provenance=stored.get("provenance") or {},
+        channels=tuple(c for c in CHANNELS if _array_key(CHANNEL_FIELDS[c], index) in data),
     )
 
 
@@ -381,17 +438,36 @@ def _convergence(attrs: Mapping) -> Convergence:
 def posterior_metadata(idata: az.InferenceData) -> PosteriorMetadata:
     """Everything a posterior file says besides its draws, typed (docs/design.md §7).
 
-    Read from the attributes each time: results stored later
-    (:func:`store_comparison`, :func:`store_criticism`) show at once.
+    Read from the attributes (and the names of the stored arrays) each
+    time: results stored later (:func:`store_comparison`,
+    :func:`store_criticism`) show at once.
 
     Raises
     ------
     DataError
         For a file that is not a posterior this version reads (naming the
-        format found), or a missing or malformed attribute.
+        format found), a missing or malformed attribute, or no
+        ``constant_data`` group.
+
+    Examples
+    --------
+    The typed metadata of a posterior. The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import posterior_metadata
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> metadata = posterior_metadata(posterior)
+    >>> metadata.format, metadata.family, metadata.convergence.converged
+    ('bayes_jackal.posterior/1', 'white', False)
+    >>> [record.name for record in metadata.experiments], metadata.evidence
+    (['v1'], None)
     """
     attrs = idata.posterior.attrs
     layout = posterior_layout(idata)
+    data = getattr(idata, "constant_data", None)
+    if data is None:
+        raise DataError("no constant_data group (the measured experiments) in the posterior")
     try:
         evidence, nested = (
             None if value is None else Evidence.from_dict(value)
@@ -408,7 +484,10 @@ def posterior_metadata(idata: az.InferenceData) -> PosteriorMetadata:
             steady=bool(_attribute(attrs, "steady")),
             prior=_prior(layout, _attribute(attrs, "prior")),
             robot=_robot(_attribute(attrs, "robot")),
-            experiments=tuple(map(_experiment_record, _attribute(attrs, "experiments"))),
+            experiments=tuple(
+                _experiment_record(stored, data, i)
+                for i, stored in enumerate(_attribute(attrs, "experiments"))
+            ),
             convergence=_convergence(attrs),
             evidence=evidence,
             evidence_nested=nested,
@@ -443,6 +522,23 @@ def store_comparison(
         The sampler's convergence warnings.
     task : dict
         JSON-ready: what defined the result (for reuse).
+
+    Examples
+    --------
+    An evidence kept in a posterior, and read back. The 20-step chain is short
+    on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.evidence import Evidence
+    >>> from bayes_jackal.posterior_format import posterior_metadata, store_comparison
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> evidence = Evidence(-12.5, 0.03, "bridge sampling")
+    >>> store_comparison(
+    ...     posterior, evidence=evidence, nested=None, messages=[], task={"family": "white"}
+    ... )
+    >>> posterior_metadata(posterior).evidence == evidence
+    True
     """
     idata.posterior.attrs |= {
         "evidence": json.dumps(evidence.to_dict()),
@@ -453,5 +549,22 @@ def store_comparison(
 
 
 def store_criticism(idata: az.InferenceData, criticism: dict) -> None:
-    """Keep :func:`bayes_jackal.criticism.criticise`'s JSON-ready result in a posterior."""
+    """Keep :func:`bayes_jackal.criticism.criticise`'s JSON-ready result in a posterior.
+
+    Examples
+    --------
+    A criticism kept in a posterior; :func:`~bayes_jackal.posterior.summarize`
+    then reports it instead of computing it. The 20-step chain is short on
+    purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import posterior_metadata, store_criticism
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> store_criticism(posterior, {"warnings": [], "criticism": {}})
+    >>> posterior_metadata(posterior).criticism
+    {'warnings': [], 'criticism': {}}
+    >>> bj.summarize(posterior)["warnings"]
+    []
+    """
     idata.posterior.attrs["criticism"] = json.dumps(criticism)

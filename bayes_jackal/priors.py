@@ -39,6 +39,29 @@ class Prior:
         Bounds in natural units.
     log_uniform : ndarray of bool, shape (P,)
         Log-uniform (True) or uniform (False) in natural units.
+
+    Examples
+    --------
+    The priors of a likelihood's parameters, one range overridden; the density
+    is in z = log(theta), so a uniform prior gains the Jacobian z:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.priors import Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="gaussian", channels=("yaw",))
+    >>> prior = Prior.for_likelihood(likelihood, robot, {"d_lat": (50, 500)})
+    >>> prior.names
+    ('d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n')
+    >>> prior.low.tolist(), prior.log_uniform.tolist()
+    ([50.0, 10.0, 0.001, 1e-05, 0.0001], [False, False, True, True, True])
+    >>> theta = np.array([110.0, 30.0, 0.047, 0.01, 0.005])
+    >>> uniform = np.log(theta[:2] / (prior.high - prior.low)[:2]).sum()
+    >>> log_uniform = -np.log(np.log(prior.high / prior.low)[2:]).sum()
+    >>> bool(np.isclose(prior.log_density(np.log(theta)), uniform + log_uniform))
+    True
     """
 
     names: tuple[str, ...]
@@ -56,11 +79,11 @@ class Prior:
         """Priors of every parameter of ``likelihood`` from the robot profile.
 
         ``overrides`` maps a prior key (``d_lat``, ``d_long``, ``sigma_h``,
-        ``sigma_c``, ``sigma_n``; ``width`` for ``sigma_h``) to a (low, high)
-        pair that replaces the profile's, validated by
-        :func:`~bayes_jackal.parameters.prior_overrides`: an unknown key is
-        an :class:`InputError` naming the keys allowed. Every noise family's
-        width takes the ``sigma_h`` range.
+        ``sigma_c``, ``sigma_n``; ``width`` or a family's own width name for
+        ``sigma_h``) to a (low, high) pair that replaces the profile's,
+        validated by :func:`~bayes_jackal.parameters.prior_overrides`: an
+        unknown key is an :class:`InputError` naming the keys allowed. Every
+        noise family's width takes the ``sigma_h`` range.
         """
         layout = likelihood.layout
         ranges = {**robot.priors, **prior_overrides(overrides)}
@@ -107,7 +130,30 @@ class Prior:
 
 @dataclass(frozen=True)
 class LogPosterior:
-    """Vectorised log-posterior in sampling coordinates (for emcee, vectorize=True)."""
+    """Vectorised log-posterior in sampling coordinates (for emcee, vectorize=True).
+
+    Examples
+    --------
+    The log-likelihood plus the log prior in z = log(theta); -inf outside the
+    prior:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="gaussian", channels=("yaw",))
+    >>> prior = Prior.for_likelihood(likelihood, robot)
+    >>> log_posterior = LogPosterior(likelihood, prior)
+    >>> theta = np.array([[110.0, 30.0, 0.047, 0.01, 0.005], [2000.0, 30.0, 0.047, 0.01, 0.005]])
+    >>> z = np.log(theta)
+    >>> values = log_posterior(z)
+    >>> bool(np.isclose(values[0], likelihood(theta[:1])[0] + prior.log_density(z[0])))
+    True
+    >>> float(values[1])  # d_lat = 2000 is outside [10, 1000]
+    -inf
+    """
 
     likelihood: ResidualLikelihood
     prior: Prior

@@ -47,6 +47,32 @@ class Progress:
         Where to write (default: ``sys.stderr`` at construction).
     interval : float, optional
         Seconds between plain lines (default :data:`LOG_INTERVAL`).
+
+    Examples
+    --------
+    Where the stream is not a terminal (here a string buffer, like a log
+    file), a plain line every ``interval`` seconds and one at the end; with
+    ``interval=0`` every update writes one:
+
+    >>> import io
+    >>> from bayes_jackal.progress import Progress
+    >>> log = io.StringIO()
+    >>> with Progress(3, "white", stream=log, interval=0) as progress:
+    ...     for step in range(3):
+    ...         progress.update(tau="35")
+    >>> print(log.getvalue().rstrip())
+    white: 1/3 steps, tau ~ 35, 0 s
+    white: 2/3 steps, tau ~ 35, 0 s
+    white: 3/3 steps, tau ~ 35, 0 s
+    white: 3/3 steps, tau ~ 35, 0 s, done
+
+    :meth:`wrap` counts the items of a loop; the default interval (10 s)
+    leaves only the last line here:
+
+    >>> log = io.StringIO()
+    >>> total = sum(Progress(4, "run.bag", unit="msg", stream=log).wrap([1, 2, 3, 4]))
+    >>> print(total, log.getvalue().strip())
+    10 run.bag: 4/4 msg, 0 s, done
     """
 
     def __init__(

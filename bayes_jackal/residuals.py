@@ -62,6 +62,28 @@ def channel_residuals(
         When the experiment does not measure the channel.
     InputError
         For an unknown channel or non-positive damping.
+
+    Examples
+    --------
+    The yaw channel of :func:`bayes_jackal.physics.one_step_residuals` on the
+    steady window, vectorised over the damping:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.physics import discrete_matrices, one_step_residuals
+    >>> from bayes_jackal.residuals import channel_residuals
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> w = channel_residuals(run, robot, 110.0, 30.0, "yaw")
+    >>> w.shape
+    (2376,)
+    >>> steady = run.steady()
+    >>> states = np.column_stack([steady.channel(c) for c in ("vx", "vy", "yaw")])
+    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0, steady.dt)
+    >>> bool(np.allclose(w, one_step_residuals(Ad, Bd, states, steady.inputs)[:, 2]))
+    True
+    >>> channel_residuals(run, robot, [100.0, 110.0, 120.0], 30.0).shape
+    (3, 2376)
     """
     dt = (experiment.steady() if steady else experiment).dt
     alpha, input_row = channel_coefficients(robot, d_lat, d_long, channel, dt)
@@ -83,6 +105,24 @@ def residual_regressors(experiment: Experiment, channel: str, steady: bool = Tru
     steady : bool
         The steady-state window (the whole experiment when it has none), or
         every sample.
+
+    Examples
+    --------
+    The residuals are Z (1, -Ad[c, c], -Bd[c, :]):
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.physics import channel_coefficients
+    >>> from bayes_jackal.residuals import channel_residuals, residual_regressors
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> Z = residual_regressors(run, "yaw")
+    >>> Z.shape
+    (2376, 4)
+    >>> alpha, row = channel_coefficients(robot, 110.0, 30.0, "yaw", run.dt)
+    >>> c = np.concatenate([[1.0, -alpha], -row])
+    >>> bool(np.allclose(Z @ c, channel_residuals(run, robot, 110.0, 30.0, "yaw")))
+    True
     """
     window = experiment.steady() if steady else experiment
     y = window.channel(channel)
@@ -116,6 +156,23 @@ def check_residual_window(
     ------
     DataError
         Naming the file, the field and the sample count, or the constant value.
+
+    Examples
+    --------
+    Silent when the window is long enough; otherwise a
+    :class:`~bayes_jackal.errors.DataError` (a ``ValueError``) naming the file
+    (``<memory>`` for a simulated run), the field and the counts:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.residuals import check_residual_window
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v1", rng=1)
+    >>> check_residual_window(run, "yaw", 32)
+    >>> try:
+    ...     check_residual_window(run, "yaw", 10_000, reason=" for this example")
+    ... except ValueError as error:
+    ...     print(error)
+    <memory>: yaw: the steady-state window holds 2377 samples, 2376 one-step
+    residuals; at least 10000 are needed for this example
     """
     window = experiment.steady() if steady else experiment
     y = window.channel(channel)

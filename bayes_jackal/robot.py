@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from .defaults import CONVERSIONS
 from .errors import ProfileError
 
 if sys.version_info >= (3, 11):
@@ -29,8 +30,6 @@ __all__ = [
     "load_profile",
 ]
 
-#: Ways of turning a velocity command (v, w) into wheel speeds.
-CONVERSIONS = ("ros", "thesis")
 
 _BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radius")
 _DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
@@ -103,6 +102,25 @@ class RobotProfile:
         Joint names of the ``right`` and ``left`` wheels.
     source : str
         Where the profile was read from.
+
+    Examples
+    --------
+    The packaged Jackal, and a copy with one constant changed, validated as a
+    file would be:
+
+    >>> from bayes_jackal.robot import load_profile
+    >>> robot = load_profile()
+    >>> robot.name, robot.mass, robot.rate, round(robot.dt, 5)
+    ('jackal', 16.523, 72.0, 0.01389)
+    >>> robot.priors["d_lat"]
+    (10.0, 1000.0)
+    >>> robot.replace(mass=20.0).mass
+    20.0
+    >>> try:
+    ...     robot.replace(mass=-1.0)
+    ... except ValueError as error:
+    ...     print(type(error).__name__)
+    ProfileError
     """
 
     name: str
@@ -134,7 +152,14 @@ class RobotProfile:
 
 
 def default_profile_path() -> Path:
-    """Path of the packaged Jackal profile (``models/jackal.toml``)."""
+    """Path of the packaged Jackal profile (``models/jackal.toml``).
+
+    Examples
+    --------
+    >>> from bayes_jackal.robot import default_profile_path
+    >>> default_profile_path().name
+    'jackal.toml'
+    """
     return Path(str(resources.files("bayes_jackal.models") / "jackal.toml"))
 
 
@@ -156,6 +181,33 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
         When the file cannot be read or parsed, a key is unknown, a value has
         the wrong type, a constant is missing, not a number, not finite or
         not positive, or a prior range is empty.
+
+    Examples
+    --------
+    A profile of your own: here the packaged one with another mass.
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.robot import default_profile_path, load_profile
+    >>> text = default_profile_path().read_text()
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "heavy.toml"
+    ...     _ = path.write_text(text.replace("mass = 16.523", "mass = 20.0"))
+    ...     robot = load_profile(path)
+    >>> robot.mass, robot.rate, robot.conversion
+    (20.0, 72.0, 'ros')
+
+    A misspelt key is refused, naming it and the keys allowed:
+
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "heavy.toml"
+    ...     _ = path.write_text(text.replace("mass =", "mas ="))
+    ...     try:
+    ...         load_profile(path)
+    ...     except ValueError as error:
+    ...         print(error.field, "-", str(error).split("body.mas: ")[1])
+    body.mas - unknown key 'mas'; the keys allowed here are
+    ['mass', 'yaw_inertia', 'half_wheelbase', 'half_track', 'wheel_radius']
     """
     path = Path(path) if path is not None else default_profile_path()
     source = str(path)

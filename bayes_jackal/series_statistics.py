@@ -87,6 +87,17 @@ def sample_autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
     ------
     InputError
         For lags < 1, too short, non-finite or constant series.
+
+    Examples
+    --------
+    For 1, 2, 3, 4 the centred series is -1.5, -0.5, 0.5, 1.5 (sum of squares
+    5): r[1] = 1.25 / 5 and r[2] = -1.5 / 5.
+
+    >>> import numpy as np
+    >>> from bayes_jackal.series_statistics import sample_autocorrelation
+    >>> r = sample_autocorrelation(np.array([1.0, 2.0, 3.0, 4.0]), 2)
+    >>> np.allclose(r, [1.0, 0.25, -0.3])
+    True
     """
     lags = _check_lags(lags)
     x = _check_series(x, lags)
@@ -117,6 +128,16 @@ def autocorrelation_bounds(n: int, level: float = 0.95) -> float:
     -------
     float
         The bound (its negative is the lower bound).
+
+    Examples
+    --------
+    For 400 samples: 1.96 / 20 at 95 %, MATLAB's 2 / 20 at its level:
+
+    >>> from bayes_jackal.series_statistics import MATLAB_LEVEL, autocorrelation_bounds
+    >>> round(autocorrelation_bounds(400), 4)
+    0.098
+    >>> round(autocorrelation_bounds(400, MATLAB_LEVEL), 4)
+    0.1
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise InputError(f"series length must be an integer >= 1, got {n!r}", field="n")
@@ -150,6 +171,20 @@ def spectrum(
         [Hz], 0..1 / (2 dt).
     psd : ndarray, shape (..., F)
         [unit^2 / Hz].
+
+    Examples
+    --------
+    White noise of sd 0.1 sampled at 72 Hz for 100 s: 129 bins up to the
+    Nyquist frequency, and the density integrates to the variance:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.series_statistics import spectrum
+    >>> x = 0.1 * np.random.default_rng(1).standard_normal(7200)
+    >>> frequency, psd = spectrum(x, 1 / 72)
+    >>> print(psd.shape, float(frequency[-1]))
+    (129,) 36.0
+    >>> print(round(float(np.sum(psd) * frequency[1]), 4), round(float(np.var(x)), 4))
+    0.0099 0.0099
     """
     dt = _check_dt(dt)
     x = np.asarray(x, float)
@@ -191,6 +226,18 @@ def magnitude_spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
         [Hz].
     magnitude : ndarray, shape (..., n // 2 + 1)
         [unit].
+
+    Examples
+    --------
+    A sine of amplitude 2 at 3.6 Hz on an offset of 0.5, 10 s at 72 Hz:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.series_statistics import magnitude_spectrum
+    >>> t = np.arange(720) / 72
+    >>> frequency, magnitude = magnitude_spectrum(0.5 + 2 * np.sin(2 * np.pi * 3.6 * t), 1 / 72)
+    >>> peak = 1 + np.argmax(magnitude[1:])
+    >>> print(float(frequency[peak]), *(round(float(magnitude[k]), 4) for k in (peak, 0)))
+    3.6 2.0 0.5
     """
     dt = _check_dt(dt)
     x = np.asarray(x, float)
@@ -228,6 +275,22 @@ def ljung_box(x: np.ndarray, lags: int) -> tuple[np.ndarray, np.ndarray]:
     Q : ndarray, shape (...)
     p_value : ndarray, shape (...)
         P(chi^2_h >= Q); small values reject whiteness.
+
+    Examples
+    --------
+    White noise is not rejected; Gaussian-coloured noise (sigma_h = 0.047 s
+    at 72 Hz, thesis ch. 7) is, by far:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import get_family
+    >>> from bayes_jackal.series_statistics import ljung_box
+    >>> q, p = ljung_box(np.random.default_rng(1).standard_normal(1000), 10)
+    >>> print(round(float(q), 2), round(float(p), 3))
+    6.81 0.744
+    >>> coloured = get_family("gaussian").noise(0.047, 1 / 72, 1000, rng=1)
+    >>> q, p = ljung_box(coloured, 10)
+    >>> print(round(float(q)), float(p) < 1e-100)
+    3828 True
     """
     r = sample_autocorrelation(x, lags)
     return _ljung_box(r, np.shape(x)[-1], lags)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .defaults import FAMILY, SIMULATED_NOISE
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import as_rng, get_family
@@ -42,6 +43,17 @@ class Series:
         Commanded yaw rate [rad/s].
     duration : float
         Length of the whole run [s].
+
+    Examples
+    --------
+    The thesis' v1 setting (table 2-2), and a shorter run of one's own:
+
+    >>> from bayes_jackal.simulate import SERIES, Series
+    >>> v1 = SERIES["v1"]
+    >>> print(v1.v, round(v1.w, 4), v1.duration)
+    0.3 0.3927 38.0
+    >>> Series(v=0.3, w=0.39, duration=14.0)
+    Series(v=0.3, w=0.39, duration=14.0)
     """
 
     v: float
@@ -79,12 +91,24 @@ class NoiseSettings:
         Standard deviation of the white sensor noise on (vx, vy, yaw).
     family : str
         Process-noise family (:data:`bayes_jackal.kernels.FAMILIES`).
+
+    Examples
+    --------
+    The defaults (the thesis' Gaussian filter of width 0.047 s), and white
+    process noise without sensor noise:
+
+    >>> from bayes_jackal.simulate import NoiseSettings
+    >>> NoiseSettings()
+    NoiseSettings(width=0.047, sigma_c=(0.005, 0.005, 0.01),
+                  sigma_n=(0.003, 0.003, 0.005), family='gaussian')
+    >>> NoiseSettings(family="white", sigma_n=(0.0, 0.0, 0.0)).sigma_n
+    (0.0, 0.0, 0.0)
     """
 
-    width: float = 0.047
-    sigma_c: tuple[float, float, float] = (0.005, 0.005, 0.01)
-    sigma_n: tuple[float, float, float] = (0.003, 0.003, 0.005)
-    family: str = "gaussian"
+    width: float = SIMULATED_NOISE["width"]
+    sigma_c: tuple[float, float, float] = SIMULATED_NOISE["sigma_c"]
+    sigma_n: tuple[float, float, float] = SIMULATED_NOISE["sigma_n"]
+    family: str = FAMILY
 
     def __post_init__(self) -> None:
         for name in ("sigma_c", "sigma_n"):
@@ -114,6 +138,16 @@ def command_profile(series: Series, dt: float) -> tuple[np.ndarray, np.ndarray, 
         Sample times [s], N = round(duration / dt) + 1.
     v, w : ndarray, shape (N,)
         Commanded forward speed [m/s] and yaw rate [rad/s].
+
+    Examples
+    --------
+    An 8 s run sampled every 0.5 s: 1 s at rest, a 1 s ramp, the hold, a
+    1 s ramp down and 1 s at rest:
+
+    >>> from bayes_jackal.simulate import Series, command_profile
+    >>> t, v, w = command_profile(Series(v=0.3, w=0.39, duration=8.0), 0.5)
+    >>> print(len(t), v.tolist())
+    17 [0.0, 0.0, 0.0, 0.15, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3, 0.15, 0.0, 0.0, 0.0]
     """
     if series.duration <= 2 * (REST + RAMP + SETTLE):
         raise InputError(
@@ -163,6 +197,18 @@ def simulate_experiment(
         Measured vx, vy, yaw rate and wheel speeds; ``truth`` holds the
         parameters, ``truth_arrays`` the noise-free states and the process
         noise, ``steady_window`` the steady-state cornering window.
+
+    Examples
+    --------
+    A v2 run (26 s at the Jackal's 72 Hz) at the thesis' damping:
+
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_experiment
+    >>> run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> print(run.name, len(run.t), run.channels, run.steady_window)
+    v2 1873 ('vx', 'vy', 'yaw') (3.0, 24.0)
+    >>> print(run.truth["d_lat"], run.truth["family"], run.truth["sigma_h"])
+    110.0 gaussian 0.047
     """
     if isinstance(series, Series):
         command, label = series, "custom"
@@ -237,6 +283,14 @@ def simulate_series(
         Each run gets an independent child generator of this one.
 
     Other parameters are those of :func:`simulate_experiment`.
+
+    Examples
+    --------
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_series
+    >>> runs = simulate_series(load_profile(), 110.0, 30.0, {"v1": 2, "v2": 1}, rng=1)
+    >>> [(run.name, run.series) for run in runs]
+    [('v1_01', 'v1'), ('v1_02', 'v1'), ('v2_01', 'v2')]
     """
     total = sum(counts.values())
     children = iter(as_rng(rng).spawn(total))

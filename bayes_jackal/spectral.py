@@ -76,6 +76,25 @@ class ResidualBlock:
     deviations. Splitting off the means keeps the lagged sums accurate:
     the transforms' rounding is relative to the deviations' energy, not
     to the large means of the wheel speeds and the steady yaw rate.
+
+    Examples
+    --------
+    One run's yaw regressors: the residuals of a coefficient vector, and the
+    lagged sums R(l) = sum_i x[i] x[i+l] from the Gram tensor, computed once:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.residuals import residual_regressors
+    >>> from bayes_jackal.spectral import ResidualBlock
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v1", rng=1)
+    >>> block = ResidualBlock("yaw", 0, run.dt, residual_regressors(run, "yaw")[None])
+    >>> block.count, block.n, block.grids()[:3]
+    (1, 2376, [512, 1024, 2048])
+    >>> c = np.array([[1.0, -0.72, -0.01, 0.01]])
+    >>> x = block.residuals(c)[0, 0]
+    >>> direct = [x[: len(x) - lag] @ x[lag:] for lag in range(3)]
+    >>> bool(np.allclose(block.lagged_sums(c, 3)[0], direct))
+    True
     """
 
     channel: str
@@ -185,6 +204,30 @@ def spectral_loglike(
         Whether this grid certifies the value: positive spectrum, cepstrum
         decayed over the grid's last half (within the series on the full
         grid) and, on a short grid, the autocovariance too.
+
+    Examples
+    --------
+    On the full grid the value is the exact Toeplitz density of
+    :func:`bayes_jackal.likelihood.toeplitz_loglike`:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.kernels import get_family
+    >>> from bayes_jackal.likelihood import residual_autocovariance, toeplitz_loglike
+    >>> from bayes_jackal.residuals import residual_regressors
+    >>> from bayes_jackal.spectral import ResidualBlock, spectral_loglike
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v1", rng=1)
+    >>> block = ResidualBlock("yaw", 0, run.dt, residual_regressors(run, "yaw")[None])
+    >>> c = np.array([[1.0, -0.72, -0.01, 0.01]])
+    >>> one = np.ones(1)
+    >>> acov = residual_autocovariance(
+    ...     get_family("gaussian"), 0.047 * one, 0.01 * one, 0.005 * one, 0.72 * one,
+    ...     run.dt, block.n,
+    ... )
+    >>> value, converged = spectral_loglike(acov, block, c, block.size)
+    >>> exact = toeplitz_loglike(acov, block.residuals(c))[:, 0]
+    >>> bool(converged[0]), bool(abs(value[0] - exact[0]) < 1e-6)
+    (True, True)
     """
     batch, lags = acov.shape
     n, half = block.n, size // 2

@@ -4,61 +4,13 @@ Every analysis assumes uniform sampling (the model is discretised with one
 step dt, thesis eq. 6-5/6-6). Real logs are rarely that clean: simulators
 and drivers stamp messages late or early by a tick or two, messages arrive
 out of order or twice, and some go missing. :func:`uniform_clock` decides,
-by the rules below, which uniform clock the recorded stamps belong to, and
+by the rules of docs/design.md §2.1, which uniform clock the recorded stamps belong to, and
 reports what it did; :func:`sort_stamps` is the sorting and de-duplication
 that the bag reader (:mod:`bayes_jackal.bags`) and the array readers share.
 
-Rules of :func:`uniform_clock` (t in file order, N samples; a "step" is the
-nominal sample time dt = 1/rate):
-
-1. **Rate and origin.** A declared rate (``rate=``, ``--rate HZ``) is used
-   as given. Otherwise the rate is fitted by least squares (the stamps
-   against the tick of each sample) and replaced by the nearest whole number
-   of Hz when the two clocks drift apart over the run by less than the
-   stamps' scatter about the fit (at least 1e-9 steps, for float noise):
-   a 1 kHz simulator log gets exactly 1 ms, a 72.3 Hz IMU keeps 72.3 Hz.
-   The origin t0 (the least-squares intercept at that rate) is likewise
-   rounded to a whole number of steps when it is within that scatter of
-   one. The result is always t = t0 + k dt, so a clean file and the same
-   file with jittered stamps give identical times.
-2. **Sorting** (the bag reader's rule, :func:`sort_stamps`). A stamp more
-   than ``max_gap`` earlier than the one before it is a clock jump and an
-   error (the nominal step, for the default ``max_gap``, is the median step
-   of the sorted distinct stamps); smaller backward steps are out-of-order
-   delivery and are sorted, as is a file in reverse time order; a repeated
-   stamp keeps its first sample.
-3. **A grid, gaps filled or cut** (clock ``"grid"``). The sorted distinct
-   stamps are put on the ticks of a clock at their median step (or the
-   declared one): each step counts round(step / dt) ticks, and every stamp
-   must lie within
-   :data:`GRID_TOLERANCE` steps of its tick on the fitted clock. Samples
-   keep their values. A missing tick is filled by linear interpolation
-   between its neighbours, as the bag reader interpolates onto its IMU
-   clock, when the gap is at most ``max_gap`` (default
-   :data:`MAX_GAP_STEPS` steps: interpolated samples are not measurements,
-   they carry no noise). A longer gap splits the series and the longest
-   piece is kept, as the bag reader does. This rule is taken when the
-   grid has no gap, or when the stamps strictly increase (a dropout).
-4. **One sample per tick of a jittered clock.** When stamps repeat or go
-   backwards and sorting them leaves gaps, or when no grid fits, the k-th
-   sample is taken to belong to tick k: a simulator that stamps each 1 kHz
-   step a tick or two late or early has ~14 % repeated stamps, steps of 2-5
-   ms, and still one sample per millisecond. The clock is fitted with sample
-   k at tick k (rule 1), and no stamp may lie farther from its tick than
-   :data:`MAX_JITTER_STEPS` steps nor than :data:`MAX_JITTER_FRACTION` of
-   the run (a run too short to tell jitter from irregular sampling fails).
-   A fitted rate is the samples' own (sample count over duration), so
-   these jitter limits are the whole test; a declared rate must also agree
-   with the sample count: the fitted and the declared clock may drift apart
-   by at most :data:`MAX_DRIFT_STEPS` steps over the run. The stamps are
-   replaced by t0 + k dt; no value is moved, dropped or invented. The
-   jitter (sd and largest deviation from the clock, repeated and backward
-   stamps) is reported.
-5. Otherwise the series is truly irregular: a
-   :class:`~bayes_jackal.errors.DataError` names the line and the stamp
-   where the grid fails, how far one sample per tick strays, and what to do
-   (declare the rate, or resample).
-
+The rules of :func:`uniform_clock` (1. rate and origin, 2. sorting, 3. a
+grid with gaps filled or cut, 4. one sample per tick of a jittered clock,
+5. otherwise an error) are docs/design.md §2.1; the code cites them by number.
 Stamps within :data:`UNIFORM_TOLERANCE` steps of the clock, with nothing
 sorted, dropped or filled, are uniform: no repair is listed. Everything
 else is described in ``UniformClock.repairs`` and ``UniformClock.provenance``.
@@ -71,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .defaults import MAX_GAP_STEPS
 from .errors import DataError, InputError
 
 __all__ = [
@@ -99,8 +52,6 @@ GRID_TOLERANCE = 0.25
 MAX_JITTER_STEPS = 5.0
 #: ... and as a fraction of the run's duration.
 MAX_JITTER_FRACTION = 0.01
-#: Longest gap filled by interpolation when ``max_gap`` is not given [steps].
-MAX_GAP_STEPS = 5
 #: Largest drift [steps] between a declared and the fitted clock over the run.
 MAX_DRIFT_STEPS = 0.5
 #: Float floor of the stamps' scatter [steps] when rounding rate and origin.
@@ -133,6 +84,14 @@ class UniformClock:
         and pieces cut off at long gaps).
     repairs : list of str
         Every change to the stamps, in words.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.stamps import uniform_clock
+    >>> clock = uniform_clock(np.delete(np.arange(6) / 100, 2))  # 100 Hz, one sample lost
+    >>> clock.ticks.tolist(), clock.resample([0.0, 1.0, 3.0, 4.0, 5.0]).tolist()
+    ([0, 1, 3, 4, 5], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
     """
 
     t: np.ndarray
@@ -244,6 +203,18 @@ def sort_stamps(
         Indices of the samples kept, in time order (the first of each
         repeated stamp is kept).
     repairs : list of str
+
+    Examples
+    --------
+    Millisecond stamps, one delivered late and one repeated:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.stamps import sort_stamps
+    >>> stamps = np.array([0, 10, 30, 20, 40, 40, 50])
+    >>> order, repairs = sort_stamps(stamps, max_backstep=15, where=str, source="run.bag",
+    ...                              field="stamp", label="/imu", unit=1e-3)
+    >>> stamps[order].tolist(), repairs[0]
+    ([0, 10, 20, 30, 40, 50], '/imu: 1 out-of-order stamps; sorted')
     """
     steps = np.diff(stamps)
     jumps = np.flatnonzero(steps < -max_backstep)
@@ -273,7 +244,15 @@ def sort_stamps(
 
 
 def longest_run(mask: np.ndarray) -> tuple[int, int]:
-    """Start and stop index of the longest run of True in ``mask`` ((0, 0) if none)."""
+    """Start and stop index of the longest run of True in ``mask`` ((0, 0) if none).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.stamps import longest_run
+    >>> longest_run(np.array([True, False, True, True, True, False]))
+    (2, 5)
+    """
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     if not starts.size:
@@ -291,7 +270,7 @@ def uniform_clock(
     row_name: Callable[[int], str] = lambda i: f"sample {i}",
     field: str = "t",
 ) -> UniformClock:
-    """The uniform clock of recorded stamps, by the rules of the module text.
+    """The uniform clock of recorded stamps, by the rules of docs/design.md §2.1.
 
     Parameters
     ----------
@@ -321,6 +300,21 @@ def uniform_clock(
         clock jump, or when fewer than :data:`MIN_SAMPLES` samples remain.
     InputError
         When ``rate`` or ``max_gap`` is not a positive number.
+
+    Examples
+    --------
+    A 1 kHz simulator's stamps, each up to two ticks early or late (rule 4),
+    and 100 Hz stamps with a repeated one and a lost one (rule 3):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.stamps import uniform_clock
+    >>> late = np.random.default_rng(1).integers(-2, 3, 1000)
+    >>> clock = uniform_clock((np.arange(1000) + late) / 1000)
+    >>> clock.provenance["clock"], clock.provenance["rate"], len(clock.t)
+    ('one sample per tick', 1000.0, 1000)
+    >>> clock = uniform_clock(np.array([0.0, 0.01, 0.02, 0.02, 0.03, 0.05, 0.06]))
+    >>> clock.provenance["clock"], clock.provenance["dropped"], clock.provenance["interpolated"]
+    ('grid', 1, 1)
     """
     t = np.asarray(t, float)
     declared = _positive(rate, "rate", "Hz")

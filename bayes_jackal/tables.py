@@ -26,7 +26,8 @@ import numpy as np
 
 from ._files import atomic_path
 from ._matlab import mat_arrays
-from .errors import DataError, InputError, each_input, refuse
+from .defaults import ROLES
+from .errors import DataError, InputError
 from .experiment import OPTIONAL, REQUIRED, Experiment, _check_values, read_netcdf
 from .robot import RobotProfile
 from .stamps import UNIFORM_TOLERANCE, uniform_clock
@@ -38,15 +39,10 @@ __all__ = [
     "check_sample_time",
     "check_unique_names",
     "load_experiment",
-    "load_experiments",
     "read_csv",
-    "read_experiments",
     "read_mat",
     "write_csv",
 ]
-
-#: Column roles a file's columns can be mapped to (``columns=``, ``--column``).
-ROLES = (*REQUIRED, *OPTIONAL)
 
 
 def check_column_roles(
@@ -61,6 +57,19 @@ def check_column_roles(
     InputError
         Naming an unknown role, a name that is not a string, or a column
         mapped to two roles.
+
+    Examples
+    --------
+    >>> from bayes_jackal.errors import InputError
+    >>> from bayes_jackal.tables import check_column_roles
+    >>> check_column_roles({"yaw_rate": "gyro_z"})
+    {'yaw_rate': 'gyro_z'}
+    >>> try:
+    ...     check_column_roles({"yaw": "gyro_z"})
+    ... except InputError as exc:
+    ...     print(exc)
+    columns: unknown column role(s) ['yaw']; the roles are
+    ['t', 'yaw_rate', 'omega_r', 'omega_l', 'vx', 'vy']
     """
     columns = dict(columns or {})
     unknown = [role for role in columns if role not in ROLES]
@@ -187,6 +196,23 @@ def read_csv(
         Naming the file, the column and the line of the first bad value.
     InputError
         For an unknown column role or a rate that is not a positive number.
+
+    Examples
+    --------
+    A log whose columns are named otherwise (100 samples at 72 Hz):
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from bayes_jackal.tables import read_csv
+    >>> table = np.column_stack([np.arange(100) / 72, np.full(100, 0.4), np.full((100, 2), 10.0)])
+    >>> roles = {"t": "time", "yaw_rate": "gyro_z", "omega_r": "right", "omega_l": "left"}
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "circle.csv"
+    ...     np.savetxt(path, table, delimiter=",", header="time,gyro_z,right,left", comments="")
+    ...     run = read_csv(path, columns=roles)
+    >>> print(run.name, len(run.t), run.channels, run.provenance["time_base"]["rate"])
+    circle 100 ('yaw',) 72.0
     """
     path = Path(path)
     source = str(path)
@@ -249,6 +275,25 @@ def read_mat(
     ``struct.field`` (e.g. ``{"yaw_rate": "log.imu.gyro_z"}``). Samples are
     named by their MATLAB index (from 1) in messages. Parameters, returns
     and errors are those of :func:`read_csv`.
+
+    Examples
+    --------
+    Columns as fields of a struct ``log``, named ``log.<field>``:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> import scipy.io
+    >>> from bayes_jackal.tables import read_mat
+    >>> t = np.arange(100) / 72
+    >>> log = {"t": t, "r": np.full_like(t, 0.4), "R": np.full_like(t, 12.0)}
+    >>> log["L"] = np.full_like(t, 8.0)
+    >>> roles = {"t": "log.t", "yaw_rate": "log.r", "omega_r": "log.R", "omega_l": "log.L"}
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     scipy.io.savemat(Path(folder) / "circle.mat", {"log": log})
+    ...     run = read_mat(Path(folder) / "circle.mat", columns=roles)
+    >>> print(run.name, len(run.t), round(1 / run.dt, 6))
+    circle 100 72.0
     """
     path = Path(path)
     source = str(path)
@@ -294,7 +339,23 @@ def _numeric_column(rows: list[list[str]], index: int, key: str, source: str) ->
 
 
 def write_csv(experiment: Experiment, path: str | Path) -> Path:
-    """Write the measured columns of an experiment as CSV (atomically)."""
+    """Write the measured columns of an experiment as CSV (atomically).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_experiment
+    >>> from bayes_jackal.tables import read_csv, write_csv
+    >>> run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_csv(run, Path(folder) / "v2.csv")
+    ...     header = path.read_text().splitlines()[0]
+    ...     back = read_csv(path)
+    >>> print(header, len(back.t), back.provenance["repairs"])
+    t,yaw_rate,omega_r,omega_l,vx,vy 1873 []
+    """
     path = Path(path)
     keys = [k for k in (*REQUIRED, *OPTIONAL) if getattr(experiment, k) is not None]
     table = np.column_stack([getattr(experiment, k) for k in keys])
@@ -329,6 +390,25 @@ def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
     ------
     DataError
         Naming the file, the sample time and both rates, and what to do.
+
+    Examples
+    --------
+    Time written in milliseconds is caught against the profile's 72 Hz:
+
+    >>> import dataclasses
+    >>> from bayes_jackal.errors import DataError
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_experiment
+    >>> from bayes_jackal.tables import check_sample_time
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, "v2", rng=1)
+    >>> check_sample_time(run, robot)  # 72 Hz: accepted
+    >>> try:
+    ...     check_sample_time(dataclasses.replace(run, t=1000 * run.t), robot)
+    ... except DataError as exc:
+    ...     print(exc)
+    <memory>: t: sample time 13.8889 s (0.072 Hz) disagrees with the profile's rate 72 Hz (...)
+    by more than 5%: the time column looks like milliseconds; time must be in seconds. ...
     """
     rate = 1.0 / experiment.dt
     if abs(rate / robot.rate - 1.0) <= RATE_TOLERANCE:
@@ -365,6 +445,24 @@ def load_experiment(
     :data:`~bayes_jackal.stamps.UNIFORM_TOLERANCE`). Given a ``robot``, the
     sample time must agree with its profile's rate (:func:`check_sample_time`)
     unless a rate is declared: the declared rate overrides the profile's.
+
+    Examples
+    --------
+    The reader is chosen by the suffix; with a robot, the rate is checked:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.experiment import write_netcdf
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_experiment
+    >>> from bayes_jackal.tables import load_experiment, write_csv
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, "v2", rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     csv = load_experiment(write_csv(run, Path(folder) / "a.csv"), robot=robot)
+    ...     nc = load_experiment(write_netcdf(run, Path(folder) / "b.nc"), robot=robot)
+    >>> print(csv.name, csv.truth, nc.name, nc.truth["d_lat"])
+    a None v2 110.0
     """
     experiment = _read_experiment(path, columns=columns, rate=rate, max_gap=max_gap)
     if robot is not None and rate is None:
@@ -395,55 +493,9 @@ def _read_experiment(
         return experiment
     raise DataError(
         f"unknown experiment file type {suffix!r}; expected .csv, .mat or .nc "
-        "(ingest bags first with `bayes-jackal ingest`)",
+        "(bags: read them with bayes_jackal.load_experiments)",
         source=str(path),
     )
-
-
-def read_experiments(
-    paths: list[str | Path],
-    *,
-    columns: dict[str, str] | None = None,
-    rate: float | None = None,
-    max_gap: float | None = None,
-    robot: RobotProfile | None = None,
-    on_failure: Callable[[str, Exception], None] | None = None,
-) -> tuple[dict[str, Experiment], dict[str, str]]:
-    """Read each experiment file on its own (:func:`load_experiment`), past bad ones.
-
-    Parameters
-    ----------
-    paths : list of str or Path
-        Experiment files.
-    columns, rate, max_gap, robot
-        As in :func:`load_experiment`.
-    on_failure : callable, optional
-        ``on_failure(path, exception)``, called as each bad file is met.
-
-    Returns
-    -------
-    experiments : dict of str to Experiment
-        By path as given, in order.
-    failed : dict of str to str
-        Why each bad file cannot be used (the reason names it), by path.
-
-    Raises
-    ------
-    DataError
-        When two experiments that could be read share a name.
-    InputError
-        For a bad column mapping.
-    """
-    check_column_roles(columns)
-    experiments, failed = each_input(
-        paths,
-        lambda path: load_experiment(
-            path, columns=columns, rate=rate, max_gap=max_gap, robot=robot
-        ),
-        on_failure=on_failure,
-    )
-    check_unique_names(experiments.values())
-    return experiments, failed
 
 
 def check_unique_names(experiments: Iterable[Experiment]) -> None:
@@ -453,6 +505,19 @@ def check_unique_names(experiments: Iterable[Experiment]) -> None:
     ------
     DataError
         Naming each shared name and the files of its experiments.
+
+    Examples
+    --------
+    >>> from bayes_jackal.errors import DataError
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_experiment
+    >>> from bayes_jackal.tables import check_unique_names
+    >>> run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> try:
+    ...     check_unique_names([run, run])
+    ... except DataError as exc:
+    ...     print(exc)
+    name: experiment names are not unique: {'v2': ['<memory>', '<memory>']}
     """
     experiments = list(experiments)
     names = [e.name for e in experiments]
@@ -461,26 +526,3 @@ def check_unique_names(experiments: Iterable[Experiment]) -> None:
     }
     if duplicated:
         raise DataError(f"experiment names are not unique: {duplicated}", field="name")
-
-
-def load_experiments(
-    paths: list[str | Path],
-    *,
-    columns: dict[str, str] | None = None,
-    rate: float | None = None,
-    max_gap: float | None = None,
-    robot: RobotProfile | None = None,
-) -> list[Experiment]:
-    """Read several experiment files (:func:`load_experiment`), all or none; names must be unique.
-
-    Raises
-    ------
-    DataError
-        Naming every file that cannot be read (:func:`read_experiments`), or
-        experiments that share a name.
-    """
-    experiments, failed = read_experiments(
-        paths, columns=columns, rate=rate, max_gap=max_gap, robot=robot
-    )
-    refuse(failed, len(paths))
-    return list(experiments.values())

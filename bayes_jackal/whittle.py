@@ -24,7 +24,17 @@ _LOG_2PI = np.log(2.0 * np.pi)
 
 
 def frequency_weights(n: int) -> np.ndarray:
-    """Multiplicity of each rfft frequency among the n Fourier frequencies."""
+    """Multiplicity of each rfft frequency among the n Fourier frequencies.
+
+    Examples
+    --------
+    The rfft half counts each frequency but 0 (and n/2 for even n) twice; the
+    weights add up to n:
+
+    >>> from bayes_jackal.whittle import frequency_weights
+    >>> frequency_weights(6).tolist(), frequency_weights(5).tolist()
+    ([1.0, 2.0, 2.0, 1.0], [1.0, 2.0, 2.0])
+    """
     weights = np.full(n // 2 + 1, 2.0)
     weights[0] = 1.0
     if n % 2 == 0:
@@ -47,6 +57,20 @@ def expected_periodogram(acov: np.ndarray, length: int | None = None) -> np.ndar
     Returns
     -------
     ndarray, shape (B, L // 2 + 1)
+
+    Examples
+    --------
+    E[I_j] = E|DFT(x)_j|^2 / n, the diagonal of F T F^H / n for the Toeplitz
+    covariance T:
+
+    >>> import numpy as np
+    >>> import scipy.linalg
+    >>> from bayes_jackal.whittle import expected_periodogram
+    >>> acov = 0.5 ** np.arange(6)  # AR(1), phi = 0.5
+    >>> F = np.fft.rfft(np.eye(6), axis=0)  # rows: the DFT at the rfft frequencies
+    >>> dense = np.real(np.diag(F @ scipy.linalg.toeplitz(acov) @ F.conj().T)) / 6
+    >>> bool(np.allclose(expected_periodogram(acov[None]), dense))
+    True
     """
     lags = acov.shape[-1]
     tapered = acov * (1.0 - np.arange(lags) / (length or lags))
@@ -58,6 +82,20 @@ def cross_periodogram(regressors: np.ndarray, size: int | None = None) -> np.nda
 
     For any real coefficient vector c, |DFT(Z c)_j|^2 = c^T P_j c. The
     transform is zero-padded to ``size`` (default: the series' length n).
+
+    Examples
+    --------
+    For any coefficients c, |DFT(Z c)_j|^2 = c' P_j c:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.whittle import cross_periodogram
+    >>> rng = np.random.default_rng(1)
+    >>> Z, c = rng.standard_normal((16, 4)), rng.standard_normal(4)
+    >>> P = cross_periodogram(Z)
+    >>> P.shape
+    (9, 4, 4)
+    >>> bool(np.allclose(P @ c @ c, np.abs(np.fft.rfft(Z @ c)) ** 2))
+    True
     """
     spectra = scipy.fft.rfft(regressors, size, axis=0)
     return (spectra[:, :, None].conj() * spectra[:, None, :]).real
@@ -83,6 +121,23 @@ def debiased_whittle_loglike(
     Returns
     -------
     ndarray, shape (B,)
+
+    Examples
+    --------
+    For white noise the Whittle likelihood is exact (Parseval): it equals the
+    series' Gaussian log-density.
+
+    >>> import numpy as np
+    >>> import scipy.stats
+    >>> from bayes_jackal.whittle import debiased_whittle_loglike
+    >>> x = np.random.default_rng(1).standard_normal(16)
+    >>> acov = np.zeros((1, 16))
+    >>> acov[0, 0] = 2.0  # variance 2 at lag 0, nothing beyond
+    >>> periodogram = np.abs(np.fft.rfft(x)) ** 2 / 16
+    >>> value = debiased_whittle_loglike(acov, periodogram[None])
+    >>> exact = scipy.stats.norm(scale=np.sqrt(2.0)).logpdf(x).sum()
+    >>> bool(np.isclose(value[0], exact))
+    True
     """
     n = acov.shape[-1]
     expected = expected_periodogram(acov)

@@ -39,6 +39,7 @@ from ._files import write_json
 from .bags import read_bag
 from .comparison import compare_families
 from .criticism import criticise
+from .defaults import DEFAULT_FAMILIES
 from .errors import DataError, describe, each_input
 from .executors import Executor, ProcessExecutor
 from .experiment import Experiment, write_netcdf
@@ -54,8 +55,6 @@ from .tables import load_experiment
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "analyse_logs", "ingest_logs", "read_log"]
 
-#: Families compared by default: the thesis' question, coloured or not.
-DEFAULT_FAMILIES = ("white", "gaussian")
 #: File suffixes read as ROS bags (folders are ROS2 bags too).
 BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 #: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
@@ -87,6 +86,25 @@ def read_log(
     Returns
     -------
     Experiment
+
+    Examples
+    --------
+    An experiment file as is, or cut to a window [s]:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> from bayes_jackal.tables import write_csv
+    >>> from bayes_jackal.workflow import read_log
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_csv(run, Path(folder) / "short.csv")
+    ...     whole = read_log(path, robot)
+    ...     steady = read_log(path, robot, window=(2.0, 6.0))
+    >>> print(whole.name, len(whole.t), whole.steady_window, steady.steady_window)
+    short 577 None (2.0, 6.0)
     """
     path = Path(path)
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
@@ -178,6 +196,33 @@ def ingest_logs(
     experiments : list of Experiment
     failed : dict of str to str
         The reason for each input that could not be used, by path.
+
+    Examples
+    --------
+    A CSV file, a bag of the same short run (8 s) and a missing file: the
+    two are written as experiment files, the third is reported:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.bag_writer import write_bag
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> from bayes_jackal.tables import write_csv
+    >>> from bayes_jackal.workflow import ingest_logs
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     logs = [
+    ...         write_csv(run, Path(folder) / "table.csv"),
+    ...         write_bag(run, Path(folder) / "recording.bag", robot, "ros1", rng=1),
+    ...         Path(folder) / "lost.bag",
+    ...     ]
+    ...     experiments, failed = ingest_logs(logs, robot, Path(folder) / "experiments")
+    ...     written = sorted(path.name for path in (Path(folder) / "experiments").iterdir())
+    >>> [(e.name, e.steady_window is not None) for e in experiments], written
+    ([('table', False), ('recording', True)], ['recording.nc', 'table.nc'])
+    >>> [reason.rsplit(": ", 1)[1] for reason in failed.values()]
+    ['no such file']
     """
     owners: dict[str, str] = {}
     inputs = {Path(given).resolve() for given in paths}
@@ -313,6 +358,48 @@ def analyse_logs(
     InputError
         When no input can be read (each reason in the message), or for bad
         options.
+
+    Warns
+    -----
+    Warning
+        The warnings raised while the families were compared (in worker
+        processes too), each once, also when the comparison fails; the
+        convergence warnings go into the result's ``warnings`` instead.
+
+    Examples
+    --------
+    The whole analysis of one short simulated run (8 s), white noise only on
+    the yaw channel, in this process. The chain is capped at 100 steps on
+    purpose, to keep the example quick, and says it did not converge; the
+    thesis' grid searches and the report take most of its ~7 s:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.executors import SerialExecutor
+    >>> from bayes_jackal.inference import SamplerSettings
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> from bayes_jackal.tables import write_csv
+    >>> from bayes_jackal.workflow import analyse_logs
+    >>> run = simulate_experiment(load_profile(), 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     result = analyse_logs(
+    ...         [write_csv(run, Path(folder) / "short.csv")],
+    ...         Path(folder) / "analysis",
+    ...         families=("white",),
+    ...         channels=("yaw",),
+    ...         settings=SamplerSettings(max_steps=100, design_points=64),
+    ...         seed=1,
+    ...         executor=SerialExecutor(),
+    ...     )
+    ...     written = sorted(path.name for path in (Path(folder) / "analysis").iterdir())
+    >>> result["best"], list(result["experiments"]), result["failed"]
+    ('white', ['short'], {})
+    >>> result["warnings"][0]["message"]
+    'white: NOT CONVERGED: 100 steps are fewer than 50 autocorrelation times ...'
+    >>> written
+    ['compare.json', 'experiments', 'grid.json', 'grid_onestep.png', 'grid_simulation.png',
+     'posterior.json', 'posterior.nc', 'posteriors', 'prior.json', 'report.html', 'report_figures']
     """
     folder = Path(out)
     robot = robot or load_profile()
@@ -348,21 +435,25 @@ def analyse_logs(
         save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
         say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
 
-    with keep_warnings() as kept:
-        comparison = compare_families(
-            experiments,
-            robot,
-            tuple(families),
-            settings,
-            seed,
-            prior_overrides=prior_overrides,
-            on_family=finished,
-            reuse=paths_by_family,
-            say=say,
-            executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
-            **{**(likelihood_options or {}), "channels": channels},
-        )
-    kept.issue()  # the convergence warnings are in the result, the others reach the user
+    try:
+        with keep_warnings() as kept:
+            comparison = compare_families(
+                experiments,
+                robot,
+                tuple(families),
+                settings,
+                seed,
+                prior_overrides=prior_overrides,
+                on_family=finished,
+                reuse=paths_by_family,
+                say=say,
+                executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
+                **{**(likelihood_options or {}), "channels": channels},
+            )
+    finally:
+        # The convergence warnings go into the result; the others reach the user,
+        # also those raised before the comparison failed.
+        kept.issue()
     best = comparison.best
     idata = comparison.posteriors[best]
     save_posterior(idata, folder / "posterior.nc")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import re
 import subprocess
@@ -14,10 +15,15 @@ import pytest
 import xarray as xr
 from cli_helpers import strict_json
 
+from bayes_jackal.bag_writer import write_bag
 from bayes_jackal.cli import build_parser, main
 from bayes_jackal.experiment import Experiment, read_netcdf
+from bayes_jackal.gridsearch import grid_search
+from bayes_jackal.kernels import FAMILIES
 from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.robot import default_profile_path
+from bayes_jackal.residual_analysis import analyse
+from bayes_jackal.robot import default_profile_path, load_profile
+from bayes_jackal.simulate import SERIES, NoiseSettings, simulate_experiment
 from bayes_jackal.tables import read_csv, write_csv
 
 SMALL = ["--v1", "1", "--v2", "1"]
@@ -184,10 +190,20 @@ def test_grid_profile_with_negative_mass(simulated, tmp_path, capsys):
 
 
 def test_grid_unknown_suffix(tmp_path, capsys):
+    path = tmp_path / "run.txt"
+    path.write_bytes(b"#ROSBAG V2.0\n")
+    code = main(["grid", str(path), *GRID])
+    assert_bad_input(code, capsys.readouterr(), re.escape(str(path)), r"'\.txt'")
+    assert path.read_bytes() == b"#ROSBAG V2.0\n"
+
+
+def test_grid_refuses_a_bag_it_cannot_read(tmp_path, capsys):
+    # grid reads bags (as bj.load_experiments does): a bag with a header and
+    # nothing else is refused, naming the file, and left as it was.
     path = tmp_path / "run.bag"
     path.write_bytes(b"#ROSBAG V2.0\n")
     code = main(["grid", str(path), *GRID])
-    assert_bad_input(code, capsys.readouterr(), re.escape(str(path)), r"'\.bag'")
+    assert_bad_input(code, capsys.readouterr(), re.escape(str(path)), r"cannot read bag")
     assert path.read_bytes() == b"#ROSBAG V2.0\n"
 
 
@@ -682,3 +698,127 @@ def test_command_json_parses_strictly(simulated, capsys):
     for command in (["grid", *GRID], ["residuals", "--channels", "yaw,vx"]):
         assert main([command[0], simulated[0], *command[1:], "--json"]) == 0
         assert strict_json(capsys.readouterr().out)
+
+
+@pytest.fixture(scope="module")
+def bag_and_ingested(tmp_path_factory):
+    """A simulated v2 run as a ROS1 bag, and the experiment file ``ingest`` makes of it."""
+    folder = tmp_path_factory.mktemp("bag")
+    robot = load_profile()
+    run = simulate_experiment(robot, 110.0, 30.0, "v2", rng=7, name="run")
+    bag = write_bag(run, folder / "run.bag", robot, "ros1", rng=3)
+    ingested = folder / "ingested"
+    assert main(["ingest", str(bag), "--out", str(ingested), "--window", "3", "20"]) == 0
+    return bag, ingested / "run.nc"
+
+
+def test_residuals_read_a_bag_as_ingest_does(bag_and_ingested, capsys):
+    # grid, residuals, sample and compare read bags through bj.load_experiments,
+    # with ingest's flags: the numbers of the experiment file ingest writes.
+    bag, ingested = bag_and_ingested
+    capsys.readouterr()
+    results = []
+    for argv in ([str(bag), "--window", "3", "20"], [str(ingested)]):
+        assert main(["residuals", *argv, "--channels", "yaw,vx", "--json"]) == 0
+        results.append(strict_json(capsys.readouterr().out))
+    assert results[0] == results[1]
+    assert results[0]["experiments"]["run"]["yaw"]["n"] > 0
+
+
+def test_a_bad_bag_among_experiments_is_named_and_the_others_done(
+    bag_and_ingested, tmp_path, capsys
+):
+    _, ingested = bag_and_ingested
+    bad = tmp_path / "bad.bag"
+    bad.write_bytes(b"#ROSBAG V2.0\n")
+    code = main(["residuals", str(ingested), str(bad), "--json"])
+    captured = capsys.readouterr()
+    assert code == 2
+    result = strict_json(captured.out)
+    assert list(result["experiments"]) == ["run"] and list(result["failed"]) == [str(bad)]
+    assert f"bayes-jackal: error: {bad}: cannot read bag" in captured.err
+
+
+def test_help_loads_no_numerical_library():
+    # Every --help answers at once (issue 13: < 0.5 s): the parser takes the
+    # library's names and defaults from bayes_jackal.defaults, and a command's
+    # modules are imported only when it runs. Checked without timing.
+    script = """
+import argparse, contextlib, io, sys
+from bayes_jackal.cli import build_parser, main
+parser = build_parser()
+[commands] = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+for command in ([], *([name] for name in commands.choices)):
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main([*command, "--help"]) == 0, command
+heavy = [m for m in ("numpy", "scipy", "arviz", "matplotlib") if m in sys.modules]
+print(len(commands.choices), heavy)
+"""
+    process = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
+    assert process.returncode == 0, process.stderr
+    assert process.stdout == "10 []\n"
+
+
+def test_parser_defaults_are_the_librarys():
+    # The flags show the library's values: one constant serves both.
+    sim = build_parser().parse_args(["simulate", "--out", "x"])
+    noise = NoiseSettings()
+    assert (sim.width, tuple(sim.sigma_c), tuple(sim.sigma_n), sim.family) == (
+        noise.width,
+        noise.sigma_c,
+        noise.sigma_n,
+        noise.family,
+    )
+    assert (sim.v1, sim.v2) == (10, 5) and set(SERIES) == {"v1", "v2"}
+    grid = build_parser().parse_args(["grid", "e.nc"])
+    search = inspect.signature(grid_search).parameters
+    for name in ("method", "channel", "discretisation"):
+        assert getattr(grid, name) == search[name].default
+    assert grid.d_lat == grid.d_long == (10.0, 1000.0, 10.0)
+    residuals = build_parser().parse_args(["residuals", "e.nc"])
+    analysis = inspect.signature(analyse).parameters
+    assert residuals.channels == analysis["channels"].default == ("yaw",)
+    assert residuals.lags == analysis["lags"].default
+    assert (residuals.d_lat, residuals.d_long) == (sim.d_lat, sim.d_long) == (110.0, 30.0)
+
+
+def test_compare_ranks_every_registered_family_by_default(simulated, capsys):
+    # No --families: the registry at the call, whatever it holds (here two
+    # families, to keep the test quick), not a list fixed at import.
+    registry = dict(FAMILIES)  # restored in place and in order: seeds follow the order
+    try:
+        FAMILIES.clear()
+        FAMILIES.update({name: registry[name] for name in ("white", "exponential")})
+        quick = ["--channels", "yaw", "--max-steps", "100", "--seed", "2", "--no-progress"]
+        assert main(["compare", simulated[0], *quick, "--json"]) == 0
+    finally:
+        FAMILIES.clear()
+        FAMILIES.update(registry)
+    assert list(json.loads(capsys.readouterr().out)["families"]) == ["white", "exponential"]
+
+
+def test_the_family_flags_take_the_registry_and_nothing_else(monkeypatch, capsys):
+    # The registry kernels.FAMILIES is the one list of families (docs/families.md):
+    # a family put into it is offered by every family flag, with no other change.
+    parse = build_parser().parse_args
+    assert parse(["compare", "e.nc"]).families is None  # cmd_compare: every one
+    monkeypatch.setitem(FAMILIES, "boxcar", FAMILIES["moving-average"])
+    assert parse(["sample", "e.nc", "--out", "p.nc", "--family", "boxcar"]).family == "boxcar"
+    assert parse(["compare", "e.nc", "--families", "white,boxcar"]).families == ("white", "boxcar")
+    assert parse(["simulate", "--out", "x", "--family", "boxcar"]).family == "boxcar"
+    for flags in (
+        ["sample", "e.nc", "--out", "p.nc", "--family"],
+        ["compare", "e.nc", "--families"],
+    ):
+        with pytest.raises(SystemExit) as stopped:
+            parse([*flags, "pink"])
+        assert stopped.value.code == 2
+        assert "'pink'" in capsys.readouterr().err
+    monkeypatch.delitem(FAMILIES, "boxcar")
+    with pytest.raises(SystemExit):
+        parse(["sample", "e.nc", "--out", "p.nc", "--family", "boxcar"])
+    assert "use one of white,gaussian,exponential,triangular,moving-average" in (
+        capsys.readouterr().err
+    )

@@ -14,12 +14,12 @@ import pytest
 import scipy.io
 import xarray as xr
 
+from bayes_jackal.api import load_experiments
 from bayes_jackal.cli import main
 from bayes_jackal.errors import DataError, InputError
 from bayes_jackal.experiment import Experiment, read_netcdf, write_netcdf
 from bayes_jackal.tables import (
     load_experiment,
-    load_experiments,
     read_csv,
     read_mat,
     write_csv,
@@ -323,7 +323,7 @@ def test_load_experiments_rejects_duplicate_names(tmp_path):
         DataError,
         match=r"name: experiment names are not unique: \{'run': \[.*a/run\.csv', .*b/run\.nc'\]\}",
     ):
-        load_experiments([tmp_path / "a" / "run.csv", tmp_path / "b" / "run.nc"])
+        load_experiments([tmp_path / "a" / "run.csv", tmp_path / "b" / "run.nc"], rate=1 / DT)
 
 
 def test_load_experiments_keeps_order(tmp_path):
@@ -331,7 +331,7 @@ def test_load_experiments_keeps_order(tmp_path):
         write_netcdf(make_experiment(name="second"), tmp_path / "second.nc"),
         write_csv(make_experiment(), tmp_path / "first.csv"),
     ]
-    assert [e.name for e in load_experiments(paths)] == ["second", "first"]
+    assert [e.name for e in load_experiments(paths, rate=1 / DT)] == ["second", "first"]
 
 
 # --- windows -----------------------------------------------------------------

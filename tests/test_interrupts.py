@@ -48,6 +48,20 @@ def test_a_signal_raises_at_once_outside_deferred(handlers):
     assert stop.value.exit_code == 143
 
 
+def test_restore_forgets_a_stop_so_later_work_in_the_process_runs():
+    # A stop raised under the handlers stays pending until check(); once they
+    # are restored (the command ended), later code calling check() must run.
+    previous = interrupt.install()
+    try:
+        with pytest.raises(interrupt.Interrupted):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1)
+    finally:
+        interrupt.restore(previous)
+    assert interrupt.pending() is None
+    interrupt.check()
+
+
 def test_deferred_holds_a_signal_until_check_and_a_second_one_raises(handlers):
     with interrupt.deferred():
         os.kill(os.getpid(), signal.SIGINT)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal import InputError, load_profile
+from bayes_jackal.kernels import FAMILIES, Exponential
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.parameters import SHARED_GROUP, ParameterLayout, prior_overrides
 from bayes_jackal.priors import Prior
@@ -138,3 +139,38 @@ def test_the_library_refuses_a_misspelt_override(runs):
     # overrides serves every family of a comparison.
     prior = Prior.for_likelihood(likelihood, ROBOT, {"width": (0.01, 0.2)})
     assert prior.names == ("d_lat", "d_long", "sigma_c", "sigma_n")
+
+
+class Lowpass(Exponential):
+    """A family defined here only, whose width has a name of its own: ``tau``."""
+
+    name = "lowpass"
+    width_name = "tau"
+
+
+def test_a_registered_family_s_own_width_name_is_a_width_key(runs, monkeypatch):
+    # Unknown until registered, then one more name of the one width prior
+    # (docs/families.md): it sets the width of every family, its own included.
+    with pytest.raises(InputError, match="unknown prior 'tau'"):
+        prior_overrides({"tau": (0.01, 0.2)})
+    monkeypatch.setitem(FAMILIES, "lowpass", Lowpass())
+    assert prior_overrides({"tau": (0.01, 0.2)}) == {"sigma_h": (0.01, 0.2)}
+    for family in ("lowpass", "gaussian"):
+        likelihood = ResidualLikelihood(runs, ROBOT, family=family, channels=("yaw",))
+        prior = Prior.for_likelihood(likelihood, ROBOT, {"tau": (0.01, 0.2)})
+        width = likelihood.layout.column(likelihood.layout.width_name, 0)
+        assert (prior.names[width], prior.low[width], prior.high[width]) == (
+            "tau" if family == "lowpass" else "sigma_h",
+            0.01,
+            0.2,
+        )
+    for other in ("width", "sigma_h"):
+        with pytest.raises(InputError, match=f"{other} and tau are the same prior"):
+            prior_overrides({other: (0.01, 0.2), "tau": (0.01, 0.3)})
+    allowed = "['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'width', 'tau']"
+    with pytest.raises(InputError) as caught:
+        prior_overrides({"taus": (0.01, 0.2)})
+    assert str(caught.value) == (
+        f"prior_overrides: unknown prior 'taus'; use one of {allowed} "
+        "(width and tau are sigma_h: every family's width)"
+    )

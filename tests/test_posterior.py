@@ -15,11 +15,13 @@ from bayes_jackal import DataError, load_profile
 from bayes_jackal.evidence import Evidence
 from bayes_jackal.experiment import write_netcdf
 from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.physics import CHANNELS
 from bayes_jackal.posterior import (
     FORMAT,
     ROBOT_CONSTANTS,
     Convergence,
     build_inference_data,
+    experiment_arrays,
     load_posterior,
     parameter_draws,
     posterior_experiments,
@@ -105,6 +107,27 @@ def test_the_typed_metadata_are_what_was_sampled(sampled):
     assert metadata.truth == likelihood.experiments[0].truth
     assert metadata.evidence is None and metadata.criticism is None
     assert metadata.convergence_messages == () and metadata.task is None
+
+
+def test_the_metadata_say_which_channels_each_experiment_measured(sampled):
+    likelihood, prior, chain, diagnostics, idata = sampled
+    # The simulated runs measure every channel; a second posterior of one of
+    # them without vy (vx and yaw used) measures vx and yaw only.
+    assert [e.channels for e in posterior_metadata(idata).experiments] == [CHANNELS] * 2
+    assert posterior_metadata(idata).measured_channels == CHANNELS
+    run, other = likelihood.experiments
+    runs = [run, dataclasses.replace(other, vy=None)]
+    partial = ResidualLikelihood(
+        runs, ROBOT, family="exponential", channels=("yaw", "vx"), shared_noise=False
+    )
+    stored = build_inference_data(partial, prior, chain, chain[..., 0], diagnostics)
+    metadata = posterior_metadata(stored)
+    assert [e.channels for e in metadata.experiments] == [CHANNELS, ("vx", "yaw")]
+    assert metadata.measured_channels == ("vx", "yaw")
+    arrays = experiment_arrays(stored, 1)
+    assert sorted(arrays) == ["omega_l", "omega_r", "t", "vx", "yaw_rate"]
+    for field, values in arrays.items():
+        np.testing.assert_array_equal(values, getattr(other, field))
 
 
 def test_parameter_draws_follow_the_layout(sampled):

@@ -45,6 +45,7 @@ INTERRUPT_LINE = r"interrupt|signal|sigint|sigterm|stopp|terminat"
 #: Modules the zygote imports before it forks (the CLI imports them on first use).
 WARM = (
     "bayes_jackal.cli.parser",
+    "bayes_jackal.cli.commands",
     "bayes_jackal.cli.paths",
     "bayes_jackal.interrupt",
     "bayes_jackal.bags",

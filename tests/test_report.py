@@ -19,7 +19,7 @@ from bayes_jackal.cli import main
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.posterior import load_posterior, save_posterior
-from bayes_jackal.report import _criticism_table
+from bayes_jackal.report_sections import _criticism_table
 from bayes_jackal.simulate import simulate_experiment
 
 ROBOT = load_profile()

@@ -7,6 +7,7 @@ import io
 import json
 import re
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from bayes_jackal.bag_writer import write_bag
 from bayes_jackal.bags import read_bag
 from bayes_jackal.cli import main
 from bayes_jackal.demo import demo_folder
+from bayes_jackal.executors import SerialExecutor
 from bayes_jackal.experiment import read_netcdf, write_netcdf
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
@@ -25,7 +27,7 @@ from bayes_jackal.progress import Progress
 from bayes_jackal.robot import load_profile
 from bayes_jackal.simulate import Series, simulate_experiment
 from bayes_jackal.tables import write_csv
-from bayes_jackal.workflow import ingest_logs
+from bayes_jackal.workflow import analyse_logs, ingest_logs
 
 ROBOT = load_profile()
 #: Cursor movement of a redrawn bar: carriage return or an ANSI escape sequence.
@@ -217,6 +219,38 @@ def test_ingest_refuses_an_experiment_name_that_is_a_path(short_runs, tmp_path, 
     assert list(failed) == [str(odd)]
     assert f"{odd}: name: its experiment name {name!r} cannot name a file" in failed[str(odd)]
     assert sorted(p.name for p in tmp_path.rglob("*.nc")) == ["good.nc", "odd.nc", "run1.nc"]
+
+
+def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
+    # A family finishes, a warning is raised in the comparison (here by the
+    # caller's say, as a logging handler might), then the comparison fails
+    # (stdout closed). The warning was kept to be shown after the comparison:
+    # it must still reach the user, and the failure must still propagate.
+    # An 8 s run keeps the grid searches quick.
+    run = simulate_experiment(ROBOT, 110.0, 30.0, dataclasses.replace(SHORT, duration=8.0), rng=1)
+    source = write_netcdf(run, tmp_path / "run.nc")
+
+    def say(line: str) -> None:
+        if line.startswith("  white: log evidence"):
+            warnings.warn(f"logged {line.strip()!r}", UserWarning, stacklevel=2)
+            raise BrokenPipeError("stdout is closed")
+
+    # 100 steps of one family on one channel: only the warning's way is checked.
+    settings = SamplerSettings(max_steps=100, design_points=64)
+    with pytest.warns(UserWarning, match="logged 'white: log evidence"):
+        with pytest.raises(BrokenPipeError, match="stdout is closed"):
+            analyse_logs(
+                [source],
+                tmp_path / "out",
+                robot=ROBOT,
+                families=("white",),
+                channels=("yaw",),
+                settings=settings,
+                seed=1,
+                executor=SerialExecutor(),
+                say=say,
+            )
+    assert (tmp_path / "out" / "posteriors" / "white.nc").exists()  # the family done is kept
 
 
 @pytest.mark.slow

@@ -79,21 +79,27 @@ def _run(argv: list[str] | None) -> int:
         print(f"bayes-jackal {__version__}")
         return 0
     from .. import interrupt
-    from ..errors import InputError
-    from .output import EXIT_BAD_INPUT, print_failure
     from .parser import build_parser
+
+    try:  # the parser loads no numpy: --help answers at once
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # usage errors (2) and --help/--version (0)
+        if isinstance(exc.code, int):
+            return exc.code
+        from .output import EXIT_BAD_INPUT
+
+        return EXIT_BAD_INPUT
+    from ..errors import InputError
+    from . import commands  # the command's imports, numpy and the rest
+    from .output import print_failure
     from .paths import command_inputs, guarded
 
     interrupt.check()  # a signal swallowed during the imports (code that cannot raise)
-
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:  # usage errors (2) and --help/--version (0)
-        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    command = getattr(commands, f"cmd_{args.command.replace('-', '_')}")
     try:
         # Warnings on stderr; outputs checked, inputs protected, main output locked.
         with _warnings_shown(debug=args.debug), guarded(args):
-            return args.func(args)
+            return command(args)
     except InputError as exc:  # names its file, field and value
         return print_failure(exc, debug=args.debug)
     except Exception as exc:  # one line naming the input (exit 1); --debug: the traceback

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from .._files import write_json
-from ..api import likelihood_options
+from ..api import likelihood_options, load_experiments, read_logs
 from ..bag_writer import write_bag
 from ..comparison import compare_groups
 from ..criticism import criticise
@@ -30,6 +30,7 @@ from ..inference import (
     keep_warnings,
     sample_posterior,
 )
+from ..kernels import FAMILIES
 from ..likelihood import ResidualLikelihood, resolve_channels
 from ..parameters import prior_overrides
 from ..plots import save_grid_plot
@@ -38,7 +39,7 @@ from ..report import read_posteriors, save_report
 from ..residual_analysis import analyse
 from ..robot import RobotProfile, load_profile
 from ..simulate import NoiseSettings, simulate_series
-from ..tables import check_column_roles, load_experiments, read_experiments, write_csv
+from ..tables import check_column_roles, write_csv
 from ..workflow import analyse_logs, ingest_logs
 from .output import (
     EXIT_BAD_INPUT,
@@ -301,7 +302,7 @@ def _each_experiment(
         The exit code: 2 when an input was bad, 1 when one failed otherwise.
     """
     failures = Failures(args.debug)
-    loaded, failed = read_experiments(args.experiments, **_read_options(args), on_failure=failures)
+    loaded, failed = read_logs(args.experiments, **_log_options(args), on_failure=failures)
     if outputs is not None:
         checked, refused = each_input(
             loaded,
@@ -409,11 +410,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     folder = Path(args.out) if args.out else None
     executor = _executor(args, args.processes)
+    families = args.families or tuple(FAMILIES)  # None: every registered family
 
     def announce(group: list[Experiment]) -> None:
         channels = resolve_channels(group, args.channels)
         out.say(
-            f"comparing {', '.join(args.families)} on {group_name(group)}, channels "
+            f"comparing {', '.join(families)} on {group_name(group)}, channels "
             f"{', '.join(channels)} (bridge sampling)"
         )
 
@@ -428,13 +430,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 criticise(idata)  # cached in its attrs: the file carries it
                 save_posterior(idata, family_files(folder, names[key], [family])[family])
 
-        reuse = folder and {k: family_files(folder, n, args.families) for k, n in names.items()}
+        reuse = folder and {k: family_files(folder, n, families) for k, n in names.items()}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)  # report() prints them
             each = compare_groups(
                 groups,
                 _robot(args),
-                families=args.families,
+                families=families,
                 settings=_sampler_settings(args),
                 seed=args.seed,
                 prior_overrides=_prior_overrides(args.prior),
@@ -470,7 +472,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     def outputs(name: str) -> list[Path]:
         if folder is None:
             return []
-        return [*family_files(folder, name, args.families).values(), summary_file(folder, name)]
+        return [*family_files(folder, name, families).values(), summary_file(folder, name)]
 
     with executor:  # a cluster is reached (or refused) before any work
         if args.pooled or len(args.experiments) == 1:
@@ -563,14 +565,23 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def _read_options(args: argparse.Namespace) -> dict:
-    """Keywords of load_experiment(s) from the input flags (and ``--robot``: its rate)."""
-    return {
-        "columns": check_column_roles(dict(args.column), field="--column"),
-        "rate": args.rate,
-        "robot": _robot(args),
+    """Keywords of reading experiment files (CSV, MATLAB) from ``--column`` and ``--rate``."""
+    return {"columns": check_column_roles(dict(args.column), field="--column"), "rate": args.rate}
+
+
+def _log_options(args: argparse.Namespace) -> dict:
+    """Keywords of :func:`~bayes_jackal.api.load_experiments` from the flags of reading logs.
+
+    Those of experiment files, and of bags (``--window``, ``--max-gap``,
+    ``--topic``); ``--robot``: topics and wheels of bags, the rate of files.
+    """
+    return _read_options(args) | {
+        "robot": _robot_with_topics(args),
+        "window": args.window,
+        "max_gap": args.max_gap,
     }
 
 
 def _load(args: argparse.Namespace) -> list:
-    """The experiments named on the command line, read with the input flags."""
-    return load_experiments(args.experiments, **_read_options(args))
+    """The logs named on the command line, read as the library reads them (all or none)."""
+    return load_experiments(args.experiments, **_log_options(args))

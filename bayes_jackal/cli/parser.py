@@ -1,4 +1,10 @@
-"""The argument parser of ``bayes-jackal``: commands, flags and their defaults."""
+"""The argument parser of ``bayes-jackal``: commands, flags and their defaults.
+
+It loads no numpy, so that every ``--help`` answers at once: the names and
+defaults are the library's own, from :mod:`bayes_jackal.defaults`, and
+:func:`bayes_jackal.cli.main` imports the commands (:mod:`.commands`) only
+to run one, ``cmd_<command>``.
+"""
 
 from __future__ import annotations
 
@@ -8,42 +14,41 @@ import os
 from collections.abc import Callable
 
 from .. import __version__
-from ..api import (
-    COMPARED_FAMILIES,
+from ..defaults import (
+    AUTO_ORDER,
+    BAG_FORMATS,
+    CHANNELS,
+    CONVERSIONS,
+    D_LAT,
+    D_LONG,
+    DAMPING_GRID,
+    DEFAULT_CHANNEL_ORDER,
+    DEFAULT_FAMILIES,
+    DISCRETISATION,
+    DISCRETISATIONS,
     ENGINE,
+    ENGINES,
+    EXPERIMENT_FORMATS,
     FAMILY,
+    FIGURE_FORMATS,
+    MAX_GAP,
+    MAX_GAP_STEPS,
     MAX_STEPS,
+    METHOD,
+    METHODS,
     NOISE,
     NOISE_SHARING,
+    RESIDUAL_CHANNELS,
+    RESIDUAL_LAGS,
+    ROLES,
     SENSOR,
+    SENSOR_MODELS,
+    SERIES_COUNTS,
+    SIMULATED_NOISE,
+    THESIS_CHANNEL,
     WALKERS,
 )
-from ..bags import MAX_GAP
 from ..errors import InputError
-from ..export import AUTO_ORDER
-from ..gridsearch import METHODS, damping_grid
-from ..kernels import FAMILIES
-from ..likelihood import DEFAULT_CHANNEL_ORDER, ENGINES, SENSOR_MODELS
-from ..physics import CHANNELS
-from ..report import FIGURE_FORMATS
-from ..residual_analysis import LAGS as RESIDUAL_LAGS
-from ..robot import CONVERSIONS
-from ..simulate import SERIES, NoiseSettings
-from ..stamps import MAX_GAP_STEPS
-from ..tables import ROLES
-from ..workflow import DEFAULT_FAMILIES
-from .commands import (
-    cmd_analyse,
-    cmd_compare,
-    cmd_demo,
-    cmd_export_prior,
-    cmd_grid,
-    cmd_ingest,
-    cmd_report,
-    cmd_residuals,
-    cmd_sample,
-    cmd_simulate,
-)
 
 
 def _name_list(allowed, what: str) -> Callable[[str], tuple[str, ...]]:
@@ -62,7 +67,32 @@ def _name_list(allowed, what: str) -> Callable[[str], tuple[str, ...]]:
 
 
 _channel_list = _name_list(CHANNELS, "channel(s)")
-_family_list = _name_list(tuple(FAMILIES), "families")
+
+
+def _registered_families() -> tuple[str, ...]:
+    """The keys of ``kernels.FAMILIES``, imported when a family flag is given.
+
+    The registry is the one list of families (docs/families.md), and reading it
+    loads numpy: so ``--help`` does not, and a family flag is checked here.
+    """
+    from ..kernels import FAMILIES  # imported with a family given: the command runs
+
+    return tuple(FAMILIES)
+
+
+def _family_list(text: str) -> tuple[str, ...]:
+    """argparse type of ``--families white,gaussian``: registered families."""
+    return _name_list(_registered_families(), "families")(text)
+
+
+def _family(text: str) -> str:
+    """argparse type of ``--family gaussian``: a registered family."""
+    families = _registered_families()
+    if text not in families:
+        raise argparse.ArgumentTypeError(
+            f"unknown family {text!r}; use one of {','.join(families)}"
+        )
+    return text
 
 
 def _bounded(convert: type, what: str, *, minimum: float, strict: bool = False) -> Callable:
@@ -97,6 +127,8 @@ class _Grid(argparse.Action):
     """``--d-lat START STOP STEP``: checked by the grid's own rule (``damping_grid``)."""
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from ..gridsearch import damping_grid  # imported with a grid given: the command runs
+
         try:
             damping_grid(*values, name=option_string)
         except InputError as exc:
@@ -113,6 +145,10 @@ class _Window(argparse.Action):
         if not start < stop:
             raise argparse.ArgumentError(self, f"expected T0 < T1 [s], got {start:g} {stop:g}")
         setattr(namespace, self.dest, values)
+
+
+#: What grid, residuals, sample and compare read (as bj.load_experiments does).
+_EXP_HELP = "experiment files (.csv, .mat, .nc) and bags (.bag, .mcap, .db3, bag folders)"
 
 
 def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None:
@@ -148,7 +184,7 @@ def _add_input_flags(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_bag_flags(parser: argparse.ArgumentParser, max_gap: float | None = MAX_GAP) -> None:
-    """Flags of reading bags, shared by ingest and analyse: window, gaps, topics."""
+    """Flags of reading bags (every command that reads them): window, gaps, topics."""
     parser.add_argument(
         "--window",
         type=_finite,
@@ -276,7 +312,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_flags(analysis)
     _add_model_flags(analysis, pooling=False)
     _add_common(analysis)
-    analysis.set_defaults(func=cmd_analyse)
 
     demo = commands.add_parser(
         "demo", help="analyse on the shipped simulated bags (embedded default data)"
@@ -284,32 +319,33 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="bayes-jackal-demo", help="output folder")
     demo.add_argument("--no-progress", action="store_true", help="no progress display")
     demo.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    demo.set_defaults(func=cmd_demo)
 
     sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
     sim.add_argument("--out", required=True, help="output folder")
     sim.add_argument("--seed", type=_natural, default=None, help="random seed (reproducible runs)")
-    for label in SERIES:
-        default = 10 if label == "v1" else 5
+    for label, default in SERIES_COUNTS.items():
         sim.add_argument(
             f"--{label}",
             type=_natural,
             default=default,
             help=f"runs of series {label} ({default})",
         )
-    sim.add_argument("--d-lat", type=_positive, default=110.0, help="true d_lat [N s/m] (110)")
-    sim.add_argument("--d-long", type=_positive, default=30.0, help="true d_long [N s/m] (30)")
-    defaults = NoiseSettings()
     sim.add_argument(
-        "--family", choices=list(FAMILIES), default=defaults.family, help="process-noise filter"
+        "--d-lat", type=_positive, default=D_LAT, help=f"true d_lat [N s/m] ({D_LAT:g})"
+    )
+    sim.add_argument(
+        "--d-long", type=_positive, default=D_LONG, help=f"true d_long [N s/m] ({D_LONG:g})"
+    )
+    sim.add_argument(
+        "--family", type=_family, default=FAMILY, help=f"process-noise filter ({FAMILY})"
     )
     sim.add_argument(
         "--width",
         "--sigma-h",
         dest="width",
         type=_positive,
-        default=defaults.width,
-        help=f"kernel width [s] (sigma_h of the Gaussian; {defaults.width})",
+        default=SIMULATED_NOISE["width"],
+        help=f"kernel width [s] (sigma_h of the Gaussian; {SIMULATED_NOISE['width']})",
     )
     for name, help_text in (("c", "process"), ("n", "sensor")):
         sim.add_argument(
@@ -317,59 +353,73 @@ def build_parser() -> argparse.ArgumentParser:
             type=_non_negative,
             nargs=3,
             metavar=("VX", "VY", "YAW"),
-            default=getattr(defaults, f"sigma_{name}"),
+            default=SIMULATED_NOISE[f"sigma_{name}"],
             help=f"{help_text} noise sd of vx, vy [m/s] and yaw [rad/s]",
         )
     sim.add_argument("--conversion", choices=CONVERSIONS, help="cmd_vel -> wheel speeds")
-    sim.add_argument("--format", choices=("nc", "csv"), default="nc", help="file format (nc)")
     sim.add_argument(
-        "--bag", choices=("ros1", "ros2"), help="also write each run as a ROS1 or ROS2 bag"
+        "--format",
+        choices=EXPERIMENT_FORMATS,
+        default=EXPERIMENT_FORMATS[0],
+        help=f"file format ({EXPERIMENT_FORMATS[0]})",
+    )
+    sim.add_argument(
+        "--bag", choices=BAG_FORMATS, help="also write each run as a ROS1 or ROS2 bag"
     )
     _add_common(sim)
-    sim.set_defaults(func=cmd_simulate)
 
     grid = commands.add_parser("grid", help="thesis grid search over (d_lat, d_long)")
-    grid.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
-    grid.add_argument("--method", choices=METHODS, default="onestep")
+    grid.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
+    grid.add_argument("--method", choices=METHODS, default=METHOD, help=f"criterion ({METHOD})")
+    start, stop, step = DAMPING_GRID
     for name in ("d-lat", "d-long"):
         grid.add_argument(
             f"--{name}",
             type=_finite,
             nargs=3,
             action=_Grid,
-            default=(10.0, 1000.0, 10.0),
+            default=DAMPING_GRID,
             metavar=("START", "STOP", "STEP"),
-            help="grid values [N s/m], STOP included (10 1000 10)",
+            help=f"grid values [N s/m], STOP included ({start:g} {stop:g} {step:g})",
         )
-    grid.add_argument("--channel", choices=CHANNELS, default="yaw")
-    grid.add_argument("--discretisation", choices=("zoh", "euler"), default="zoh")
+    grid.add_argument(
+        "--channel", choices=CHANNELS, default=THESIS_CHANNEL, help=f"channel ({THESIS_CHANNEL})"
+    )
+    grid.add_argument(
+        "--discretisation",
+        choices=DISCRETISATIONS,
+        default=DISCRETISATION,
+        help=f"zero-order hold or forward Euler ({DISCRETISATION})",
+    )
     grid.add_argument("--plot", metavar="FILE", help="save the MSE surface (png, svg, pdf)")
     grid.add_argument("--out", metavar="FILE.nc", help="save all MSE surfaces as NetCDF")
+    _add_bag_flags(grid, max_gap=None)
     _add_input_flags(grid)
     _add_common(grid)
-    grid.set_defaults(func=cmd_grid)
 
     ingest = commands.add_parser("ingest", help="ROS1/ROS2 bags to experiment files")
     ingest.add_argument("bags", nargs="+", metavar="BAG", help=".bag, .mcap, .db3 or bag folder")
     ingest.add_argument("--out", required=True, help="output folder (one .nc per bag)")
     _add_bag_flags(ingest)
     _add_common(ingest)
-    ingest.set_defaults(func=cmd_ingest)
 
     res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
-    res.add_argument("experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc")
+    res.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
     res.add_argument(
-        "--d-lat", type=_positive, default=110.0, help="d_lat of the model [N s/m] (110)"
+        "--d-lat", type=_positive, default=D_LAT, help=f"d_lat of the model [N s/m] ({D_LAT:g})"
     )
     res.add_argument(
-        "--d-long", type=_positive, default=30.0, help="d_long of the model [N s/m] (30)"
+        "--d-long",
+        type=_positive,
+        default=D_LONG,
+        help=f"d_long of the model [N s/m] ({D_LONG:g})",
     )
     res.add_argument(
         "--channels",
         type=_channel_list,
-        default=("yaw",),
+        default=RESIDUAL_CHANNELS,
         metavar="yaw,vx,vy",
-        help="comma-separated channels to analyse (yaw)",
+        help=f"comma-separated channels to analyse ({','.join(RESIDUAL_CHANNELS)})",
     )
     res.add_argument(
         "--lags",
@@ -377,33 +427,26 @@ def build_parser() -> argparse.ArgumentParser:
         default=RESIDUAL_LAGS,
         help=f"lags of the Ljung-Box test and sigma_h fit ({RESIDUAL_LAGS})",
     )
+    _add_bag_flags(res, max_gap=None)
     _add_input_flags(res)
     _add_common(res)
-    res.set_defaults(func=cmd_residuals)
 
     sample = commands.add_parser("sample", help="posterior of damping and noise with emcee")
-    sample.add_argument(
-        "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
-    )
+    sample.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
     sample.add_argument("--out", required=True, metavar="POSTERIOR.nc", help="posterior file")
-    sample.add_argument(
-        "--family", choices=list(FAMILIES), default=FAMILY, help=f"noise family ({FAMILY})"
-    )
+    sample.add_argument("--family", type=_family, default=FAMILY, help=f"noise family ({FAMILY})")
+    _add_bag_flags(sample, max_gap=None)
     _add_input_flags(sample)
     _add_model_flags(sample)
     _add_common(sample)
-    sample.set_defaults(func=cmd_sample)
 
     compare = commands.add_parser("compare", help="noise-filter families ranked by evidence")
-    compare.add_argument(
-        "experiments", nargs="+", metavar="EXP", help="experiment .csv, .mat or .nc"
-    )
+    compare.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
     compare.add_argument(
         "--families",
         type=_family_list,
-        default=COMPARED_FAMILIES,
         metavar="white,gaussian,...",
-        help=f"comma-separated families ({','.join(COMPARED_FAMILIES)})",
+        help="comma-separated families (every registered family)",
     )
     compare.add_argument("--out", metavar="DIR", help="save each family's posterior here")
     compare.add_argument(
@@ -418,10 +461,10 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="cross-check each evidence by nested sampling (dynesty; slow)",
     )
+    _add_bag_flags(compare, max_gap=None)
     _add_input_flags(compare)
     _add_model_flags(compare)
     _add_common(compare)
-    compare.set_defaults(func=cmd_compare)
 
     export = commands.add_parser("export-prior", help="Active Inference (DEM) prior as JSON")
     export.add_argument("posterior", metavar="POSTERIOR.nc", help="posterior file from sample")
@@ -433,7 +476,6 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"embedding order P of generalised coordinates ({AUTO_ORDER})",
     )
     _add_common(export, json_flag=False)
-    export.set_defaults(func=cmd_export_prior)
 
     report = commands.add_parser("report", help="HTML report with figures of posteriors")
     report.add_argument(
@@ -447,7 +489,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="png,svg",
         help="figure files written beside the report (png,svg)",
     )
-    report.set_defaults(func=cmd_report)
     for command in commands.choices.values():
         _add_debug(command, default=argparse.SUPPRESS)  # keeps a --debug given before COMMAND
     return parser

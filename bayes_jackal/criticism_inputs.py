@@ -1,0 +1,234 @@
+"""Model criticism of the inputs' path: the residual-input test, and steady windows.
+
+Two checks of a posterior, run with the others by
+:func:`bayes_jackal.criticism.criticise` (and importable from
+:mod:`bayes_jackal.criticism`). ``residual-input`` (:func:`residual_input`,
+MATLAB ``resid``'s independence test): do the one-step residuals correlate
+with the wheel speeds, which a wrong input path would make them do?
+``not-steady`` (:func:`steady_windows`): are the analysed windows steady
+cornering, as the thesis' analysis (ch. 5) assumes?
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.stats
+
+from .criticism_statistics import (
+    Check,
+    cross_correlation,
+    cross_correlation_sd,
+    simultaneous_threshold,
+    steadiness,
+)
+from .experiment import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, Experiment
+from .posterior import (
+    az,
+    model_autocovariance,
+    parameter_draws,
+    posterior_experiments,
+    posterior_metadata,
+)
+from .residuals import channel_residuals
+
+__all__ = [
+    "INPUTS",
+    "RESIDUAL_INPUT_LAGS",
+    "RESIDUAL_INPUT_LEVEL",
+    "residual_input",
+    "steady_windows",
+]
+
+#: Lags -L..L of the residual-input cross-correlation (MATLAB ``resid``: 25).
+RESIDUAL_INPUT_LAGS = 25
+#: Level of the per-lag band, and family-wise level of the warning.
+RESIDUAL_INPUT_LEVEL = 0.99
+#: Inputs the residuals are correlated with: wheel-speed sum (forward drive,
+#: rad/s) and difference (turning), the two directions of B.
+INPUTS = ("sum", "difference")
+
+
+# --- residual-input cross-correlation -------------------------------------------------
+
+
+def _input_series(experiment: Experiment) -> dict[str, np.ndarray]:
+    """Wheel-speed sum and difference at the residuals' times k = 0..N-2 [rad/s]."""
+    u = experiment.inputs[:-1]
+    return dict(zip(INPUTS, (u[:, 0] + u[:, 1], u[:, 0] - u[:, 1]), strict=True))
+
+
+def _posterior_median(idata: az.InferenceData) -> np.ndarray:
+    draws, _ = parameter_draws(idata)
+    return np.median(draws.reshape(-1, draws.shape[-1]), axis=0)
+
+
+def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) -> Check:
+    """Cross-correlation of the one-step residuals with the inputs, per experiment and channel.
+
+    The residuals and the model are taken at the posterior median, over the
+    whole run: in a steady window the wheel speeds are constant, and a
+    wrong input gain is absorbed by the damping there; only where the input
+    varies can the residuals betray it. The residual autocorrelation in the
+    band (:func:`cross_correlation_sd`) is the fitted model's, so the band
+    is exact under the model. Each input's z(k) = r(k) / sd is flagged when
+    max |z| over both inputs and lags -L..L exceeds
+    :func:`simultaneous_threshold` (family-wise level 99 %); the per-lag
+    99 % band is +-2.58 sd, as MATLAB's ``resid`` draws it.
+
+    Numbers per experiment and channel: ``lags``, ``z`` per input (list
+    over lags), ``sd`` per input, ``band`` (per-lag z), ``threshold``,
+    ``max_abs_z``. An input that is constant over the run is left out.
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism_inputs import residual_input
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> check = residual_input(posterior)
+    >>> row = check.numbers["v1"]["yaw"]
+    >>> row["lags"], round(row["threshold"], 2), round(row["max_abs_z"], 2), check.warnings
+    (25, 3.9, 1.84, [])
+    """
+    metadata = posterior_metadata(idata)
+    theta = _posterior_median(idata)[None]
+    band = float(scipy.stats.norm.isf((1.0 - RESIDUAL_INPUT_LEVEL) / 2.0))
+    check = Check()
+    for index, experiment in enumerate(posterior_experiments(idata)):
+        inputs = {name: u for name, u in _input_series(experiment).items() if np.ptp(u) > 0}
+        rows = {}
+        for channel in metadata.channels:
+            residual = channel_residuals(
+                experiment, metadata.robot, theta[0, 0], theta[0, 1], channel, steady=False
+            )
+            n = len(residual)
+            acov = model_autocovariance(metadata, index, channel, theta, n)[0]
+            length = min(lags, n - 1)
+            sd = {
+                name: float(cross_correlation_sd(acov / acov[0], u)) for name, u in inputs.items()
+            }
+            z = {
+                name: cross_correlation(residual, u, length) / sd[name]
+                for name, u in inputs.items()
+            }
+            threshold = simultaneous_threshold(
+                max(1, len(z)) * (2 * length + 1), level=RESIDUAL_INPUT_LEVEL
+            )
+            worst = max(z, key=lambda name: np.abs(z[name]).max(), default=None)
+            peak = 0.0 if worst is None else float(np.abs(z[worst]).max())
+            rows[channel] = {
+                "lags": length,
+                "z": {name: values.tolist() for name, values in z.items()},
+                "sd": sd,
+                "band": band,
+                "threshold": threshold,
+                "max_abs_z": peak,
+            }
+            if peak > threshold:
+                check.warnings.append(
+                    _input_warning(experiment.name, channel, worst, z[worst], threshold)
+                )
+        check.numbers[experiment.name] = rows
+    return check
+
+
+def _input_warning(
+    experiment: str, channel: str, name: str, z: np.ndarray, threshold: float
+) -> dict:
+    index = int(np.argmax(np.abs(z)))
+    lag = index - len(z) // 2
+    return {
+        "kind": "residual-input",
+        "experiment": experiment,
+        "channel": channel,
+        "input": name,
+        "lag": lag,
+        "z": float(z[index]),
+        "message": (
+            f"{experiment}, {channel}: the one-step residuals correlate with the wheel-speed "
+            f"{name} at lag {lag} (z = {z[index]:.1f}; 99 % over all lags: |z| < "
+            f"{threshold:.1f}): the model's input path is wrong (wheel radius, input "
+            "conversion, track width or a missing dynamic)"
+        ),
+    }
+
+
+# --- steadiness ----------------------------------------------------------------------
+
+
+def steady_windows(idata: az.InferenceData) -> Check:
+    """Warnings for analysed windows that are not steady cornering (thesis ch. 5).
+
+    The window is each experiment's steady window when the posterior used
+    them, else the whole run. Numbers per experiment: ``input_deviation``
+    (None when the wheels stand still), ``yaw_drift`` (:func:`steadiness`),
+    ``duration`` [s], and the tolerances.
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism_inputs import steady_windows
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> check = steady_windows(posterior)
+    >>> row = check.numbers["v1"]
+    >>> row["duration"], row["input_deviation"], round(row["yaw_drift"], 3), check.warnings
+    (33.0, 0.0, 0.01, [])
+    """
+    steady = posterior_metadata(idata).steady
+    check = Check()
+    for experiment in posterior_experiments(idata):
+        window = experiment.steady() if steady else experiment
+        deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
+        duration = float(window.t[-1] - window.t[0])
+        check.numbers[experiment.name] = {
+            "input_deviation": deviation,
+            "yaw_drift": drift,
+            "duration": duration,
+            "input_tolerance": STEADY_INPUT_TOLERANCE,
+            "yaw_tolerance": STEADY_YAW_TOLERANCE,
+        }
+        failures = _steadiness_failures(deviation, drift)
+        if not failures:
+            continue
+        span = "steady window" if steady and experiment.steady_window else "run"
+        check.warnings.append(
+            {
+                "kind": "not-steady",
+                "experiment": experiment.name,
+                "input_deviation": deviation,
+                "yaw_drift": drift,
+                "message": (
+                    f"{experiment.name}: the analysed {span} ({duration:.1f} s) is not steady: "
+                    f"{' and '.join(failures)}; the thesis' analysis assumes steady circles "
+                    "(ch. 5): transients test the model where it is least sure"
+                ),
+            }
+        )
+    return check
+
+
+def _steadiness_failures(deviation: float | None, drift: float) -> list[str]:
+    """The steadiness criteria a window fails, in words."""
+    failures = []
+    if deviation is None:
+        failures.append("the wheels stand still")
+    elif deviation > STEADY_INPUT_TOLERANCE:
+        failures.append(
+            f"the wheel speeds depart from their median by {100 * deviation:.0f} % "
+            f"(tolerance {100 * STEADY_INPUT_TOLERANCE:.0f} %)"
+        )
+    if drift > STEADY_YAW_TOLERANCE:
+        failures.append(
+            f"the yaw rate drifts by {100 * drift:.0f} % "
+            f"(tolerance {100 * STEADY_YAW_TOLERANCE:.0f} %)"
+        )
+    return failures

@@ -1,0 +1,133 @@
+"""The names the library's options accept and their default values: plain data, no numpy.
+
+The one place these are written. The modules that use them import them from
+here, and so does the command line's parser: ``bayes-jackal --help`` shows
+the library's defaults without loading numpy, scipy, arviz or matplotlib,
+and a flag's default cannot drift from the library's. Each constant is
+also importable, as before, from the module it belongs to (named below).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AUTO_ORDER",
+    "BAG_FORMATS",
+    "CHANNELS",
+    "CONVERSIONS",
+    "DAMPING_GRID",
+    "DEFAULT_CHANNEL_ORDER",
+    "DEFAULT_FAMILIES",
+    "DISCRETISATION",
+    "DISCRETISATIONS",
+    "D_LAT",
+    "D_LONG",
+    "ENGINE",
+    "ENGINES",
+    "EXPERIMENT_FORMATS",
+    "FAMILY",
+    "FIGURE_FORMATS",
+    "MAX_GAP",
+    "MAX_GAP_STEPS",
+    "MAX_STEPS",
+    "METHOD",
+    "METHODS",
+    "NOISE",
+    "NOISE_SHARING",
+    "OPTIONAL",
+    "REQUIRED",
+    "RESIDUAL_CHANNELS",
+    "RESIDUAL_LAGS",
+    "ROLES",
+    "SENSOR",
+    "SENSOR_MODELS",
+    "SERIES_COUNTS",
+    "SHARED_NOISE",
+    "SIMULATED_NOISE",
+    "THESIS_CHANNEL",
+    "WALKERS",
+]
+
+# -- noise families (the registry of their classes is bayes_jackal.kernels.FAMILIES,
+#    the one list of them; ``compare`` ranks all of it by default)
+#: Family of ``sample`` and of a simulated run's process noise (``--family``).
+FAMILY = "gaussian"
+#: Families ``analyse`` compares (``workflow.DEFAULT_FAMILIES``): coloured or not.
+DEFAULT_FAMILIES = ("white", "gaussian")
+
+# -- the model and its likelihood (physics, likelihood)
+#: State channels in state-vector order (``physics.CHANNELS``).
+CHANNELS = ("vx", "vy", "yaw")
+#: Order of the default channels: the thesis' yaw rate, then vx and vy.
+DEFAULT_CHANNEL_ORDER = ("yaw", "vx", "vy")
+#: Discretisations of the continuous model, zero-order hold (eq. 6-6) or forward
+#: Euler (6-5), and the default.
+DISCRETISATIONS = ("zoh", "euler")
+DISCRETISATION = "zoh"
+#: Sensor-noise footprints (``--sensor-noise``) and the default.
+SENSOR_MODELS = ("ma1", "diagonal")
+SENSOR = "ma1"
+#: Likelihood engines (``--engine``) and the default.
+ENGINES = ("fast", "exact", "whittle")
+ENGINE = "fast"
+#: Noise parameters of pooled experiments (``--noise``): shared, or each experiment's own.
+NOISE_SHARING = ("shared", "per-experiment")
+#: ... shared by default (``ResidualLikelihood.shared_noise``).
+SHARED_NOISE = True
+NOISE = NOISE_SHARING[0 if SHARED_NOISE else 1]
+
+# -- the sampler (inference.SamplerSettings)
+#: Step cap of each chain (``--max-steps``); a chain that reaches it is NOT CONVERGED.
+MAX_STEPS = 20_000
+#: Ensemble size (``--walkers``); 0: max(32, 4 x parameters).
+WALKERS = 0
+
+# -- the thesis' grid search and residual analysis (gridsearch, residual_analysis)
+#: The channel of the thesis' grid search and residual analysis: the yaw rate.
+THESIS_CHANNEL = "yaw"
+#: Grid-search criteria (``grid --method``) and the default.
+METHODS = ("onestep", "simulation")
+METHOD = "onestep"
+#: (START, STOP, STEP) of the thesis' damping grid [N s/m], STOP included.
+DAMPING_GRID = (10.0, 1000.0, 10.0)
+#: The thesis' damping (d_lat, d_long) [N s/m]: the simulator's truth and
+#: the model of the residual analysis by default.
+D_LAT = 110.0
+D_LONG = 30.0
+#: Lags of the Ljung-Box test and of the sigma_h fit (thesis ch. 7-3).
+RESIDUAL_LAGS = 30
+#: Channels of the residual analysis by default.
+RESIDUAL_CHANNELS = (THESIS_CHANNEL,)
+
+# -- simulated runs (simulate)
+#: Runs per series of a simulated data set: the thesis' 10 x v1 + 5 x v2.
+SERIES_COUNTS = {"v1": 10, "v2": 5}
+#: ``simulate.NoiseSettings`` defaults: kernel width [s], process and sensor
+#: noise sd of (vx, vy, yaw) per step [m/s, m/s, rad/s].
+SIMULATED_NOISE = {
+    "width": 0.047,
+    "sigma_c": (0.005, 0.005, 0.01),
+    "sigma_n": (0.003, 0.003, 0.005),
+}
+#: File formats of a simulated run (``simulate --format``); the first is the default.
+EXPERIMENT_FORMATS = ("nc", "csv")
+#: Formats of a simulated run's bag (``simulate --bag``): ROS1 ``.bag``, ROS2 ``.mcap``.
+BAG_FORMATS = ("ros1", "ros2")
+#: Ways of turning a velocity command (v, w) into wheel speeds (``robot.CONVERSIONS``).
+CONVERSIONS = ("ros", "thesis")
+
+# -- reading logs (experiment, tables, stamps, bags)
+#: Columns every experiment has, and those it may have.
+REQUIRED = ("t", "yaw_rate", "omega_r", "omega_l")
+OPTIONAL = ("vx", "vy")
+#: Column roles a file's columns can be mapped to (``columns=``, ``--column``).
+ROLES = (*REQUIRED, *OPTIONAL)
+#: Longest tolerated dropout of a bag's topic [s] (``--max-gap``): 18 IMU samples at 72 Hz.
+MAX_GAP = 0.25
+#: Longest gap of an experiment file filled by interpolation [sample steps].
+MAX_GAP_STEPS = 5
+
+# -- outputs (export, report)
+#: The embedding order of ``export_prior(order=None)`` where the family allows it.
+AUTO_ORDER = 2
+#: Figure files written beside a report (``report --formats``).
+FIGURE_FORMATS = ("png", "svg")
