@@ -581,10 +581,13 @@ def test_an_escaping_exception_is_one_line_naming_the_input(simulated, capsys, f
         assert f"bayes-jackal: failed: RuntimeError: simulated failure ({path})" in captured.err
 
 
-@pytest.mark.parametrize("where", ["before", "after"])
-def test_debug_shows_the_traceback(simulated, capsys, failing_chi2, where):
+@pytest.mark.parametrize("where", ["before", "after", "environment"])
+def test_debug_shows_the_traceback(simulated, capsys, monkeypatch, failing_chi2, where):
     argv = ["residuals", simulated[0]]
-    code = main(["--debug", *argv] if where == "before" else [*argv, "--debug"])
+    if where == "environment":
+        monkeypatch.setenv("BAYES_JACKAL_DEBUG", "1")
+    debug = {"before": ["--debug", *argv], "after": [*argv, "--debug"]}
+    code = main(debug.get(where, argv))
     captured = capsys.readouterr()
     assert code == 1
     assert captured.err.startswith("Traceback (most recent call last):")

@@ -159,9 +159,17 @@ def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None
         parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+#: Set (to anything but "" or "0") to show tracebacks as ``--debug`` does,
+#: e.g. where a script or CI job runs the command.
+DEBUG_VARIABLE = "BAYES_JACKAL_DEBUG"
+
+
 def _add_debug(parser: argparse.ArgumentParser, default: object) -> None:
     parser.add_argument(
-        "--debug", action="store_true", default=default, help="show the traceback of a failure"
+        "--debug",
+        action="store_true",
+        default=default,
+        help=f"show the traceback of a failure (or set {DEBUG_VARIABLE}=1)",
     )
 
 
@@ -282,7 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Jackal).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    _add_debug(parser, default=False)
+    _add_debug(parser, default=os.environ.get(DEBUG_VARIABLE, "0") not in ("", "0"))
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     analysis = commands.add_parser(
