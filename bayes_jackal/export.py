@@ -33,6 +33,12 @@ cannot tell process from sensor noise; its sigma_c is the total sd
 process noise. Held constant over a step, a continuous-time
 noise w~ in dx/dt = A x + B u + w~ gives w[k] = w~ (Ad - 1) / A, so
 s_c = sigma_c A / (Ad - 1) [channel units / s] is its sd; ``Pi`` uses s_c.
+
+Beside Pi the prior carries what DEM and Active Inference codes take as
+well (:mod:`bayes_jackal.export_consumers`, docs/active_inference.md): the
+same quantities in time bins, the sensor-noise precision Pi_z, the
+smoothness per channel, log-precision hyperpriors, the operating point and
+the damping prior on the entries of A and B.
 """
 
 from __future__ import annotations
@@ -46,6 +52,12 @@ from . import __version__
 from ._files import write_json
 from .defaults import AUTO_ORDER
 from .errors import InputError
+from .export_consumers import (
+    SENSOR_SMOOTHNESS,
+    check_sensor_smoothness,
+    generalised_precision,
+    prior_additions,
+)
 from .kernels import get_family
 from .parameters import DAMPING
 from .physics import CHANNELS, continuous_matrices, discrete_matrices
@@ -54,6 +66,7 @@ from .posterior import (
     az,
     interval,
     parameter_draws,
+    posterior_experiments,
     posterior_metadata,
     summarize,
     thinned_indices,
@@ -63,6 +76,7 @@ __all__ = [
     "AUTO_ORDER",
     "MAX_CONDITION",
     "PRIOR_FORMAT",
+    "SENSOR_SMOOTHNESS",
     "allowed_orders",
     "autocorrelation_derivatives",
     "export_prior",
@@ -179,7 +193,11 @@ def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarra
 
 
 def export_prior(
-    idata: az.InferenceData, *, order: int | None = AUTO_ORDER, source: str | None = None
+    idata: az.InferenceData,
+    *,
+    order: int | None = AUTO_ORDER,
+    source: str | None = None,
+    sensor_smoothness: float = SENSOR_SMOOTHNESS,
 ) -> dict:
     """The Active Inference prior of a posterior, as a JSON-ready dict.
 
@@ -196,6 +214,10 @@ def export_prior(
         posterior, at most :data:`AUTO_ORDER`.
     source : str, optional
         Where the posterior was read from (written into the prior).
+    sensor_smoothness : float
+        Gaussian smoothness given to the white sensor noise in its precision
+        Pi_z [time bins]; by default :data:`SENSOR_SMOOTHNESS` (0.5 bins,
+        :mod:`bayes_jackal.export_consumers` says why).
 
     Returns
     -------
@@ -205,7 +227,8 @@ def export_prior(
     Raises
     ------
     InputError
-        For an order the family cannot give, or noise per experiment.
+        For an order the family cannot give, noise per experiment, or a
+        sensor smoothness that is not a finite number > 0.
 
     Examples
     --------
@@ -227,6 +250,7 @@ def export_prior(
     family, channels, names = layout.family, list(layout.channels), layout.names
     if order is not None:
         get_family(family).check_order(order)
+    sensor_smoothness = check_sensor_smoothness(sensor_smoothness)
     width_name = layout.width_name
     if len(layout.groups) != len(channels):
         raise InputError(
@@ -249,7 +273,7 @@ def export_prior(
     pole = A_draws[:, index, index]
     gain = pole / (Ad_draws[:, index, index] - 1.0)
     # Shared noise: group c is channel c; white noise has unit widths.
-    width, sigma_c, _ = np.stack(
+    width, sigma_c, sigma_n = np.stack(
         [layout.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
     )
     continuous_sd = sigma_c * gain
@@ -266,9 +290,6 @@ def export_prior(
             source=source,
             field="order",
         )
-    n = len(channels)
-    precision = np.einsum("dcij,ce->dicje", S / continuous_sd[..., None, None] ** 2, np.eye(n))
-    precision = precision.reshape(len(draws), (order + 1) * n, (order + 1) * n)
     mean_d = d.mean(axis=0)
     A, B = continuous_matrices(robot, *mean_d)
     Ad, Bd = discrete_matrices(robot, *mean_d, dt)
@@ -279,7 +300,7 @@ def export_prior(
         c: {"mean": float(continuous_sd[:, k].mean()), "sd": float(continuous_sd[:, k].std())}
         for k, c in enumerate(channels)
     }
-    return {
+    prior = {
         "format": PRIOR_FORMAT,
         "bayes_jackal_version": __version__,
         "source": source,
@@ -322,13 +343,37 @@ def export_prior(
             "temporal_covariance": V.mean(axis=0).tolist(),
             "temporal_precision": S.mean(axis=0).tolist(),
             "noise_covariance": np.diag((continuous_sd**2).mean(axis=0)).tolist(),
-            "precision": precision.mean(axis=0).tolist(),
+            "precision": generalised_precision(S, continuous_sd).tolist(),
         },
         "draws": {
             "count": len(kept),
             **{name: draws[kept, j].tolist() for j, name in enumerate(names)},
         },
     }
+    additions = prior_additions(
+        family=family,
+        channels=channels,
+        width=width,
+        sigma_c=sigma_c,
+        sigma_n=sigma_n if "sigma_n" in layout.noise_bases else None,
+        continuous_sd=continuous_sd,
+        temporal_bins=temporal_covariance(family, width / dt, order),
+        sensor_temporal_bins=temporal_covariance("gaussian", np.array(sensor_smoothness), order),
+        sensor_smoothness=sensor_smoothness,
+        robot=robot,
+        damping=d,
+        dt=dt,
+        A=A,
+        B=B,
+        experiments=posterior_experiments(idata),
+        steady=metadata.steady,
+    )
+    for key, value in additions.items():
+        if key in prior:
+            prior[key].update(value)
+        else:
+            prior[key] = value
+    return prior
 
 
 def write_prior(prior: dict, path: str | Path) -> Path:

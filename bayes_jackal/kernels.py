@@ -306,6 +306,15 @@ class Family(abc.ABC):
         even = self._even_derivatives(np.asarray(width, float), n // 2)
         return np.where(n % 2 == 0, even, 0.0)
 
+    def realisation(self, width: float | np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+        """Exact (T, g, c, d): v = taps * e is z[k+1] = T z[k] + g e[k], v[k] = c @ z[k] + d e[k];
+        arrays broadcast over width. Here the taps' observable form: T = shift up, c = e_1."""
+        taps = self.taps(width, dt)
+        used = np.flatnonzero(np.abs(taps).reshape(-1, taps.shape[-1]).max(axis=0))
+        h = taps[..., used[0] : used[-1] + 1]  # zero columns trimmed: a shift, the same noise
+        n = h.shape[-1] - 1
+        return np.eye(n, k=1), h[..., 1:], np.eye(n, 1).ravel(), h[..., 0]
+
     def _even_derivatives(self, width: np.ndarray, m: np.ndarray) -> np.ndarray:
         """rho^(2m)(0) [1/s^(2m)], shape (..., len(m)), for m <= :attr:`max_order`.
 
@@ -423,6 +432,11 @@ class Exponential(Family):
         # phi^(2 L) = 1e-16 for the slowest decay: L = ln(1e16) tau / (2 dt).
         length = int(np.ceil(np.log(1e16) * width.max() / (2 * dt))) + 1
         return np.exp(-dt / width)[..., None] ** np.arange(length)
+
+    def realisation(self, width: float | np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+        """AR(1), exact in one state: z[k] = v[k-1], v[k] = phi z[k] + sqrt(1 - phi^2) e[k]."""
+        phi = self._phi(width, dt)[..., None]
+        return phi[..., None], np.sqrt(1.0 - phi**2), phi, np.sqrt(1.0 - phi[..., 0] ** 2)
 
     def autocorrelation(self, width: float | np.ndarray, dt: float, lags: int) -> np.ndarray:
         return self._phi(width, dt)[..., None] ** np.arange(lags)

@@ -12,6 +12,7 @@ import scipy.signal
 
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.cli import main
+from bayes_jackal.experiment import Experiment
 from bayes_jackal.export import (
     MAX_CONDITION,
     PRIOR_FORMAT,
@@ -20,6 +21,7 @@ from bayes_jackal.export import (
     export_prior,
     temporal_covariance,
 )
+from bayes_jackal.export_consumers import operating_point
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.physics import continuous_matrices, discrete_matrices
@@ -267,3 +269,261 @@ def test_exported_prior_is_strict_json(yaw_vx_posterior, tmp_path):
         raise ValueError(f"not JSON: {constant}")
 
     assert json.loads(out.read_text(), parse_constant=refuse)["format"] == PRIOR_FORMAT
+
+
+# --- what the consumers need beside Pi (export_consumers) ---------------------------------
+
+
+def _group_draws(posterior, name):
+    """Draws of a per-channel parameter, shaped (draws, channels)."""
+    values = posterior.posterior[name].transpose("chain", "draw", "noise_group").values
+    return values.reshape(-1, values.shape[-1])
+
+
+def _closed_form_gaussian_precision(k):
+    # inv of V = [[1, 0, -k], [0, k, 0], [-k, 0, 3 k^2]], k = 1 / (2 s^2): the
+    # even block [[1, -k], [-k, 3 k^2]] has determinant 2 k^2.
+    k = np.asarray(k, float)
+    inverse = np.zeros((*k.shape, 3, 3))
+    inverse[..., 0, 0] = 1.5
+    inverse[..., 0, 2] = inverse[..., 2, 0] = 1 / (2 * k)
+    inverse[..., 1, 1] = 1 / k
+    inverse[..., 2, 2] = 1 / (2 * k**2)
+    return inverse
+
+
+@pytest.mark.parametrize("smoothness", [0.5, 1.5])
+def test_sensor_precision_is_the_closed_form(yaw_vx_posterior, smoothness):
+    dt = ROBOT.dt
+    prior = export_prior(yaw_vx_posterior, order=2, sensor_smoothness=smoothness)
+    sensor = prior["sensor_noise"]
+    assert sensor["channels"] == ["yaw", "vx"]
+    assert sensor["smoothness_bins"] == smoothness
+    assert sensor["smoothness_seconds"] == pytest.approx(smoothness * dt, rel=1e-10)
+    precision = (1 / _group_draws(yaw_vx_posterior, "sigma_n") ** 2).mean(axis=0)
+    np.testing.assert_allclose(sensor["precision_per_channel"], precision, rtol=1e-12)
+    # Pi_z = inv(V(s_z)) kron diag(E[1 / sigma_n^2]), V in bins at k = 1 / (2 s_z^2)
+    # and in seconds at k / dt^2 (s_z dt seconds).
+    k = 1 / (2 * smoothness**2)
+    for key, scale in (("precision_bins", 1.0), ("precision", dt**2)):
+        expected = np.kron(_closed_form_gaussian_precision(k / scale), np.diag(precision))
+        np.testing.assert_allclose(sensor[key], expected, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(
+        sensor["temporal_covariance"],
+        [[1, 0, -k / dt**2], [0, k / dt**2, 0], [-k / dt**2, 0, 3 * k**2 / dt**4]],
+        rtol=1e-9,
+    )
+
+
+@pytest.mark.parametrize("smoothness", [0.0, -1.0, float("nan"), float("inf"), "half"])
+def test_bad_sensor_smoothness_is_refused(yaw_vx_posterior, smoothness):
+    with pytest.raises(InputError, match="sensor_smoothness: sensor smoothness must be"):
+        export_prior(yaw_vx_posterior, order=0, sensor_smoothness=smoothness)
+
+
+def test_white_noise_without_sigma_n_has_no_sensor_precision(white_diagonal_posterior):
+    prior = export_prior(white_diagonal_posterior, order=0)
+    assert prior["sensor_noise"] is None
+    assert prior["log_precision"]["sensor"] is None
+    # White noise has no derivative, so no smoothness describes it.
+    assert prior["smoothness"] == {"channels": None, "shared_seconds": None, "shared_bins": None}
+
+
+def test_bins_are_seconds_rescaled_by_the_sample_time(yaw_vx_posterior):
+    prior = export_prior(yaw_vx_posterior, order=2)
+    dt = prior["dt"]  # the profile's 1 / 72 s, rounded to 12 digits
+    coordinates = prior["generalised_coordinates"]
+    sigma_h = _group_draws(yaw_vx_posterior, "sigma_h")
+    # Derivative i in bins is dt^i times the one in seconds: V_bins = dt^(i+j) V,
+    # the closed form at k = dt^2 / (2 sigma_h^2); inv(V) in bins is the closed form.
+    k = dt**2 / (2 * sigma_h**2)  # (draws, channels)
+    V = np.zeros((*k.shape, 3, 3))
+    V[..., 0, 0] = 1
+    V[..., 0, 2] = V[..., 2, 0] = -k
+    V[..., 1, 1] = k
+    V[..., 2, 2] = 3 * k**2
+    np.testing.assert_allclose(coordinates["temporal_covariance_bins"], V.mean(axis=0), rtol=1e-10)
+    np.testing.assert_allclose(
+        coordinates["temporal_precision_bins"],
+        _closed_form_gaussian_precision(k).mean(axis=0),
+        rtol=1e-10,
+    )
+    # The model per bin, dx/dk = (A dt) x + (B dt) u + dt w: its noise dt w has
+    # precision Pi[i, j] / dt^(i+j+2). Both come from separate inversions of V
+    # (condition ~1e8 in seconds): 1e-7.
+    derivative = np.repeat(np.arange(3), 2)
+    scale = dt ** (np.add.outer(derivative, derivative) + 2)
+    np.testing.assert_allclose(
+        np.asarray(coordinates["precision_bins"]) * scale, coordinates["precision"], rtol=1e-7
+    )
+    np.testing.assert_allclose(prior["model"]["A_bins"], np.asarray(prior["model"]["A"]) * dt)
+    np.testing.assert_allclose(prior["model"]["B_bins"], np.asarray(prior["model"]["B"]) * dt)
+    # The Gaussian family's smoothness is sigma_h; in bins sigma_h / dt.
+    smoothness = prior["smoothness"]
+    for c, channel in enumerate(["yaw", "vx"]):
+        row = smoothness["channels"][channel]
+        assert row["seconds"]["mean"] == pytest.approx(sigma_h[:, c].mean(), rel=1e-12)
+        assert row["seconds"]["sd"] == pytest.approx(sigma_h[:, c].std(), rel=1e-10)
+        assert row["bins"]["mean"] == pytest.approx(sigma_h[:, c].mean() / dt, rel=1e-12)
+    assert smoothness["shared_seconds"] == pytest.approx(sigma_h.mean(), rel=1e-12)
+
+
+def test_log_precision_moments_are_the_draws(yaw_vx_posterior):
+    prior = export_prior(yaw_vx_posterior, order=0)
+    moments = prior["log_precision"]
+    assert moments["channels"] == ["yaw", "vx"]
+    post = yaw_vx_posterior.posterior
+    d_lat, d_long = post["d_lat"].values.ravel(), post["d_long"].values.ravel()
+    sigma_c = _group_draws(yaw_vx_posterior, "sigma_c")
+    sigma_n = _group_draws(yaw_vx_posterior, "sigma_n")
+    # s_c = sigma_c A / (Ad - 1), one draw at a time, as the test above.
+    s_c = np.empty_like(sigma_c)
+    for k in range(len(d_lat)):
+        A, _ = continuous_matrices(ROBOT, d_lat[k], d_long[k])
+        Ad, _ = discrete_matrices(ROBOT, d_lat[k], d_long[k], ROBOT.dt)
+        for c, i in enumerate([2, 0]):  # yaw, vx
+            s_c[k, c] = sigma_c[k, c] * A[i, i] / (Ad[i, i] - 1)
+    for key, sd in (
+        ("process", sigma_c),
+        ("process_continuous", s_c),
+        ("process_bins", s_c * ROBOT.dt),
+        ("sensor", sigma_n),
+    ):
+        log_precision = np.log(1 / sd**2)
+        np.testing.assert_allclose(moments[key]["mean"], log_precision.mean(axis=0), rtol=1e-10)
+        np.testing.assert_allclose(
+            moments[key]["variance"], log_precision.var(axis=0, ddof=1), rtol=1e-8
+        )
+        np.testing.assert_allclose(moments[key]["covariance"], np.cov(log_precision.T), rtol=1e-8)
+
+
+def test_operating_point_is_the_mean_over_the_steady_window(yaw_vx_posterior):
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)  # the fixture's run
+    start, stop = run.steady_window
+    inside = (run.t >= start - 1e-9) & (run.t <= stop + 1e-9)
+    prior = export_prior(yaw_vx_posterior, order=0)
+    point = prior["operating_point"]
+    assert point["window"] == "steady"
+    [row] = point["experiments"]
+    assert row["samples"] == inside.sum()
+    np.testing.assert_allclose(row["window"], [run.t[inside][0], run.t[inside][-1]])
+    u = [run.omega_r[inside].mean(), run.omega_l[inside].mean()]
+    y = [run.vx[inside].mean(), run.vy[inside].mean(), run.yaw_rate[inside].mean()]
+    np.testing.assert_allclose(row["u"], u, rtol=1e-12)
+    np.testing.assert_allclose(row["y"], y, rtol=1e-12)
+    assert point["pooled"] == {"samples": row["samples"], "u": row["u"], "y": row["y"]}
+    # The model's own steady state there: 0 = A x + B u.
+    A, B = np.asarray(prior["model"]["A"]), np.asarray(prior["model"]["B"])
+    np.testing.assert_allclose(A @ point["model_steady_state"], -B @ u, atol=1e-12)
+
+
+def test_operating_point_pools_windows_by_their_samples():
+    # Two in-memory runs, 720 and 360 samples; the second measures no vy.
+    t = np.arange(720) / 72
+
+    def run(n, level, vy):
+        return Experiment(
+            t=t[:n],
+            yaw_rate=np.full(n, level),
+            omega_r=np.full(n, 10 * level),
+            omega_l=np.full(n, 5 * level),
+            vx=np.full(n, 2 * level),
+            vy=np.full(n, level) if vy else None,
+            name=f"r{n}",
+        )
+
+    point = operating_point(
+        [run(720, 1.0, True), run(360, 4.0, False)], steady=True, A=-np.eye(3), B=np.ones((3, 2))
+    )
+    assert point["pooled"]["samples"] == 1080
+    level = (720 * 1.0 + 360 * 4.0) / 1080  # = 2
+    np.testing.assert_allclose(point["pooled"]["u"], [10 * level, 5 * level])
+    np.testing.assert_allclose(point["pooled"]["y"], [2 * level, 1.0, level])
+    assert point["experiments"][1]["y"][1] is None
+
+
+def test_damping_prior_on_the_matrix_entries_is_the_draws(yaw_vx_posterior):
+    prior = export_prior(yaw_vx_posterior, order=0)["damping"]["matrix_prior"]
+    post = yaw_vx_posterior.posterior
+    d_lat, d_long = post["d_lat"].values.ravel(), post["d_long"].values.ravel()
+    # One draw at a time, the entries that depend on the damping (eq. 4-32):
+    # the three poles, B's vx row and its yaw row (the vy row is zero).
+    cells = [(0, 0), (1, 1), (2, 2)], [(0, 0), (0, 1), (2, 0), (2, 1)]
+    continuous, discrete = [], []
+    for k in range(len(d_lat)):
+        for out, matrices in (
+            (continuous, continuous_matrices(ROBOT, d_lat[k], d_long[k])),
+            (discrete, discrete_matrices(ROBOT, d_lat[k], d_long[k], ROBOT.dt)),
+        ):
+            out.append([matrices[m][cell] for m in range(2) for cell in cells[m]])
+    for key, values, names in (
+        ("continuous", np.array(continuous), ("A", "B")),
+        ("discrete", np.array(discrete), ("Ad", "Bd")),
+    ):
+        expected = [f"{names[m]}[{i},{j}]" for m in range(2) for i, j in cells[m]]
+        assert prior[key]["entries"] == expected
+        np.testing.assert_allclose(prior[key]["mean"], values.mean(axis=0), rtol=1e-10)
+        np.testing.assert_allclose(prior[key]["covariance"], np.cov(values.T), rtol=1e-8)
+    # A, B are linear in the damping: the Jacobian of eq. 4-32, and the
+    # covariance is J cov(d) J'.
+    m, inertia, a, b, r = (
+        ROBOT.mass,
+        ROBOT.yaw_inertia,
+        ROBOT.half_wheelbase,
+        ROBOT.half_track,
+        ROBOT.wheel_radius,
+    )
+    jacobian = [
+        [0, -4 / m],
+        [-4 / m, 0],
+        [-4 * a**2 / inertia, -4 * b**2 / inertia],
+        [0, 2 * r / m],
+        [0, 2 * r / m],
+        [0, 2 * b * r / inertia],
+        [0, -2 * b * r / inertia],
+    ]
+    J = np.asarray(prior["continuous"]["jacobian"])
+    np.testing.assert_allclose(J, jacobian, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        prior["continuous"]["covariance"], J @ np.cov(d_lat, d_long) @ J.T, rtol=1e-8
+    )
+
+
+def spm_dem_r(n: int, s: float) -> np.ndarray:
+    """spm_DEM_R(n, s) of SPM for the Gaussian form, written from its closed form.
+
+    n derivatives (embedding order n - 1), s the sd of the Gaussian kernel in
+    time bins. SPM's curvature for k = 0 .. n - 1: rho^(2k)(0) = prod_{j <= k}
+    (1 - 2 j) / (sqrt(2) s)^(2k) = (-1)^k (2k - 1)!! / (2 s^2)^k, odd
+    derivatives zero; row i of V holds rho^(i + j)(0), j = 0 .. n - 1, its sign
+    flipped on every other row; R = inv(V).
+    """
+    rho = np.zeros(2 * n - 1)
+    term = 1.0
+    for k in range(n):
+        rho[2 * k] = term / (2 * s**2) ** k
+        term *= -(2 * k + 1)  # (-1)^(k+1) (2k + 1)!!
+    V = np.array([(-1) ** i * rho[i : i + n] for i in range(n)])
+    return np.linalg.inv(V)
+
+
+@pytest.mark.parametrize("order", [1, 2, 3])
+def test_exported_precision_in_bins_is_spm_dem_r(yaw_vx_posterior, order):
+    # SPM's rho^(2k)(0) = (-1)^k (2k - 1)!! / (2 s^2)^k are the derivatives of
+    # exp(-t^2 / (4 s^2)) (rho''(0) = -1 / (2 s^2)): the autocorrelation of
+    # white noise through a Gaussian kernel of sd s, which is the thesis'
+    # filter of width sigma_h, exp(-t^2 / (2 sigma_h^2)) (eq. 7-5). So SPM's
+    # smoothness is s = sigma_h / dt [bins]. In bins, derivative i is w^(i)
+    # dt^i: V_bins = S V S with S = diag(dt^i), and inv(V_bins) = S^-1 inv(V) S^-1.
+    prior = export_prior(yaw_vx_posterior, order=order)
+    dt = prior["dt"]
+    post = yaw_vx_posterior.posterior
+    sigma_h = post["sigma_h"].transpose("chain", "draw", "noise_group").values.reshape(-1, 2)
+    # The export averages inv(V) over the draws, per channel (yaw, vx).
+    expected = np.mean([[spm_dem_r(order + 1, s / dt) for s in draw] for draw in sigma_h], axis=0)
+    unscale = np.diag(dt ** -np.arange(order + 1.0))
+    exported = np.asarray(prior["generalised_coordinates"]["temporal_precision"])
+    in_bins = unscale @ exported @ unscale
+    # Two closed forms, inverted apart: they agree to rounding, amplified by
+    # V's condition (in bins: 23, 270, 2100 at orders 1, 2, 3 for s = 3.4 bins).
+    np.testing.assert_allclose(in_bins, expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())

@@ -1,0 +1,456 @@
+"""Linear Gaussian state-space models of each channel, built from an exported prior.
+
+The identified model is one scalar recursion per channel c (A is diagonal,
+:func:`bayes_jackal.physics.channel_coefficients`),
+
+    x[k+1] = alpha x[k] + b . u[k] + w[k] (+ sigma_n v[k], "diagonal" sensor),
+    y[k]   = x[k] + n[k]                  (n ~ N(0, sigma_n^2), "ma1" sensor),
+
+with u = (omega_r, omega_l) [rad/s] and w = sigma_c (taps * e), e white: the
+noise family's unit-energy kernel (:mod:`bayes_jackal.kernels`). Its shaping
+filter has an exact state-space realisation,
+:meth:`bayes_jackal.kernels.Family.realisation` (T, g, c, d): the taps in
+observable form for the finite kernels (T shifts up, c = e_1, g the taps
+after the first, d the first), one AR(1) state for the exponential family,
+none for white noise. Augmenting x with the filter's state z (scaled by
+sigma_c) gives the model a Kalman filter runs on, s = (x, z):
+
+    s[k+1] = F s[k] + G u[k] + Gamma eps[k],   eps ~ N(0, I),   y[k] = s[k][0] + n[k]
+
+    F = [[alpha, c'], [0, T]],  G = [[b], [0]],
+    Gamma = [[sigma_c d, nugget], [sigma_c g, 0]],  R = var(n),
+
+where nugget = sigma_n and R = 0 for the ``diagonal`` sensor term (the
+likelihood's residual is w + sigma_n v: white noise in the state update and
+an exact measurement, so a filter's estimate there is the measurement
+itself), nugget = 0 and R = sigma_n^2 for ``ma1``. The ``white`` model is the
+same with the white family's realisation: process noise of the same
+variance per step, sigma_c^2 + nugget^2 (the taps have unit energy), but no
+memory. (alpha, b) are the prior's ``model.Ad``, ``model.Bd`` at the
+posterior mean of the damping. The noise parameters are either plug-ins,
+the width, sigma_c and sigma_n at their posterior means
+(``noise.parameters``), or ``averaged``: Q and R averaged over the prior's
+draws (``draws``). The covariance of (x, y) is linear in Q and R, so the
+averaged model's Kalman filter is the best linear estimator under the
+noise parameters' posterior spread, as the exported precision Pi is
+averaged over draws (:func:`channel_model`). The damping stays at its
+mean: its posterior is narrow, and a spread pole would not give a
+stationary model of one transition.
+
+The run is taken to start at rest: x[-1] = 0 (variance
+``initial_variance``), u[-1] = 0, with the shaping filter's state in its
+stationary distribution, as :func:`bayes_jackal.simulate.simulate_experiment`
+starts its runs. So x[0] = w[-1] (+ sigma_n v[-1]) a priori.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from .errors import InputError
+from .experiment import Experiment
+from .kernels import FAMILIES, Family, get_family
+from .parameters import DAMPING, ParameterLayout
+from .physics import CHANNELS
+from .posterior_format import ROBOT_CONSTANTS
+from .robot import RobotProfile
+
+__all__ = [
+    "NOISE_MODELS",
+    "PARAMETERS",
+    "RATE_TOLERANCE",
+    "ChannelModel",
+    "channel_model",
+    "check_prior",
+    "filter_models",
+]
+
+#: The process-noise models a filter can assume: the prior's family
+#: (``coloured``, the shaping filter in the state) or white noise of the
+#: same variance per step (``white``).
+NOISE_MODELS = ("coloured", "white")
+#: The noise parameters of a model: at their posterior means, or Q and R
+#: averaged over the prior's draws (:func:`channel_model`).
+PARAMETERS = ("plug-in", "averaged")
+#: Largest relative difference between an experiment's sample time and the
+#: prior's: the discrete pole is exp(a dt), so 1 % in dt moves ln(alpha) by 1 %.
+RATE_TOLERANCE = 0.01
+#: Prefix of the exported prior's format (:data:`bayes_jackal.export.PRIOR_FORMAT`).
+_FORMAT_PREFIX = "bayes_jackal.prior/"
+
+
+@dataclass(frozen=True)
+class ChannelModel:
+    """The linear Gaussian state-space model of one channel (module docstring).
+
+    s[k+1] = F s[k] + G u[k] + Gamma eps[k] with eps ~ N(0, I); the measured
+    state is s[k][0] (x_c), y[k] = s[k][0] + n[k] with var(n) = R.
+
+    Attributes
+    ----------
+    channel : str
+        ``vx``, ``vy`` or ``yaw``.
+    transition : ndarray, shape (n, n)
+        F [-].
+    input_matrix : ndarray, shape (n, 2)
+        G [channel units / (rad/s)]: only row 0, Bd[c, :], is non-zero.
+    noise_matrix : ndarray, shape (n, q)
+        Gamma [channel units].
+    sensor_variance : float
+        R [channel units^2].
+    initial_mean, initial_covariance : ndarray, shapes (n,), (n, n)
+        The state's prior at k = 0.
+
+    Examples
+    --------
+    The white model of the yaw channel has one state; its process variance
+    per step is sigma_c^2:
+
+    >>> from bayes_jackal.filter_models import channel_model
+    >>> model = channel_model("yaw", 0.72, [0.026, -0.026], family="white", width=1.0,
+    ...                       sigma_c=0.01, sigma_n=0.005, dt=1 / 72)
+    >>> model.size, round(float(model.process_covariance[0, 0]), 12), model.sensor_variance
+    (1, 0.0001, 2.5e-05)
+    """
+
+    channel: str
+    transition: np.ndarray
+    input_matrix: np.ndarray
+    noise_matrix: np.ndarray
+    sensor_variance: float
+    initial_mean: np.ndarray
+    initial_covariance: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Number of states n."""
+        return len(self.transition)
+
+    @property
+    def process_covariance(self) -> np.ndarray:
+        """Q = Gamma Gamma' [channel units^2], shape (n, n)."""
+        return self.noise_matrix @ self.noise_matrix.T
+
+
+def channel_model(
+    channel: str,
+    alpha: float,
+    input_row: Sequence[float],
+    *,
+    family: str,
+    width: float | np.ndarray,
+    sigma_c: float | np.ndarray,
+    sigma_n: float | np.ndarray,
+    dt: float,
+    sensor: str = "ma1",
+    initial_variance: float = 0.0,
+) -> ChannelModel:
+    """The augmented model of one channel with the noise of ``family``.
+
+    With several draws of the noise parameters the model's Q and R are
+    their averages over the draws: the covariance of (x, y) is linear in Q
+    and R, so this is the model whose Kalman filter is the best linear
+    estimator under the draws' spread (at the fixed pole and input row).
+    Averaging Q needs a transition shared by the draws: a family whose
+    realisation's T or c depends on the width (the exponential family's
+    AR(1)) is realised by its taps in observable form instead
+    (:meth:`bayes_jackal.kernels.Family.realisation` of the base class).
+
+    Parameters
+    ----------
+    channel : str
+    alpha : float
+        Discrete pole Ad[c, c] [-].
+    input_row : sequence of 2 floats
+        Bd[c, :] [channel units / (rad/s)].
+    family : str
+        Noise family (:data:`bayes_jackal.kernels.FAMILIES`); ``"white"`` for
+        the white-noise model.
+    width : float or ndarray, shape (D,)
+        The family's width [s] (ignored for white noise); D draws.
+    sigma_c, sigma_n : float or ndarray, shape (D,)
+        Process-noise sd per step and sensor-noise sd [channel units].
+    dt : float
+        Sample time [s].
+    sensor : {"ma1", "diagonal"}
+        How sensor noise enters (module docstring).
+    initial_variance : float
+        Variance of x[-1] about 0 [channel units^2]; 0: the run starts at rest.
+
+    Returns
+    -------
+    ChannelModel
+        Its ``noise_matrix`` is [Gamma_1, .., Gamma_D] / sqrt(D), so that
+        Q = Gamma Gamma' is the draws' mean of Gamma_d Gamma_d'.
+
+    Examples
+    --------
+    The Gaussian filter of sigma_h = 0.047 s at 72 Hz has 23 taps: x and 22
+    states of the taps' observable form. The process noise x receives has
+    variance sigma_c^2 per step, as the white model's:
+
+    >>> from bayes_jackal.filter_models import channel_model
+    >>> model = channel_model("yaw", 0.72, [0.026, -0.026], family="gaussian",
+    ...                       width=0.047, sigma_c=0.01, sigma_n=0.005, dt=1 / 72)
+    >>> model.size
+    23
+    >>> import scipy.linalg
+    >>> F, Q = model.transition, model.process_covariance
+    >>> stationary = scipy.linalg.solve_discrete_lyapunov(F[1:, 1:], Q[1:, 1:])
+    >>> round(float(F[0, 1:] @ stationary @ F[0, 1:] + Q[0, 0]), 12)
+    0.0001
+    """
+    if sensor not in ("ma1", "diagonal"):
+        raise InputError(
+            f"unknown sensor model {sensor!r}; use 'ma1' or 'diagonal'", field="sensor"
+        )
+    width, sigma_c, sigma_n = np.broadcast_arrays(*np.atleast_1d(width, sigma_c, sigma_n))
+    shaping = get_family(family)
+    T, g, c, d = _realisation(shaping.realisation, width, dt)
+    if T is None:
+        T, g, c, d = _realisation(functools.partial(Family.realisation, shaping), width, dt)
+    m, draws = len(T), len(width)
+    F = np.block([[np.array([[alpha]]), c[None, :]], [np.zeros((m, 1)), T]])
+    G = np.zeros((m + 1, 2))
+    G[0] = input_row
+    nugget, R = (sigma_n, 0.0) if sensor == "diagonal" else (0.0 * sigma_n, np.mean(sigma_n**2))
+    Gamma = np.zeros((draws, m + 1, 2))  # per draw: (e, v) -> (x, z)
+    Gamma[:, 0, 0], Gamma[:, 0, 1] = sigma_c * d, nugget
+    Gamma[:, 1:, 0] = sigma_c[:, None] * g
+    Gamma = np.concatenate(Gamma, axis=1) / np.sqrt(draws)
+    Q = Gamma @ Gamma.T
+    before = scipy.linalg.block_diag(
+        [[initial_variance]], scipy.linalg.solve_discrete_lyapunov(T, Q[1:, 1:])
+    )
+    return ChannelModel(
+        channel=channel,
+        transition=F,
+        input_matrix=G,
+        noise_matrix=Gamma,
+        sensor_variance=float(R),
+        initial_mean=np.zeros(m + 1),
+        initial_covariance=F @ before @ F.T + Q,
+    )
+
+
+def _realisation(realise, width: np.ndarray, dt: float) -> tuple:
+    """(T, g, c, d) of D widths: T, c shared, g (D, m), d (D,); T None when T or c vary."""
+    T, g, c, d = realise(width, dt)
+    m = np.shape(g)[-1]
+    T, c = np.broadcast_to(T, (len(width), m, m)), np.broadcast_to(c, (len(width), m))
+    if not ((T == T[0]).all() and (c == c[0]).all()):
+        return None, None, None, None
+    return T[0], np.broadcast_to(g, (len(width), m)), c[0], np.broadcast_to(d, width.shape)
+
+
+def _field(prior: Mapping, path: str):
+    """``prior[a][b]..`` for ``path`` = "a.b..", or an InputError naming the missing field."""
+    value = prior
+    for key in path.split("."):
+        if not isinstance(value, Mapping) or key not in value:
+            raise InputError(f"the prior has no field {path!r}", field=path)
+        value = value[key]
+    return value
+
+
+def _layout(prior: Mapping) -> ParameterLayout:
+    """The prior's parameter layout: shared noise, one group per channel."""
+    noise = _field(prior, "noise")
+    family = _field(prior, "noise.family")
+    if family not in FAMILIES:
+        raise InputError(
+            f"unknown noise family {family!r}; use one of {list(FAMILIES)}", field="noise.family"
+        )
+    channels = tuple(_field(prior, "noise.channels"))
+    return ParameterLayout(family, noise.get("sensor", "ma1"), channels, ("prior",), True)
+
+
+def check_prior(
+    prior: Mapping,
+    experiment: Experiment,
+    channels: Sequence[str] | None = None,
+    *,
+    robot: RobotProfile | None = None,
+) -> tuple[str, ...]:
+    """Check that a prior fits an experiment; the channels to filter.
+
+    Parameters
+    ----------
+    prior : mapping
+        An exported prior (:func:`bayes_jackal.export.export_prior`, ``prior.json``).
+    experiment : Experiment
+    channels : sequence of str, optional
+        Channels to filter; by default every channel of the prior.
+    robot : RobotProfile, optional
+        When given, its constants must be the prior's.
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    InputError
+        For a prior of another format, robot or sample time (beyond
+        :data:`RATE_TOLERANCE`), or channels it lacks, naming the field and value.
+    DataError
+        When the experiment does not measure a channel.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.filter_models import check_prior
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> prior = {"format": "bayes_jackal.prior/1", "dt": 1 / 36, "robot": {"name": "jackal"},
+    ...          "noise": {"channels": ["yaw"]}}
+    >>> try:
+    ...     check_prior(prior, run)
+    ... except ValueError as error:
+    ...     print(error)
+    dt: the prior is for 36 Hz (dt = 0.02778 s), the experiment is sampled at 72 Hz
+    (dt = 0.01389 s)
+    """
+    form = _field(prior, "format")
+    if not str(form).startswith(_FORMAT_PREFIX):
+        raise InputError(f"not an exported prior: format {form!r}", field="format")
+    constants = _field(prior, "robot")
+    name = experiment.provenance.get("robot")
+    if name is not None and name != constants.get("name"):
+        raise InputError(
+            f"the prior is for robot {constants.get('name')!r}, the experiment is of {name!r}",
+            field="robot",
+        )
+    for key in ROBOT_CONSTANTS if robot is not None else ():
+        if constants.get(key) != getattr(robot, key):
+            raise InputError(
+                f"the prior's {constants.get(key)!r} differs from the profile's "
+                f"{getattr(robot, key)!r}",
+                field=f"robot.{key}",
+            )
+    dt = float(_field(prior, "dt"))
+    if not abs(experiment.dt / dt - 1.0) <= RATE_TOLERANCE:
+        raise InputError(
+            f"the prior is for {1 / dt:.4g} Hz (dt = {dt:.4g} s), the experiment is sampled "
+            f"at {1 / experiment.dt:.4g} Hz (dt = {experiment.dt:.4g} s)",
+            field="dt",
+        )
+    known = list(_field(prior, "noise.channels"))
+    channels = tuple(known if channels is None else channels)
+    missing = [c for c in channels if c not in known]
+    if missing:
+        raise InputError(
+            f"the prior has no channel {missing[0]!r}; it has {known}", field="channels"
+        )
+    for channel in channels:
+        experiment.channel(channel)  # a DataError when it is not measured
+    return channels
+
+
+def filter_models(
+    prior: Mapping,
+    *,
+    noise: str = "coloured",
+    channels: Sequence[str] | None = None,
+    parameters: str = "plug-in",
+    initial_variance: float = 0.0,
+) -> dict[str, ChannelModel]:
+    """The state-space model of each channel, from an exported prior (module docstring).
+
+    Parameters
+    ----------
+    prior : mapping
+        An exported prior (:func:`bayes_jackal.export.export_prior`, ``prior.json``).
+    noise : {"coloured", "white"}
+        The prior's noise family with its shaping filter in the state, or
+        white process noise of the same variance per step.
+    channels : sequence of str, optional
+        By default every channel of the prior.
+    parameters : {"plug-in", "averaged"}
+        The noise parameters at their posterior means, or Q and R averaged
+        over the prior's draws.
+    initial_variance : float
+        Variance of x[-1] about rest [channel units^2] (:func:`channel_model`).
+
+    Returns
+    -------
+    dict of str to ChannelModel
+
+    Raises
+    ------
+    InputError
+        For a field the prior lacks, a channel it lacks, or an unknown
+        ``noise`` or ``parameters``.
+
+    Examples
+    --------
+    The models of a prior (here built by hand; ``bj.export_prior`` writes
+    them): one yaw channel with Gaussian noise of sigma_h = 0.047 s:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.filter_models import filter_models
+    >>> Ad, Bd = np.diag([0.90, 0.69, 0.72]), [[0.0047, 0.0047], [0, 0], [0.026, -0.026]]
+    >>> prior = {"dt": 1 / 72, "damping": {"mean": [110.0, 30.0]},
+    ...          "model": {"Ad": Ad.tolist(), "Bd": Bd},
+    ...          "noise": {"family": "gaussian", "channels": ["yaw"], "sensor": "ma1",
+    ...                    "parameters": {"sigma_h": {"mean": 0.047},
+    ...                                   "sigma_c": {"mean": 0.01},
+    ...                                   "sigma_n": {"mean": 0.005}}}}
+    >>> [(c, m.size) for c, m in filter_models(prior).items()]
+    [('yaw', 23)]
+    >>> filter_models(prior, noise="white")["yaw"].transition.tolist()
+    [[0.72]]
+
+    Averaged over draws, the white model's process variance is the mean of
+    sigma_c^2 (here of 0.01^2 and 0.02^2):
+
+    >>> prior["draws"] = {"d_lat": [110.0, 110.0], "d_long": [30.0, 30.0],
+    ...                   "sigma_h": [0.04, 0.05], "sigma_c": [0.01, 0.02],
+    ...                   "sigma_n": [0.005, 0.005]}
+    >>> white = filter_models(prior, noise="white", parameters="averaged")["yaw"]
+    >>> round(float(white.process_covariance[0, 0]), 12)
+    0.00025
+    """
+    if noise not in NOISE_MODELS:
+        raise InputError(
+            f"unknown noise model {noise!r}; use one of {NOISE_MODELS}", field="noise"
+        )
+    if parameters not in PARAMETERS:
+        raise InputError(
+            f"unknown parameters {parameters!r}; use one of {PARAMETERS}", field="parameters"
+        )
+    layout = _layout(prior)
+    if parameters == "plug-in":
+        means = [_field(prior, f"noise.parameters.{n}.mean") for n in layout.names[2:]]
+        theta = np.array([[*_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
+    else:
+        theta = np.column_stack([_field(prior, f"draws.{n}") for n in layout.names]).astype(float)
+    Ad, Bd = np.asarray(_field(prior, "model.Ad")), np.asarray(_field(prior, "model.Bd"))
+    dt = float(_field(prior, "dt"))
+    family = layout.family if noise == "coloured" else "white"
+    models = {}
+    for channel in layout.channels if channels is None else channels:
+        if channel not in layout.channels:
+            raise InputError(
+                f"the prior has no channel {channel!r}; it has {list(layout.channels)}",
+                field="channels",
+            )
+        width, sigma_c, sigma_n = layout.noise_parameters(theta, layout.channels.index(channel))
+        i = CHANNELS.index(channel)
+        models[channel] = channel_model(
+            channel,
+            Ad[i, i],
+            Bd[i],
+            family=family,
+            width=width,
+            sigma_c=sigma_c,
+            sigma_n=sigma_n,
+            dt=dt,
+            sensor=layout.sensor,
+            initial_variance=initial_variance,
+        )
+    return models
