@@ -66,12 +66,12 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 import scipy.special
 
 from .errors import InputError
 from .experiment import Experiment
 from .filter_models import check_prior
+from .lti import lti_outputs
 from .physics import CHANNELS
 from .robot import RobotProfile
 
@@ -299,19 +299,6 @@ def _flow(
     return J, G
 
 
-def _powers(matrix: np.ndarray, limit: int) -> np.ndarray:
-    """matrix^m for m = 0 .. L - 1, L <= ``limit``: up to where they fall below :data:`TAIL`.
-
-    By repeated doubling (log2 L batched products): block [P^0 .. P^(n-1)]
-    times P^n gives [P^n .. P^(2n-1)].
-    """
-    powers = np.eye(len(matrix))[None]
-    while len(powers) < limit and np.abs(powers[-1]).max() >= TAIL:
-        powers = np.concatenate([powers, powers @ (powers[-1] @ matrix)])
-    tail = np.abs(powers[:limit]).max(axis=(1, 2)) < TAIL
-    return powers[: int(np.argmax(tail)) if tail.any() else limit]
-
-
 def generalised_filter(
     a: float,
     b: np.ndarray,
@@ -415,15 +402,10 @@ def generalised_filter(
     data = np.hstack(
         [embed(y, order, dt, lookahead=lookahead), embed(u @ b, order, dt, lookahead=lookahead)]
     )
-    forcing = data @ forcing_matrix.T  # (N, p + 1)
     start = data[0, :size] if initial is None else np.asarray(initial, float)
     if start.shape != (size,):
         raise InputError(f"expected shape ({size},), got {start.shape}", field="initial")
-    powers = _powers(Phi, len(y) + 1)
-    states = scipy.signal.oaconvolve(powers, forcing[:, None, :], axes=0)[: len(y)].sum(axis=-1)
-    head = min(len(powers) - 1, len(y))
-    states[:head] += powers[1 : head + 1] @ start
-    return states
+    return lti_outputs(Phi, forcing_matrix, data, start, tolerance=TAIL)
 
 
 def generalised_filter_prior(

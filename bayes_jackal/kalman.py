@@ -33,11 +33,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
 from .errors import DataError
 from .experiment import Experiment
 from .filter_models import ChannelModel, check_prior, filter_models
+from .lti import lti_outputs
 from .robot import RobotProfile
 
 __all__ = ["CONVERGED", "FILTERS", "TRUNCATION", "StateEstimate", "kalman", "kalman_filter"]
@@ -181,25 +181,14 @@ def _steady(
 
     m_i = A^(i+1) m + sum_j A^j C p_(i-j) with p_i = (y_i, u_(i-1)) and
     C = [K, (I - K H) G]; the outputs O m_i, O = [H; H F], give the filtered
-    mean and (plus H G u_i) the next prediction of y.
+    mean and (plus H G u_i) the next prediction of y (:func:`~bayes_jackal.lti.lti_outputs`).
     """
     _, filtered, gain, (_, S) = _update(np.zeros(len(P)), P, 0.0, R)
     reduce = _reduction(gain)
     A, C = reduce @ F, np.column_stack([gain, reduce @ G])
     outputs = np.vstack([np.eye(len(P))[0], F[0]])
-    powers = [outputs]  # O A^j, j = 0 .. until A^j is below TRUNCATION or the run ends
-    power = np.eye(len(P))
-    while len(powers) <= len(y):
-        power = power @ A
-        if np.abs(power).max() < TRUNCATION:
-            break
-        powers.append(outputs @ power)
-    powers = np.array(powers)  # (J + 1, 2, n)
-    response = np.moveaxis(powers[: len(y)] @ C, 0, -1)  # (2, 3, M)
-    drive = np.vstack([y, inputs.T])  # (3, L)
-    states = scipy.signal.fftconvolve(response, drive[None], axes=-1)[..., : len(y)].sum(axis=1)
-    start = powers[1:] @ m  # O A^(i+1) m, (J, 2)
-    states[:, : len(start)] += start.T
+    drive = np.column_stack([y, inputs])  # p_i = (y_i, u_(i-1)), (L, 3)
+    states = lti_outputs(A, C, drive, m, outputs=outputs, tolerance=TRUNCATION).T
     predicted = np.concatenate([[F[0] @ m], states[1, :-1]]) + inputs @ G[0]
     out[0], out[1] = states[0], filtered[0, 0]
     out[2], out[3] = y - predicted, S
