@@ -54,6 +54,7 @@ from .defaults import AUTO_ORDER
 from .errors import InputError
 from .export_consumers import (
     SENSOR_SMOOTHNESS,
+    channel_moments,
     check_sensor_smoothness,
     generalised_precision,
     prior_additions,
@@ -296,10 +297,6 @@ def export_prior(
     summary = summarize(idata)
     kept = thinned_indices(len(draws), MAX_DRAWS)
     noise_stats = {name: interval(summary[name]) for name in names[len(DAMPING) :]}
-    continuous_stats = {
-        c: {"mean": float(continuous_sd[:, k].mean()), "sd": float(continuous_sd[:, k].std())}
-        for k, c in enumerate(channels)
-    }
     prior = {
         "format": PRIOR_FORMAT,
         "bayes_jackal_version": __version__,
@@ -333,7 +330,7 @@ def export_prior(
             "channels": channels,
             "parameters": noise_stats,
             "sigma_c_is": "process" if "sigma_n" in layout.noise_bases else "total",
-            "process_sd_continuous": continuous_stats,
+            "process_sd_continuous": channel_moments(continuous_sd, channels),
             "sensor": layout.sensor,
         },
         "generalised_coordinates": {

@@ -41,6 +41,7 @@ from .robot import RobotProfile
 
 __all__ = [
     "SENSOR_SMOOTHNESS",
+    "channel_moments",
     "gaussian_smoothness",
     "generalised_precision",
     "log_precision_moments",
@@ -331,8 +332,26 @@ def matrix_prior(robot: RobotProfile, d_lat: np.ndarray, d_long: np.ndarray, dt:
     }
 
 
-def _moments(values: np.ndarray, channels: Sequence[str]) -> dict:
-    """{channel: {"mean", "sd"}} of draws shaped (draws, channels)."""
+def channel_moments(values: np.ndarray, channels: Sequence[str]) -> dict:
+    """Mean and sd over the draws of a quantity per channel.
+
+    Parameters
+    ----------
+    values : ndarray, shape (draws, channels)
+    channels : sequence of str
+
+    Returns
+    -------
+    dict
+        ``{channel: {"mean": float, "sd": float}}``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.export_consumers import channel_moments
+    >>> channel_moments(np.array([[1.0, 10.0], [3.0, 10.0]]), ["yaw", "vx"])
+    {'yaw': {'mean': 2.0, 'sd': 1.0}, 'vx': {'mean': 10.0, 'sd': 0.0}}
+    """
     return {
         c: {"mean": float(values[:, k].mean()), "sd": float(values[:, k].std())}
         for k, c in enumerate(channels)
@@ -374,7 +393,7 @@ def _sensor_noise(
             "variance, 1 / (2 s_z^2) = 2 sigma_n^2 per bin^2, is that of the one-step "
             "difference of white noise)"
         ),
-        "sd": _moments(sigma_n, channels),
+        "sd": channel_moments(sigma_n, channels),
         "precision_per_channel": (1.0 / sigma_n**2).mean(axis=0).tolist(),
         "temporal_covariance": (temporal_bins / _derivative_scale(order, 1, dt)).tolist(),
         "temporal_covariance_bins": temporal_bins.tolist(),
@@ -395,7 +414,7 @@ def _smoothness(family: str, width: np.ndarray, dt: float, channels: list) -> di
     return {
         "channels": {
             c: {"seconds": moments, "bins": {k: v / dt for k, v in moments.items()}}
-            for c, moments in _moments(s, channels).items()
+            for c, moments in channel_moments(s, channels).items()
         },
         "shared_seconds": shared,
         "shared_bins": shared / dt,
@@ -436,7 +455,7 @@ def prior_additions(
         "generalised_coordinates": {
             "temporal_covariance_bins": temporal_bins.mean(axis=0).tolist(),
             "temporal_precision_bins": inverse_bins.mean(axis=0).tolist(),
-            "process_sd_bins": _moments(continuous_sd * dt, channels),
+            "process_sd_bins": channel_moments(continuous_sd * dt, channels),
             "precision_bins": generalised_precision(inverse_bins, continuous_sd * dt).tolist(),
         },
         "sensor_noise": None

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from .defaults import SENSOR, SENSOR_MODELS
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import FAMILIES, Family, get_family
@@ -68,6 +69,7 @@ __all__ = [
     "channel_model",
     "check_prior",
     "filter_models",
+    "prior_field",
 ]
 
 #: The process-noise models a filter can assume: the prior's family
@@ -147,7 +149,7 @@ def channel_model(
     sigma_c: float | np.ndarray,
     sigma_n: float | np.ndarray,
     dt: float,
-    sensor: str = "ma1",
+    sensor: str = SENSOR,
     initial_variance: float = 0.0,
 ) -> ChannelModel:
     """The augmented model of one channel with the noise of ``family``.
@@ -205,9 +207,9 @@ def channel_model(
     >>> round(float(F[0, 1:] @ stationary @ F[0, 1:] + Q[0, 0]), 12)
     0.0001
     """
-    if sensor not in ("ma1", "diagonal"):
+    if sensor not in SENSOR_MODELS:
         raise InputError(
-            f"unknown sensor model {sensor!r}; use 'ma1' or 'diagonal'", field="sensor"
+            f"unknown sensor model {sensor!r}; use one of {SENSOR_MODELS}", field="sensor"
         )
     width, sigma_c, sigma_n = np.broadcast_arrays(*np.atleast_1d(width, sigma_c, sigma_n))
     shaping = get_family(family)
@@ -248,8 +250,26 @@ def _realisation(realise, width: np.ndarray, dt: float) -> tuple:
     return T[0], np.broadcast_to(g, (len(width), m)), c[0], np.broadcast_to(d, width.shape)
 
 
-def _field(prior: Mapping, path: str):
-    """``prior[a][b]..`` for ``path`` = "a.b..", or an InputError naming the missing field."""
+def prior_field(prior: Mapping, path: str):
+    """``prior[a][b]..`` for ``path`` = "a.b..", or an InputError naming the missing field.
+
+    Parameters
+    ----------
+    prior : mapping
+        An exported prior (:func:`bayes_jackal.export.export_prior`).
+    path : str
+        Keys joined by dots, e.g. ``"model.Ad"``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.filter_models import prior_field
+    >>> prior_field({"model": {"dt": 0.01}}, "model.dt")
+    0.01
+    >>> prior_field({"model": {}}, "model.Ad")
+    Traceback (most recent call last):
+    ...
+    bayes_jackal.errors.InputError: model.Ad: the prior has no field 'model.Ad'
+    """
     value = prior
     for key in path.split("."):
         if not isinstance(value, Mapping) or key not in value:
@@ -260,14 +280,26 @@ def _field(prior: Mapping, path: str):
 
 def _layout(prior: Mapping) -> ParameterLayout:
     """The prior's parameter layout: shared noise, one group per channel."""
-    noise = _field(prior, "noise")
-    family = _field(prior, "noise.family")
+    noise = prior_field(prior, "noise")
+    family = prior_field(prior, "noise.family")
     if family not in FAMILIES:
         raise InputError(
             f"unknown noise family {family!r}; use one of {list(FAMILIES)}", field="noise.family"
         )
-    channels = tuple(_field(prior, "noise.channels"))
-    return ParameterLayout(family, noise.get("sensor", "ma1"), channels, ("prior",), True)
+    channels = tuple(prior_field(prior, "noise.channels"))
+    return ParameterLayout(family, noise.get("sensor", SENSOR), channels, ("prior",), True)
+
+
+def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str, ...]:
+    """The channels asked for (None: all the prior's), each one the prior has."""
+    known = list(prior_field(prior, "noise.channels"))
+    channels = tuple(known if channels is None else channels)
+    missing = [c for c in channels if c not in known]
+    if missing:
+        raise InputError(
+            f"the prior has no channel {missing[0]!r}; it has {known}", field="channels"
+        )
+    return channels
 
 
 def check_prior(
@@ -315,10 +347,10 @@ def check_prior(
     dt: the prior is for 36 Hz (dt = 0.02778 s), the experiment is sampled at 72 Hz
     (dt = 0.01389 s)
     """
-    form = _field(prior, "format")
+    form = prior_field(prior, "format")
     if not str(form).startswith(_FORMAT_PREFIX):
         raise InputError(f"not an exported prior: format {form!r}", field="format")
-    constants = _field(prior, "robot")
+    constants = prior_field(prior, "robot")
     name = experiment.provenance.get("robot")
     if name is not None and name != constants.get("name"):
         raise InputError(
@@ -332,20 +364,14 @@ def check_prior(
                 f"{getattr(robot, key)!r}",
                 field=f"robot.{key}",
             )
-    dt = float(_field(prior, "dt"))
+    dt = float(prior_field(prior, "dt"))
     if not abs(experiment.dt / dt - 1.0) <= RATE_TOLERANCE:
         raise InputError(
             f"the prior is for {1 / dt:.4g} Hz (dt = {dt:.4g} s), the experiment is sampled "
             f"at {1 / experiment.dt:.4g} Hz (dt = {experiment.dt:.4g} s)",
             field="dt",
         )
-    known = list(_field(prior, "noise.channels"))
-    channels = tuple(known if channels is None else channels)
-    missing = [c for c in channels if c not in known]
-    if missing:
-        raise InputError(
-            f"the prior has no channel {missing[0]!r}; it has {known}", field="channels"
-        )
+    channels = _prior_channels(prior, channels)
     for channel in channels:
         experiment.channel(channel)  # a DataError when it is not measured
     return channels
@@ -425,20 +451,17 @@ def filter_models(
         )
     layout = _layout(prior)
     if parameters == "plug-in":
-        means = [_field(prior, f"noise.parameters.{n}.mean") for n in layout.names[2:]]
-        theta = np.array([[*_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
+        means = [prior_field(prior, f"noise.parameters.{n}.mean") for n in layout.names[2:]]
+        theta = np.array([[*prior_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
     else:
-        theta = np.column_stack([_field(prior, f"draws.{n}") for n in layout.names]).astype(float)
-    Ad, Bd = np.asarray(_field(prior, "model.Ad")), np.asarray(_field(prior, "model.Bd"))
-    dt = float(_field(prior, "dt"))
+        theta = np.column_stack([prior_field(prior, f"draws.{n}") for n in layout.names]).astype(
+            float
+        )
+    Ad, Bd = np.asarray(prior_field(prior, "model.Ad")), np.asarray(prior_field(prior, "model.Bd"))
+    dt = float(prior_field(prior, "dt"))
     family = layout.family if noise == "coloured" else "white"
     models = {}
-    for channel in layout.channels if channels is None else channels:
-        if channel not in layout.channels:
-            raise InputError(
-                f"the prior has no channel {channel!r}; it has {list(layout.channels)}",
-                field="channels",
-            )
+    for channel in _prior_channels(prior, channels):
         width, sigma_c, sigma_n = layout.noise_parameters(theta, layout.channels.index(channel))
         i = CHANNELS.index(channel)
         models[channel] = channel_model(

@@ -70,7 +70,7 @@ import scipy.special
 
 from .errors import InputError
 from .experiment import Experiment
-from .filter_models import check_prior
+from .filter_models import check_prior, prior_field
 from .lti import lti_outputs
 from .physics import CHANNELS
 from .robot import RobotProfile
@@ -482,13 +482,13 @@ def generalised_filter_prior(
     ((1873, 1, 2), True)
     """
     channels = check_prior(prior, experiment, channels, robot=robot)
-    known = list(prior["noise"]["channels"])
-    dt = float(prior["dt"])
-    coordinates = prior["generalised_coordinates"]
-    order = int(coordinates["order"])
-    precision = np.asarray(coordinates["precision"], float)
+    known = list(prior_field(prior, "noise.channels"))
+    dt = float(prior_field(prior, "dt"))
+    order = int(prior_field(prior, "generalised_coordinates.order"))
+    precision = np.asarray(prior_field(prior, "generalised_coordinates.precision"), float)
     precision = precision.reshape(order + 1, len(known), order + 1, len(known))
-    A, B = np.asarray(prior["model"]["A"], float), np.asarray(prior["model"]["B"], float)
+    A = np.asarray(prior_field(prior, "model.A"), float)
+    B = np.asarray(prior_field(prior, "model.B"), float)
     estimates = []
     for k, channel in enumerate(channels):
         c, row = known.index(channel), CHANNELS.index(channel)
@@ -517,16 +517,11 @@ def _sensor_precision(
     Read from the prior's ``sensor_noise`` block, keyed by channel whatever
     the posterior's parameter names (a one-channel fit names it ``sigma_n``).
     """
-    sensor = prior.get("sensor_noise")
-    if sensor is None:
+    if prior.get("sensor_noise") is None:
         raise InputError(
             "the prior has no sensor-noise sd (its noise fit has one total sd): "
             "pass sensor_precision",
             field="sensor_noise",
         )
-    summary = sensor["sd"].get(channel)
-    if summary is None:
-        raise InputError(
-            f"the prior has no sensor-noise sd of channel {channel!r}", field="sensor_noise.sd"
-        )
-    return white_sensor_precision(order, dt, float(summary["mean"]), lookahead=lookahead)
+    sigma = prior_field(prior, f"sensor_noise.sd.{channel}.mean")
+    return white_sensor_precision(order, dt, float(sigma), lookahead=lookahead)

@@ -264,7 +264,7 @@ def test_prior_dict_drives_the_filter_per_channel():
     with pytest.raises(InputError, match="experiment is sampled at 72 Hz"):
         generalised_filter_prior(run, prior | {"dt": 0.01})
     del prior["sensor_noise"]["sd"]["vx"]
-    with pytest.raises(InputError, match="no sensor-noise sd of channel 'vx'"):
+    with pytest.raises(InputError, match=r"no field 'sensor_noise\.sd\.vx\.mean'"):
         generalised_filter_prior(run, prior)
     with pytest.raises(InputError, match="pass sensor_precision"):
         generalised_filter_prior(run, prior | {"sensor_noise": None})
