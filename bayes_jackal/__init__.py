@@ -19,8 +19,17 @@ _LAZY = {
     "compare": ".api",
     "export_prior": ".export",
     "write_prior": ".export",
+    "read_prior": ".export",
     "write_report": ".report",
     "analyse_logs": ".workflow",
+    # state estimation with a prior (the filters)
+    "FILTERS": ".state_estimation",
+    "estimate_columns": ".state_estimation",
+    "estimate_states": ".state_estimation",
+    "generalised_filter": ".generalised_filtering",
+    "kalman_filter": ".kalman",
+    "score_estimates": ".state_estimation",
+    "write_estimates": ".state_estimation",
     # what it takes and gives
     "Comparison": ".comparison_result",
     "ConvergenceWarning": ".sampler_warnings",

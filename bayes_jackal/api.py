@@ -92,7 +92,8 @@ def likelihood_options(
     Returns
     -------
     dict
-        ``channels``, ``shared_noise``, ``sensor`` and ``engine``.
+        ``channels``, ``shared_noise``, ``sensor``, ``engine`` and
+        ``shared_width`` (``noise="one-width"``: shared noise, one width).
 
     Raises
     ------
@@ -103,16 +104,21 @@ def likelihood_options(
     Examples
     --------
     >>> from bayes_jackal.api import likelihood_options
-    >>> likelihood_options(noise="per-experiment")
-    {'channels': None, 'shared_noise': False, 'sensor': 'ma1', 'engine': 'fast'}
+    >>> likelihood_options(noise="per-experiment")  # doctest: +NORMALIZE_WHITESPACE
+    {'channels': None, 'shared_noise': False, 'sensor': 'ma1', 'engine': 'fast',
+     'shared_width': False}
+    >>> options = likelihood_options(noise="one-width")
+    >>> options["shared_noise"], options["shared_width"]
+    (True, True)
     """
     if noise not in NOISE_SHARING:
         raise InputError(f"unknown noise {noise!r}; use one of {NOISE_SHARING}", field="noise")
     return {
         "channels": channels,
-        "shared_noise": noise == NOISE_SHARING[0],
+        "shared_noise": noise != "per-experiment",
         "sensor": sensor,
         "engine": engine,
+        "shared_width": noise == "one-width",
     }
 
 
@@ -301,8 +307,9 @@ def sample(
         (``--family``; :data:`FAMILY`).
     channels : sequence of {"yaw", "vx", "vy"}, optional
         By default every channel all experiments measure (``--channels``).
-    noise : {"shared", "per-experiment"}
-        Pooled experiments' noise parameters (``--noise``; :data:`NOISE`).
+    noise : {"shared", "per-experiment", "one-width"}
+        Pooled experiments' noise parameters (``--noise``; :data:`NOISE`):
+        "one-width" shares them too, with one width for every channel.
     sensor : {"ma1", "diagonal"}
         Sensor-noise footprint (``--sensor-noise``; :data:`SENSOR`).
     engine : {"fast", "exact", "whittle"}

@@ -237,7 +237,7 @@ def compare_groups(
     prior_overrides : dict, optional
         As in :func:`bayes_jackal.inference.sample_posterior`.
     likelihood_options : mapping, optional
-        ``channels``, ``shared_noise``, ``sensor``, ``engine`` of
+        ``channels``, ``shared_noise``, ``shared_width``, ``sensor``, ``engine`` of
         :class:`ResidualLikelihood`, for every group. Without ``channels``
         each group sees every channel measured in all its experiments.
     cross_check : bool
@@ -461,7 +461,7 @@ def compare_families(
         for a Dask cluster (no progress bars there). Default:
         ``ProcessExecutor(processes)``.
     **likelihood_options
-        ``channels``, ``shared_noise``, ``sensor``, ``engine`` of
+        ``channels``, ``shared_noise``, ``shared_width``, ``sensor``, ``engine`` of
         :class:`ResidualLikelihood`. Without ``channels`` (or with None)
         every family sees every channel measured in all experiments
         (:func:`~bayes_jackal.likelihood.resolve_channels`).

@@ -26,6 +26,9 @@ __all__ = [
     "EXPERIMENT_FORMATS",
     "FAMILY",
     "FIGURE_FORMATS",
+    "FILTERS",
+    "FILTER_PARAMETERS",
+    "LOOKAHEAD",
     "MAX_GAP",
     "MAX_GAP_STEPS",
     "MAX_STEPS",
@@ -40,9 +43,12 @@ __all__ = [
     "ROLES",
     "SENSOR",
     "SENSOR_MODELS",
+    "SENSOR_PRECISIONS",
+    "SENSOR_SMOOTHNESS",
     "SERIES_COUNTS",
     "SHARED_NOISE",
     "SIMULATED_NOISE",
+    "STATE_ESTIMATION",
     "THESIS_CHANNEL",
     "WALKERS",
 ]
@@ -69,8 +75,9 @@ SENSOR = "ma1"
 #: Likelihood engines (``--engine``) and the default.
 ENGINES = ("fast", "exact", "whittle")
 ENGINE = "fast"
-#: Noise parameters of pooled experiments (``--noise``): shared, or each experiment's own.
-NOISE_SHARING = ("shared", "per-experiment")
+#: Noise parameters of pooled experiments (``--noise``): shared, each experiment's own,
+#: or shared with one width for every channel (``ParameterLayout.shared_width``).
+NOISE_SHARING = ("shared", "per-experiment", "one-width")
 #: ... shared by default (``ResidualLikelihood.shared_noise``).
 SHARED_NOISE = True
 NOISE = NOISE_SHARING[0 if SHARED_NOISE else 1]
@@ -129,5 +136,27 @@ MAX_GAP_STEPS = 5
 # -- outputs (export, report)
 #: The embedding order of ``export_prior(order=None)`` where the family allows it.
 AUTO_ORDER = 2
+#: Smoothness of the white sensor noise in Pi_z [time bins]: SPM's default
+#: ``E.s``; its derivative has the variance of white noise's one-step
+#: difference, 2 sigma_n^2 per bin^2 (``export_consumers.SENSOR_SMOOTHNESS``).
+SENSOR_SMOOTHNESS = 0.5
 #: Figure files written beside a report (``report --formats``).
 FIGURE_FORMATS = ("png", "svg")
+
+# -- state estimation with a prior (filter_models, kalman, generalised_filtering, state_estimation)
+#: The filters (``filter --filters``): the white and coloured Kalman
+#: filters, and the generalised filter (``state_estimation.FILTERS``).
+FILTERS = ("kalman", "kalman-coloured", "generalised")
+#: The filters' noise parameters: at the posterior means, or averaged over
+#: the prior's draws (``filter_models.PARAMETERS``); the first is the default.
+FILTER_PARAMETERS = ("plug-in", "averaged")
+#: Pi_z of the generalised filter: embedded white noise, or the prior's
+#: Gaussian sensor smoothness (``generalised_filtering.SENSOR_PRECISIONS``); the
+#: first is the default.
+SENSOR_PRECISIONS = ("white", "exported")
+#: Samples after t_k in the generalised filter's embedding: 0, causal
+#: (``generalised_filtering.LOOKAHEAD``).
+LOOKAHEAD = 0
+#: Whether ``analyse`` scores the filters on each run left out of the prior
+#: (``analyse --no-state-estimation`` turns it off; ``leave_one_out``).
+STATE_ESTIMATION = True

@@ -21,6 +21,7 @@ from pathlib import Path
 from . import __version__
 from ._files import write_json
 from .bag_writer import write_bag
+from .defaults import STATE_ESTIMATION
 from .inference import SamplerSettings
 from .kernels import as_rng
 from .robot import RobotProfile, load_profile
@@ -92,7 +93,13 @@ def make_demo_bags(folder: str | Path, robot: RobotProfile | None = None) -> Pat
     return write_json(folder / MANIFEST, manifest)
 
 
-def run_demo(folder: str | Path, say: Callable[[str], None], progress: bool = True) -> dict:
+def run_demo(
+    folder: str | Path,
+    say: Callable[[str], None],
+    progress: bool = True,
+    *,
+    state_estimation: bool = STATE_ESTIMATION,
+) -> dict:
     """Run :func:`bayes_jackal.workflow.analyse_logs` on the shipped bags into ``folder``.
 
     The runs keep their simulated series labels and truth from the manifest.
@@ -105,6 +112,9 @@ def run_demo(folder: str | Path, say: Callable[[str], None], progress: bool = Tr
         Receives the progress and summary lines.
     progress : bool
         Show the chains' progress on stderr.
+    state_estimation : bool
+        Score the filters on each run with the prior fitted to the other run
+        (two more posteriors, ~50 s; :func:`~bayes_jackal.workflow.analyse_logs`).
 
     Returns
     -------
@@ -113,7 +123,7 @@ def run_demo(folder: str | Path, say: Callable[[str], None], progress: bool = Tr
 
     Examples
     --------
-    The demo takes about 5 minutes on 2 cores, so its call is not run here
+    The demo takes about 6 minutes on 2 cores, so its call is not run here
     (``tests/test_workflow.py`` runs it and checks the truth is recovered):
 
     >>> import tempfile
@@ -142,5 +152,6 @@ def run_demo(folder: str | Path, say: Callable[[str], None], progress: bool = Tr
         labels={
             path: {"series": run["series"], "truth": run["truth"]} for path, run in bags.items()
         },
+        state_estimation=state_estimation,
         say=say,
     )

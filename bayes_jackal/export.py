@@ -43,6 +43,7 @@ the damping prior on the entries of A and B.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -51,12 +52,13 @@ import numpy as np
 from . import __version__
 from ._files import write_json
 from .defaults import AUTO_ORDER
-from .errors import InputError
+from .errors import DataError, InputError
 from .export_consumers import (
     SENSOR_SMOOTHNESS,
     channel_moments,
     check_sensor_smoothness,
     generalised_precision,
+    mean_covariance_precision,
     prior_additions,
 )
 from .kernels import get_family
@@ -81,6 +83,7 @@ __all__ = [
     "allowed_orders",
     "autocorrelation_derivatives",
     "export_prior",
+    "read_prior",
     "temporal_covariance",
     "write_prior",
 ]
@@ -327,6 +330,7 @@ def export_prior(
         "noise": {
             "family": family,
             "width_name": width_name,
+            "shared_width": bool(layout.shared_bases),
             "channels": channels,
             "parameters": noise_stats,
             "sigma_c_is": "process" if "sigma_n" in layout.noise_bases else "total",
@@ -341,6 +345,7 @@ def export_prior(
             "temporal_precision": S.mean(axis=0).tolist(),
             "noise_covariance": np.diag((continuous_sd**2).mean(axis=0)).tolist(),
             "precision": generalised_precision(S, continuous_sd).tolist(),
+            "precision_mean_covariance": mean_covariance_precision(V, continuous_sd).tolist(),
         },
         "draws": {
             "count": len(kept),
@@ -394,3 +399,52 @@ def write_prior(prior: dict, path: str | Path) -> Path:
     ('prior.json', 'bayes_jackal.prior/1', 'white')
     """
     return write_json(path, prior, indent=1)
+
+
+def read_prior(path: str | Path) -> dict:
+    """Read a prior written by :func:`write_prior` (``prior.json``).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    dict
+        As :func:`export_prior` made it.
+
+    Raises
+    ------
+    DataError
+        For a file that is missing, not JSON, or not an exported prior (its
+        ``format``), naming the file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.export import read_prior
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "prior.json"
+    ...     _ = path.write_text('{"format": "bayes_jackal.posterior/1"}')
+    ...     try:
+    ...         read_prior(path)
+    ...     except ValueError as error:
+    ...         print(str(error).split(": ", 1)[1])
+    format: not a prior of this package: 'bayes_jackal.posterior/1' (expected bayes_jackal.prior/1)
+    """
+    source = str(path)
+    try:
+        prior = json.loads(Path(path).read_text())
+    except OSError as error:
+        raise DataError(f"cannot read: {error.strerror}", source=source) from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise DataError(f"not JSON: {error}", source=source) from None
+    form = prior.get("format") if isinstance(prior, dict) else None
+    if not (isinstance(form, str) and form.split("/")[0] == PRIOR_FORMAT.split("/")[0]):
+        raise DataError(
+            f"not a prior of this package: {form!r} (expected {PRIOR_FORMAT})",
+            source=source,
+            field="format",
+        )
+    return prior

@@ -33,6 +33,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .defaults import SENSOR_SMOOTHNESS
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import get_family
@@ -46,13 +47,10 @@ __all__ = [
     "generalised_precision",
     "log_precision_moments",
     "matrix_prior",
+    "mean_covariance_precision",
     "operating_point",
 ]
 
-#: Smoothness of the white sensor noise in Pi_z [time bins]: SPM's default
-#: ``E.s``; its derivative has the variance of white noise's one-step
-#: difference, 2 sigma_n^2 per bin^2.
-SENSOR_SMOOTHNESS = 0.5
 #: Relative step of the damping for the Jacobian of A, B (exact: they are linear in it).
 _STEP = 1e-3
 
@@ -89,6 +87,45 @@ def generalised_precision(temporal_precision: np.ndarray, sd: np.ndarray) -> np.
     S = np.broadcast_to(temporal_precision, (*sd.shape, size, size))
     blocks = np.einsum("dcij,ce->dicje", S / sd[..., None, None] ** 2, np.eye(n))
     return blocks.reshape(len(sd), size * n, size * n).mean(axis=0)
+
+
+def mean_covariance_precision(temporal_covariance: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """Pi from the draws' mean covariance: sum_c inv(E[sd_c^2 V_c]) kron e_c e_c'.
+
+    The Gaussian that matches the noise's covariance under the posterior
+    (what the filters' ``averaged`` parameters use); :func:`generalised_precision`
+    averages the precision instead, E[inv(V_c) / sd_c^2], which is larger
+    (Jensen's inequality) by as much as the draws spread.
+
+    Parameters
+    ----------
+    temporal_covariance : ndarray, shape (draws, channels, P + 1, P + 1) or (P + 1, P + 1)
+        V per draw and channel, or one for all.
+    sd : ndarray, shape (draws, channels)
+        The noise sd per draw and channel [channel units].
+
+    Returns
+    -------
+    ndarray, shape ((P + 1) C, (P + 1) C)
+        Row i * C + c is derivative i of channel c.
+
+    Examples
+    --------
+    One channel at order 0 whose sd is 1 or 3: the mean covariance is 5, so
+    Pi = 1/5, where the mean precision is (1 + 1/9) / 2 = 0.556:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.export_consumers import generalised_precision, mean_covariance_precision
+    >>> sd = np.array([[1.0], [3.0]])  # (draws, channels)
+    >>> float(mean_covariance_precision(np.eye(1), sd)[0, 0])
+    0.2
+    >>> round(float(generalised_precision(np.eye(1), sd)[0, 0]), 3)
+    0.556
+    """
+    n, size = sd.shape[1], temporal_covariance.shape[-1]
+    V = np.broadcast_to(temporal_covariance, (*sd.shape, size, size))
+    blocks = np.linalg.inv((V * sd[..., None, None] ** 2).mean(axis=0))  # (channels, P+1, P+1)
+    return np.einsum("cij,ce->icje", blocks, np.eye(n)).reshape(size * n, size * n)
 
 
 def gaussian_smoothness(family: str, width: np.ndarray) -> np.ndarray | None:
@@ -457,6 +494,9 @@ def prior_additions(
             "temporal_precision_bins": inverse_bins.mean(axis=0).tolist(),
             "process_sd_bins": channel_moments(continuous_sd * dt, channels),
             "precision_bins": generalised_precision(inverse_bins, continuous_sd * dt).tolist(),
+            "precision_mean_covariance_bins": mean_covariance_precision(
+                temporal_bins, continuous_sd * dt
+            ).tolist(),
         },
         "sensor_noise": None
         if sigma_n is None

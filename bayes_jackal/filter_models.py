@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .defaults import SENSOR, SENSOR_MODELS
+from .defaults import FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import FAMILIES, Family, get_family
@@ -69,6 +69,7 @@ __all__ = [
     "channel_model",
     "check_prior",
     "filter_models",
+    "noise_parameters",
     "prior_field",
 ]
 
@@ -78,7 +79,7 @@ __all__ = [
 NOISE_MODELS = ("coloured", "white")
 #: The noise parameters of a model: at their posterior means, or Q and R
 #: averaged over the prior's draws (:func:`channel_model`).
-PARAMETERS = ("plug-in", "averaged")
+PARAMETERS = FILTER_PARAMETERS
 #: Largest relative difference between an experiment's sample time and the
 #: prior's: the discrete pole is exp(a dt), so 1 % in dt moves ln(alpha) by 1 %.
 RATE_TOLERANCE = 0.01
@@ -279,7 +280,7 @@ def prior_field(prior: Mapping, path: str):
 
 
 def _layout(prior: Mapping) -> ParameterLayout:
-    """The prior's parameter layout: shared noise, one group per channel."""
+    """The prior's parameter layout: shared noise, one group per channel (and one width)."""
     noise = prior_field(prior, "noise")
     family = prior_field(prior, "noise.family")
     if family not in FAMILIES:
@@ -287,7 +288,10 @@ def _layout(prior: Mapping) -> ParameterLayout:
             f"unknown noise family {family!r}; use one of {list(FAMILIES)}", field="noise.family"
         )
     channels = tuple(prior_field(prior, "noise.channels"))
-    return ParameterLayout(family, noise.get("sensor", SENSOR), channels, ("prior",), True)
+    shared_width = bool(noise.get("shared_width", False))  # absent before one-width
+    return ParameterLayout(
+        family, noise.get("sensor", SENSOR), channels, ("prior",), True, shared_width
+    )
 
 
 def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str, ...]:
@@ -445,24 +449,13 @@ def filter_models(
         raise InputError(
             f"unknown noise model {noise!r}; use one of {NOISE_MODELS}", field="noise"
         )
-    if parameters not in PARAMETERS:
-        raise InputError(
-            f"unknown parameters {parameters!r}; use one of {PARAMETERS}", field="parameters"
-        )
     layout = _layout(prior)
-    if parameters == "plug-in":
-        means = [prior_field(prior, f"noise.parameters.{n}.mean") for n in layout.names[2:]]
-        theta = np.array([[*prior_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
-    else:
-        theta = np.column_stack([prior_field(prior, f"draws.{n}") for n in layout.names]).astype(
-            float
-        )
     Ad, Bd = np.asarray(prior_field(prior, "model.Ad")), np.asarray(prior_field(prior, "model.Bd"))
     dt = float(prior_field(prior, "dt"))
     family = layout.family if noise == "coloured" else "white"
     models = {}
     for channel in _prior_channels(prior, channels):
-        width, sigma_c, sigma_n = layout.noise_parameters(theta, layout.channels.index(channel))
+        width, sigma_c, sigma_n = noise_parameters(prior, channel, parameters=parameters)
         i = CHANNELS.index(channel)
         models[channel] = channel_model(
             channel,
@@ -477,3 +470,61 @@ def filter_models(
             initial_variance=initial_variance,
         )
     return models
+
+
+def noise_parameters(
+    prior: Mapping, channel: str, *, parameters: str = "plug-in"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The noise parameters of one channel of an exported prior.
+
+    Parameters
+    ----------
+    prior : mapping
+        An exported prior (:func:`bayes_jackal.export.export_prior`).
+    channel : str
+        One of the prior's channels.
+    parameters : {"plug-in", "averaged"}
+        The posterior means (one value each) or the prior's draws.
+
+    Returns
+    -------
+    width, sigma_c, sigma_n : ndarray, shape (1,) or (draws,)
+        The family's width [s] (1 for white noise), the per-step process sd
+        and the sensor sd [channel units] (0 where the fit has one total sd).
+
+    Raises
+    ------
+    InputError
+        For an unknown ``parameters``, a channel the prior lacks or a
+        missing field (named).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.filter_models import noise_parameters
+    >>> prior = {"damping": {"mean": [110.0, 30.0]},
+    ...          "noise": {"family": "gaussian", "channels": ["yaw"], "sensor": "ma1",
+    ...                    "parameters": {"sigma_h": {"mean": 0.05}, "sigma_c": {"mean": 0.01},
+    ...                                   "sigma_n": {"mean": 0.005}}},
+    ...          "draws": {"d_lat": [100.0, 120.0], "d_long": [30.0, 30.0],
+    ...                    "sigma_h": [0.04, 0.06], "sigma_c": [0.01, 0.01],
+    ...                    "sigma_n": [0.004, 0.006]}}
+    >>> [float(v[0]) for v in noise_parameters(prior, "yaw")]
+    [0.05, 0.01, 0.005]
+    >>> noise_parameters(prior, "yaw", parameters="averaged")[0].tolist()
+    [0.04, 0.06]
+    """
+    if parameters not in PARAMETERS:
+        raise InputError(
+            f"unknown parameters {parameters!r}; use one of {PARAMETERS}", field="parameters"
+        )
+    layout = _layout(prior)
+    (channel,) = _prior_channels(prior, [channel])
+    if parameters == "plug-in":
+        means = [prior_field(prior, f"noise.parameters.{n}.mean") for n in layout.names[2:]]
+        theta = np.array([[*prior_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
+    else:
+        theta = np.column_stack([prior_field(prior, f"draws.{n}") for n in layout.names]).astype(
+            float
+        )
+    return layout.noise_parameters(theta, layout.channels.index(channel))

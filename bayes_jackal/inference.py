@@ -194,6 +194,8 @@ def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, see
         "likelihood": {
             "channels": list(likelihood.channels),
             "shared_noise": likelihood.shared_noise,
+            # only when set: chains written before the option still resume
+            **({"shared_width": True} if likelihood.shared_width else {}),
             "sensor": likelihood.sensor,
             "engine": likelihood.engine,
             "steady": likelihood.steady,

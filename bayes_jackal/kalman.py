@@ -10,8 +10,8 @@ E[x_k | y_0..y_k, u] and its variance:
     P_k|k = (I - K_k H) P_k|k-1 (I - K_k H)' + R K_k K_k'   (Joseph form),
     m_k+1|k = F m_k|k + G u_k,     P_k+1|k = F P_k|k F' + Q,
 
-from the model's prior (m_0|-1, P_0|-1). The two filters of issue 14 are
-this code on two models (:data:`FILTERS`): ``kalman`` assumes white process
+from the model's prior (m_0|-1, P_0|-1). The two Kalman filters are
+this code on two models (:data:`KALMAN_FILTERS`): ``kalman`` assumes white process
 noise (the baseline), ``kalman-coloured`` carries the noise family's
 shaping filter in its state, which makes it the exact conditional mean
 under the identified model.
@@ -40,14 +40,26 @@ from .filter_models import ChannelModel, check_prior, filter_models
 from .lti import lti_outputs
 from .robot import RobotProfile
 
-__all__ = ["CONVERGED", "FILTERS", "TRUNCATION", "StateEstimate", "kalman", "kalman_filter"]
+__all__ = [
+    "CONVERGED",
+    "DIFFUSE",
+    "KALMAN_FILTERS",
+    "TRUNCATION",
+    "StateEstimate",
+    "kalman",
+    "kalman_filter",
+]
 
 #: The Kalman filters by name, and the process-noise model each assumes
 #: (:data:`bayes_jackal.filter_models.NOISE_MODELS`).
-FILTERS = {"kalman": "white", "kalman-coloured": "coloured"}
+KALMAN_FILTERS = {"kalman": "white", "kalman-coloured": "coloured"}
 #: Relative change of P_k+1|k (largest entry) below which the gain is taken
 #: as converged: a gain error of ~1e-14, far below the data's precision.
 CONVERGED = 1e-14
+#: Variance of the state before the run [channel units^2] when none is
+#: given: diffuse, so the first estimate is the first measurement's (a run
+#: recorded in motion does not start at rest).
+DIFFUSE = 1e6
 #: Largest entry of A^j below which the steady filter's impulse response is cut.
 TRUNCATION = 1e-14
 
@@ -68,6 +80,9 @@ class StateEstimate:
         S_k [channel units^2]: nu_k^2 / S_k is chi-square(1) under the model.
     steady_from : int
         First step run with the converged gain (N: none).
+    derivatives : ndarray or None
+        The generalised filter's mu~, shape (N, p + 1) [units / s^j]; None
+        for the Kalman filters.
 
     Examples
     --------
@@ -83,6 +98,7 @@ class StateEstimate:
     innovation: np.ndarray
     innovation_variance: np.ndarray
     steady_from: int
+    derivatives: np.ndarray | None = None
 
 
 def kalman(
@@ -202,7 +218,7 @@ def kalman_filter(
     channels: Sequence[str] | None = None,
     parameters: str = "plug-in",
     robot: RobotProfile | None = None,
-    initial_variance: float = 0.0,
+    initial_variance: float = DIFFUSE,
     fast: bool = True,
 ) -> dict[str, StateEstimate]:
     """The Kalman filter of every channel of an experiment, with an exported prior's model.
@@ -213,7 +229,7 @@ def kalman_filter(
     prior : mapping
         An exported prior (:func:`bayes_jackal.export.export_prior`, ``prior.json``).
     noise : {"coloured", "white"}
-        ``kalman-coloured`` or ``kalman`` (:data:`FILTERS`,
+        ``kalman-coloured`` or ``kalman`` (:data:`KALMAN_FILTERS`,
         :func:`bayes_jackal.filter_models.filter_models`).
     channels : sequence of str, optional
         By default every channel of the prior.
@@ -223,8 +239,8 @@ def kalman_filter(
     robot : RobotProfile, optional
         When given, its constants must be the prior's.
     initial_variance : float
-        Variance of the state one step before the run [channel units^2];
-        0: the run starts at rest.
+        Variance of the state one step before the run, around 0 [channel
+        units^2]: :data:`DIFFUSE` by default; 0: the run starts at rest.
     fast : bool
         See :func:`kalman`.
 

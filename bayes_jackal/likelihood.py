@@ -345,7 +345,8 @@ class ResidualLikelihood:
 
     The damping (d_lat, d_long) is shared; each channel has its own noise
     parameters, shared across experiments (``shared_noise=True``) or
-    separate per experiment: :attr:`layout` (a
+    separate per experiment, and a width of its own or one width for all
+    (``shared_width``): :attr:`layout` (a
     :class:`~bayes_jackal.parameters.ParameterLayout`) names them, their
     groups and columns. Log-likelihoods of experiments add: series are never
     concatenated.
@@ -371,6 +372,10 @@ class ResidualLikelihood:
         With the ``fast`` engine, evaluate parameter sets the spectral
         method cannot certify (long memory) by the recursion (True), or give
         them -inf (False: a quick, exact-where-defined scan of the prior).
+    shared_width : bool
+        One width for every channel and experiment (True), or the family's
+        width in every noise group (False; ``--noise one-width`` is True
+        with ``shared_noise``). No effect for white noise, which has none.
 
     Examples
     --------
@@ -415,6 +420,7 @@ class ResidualLikelihood:
     engine: str = ENGINE
     steady: bool = True
     fallback: bool = True
+    shared_width: bool = False
     layout: ParameterLayout = field(init=False)
     blocks: list[ResidualBlock] = field(init=False, repr=False)
 
@@ -435,6 +441,7 @@ class ResidualLikelihood:
             self.channels,
             tuple(e.name for e in self.experiments),
             self.shared_noise,
+            shared_width=self.shared_width,
         )
         self.blocks = self._build_blocks()
 

@@ -3,7 +3,7 @@
 Both filters of issue 14 become such a recursion once their gains are
 constant: the Kalman filter after its covariance has converged
 (:mod:`bayes_jackal.kalman`), the generalised filter from the start
-(:mod:`bayes_jackal.generalised_filter`). For
+(:mod:`bayes_jackal.generalised_filtering`). For
 
     x_i = T x_(i-1) + C d_i,   z_i = O x_i,   i = 0 .. N-1,   x_(-1) = x_start,
 

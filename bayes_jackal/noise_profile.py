@@ -91,10 +91,12 @@ def profile_starts(
     -------
     theta : ndarray, shape (starts, P)
         Damping points with every group's best noise, best first (natural
-        units, inside the box).
+        units, inside the box). A width every group shares
+        (``shared_width``) is the geometric mean of the groups' best ones.
     profile : ndarray, shape (starts,)
         Their Whittle log-likelihoods (-inf where no noise setting of some
-        group is valid).
+        group is valid); with a shared width, the sum of each group's best,
+        an upper bound of the likelihood at ``theta``.
 
     Examples
     --------
@@ -128,11 +130,16 @@ def profile_starts(
     theta = np.repeat(np.sqrt(low * high)[None], damping_points, axis=0)
     theta[:, :2] = damping
     total = np.zeros(damping_points)
-    for group in range(len(likelihood.noise_groups)):
-        columns = likelihood.layout.noise_columns(group)
+    layout = likelihood.layout
+    shared = [layout.column(base) for base in layout.shared_bases]
+    log_shared = np.zeros((damping_points, len(shared)))
+    for group in range(len(layout.groups)):
+        columns = layout.noise_columns(group)
         loglike, noise = _group_profile(likelihood, group, damping, low[columns], high[columns])
         total += loglike
         theta[:, columns] = noise
+        log_shared += np.log(theta[:, shared])
+    theta[:, shared] = np.exp(log_shared / len(layout.groups))
     order = np.argsort(np.where(np.isnan(total), -np.inf, total))[::-1][:starts]
     return np.clip(theta[order], low, high), total[order]
 

@@ -5,7 +5,9 @@ parameters). A noise group is one channel's noise, shared by every
 experiment (``shared_noise``, group key :data:`SHARED_GROUP`) or one per
 experiment and channel. Each group has the family's width (none for white
 noise), ``sigma_c`` and ``sigma_n`` (none for white noise with the diagonal
-sensor term, where ``sigma_c`` is the total sd). :class:`ParameterLayout`
+sensor term, where ``sigma_c`` is the total sd); with ``shared_width`` the
+width is one parameter, after the damping, that every group shares (the one
+smoothness of SPM's ``spm_DEM_R`` and dempy). :class:`ParameterLayout`
 is the one place that knows this: the likelihood, the priors, the posterior
 file and everything that reads one ask it for names, groups and columns
 instead of building or splitting names. :func:`prior_overrides` validates
@@ -65,6 +67,10 @@ class ParameterLayout:
         Experiment names, in order.
     shared_noise : bool
         One noise group per channel (True) or per experiment and channel.
+    shared_width : bool
+        One width parameter for every group (True; column 2, named without
+        a group), or one per group (False, the default). Families without a
+        width (white) have the same layout either way.
 
     The derived names and groups are computed once per layout.
 
@@ -76,6 +82,14 @@ class ParameterLayout:
     ('d_lat', 'd_long', 'sigma_h[yaw]', 'sigma_c[yaw]', 'sigma_n[yaw]')
     >>> layout.column("sigma_c", layout.group("vx", "v1"))
     6
+
+    One width shared by both channels: one column, read by every group.
+
+    >>> one = ParameterLayout("gaussian", "ma1", ("yaw", "vx"), ("v1",), True, shared_width=True)
+    >>> one.names
+    ('d_lat', 'd_long', 'sigma_h', 'sigma_c[yaw]', 'sigma_n[yaw]', 'sigma_c[vx]', 'sigma_n[vx]')
+    >>> one.noise_columns(1)
+    [2, 5, 6]
     """
 
     family: str
@@ -83,6 +97,7 @@ class ParameterLayout:
     channels: tuple[str, ...]
     experiments: tuple[str, ...]
     shared_noise: bool
+    shared_width: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(self.channels))
@@ -129,6 +144,17 @@ class ParameterLayout:
         one_sd = not family.has_width and self.sensor == "diagonal"
         return (*width, "sigma_c", *(() if one_sd else ("sigma_n",)))
 
+    @cached_property
+    def shared_bases(self) -> tuple[str, ...]:
+        """Parameters every group shares, one column each: the width with ``shared_width``."""
+        width = self.width_name
+        return (width,) if self.shared_width and width is not None else ()
+
+    @cached_property
+    def group_bases(self) -> tuple[str, ...]:
+        """Noise parameters with a column per group: :attr:`noise_bases` less the shared ones."""
+        return tuple(base for base in self.noise_bases if base not in self.shared_bases)
+
     def label(self, group: int) -> str:
         """Coordinate label of a noise group: its channel, experiment, or both."""
         channel, experiment = self.groups[group]
@@ -143,18 +169,22 @@ class ParameterLayout:
 
     @cached_property
     def names(self) -> tuple[str, ...]:
-        """Names in parameter-vector order: ``sigma_h[yaw]`` (no suffix for one group)."""
+        """Names in vector order: ``sigma_h[yaw]`` (no suffix for one group or a shared one)."""
         single = len(self.groups) == 1
-        return DAMPING + tuple(
-            base if single else f"{base}[{self.label(g)}]"
-            for g in range(len(self.groups))
-            for base in self.noise_bases
+        return (
+            DAMPING
+            + self.shared_bases
+            + tuple(
+                base if single else f"{base}[{self.label(g)}]"
+                for g in range(len(self.groups))
+                for base in self.group_bases
+            )
         )
 
     @cached_property
     def bases(self) -> tuple[str, ...]:
         """Base name of each column (``sigma_h`` for ``sigma_h[yaw]``)."""
-        return DAMPING + self.noise_bases * len(self.groups)
+        return DAMPING + self.shared_bases + self.group_bases * len(self.groups)
 
     def names_of(self, base: str) -> tuple[str, ...]:
         """The names of parameter ``base`` in every group (``sigma_h[yaw]``, ``sigma_h[vx]``)."""
@@ -162,24 +192,30 @@ class ParameterLayout:
 
     @cached_property
     def column_groups(self) -> tuple[int | None, ...]:
-        """Noise group of each column; None for the damping."""
-        per_group = len(self.noise_bases)
-        return (None,) * len(DAMPING) + tuple(
+        """Noise group of each column; None for the damping and the shared parameters."""
+        per_group = len(self.group_bases)
+        return (None,) * (len(DAMPING) + len(self.shared_bases)) + tuple(
             g for g in range(len(self.groups)) for _ in range(per_group)
         )
 
     def column(self, base: str, group: int | None = None) -> int:
-        """Column of parameter ``base`` (of noise group ``group``) in the vector."""
-        if base in DAMPING:
-            return DAMPING.index(base)
-        if base not in self.noise_bases or group is None or not 0 <= group < len(self.groups):
+        """Column of parameter ``base`` (of noise group ``group``) in the vector.
+
+        The damping and the shared parameters (:attr:`shared_bases`) have one
+        column, whatever the group.
+        """
+        shared = DAMPING + self.shared_bases
+        if base in shared:
+            return shared.index(base)
+        if base not in self.group_bases or group is None or not 0 <= group < len(self.groups):
             raise InputError(
                 f"no parameter {base!r} of group {group}; this model has {list(self.names)}"
             )
-        return len(DAMPING) + group * len(self.noise_bases) + self.noise_bases.index(base)
+        per_group = len(self.group_bases)
+        return len(shared) + group * per_group + self.group_bases.index(base)
 
     def noise_columns(self, group: int) -> list[int]:
-        """Columns of one group's noise parameters, in :attr:`noise_bases` order."""
+        """Columns of a group's noise parameters (shared ones too), in ``noise_bases`` order."""
         return [self.column(base, group) for base in self.noise_bases]
 
     def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:

@@ -92,12 +92,12 @@ INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
 
 
 def _noise_variables(layout: ParameterLayout, draws: np.ndarray) -> tuple[dict, dict]:
-    """Noise parameters as variables: scalars for one group, else along noise_group."""
+    """Noise parameters as variables: scalars where one column serves all, else by noise_group."""
     groups = range(len(layout.groups))
     variables, dims = {}, {}
     for base in layout.noise_bases:
-        columns = draws[..., [layout.column(base, g) for g in groups]]
-        if len(groups) == 1:
+        columns = draws[..., list(dict.fromkeys(layout.column(base, g) for g in groups))]
+        if columns.shape[-1] == 1:
             variables[base] = columns[..., 0]
         else:
             variables[base] = columns
@@ -375,6 +375,7 @@ def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
         sensor=layout.sensor,
         engine=metadata.engine,
         steady=metadata.steady,
+        shared_width=layout.shared_width,
     )
 
 

@@ -121,6 +121,7 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
         "family": layout.family,
         "channels": list(layout.channels),
         "shared_noise": layout.shared_noise,
+        "shared_width": layout.shared_width,
         "sensor": layout.sensor,
         "engine": likelihood.engine,
         "steady": likelihood.steady,
@@ -224,9 +225,13 @@ def posterior_layout(idata: az.InferenceData) -> ParameterLayout:
     family, sensor = _text(attrs, "family"), _text(attrs, "sensor")
     channels, experiments = _attribute(attrs, "channels"), _attribute(attrs, "experiments")
     shared_noise = _attribute(attrs, "shared_noise")
+    # Files written before one width could be shared have one per group.
+    shared_width = _attribute(attrs, "shared_width", False)
     try:
         names = tuple(e["name"] for e in experiments)
-        layout = ParameterLayout(family, sensor, tuple(channels), names, bool(shared_noise))
+        layout = ParameterLayout(
+            family, sensor, tuple(channels), names, bool(shared_noise), bool(shared_width)
+        )
     except (InputError, TypeError, KeyError) as exc:
         raise DataError(f"attributes do not describe a model ({exc})") from None
     names = _attribute(attrs, "parameter_names")

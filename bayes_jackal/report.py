@@ -34,6 +34,8 @@ __all__ = [
 
 #: Lags of the report's autocorrelation figures.
 LAGS = 30
+#: A further section of a report: given the figures, its HTML (:func:`render_report`).
+Section = Callable[[ReportFigures], str]
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
@@ -130,7 +132,11 @@ def read_posteriors(
 
 
 def render_report(
-    posteriors: list[tuple[Path, az.InferenceData]], figures: ReportFigures, lags: int = LAGS
+    posteriors: list[tuple[Path, az.InferenceData]],
+    figures: ReportFigures,
+    lags: int = LAGS,
+    *,
+    sections: Sequence[Section] = (),
 ) -> str:
     """The HTML text of a report on loaded posteriors.
 
@@ -143,6 +149,10 @@ def render_report(
         Draws, embeds and saves the figures.
     lags : int
         Lags of the autocorrelation figures.
+    sections : sequence of callable
+        Further sections after the evidence tables, each called with
+        ``figures`` and returning its HTML (``analyse`` adds
+        :func:`~bayes_jackal.report_sections.state_estimation_section`).
 
     Returns
     -------
@@ -183,6 +193,7 @@ def render_report(
             "See the sections below.</div>"
         )
     body.append(evidence_section(posteriors))
+    body += [section(figures) for section in sections]
     body += [posterior_section(path, idata, figures, lags) for path, idata in posteriors]
     return (
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
@@ -234,6 +245,7 @@ def write_report(
     *,
     formats: tuple[str, ...] = FIGURE_FORMATS,
     lags: int = LAGS,
+    sections: Sequence[Section] = (),
 ) -> Path:
     """Write the HTML report of posteriors, in files or in memory, and its figures beside it.
 
@@ -254,6 +266,8 @@ def write_report(
         Figure files to write, from ``("png", "svg")``.
     lags : int
         Lags of the autocorrelation figures.
+    sections : sequence of callable
+        Further sections after the evidence tables (:func:`render_report`).
 
     Returns
     -------
@@ -284,7 +298,7 @@ def write_report(
     """
     labelled, failed, count = _labelled(posteriors)
     refuse(failed, count)
-    return save_report(labelled, out, formats, lags)
+    return save_report(labelled, out, formats, lags, sections=sections)
 
 
 def save_report(
@@ -292,6 +306,8 @@ def save_report(
     out: str | Path,
     formats: tuple[str, ...] = FIGURE_FORMATS,
     lags: int = LAGS,
+    *,
+    sections: Sequence[Section] = (),
 ) -> Path:
     """Write the HTML report of posteriors already read (:func:`read_posteriors`).
 
@@ -320,7 +336,7 @@ def save_report(
     out = Path(out)
     figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
     figures.folder.mkdir(parents=True, exist_ok=True)
-    text = render_report(posteriors, figures, lags)
+    text = render_report(posteriors, figures, lags, sections=sections)
     with atomic_path(out) as temporary:
         temporary.write_text(text, encoding="utf-8")
     return out

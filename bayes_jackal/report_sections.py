@@ -11,19 +11,26 @@ and sigma_h beside thesis table 7-1). :func:`evidence_section` tables the
 evidence of posteriors that carry one (``bayes-jackal compare --out``), one
 table per data set. :func:`bayes_jackal.report.render_report` assembles
 them into the page; these are its parts, not an API of their own.
+:func:`state_estimation_section` is the analysis' section on the filters
+its prior drives, on runs left out of the prior
+(:mod:`bayes_jackal.leave_one_out`), which ``analyse`` adds.
 """
 
 from __future__ import annotations
 
 import html
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import plots
+from . import estimate_plots, plots
 from .physics import CHANNELS, discrete_matrices
 from .posterior import az, posterior_metadata, summarize
 from .report_figures import ReportFigures
+
+if TYPE_CHECKING:
+    from .leave_one_out import LeaveOneOut
 
 # The page's parts, for :mod:`bayes_jackal.report` only.
 __all__: list[str] = []
@@ -327,5 +334,85 @@ def posterior_section(
                     lambda i=i, c=channel, p=draws: plots.plot_spectrum(idata, i, c, predictive=p),
                 )
             )
+    parts.append("</section>")
+    return "".join(parts)
+
+
+def _filter_rows(run: str, record: dict) -> list[list]:
+    """A left-out run's table rows: per filter and channel, its scores."""
+    rows = []
+    trained = ", ".join(record["trained_on"])
+    for name, score in record["scores"].items():
+        for channel, rmse in score["innovation_rmse"].items():
+            nis = score["nis"][channel]
+            state = score["state_rmse"]
+            rows.append(
+                [
+                    run,
+                    trained,
+                    name,
+                    channel,
+                    rmse,
+                    nis["mean"],
+                    "{:.3f}-{:.3f}".format(*nis["band"]),
+                    "consistent" if nis["consistent"] else "INCONSISTENT",
+                    None if state is None else state[channel],
+                ]
+            )
+    return rows
+
+
+def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str:
+    """The section "State estimation with this prior": the left-out runs' scores, a figure.
+
+    ``result`` is :func:`bayes_jackal.leave_one_out.leave_one_out`'s.
+    """
+    family = html.escape(result.family)
+    parts = [
+        "<section><h2>State estimation with this prior</h2><p>Does the identified noise "
+        "model help estimation, on data the prior has not seen? Each run is left out in "
+        f"turn: the {family}-noise posterior is fitted to the other runs, its Active "
+        "Inference prior is exported (as the analysis' <code>prior.json</code> is), and "
+        "three filters driven by that prior estimate the states of the run left out. "
+        "<b>kalman</b> assumes white process noise (the baseline); <b>kalman-coloured</b> "
+        "carries the family's shaping filter in its state, the best linear filter under the "
+        "identified model; "
+        "<b>generalised</b> is the DEM D-step in generalised coordinates of the prior's "
+        "embedding order. Each filter predicts every measurement from the ones before it. "
+        "The innovation RMSE is the size of its prediction errors [channel units]: lower "
+        "is better. The normalised innovation squared (NIS) is the mean squared prediction "
+        "error divided by the variance the filter gave it: 1 on average when the filter's "
+        "account of its uncertainty is right, above 1 when it is overconfident, below 1 "
+        "when it is too cautious; it falls in the 95 % band when the model holds. The state "
+        "RMSE against the true state is known only for simulated runs. The estimates are in "
+        "<code>state_estimation/&lt;run&gt;.csv</code>, the scores in "
+        "<code>state_estimation.json</code>.</p>"
+    ]
+    if result.skipped:
+        parts.append(f"<p>Not run: {html.escape(result.skipped)}.</p></section>")
+        return "".join(parts)
+    problems = [f"leaving out {run}: {reason}" for run, reason in result.failed.items()]
+    for run, record in result.runs.items():
+        problems += [f"{run}: {filter_name} could not run: {reason}"
+                     for filter_name, reason in record["filters_failed"].items()]  # fmt: skip
+        problems += [f"leaving out {run}: {message}" for message in record["warnings"]]
+    if problems:
+        items = "".join(f"<li>{html.escape(problem)}</li>" for problem in problems)
+        parts.append(f'<ul class="warnings">{items}</ul>')
+    rows = [row for run, record in result.runs.items() for row in _filter_rows(run, record)]
+    header = ["left out", "prior from", "filter", "channel", "innovation RMSE", "NIS",
+              "95 % band", "verdict", "state RMSE"]  # fmt: skip
+    parts.append(_table(header, rows))
+    if result.shown is not None:
+        experiment, estimates = result.shown
+        start, stop = estimate_plots.shown_window(experiment)
+        parts.append(
+            figures.html(
+                f"state-estimation-{experiment.name}",
+                f"{experiment.name} (left out): each filter's estimate with its +-2 sd band "
+                f"against the measurements, {start:.1f}-{stop:.1f} s",
+                lambda: estimate_plots.plot_state_estimates(experiment, estimates),
+            )
+        )
     parts.append("</section>")
     return "".join(parts)

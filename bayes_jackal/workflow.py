@@ -21,7 +21,12 @@ folder:
   precision's conditioning allow (:data:`bayes_jackal.export.AUTO_ORDER`,
   :func:`bayes_jackal.export.allowed_orders`; 0 for white noise): the
   prior follows the model the data support best;
-- ``report.html``: the report of every family's posterior, best first.
+- ``state_estimation/`` and ``state_estimation.json``: with two or more
+  runs, each run's filters driven by the prior of the best family fitted to
+  the other runs, scored (:mod:`bayes_jackal.leave_one_out`: its files and
+  cost, N more posteriors; ``state_estimation=False`` skips it);
+- ``report.html``: the report of every family's posterior, best first,
+  with the section "State estimation with this prior".
 
 The demo (:mod:`bayes_jackal.demo`) is this function on the shipped bags.
 Not to be confused with :func:`bayes_jackal.residual_analysis.analyse`, the thesis'
@@ -31,6 +36,7 @@ ch. 7 residual analysis.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -39,17 +45,19 @@ from ._files import write_json
 from .bags import read_bag
 from .comparison import compare_families
 from .criticism import criticise
-from .defaults import DEFAULT_FAMILIES
+from .defaults import DEFAULT_FAMILIES, STATE_ESTIMATION
 from .errors import DataError, describe, each_input
 from .executors import Executor, ProcessExecutor
 from .experiment import Experiment, write_netcdf
 from .export import export_prior, write_prior
 from .gridsearch import damping_grid, grid_search
 from .inference import SamplerSettings, keep_warnings
+from .leave_one_out import SUMMARY, LeaveOneOut, leave_one_out
 from .likelihood import resolve_channels
 from .plots import save_grid_plot
 from .posterior import save_posterior, summarize
 from .report import write_report
+from .report_sections import state_estimation_section
 from .robot import RobotProfile, load_profile
 from .tables import load_experiment
 
@@ -303,6 +311,7 @@ def analyse_logs(
     max_gap: float | None = None,
     labels: Mapping[str, Mapping] | None = None,
     read_options: Mapping | None = None,
+    state_estimation: bool = STATE_ESTIMATION,
     say: Callable[[str], None] = lambda text: None,
 ) -> dict:
     """Ingest logs, run the grids, compare the noise families, export the prior, report.
@@ -335,9 +344,15 @@ def analyse_logs(
         [natural units], as in :func:`bayes_jackal.inference.sample_posterior`.
     likelihood_options : mapping, optional
         Further keywords of :class:`~bayes_jackal.likelihood.ResidualLikelihood`
-        (``sensor``, ``shared_noise``, ``engine``).
+        (``sensor``, ``shared_noise``, ``shared_width``, ``engine``).
     window, max_gap, labels, read_options
         As in :func:`ingest_logs`.
+    state_estimation : bool
+        With two or more runs, fit the best family to every run but one and
+        score the filters on the one left out, for each run
+        (:func:`bayes_jackal.leave_one_out.leave_one_out`, with this
+        analysis' sampler settings, seed, priors, likelihood options and
+        executor): N more posteriors. False skips it.
     say : callable
         Receives the progress and summary lines.
 
@@ -350,8 +365,12 @@ def analyse_logs(
         ``best`` (the family of highest evidence), ``posterior`` (its
         summary), ``warnings`` (objects with ``kind`` and ``message``: a
         family's chain that did not converge, then every family's
-        model-criticism warnings, with its ``family``) and ``files``
-        (report, prior, posterior, folder).
+        model-criticism warnings, with its ``family``, then each left-out
+        run's chain that did not converge, with its ``left_out``),
+        ``state_estimation`` (``state_estimation.json``:
+        :meth:`~bayes_jackal.leave_one_out.LeaveOneOut.to_dict`) and
+        ``files`` (report, prior, posterior, state_estimation (None when
+        not run), folder).
 
     Raises
     ------
@@ -429,6 +448,8 @@ def analyse_logs(
     )
 
     paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
+    executor = executor or ProcessExecutor(processes or os.cpu_count() or 1)
+    options = {**(likelihood_options or {}), "channels": channels}
 
     def finished(family, evidence, idata) -> None:
         criticise(idata)  # cached in its attrs: the saved file and the report reuse it
@@ -447,8 +468,8 @@ def analyse_logs(
                 on_family=finished,
                 reuse=paths_by_family,
                 say=say,
-                executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
-                **{**(likelihood_options or {}), "channels": channels},
+                executor=executor,
+                **options,
             )
     finally:
         # The convergence warnings go into the result; the others reach the user,
@@ -465,10 +486,25 @@ def analyse_logs(
     prior = write_prior(
         export_prior(idata, order=None, source=str(paths_by_family[best])), folder / "prior.json"
     )
+    if state_estimation:
+        left_out = leave_one_out(experiments, robot, best, folder, settings=settings, seed=seed,
+                                 prior_overrides=prior_overrides, likelihood_options=options,
+                                 executor=executor, say=say)  # fmt: skip
+    else:
+        left_out = LeaveOneOut(best, skipped="turned off (--no-state-estimation)")
     say("writing the report (figures as PNG and SVG)...")
     ranked = [best, *(family for family in families if family != best)]
-    report = write_report([paths_by_family[family] for family in ranked], folder / "report.html")
+    report = write_report(
+        [paths_by_family[family] for family in ranked],
+        folder / "report.html",
+        sections=[functools.partial(state_estimation_section, left_out)],
+    )
     convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
+    convergence_left_out = [
+        {"kind": "not-converged", "message": f"leaving out {run}: {message}", "left_out": run}
+        for run, record in left_out.runs.items()
+        for message in record["warnings"]
+    ]
     return {
         "experiments": {
             e.name: {
@@ -487,11 +523,13 @@ def analyse_logs(
         "comparison": result,
         "best": best,
         "posterior": summary,
-        "warnings": convergence + result["warnings"],
+        "warnings": convergence + result["warnings"] + convergence_left_out,
+        "state_estimation": left_out.to_dict(),
         "files": {
             "report": str(report),
             "prior": str(prior),
             "posterior": str(folder / "posterior.nc"),
+            "state_estimation": str(folder / SUMMARY) if left_out.skipped is None else None,
             "folder": str(folder),
         },
     }

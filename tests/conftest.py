@@ -146,6 +146,7 @@ def simulate_thesis_like(
             "sigma_c": dict(sigma_c),
             "sigma_n": dict(sigma_n),
         },
+        truth_arrays={f"{c}_state": states[keep, i] for i, c in enumerate(STATE)},
         provenance={"simulated": True, "simulator": "tests/conftest.py (independent)"},
     )
 

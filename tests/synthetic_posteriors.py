@@ -17,9 +17,13 @@ from bayes_jackal.priors import Prior
 ROBOT = load_profile()
 
 
-def posterior_at(experiments, theta, family="gaussian", channels=("yaw",), spread=0.02):
+def posterior_at(
+    experiments, theta, family="gaussian", channels=("yaw",), spread=0.02, shared_width=False
+):
     """A posterior concentrated around theta (log-normal spread), built as a sampled one is."""
-    likelihood = ResidualLikelihood(experiments, ROBOT, family=family, channels=channels)
+    likelihood = ResidualLikelihood(
+        experiments, ROBOT, family=family, channels=channels, shared_width=shared_width
+    )
     prior = Prior.for_likelihood(likelihood, ROBOT)
     z = np.log(theta) + spread * np.random.default_rng(8).normal(size=(40, 8, len(theta)))
     names = prior.names

@@ -18,9 +18,12 @@ from cli_helpers import strict_json
 from bayes_jackal.bag_writer import write_bag
 from bayes_jackal.cli import build_parser, main
 from bayes_jackal.experiment import Experiment, read_netcdf
+from bayes_jackal.filter_models import filter_models
 from bayes_jackal.gridsearch import grid_search
 from bayes_jackal.kernels import FAMILIES
 from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.posterior import load_posterior
+from bayes_jackal.posterior_format import posterior_layout
 from bayes_jackal.residual_analysis import analyse
 from bayes_jackal.robot import default_profile_path, load_profile
 from bayes_jackal.simulate import SERIES, NoiseSettings, simulate_experiment
@@ -246,6 +249,37 @@ def test_sample_writes_a_posterior_and_prints_the_contract_json(simulated, tmp_p
     # 80 steps cannot converge: the run says so loudly, on stderr.
     assert "WARNING: NOT CONVERGED" in captured.err
     assert out.is_file() and out.with_suffix(".chain.h5").is_file()
+
+
+def test_sample_one_width_writes_one_width_and_export_prior_says_so(simulated, tmp_path, capsys):
+    # --noise one-width: one width for both channels in the summary and the
+    # file, which reloads with it; export-prior marks it shared (with the
+    # --sensor-smoothness asked) and the filters read that prior.
+    out, prior_path = tmp_path / "posterior.nc", tmp_path / "prior.json"
+    model = ["--family", "exponential", "--channels", "yaw,vx", "--noise", "one-width"]
+    code = main(["sample", simulated[0], "--out", str(out), *model, *QUICK_SAMPLE, "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    payload = json.loads(captured.out)
+    assert "width" in payload and "width[yaw]" not in payload and "sigma_c[vx]" in payload
+    layout = posterior_layout(load_posterior(out))
+    assert layout.shared_width is True
+    assert layout.names == (
+        "d_lat",
+        "d_long",
+        "width",
+        "sigma_c[yaw]",
+        "sigma_n[yaw]",
+        "sigma_c[vx]",
+        "sigma_n[vx]",
+    )
+    export = ["--order", "0", "--sensor-smoothness", "1.5"]
+    assert main(["export-prior", str(out), "--out", str(prior_path), *export]) == 0
+    capsys.readouterr()
+    prior = json.loads(prior_path.read_text())
+    assert prior["noise"]["shared_width"] is True and "width" in prior["draws"]
+    assert prior["sensor_noise"]["smoothness_bins"] == 1.5
+    assert list(filter_models(prior)) == ["yaw", "vx"]
 
 
 def test_sample_defaults_to_the_library_engine(simulated, tmp_path):
@@ -665,6 +699,10 @@ def test_version_is_the_installed_distributions(capsys):
         (["residuals", "EXP", "--rate", "nan"], r"--rate: expected a finite number > 0"),
         (["grid", "EXP", "--d-lat", "10", "100", "0"], r"--d-lat: grid needs .*STEP=0\.0"),
         (["export-prior", "EXP", "--out", "OUT/p.json", "--order", "1.5"], r"--order: .* >= 0"),
+        (
+            ["export-prior", "EXP", "--out", "OUT/p.json", "--sensor-smoothness", "0"],
+            r"--sensor-smoothness: expected a finite number > 0, got '0'",
+        ),
         (["ingest", "EXP", "--out", "OUT", "--window", "30", "10"], r"--window: expected T0 < T1"),
         (["analyse", "EXP", "--out", "OUT", "--max-gap", "0"], r"--max-gap: .*> 0, got '0'"),
     ],
@@ -761,7 +799,7 @@ print(len(commands.choices), heavy)
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
     )
     assert process.returncode == 0, process.stderr
-    assert process.stdout == "10 []\n"
+    assert process.stdout == "11 []\n"  # ten commands, and filter (issue 14)
 
 
 def test_parser_defaults_are_the_librarys():

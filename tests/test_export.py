@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.signal
+from synthetic_posteriors import posterior_at
 
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.cli import main
@@ -22,6 +24,7 @@ from bayes_jackal.export import (
     temporal_covariance,
 )
 from bayes_jackal.export_consumers import operating_point
+from bayes_jackal.filter_models import channel_model, filter_models
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.physics import continuous_matrices, discrete_matrices
@@ -195,6 +198,46 @@ def test_white_noise_with_the_diagonal_term_exports_one_total_sd(
         prior["generalised_coordinates"]["precision"], np.diag((1 / s_c**2).mean(axis=0))
     )
     assert export_prior(yaw_vx_posterior, order=0)["noise"]["sigma_c_is"] == "process"
+
+
+def test_one_width_is_exported_as_one_parameter_the_filters_read():
+    # --noise one-width: one sigma_h for yaw and vx. The prior says so, has
+    # one sigma_h, one smoothness, and its filters all take that one width.
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
+    theta = [110.0, 30.0, 0.047, 0.01, 0.005, 0.005, 0.003]
+    posterior = posterior_at([run], theta, channels=("yaw", "vx"), shared_width=True)
+    assert "noise_group" not in posterior.posterior["sigma_h"].dims
+    prior = export_prior(posterior, order=2)
+    noise = prior["noise"]
+    assert noise["shared_width"] is True
+    per_channel = {f"{b}[{c}]" for b in ("sigma_c", "sigma_n") for c in ("yaw", "vx")}
+    assert set(noise["parameters"]) == {"sigma_h", *per_channel}
+    assert set(prior["draws"]) == {"count", "d_lat", "d_long", "sigma_h", *per_channel}
+    # The Gaussian's smoothness is sigma_h: one value, both channels.
+    sigma_h = posterior.posterior["sigma_h"].values
+    smoothness = prior["smoothness"]
+    assert smoothness["channels"]["yaw"] == smoothness["channels"]["vx"]
+    assert smoothness["shared_seconds"] == pytest.approx(sigma_h.mean(), rel=1e-12)
+    models = filter_models(prior)
+    Ad, Bd = np.array(prior["model"]["Ad"]), np.array(prior["model"]["Bd"])
+    mean = {name: value["mean"] for name, value in noise["parameters"].items()}
+    for channel, i in (("yaw", 2), ("vx", 0)):
+        reference = channel_model(
+            channel, Ad[i, i], Bd[i], family="gaussian", width=mean["sigma_h"],
+            sigma_c=mean[f"sigma_c[{channel}]"], sigma_n=mean[f"sigma_n[{channel}]"],
+            dt=prior["dt"],
+        )  # fmt: skip
+        for field in dataclasses.fields(reference):
+            np.testing.assert_array_equal(
+                getattr(models[channel], field.name), getattr(reference, field.name)
+            )
+    averaged = filter_models(prior, parameters="averaged")
+    assert list(averaged) == ["yaw", "vx"]
+    # A width per channel: not shared.
+    apart = posterior_at(
+        [run], [*theta[:2], 0.047, *theta[3:5], 0.047, *theta[5:]], channels=("yaw", "vx")
+    )
+    assert export_prior(apart, order=0)["noise"]["shared_width"] is False
 
 
 def test_export_prior_command_writes_versioned_json(yaw_vx_posterior, tmp_path, capsys):

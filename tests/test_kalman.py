@@ -10,7 +10,7 @@ import scipy.linalg
 
 from bayes_jackal import load_profile
 from bayes_jackal.filter_models import channel_model
-from bayes_jackal.kalman import FILTERS, kalman, kalman_filter
+from bayes_jackal.kalman import KALMAN_FILTERS, kalman, kalman_filter
 from bayes_jackal.kernels import get_family
 from bayes_jackal.physics import channel_coefficients, discrete_matrices
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
@@ -175,11 +175,11 @@ def test_coloured_filter_beats_the_white_one_on_gaussian_coloured_runs():
     # prior = truth) lies in [0.81, 0.83], mean 0.82; three seeds pooled
     # must show at least a 10 % gain.
     prior = truth_prior(channels=("yaw",))
-    errors = {name: 0.0 for name in FILTERS}
+    errors = {name: 0.0 for name in KALMAN_FILTERS}
     for seed in (1, 2, 3):
         run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", rng=seed)
         truth = run.truth_arrays["yaw_state"]
-        for name, noise in FILTERS.items():
+        for name, noise in KALMAN_FILTERS.items():
             estimate = kalman_filter(run, prior, noise=noise)["yaw"]
             errors[name] += np.mean((estimate.mean - truth) ** 2)
     ratio = np.sqrt(errors["kalman-coloured"] / errors["kalman"])

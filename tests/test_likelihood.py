@@ -115,6 +115,37 @@ def test_pooled_shared_noise_is_the_sum_over_experiments(experiments, engine):
     np.testing.assert_allclose(pooled, separate, rtol=1e-12)
 
 
+@pytest.mark.parametrize("engine", ["fast", "exact"])
+def test_one_width_is_the_per_channel_likelihood_at_equal_widths(experiments, engine):
+    # The reference: the per-channel layout's vector built by hand, with
+    # sigma_h[yaw] = sigma_h[vx] = the one width.
+    channels = ("yaw", "vx")
+    one = ResidualLikelihood(
+        experiments[:1], ROBOT, channels=channels, engine=engine, shared_width=True
+    )
+    per_channel = ResidualLikelihood(experiments[:1], ROBOT, channels=channels, engine=engine)
+    assert one.parameter_names == [
+        "d_lat",
+        "d_long",
+        "sigma_h",
+        "sigma_c[yaw]",
+        "sigma_n[yaw]",
+        "sigma_c[vx]",
+        "sigma_n[vx]",
+    ]
+    theta = np.array(
+        [
+            [110.0, 30.0, 0.047, 0.01, 0.005, 0.006, 0.003],
+            [300.0, 80.0, 0.1, 0.02, 0.004, 0.004, 0.002],
+        ]
+    )
+    d_lat, d_long, width, c_yaw, n_yaw, c_vx, n_vx = theta.T
+    by_hand = np.column_stack([d_lat, d_long, width, c_yaw, n_yaw, width, c_vx, n_vx])
+    values = one(theta)
+    assert np.all(np.isfinite(values))
+    np.testing.assert_allclose(values, per_channel(by_hand), rtol=0, atol=1e-10)
+
+
 def test_engines_agree_at_the_truth_up_to_a_near_constant(experiments):
     # Whittle approximates the exact likelihood; what matters for the
     # posterior is that the difference barely changes between nearby points.

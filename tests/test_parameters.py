@@ -81,6 +81,44 @@ def test_groups_are_keyed_by_channel_and_experiment_or_shared():
         separate.column("width", 0)  # the Gaussian's width is sigma_h
 
 
+@pytest.mark.parametrize(
+    ("shared_noise", "labels"),
+    [(True, ["yaw", "vx"]), (False, ["r1, yaw", "r1, vx", "r2, yaw", "r2, vx"])],
+)
+def test_one_width_is_one_column_that_every_group_reads(shared_noise, labels):
+    # One width (column 2, no suffix), then each group's sigma_c, sigma_n:
+    # group g's are columns 3 + 2 g and 4 + 2 g.
+    layout = ParameterLayout(
+        "gaussian", "ma1", ("yaw", "vx"), ("r1", "r2"), shared_noise, shared_width=True
+    )
+    groups = len(labels)
+    assert layout.names == (
+        "d_lat",
+        "d_long",
+        "sigma_h",
+        *(f"{b}[{label}]" for label in labels for b in ("sigma_c", "sigma_n")),
+    )
+    assert layout.bases == tuple(name.split("[")[0] for name in layout.names)
+    assert layout.names_of("sigma_h") == ("sigma_h",)
+    assert layout.column_groups == (None, None, None, *np.repeat(range(groups), 2))
+    assert len(layout.log_uniform) == len(layout.names) == 3 + 2 * groups
+    theta = np.arange(3.0 + 2 * groups)[None] + 100.0 * np.arange(2.0)[:, None]
+    for g in range(groups):
+        assert layout.noise_columns(g) == [2, 3 + 2 * g, 4 + 2 * g]
+        assert layout.column("sigma_h", g) == layout.column("sigma_h") == 2
+        width, sigma_c, sigma_n = layout.noise_parameters(theta, g)
+        np.testing.assert_array_equal(
+            np.stack([width, sigma_c, sigma_n]), theta[:, [2, 3 + 2 * g, 4 + 2 * g]].T
+        )
+    # The default is a width per group; white noise has none to share.
+    assert ParameterLayout("gaussian", "ma1", ("yaw",), ("r1",), True).shared_width is False
+    white = {
+        ParameterLayout("white", "ma1", ("yaw", "vx"), ("r1",), True, shared_width=one).names
+        for one in (True, False)
+    }
+    assert len(white) == 1
+
+
 def test_noise_parameters_read_the_group_columns():
     layout = ParameterLayout("triangular", "ma1", ("yaw", "vx"), ("r1",), True)
     theta = np.arange(8.0)[None] + 10.0 * np.arange(2.0)[:, None]  # two parameter vectors

@@ -169,6 +169,7 @@ def test_a_file_written_before_the_format_had_an_owner_loads_and_summarises():
     assert metadata.format == "bayes_jackal.posterior/1"
     assert metadata.layout.names == ("d_lat", "d_long", "sigma_c", "sigma_n")
     assert metadata.layout.groups == (("yaw", "all"),)
+    assert metadata.layout.shared_width is False  # no attribute: a width per group
     assert [e.name for e in metadata.experiments] == ["v2_01"]
     # Old files keep the body constants only: the rest is the installed profile's.
     assert {key: getattr(metadata.robot, key) for key in ROBOT_CONSTANTS if key != "source"} == {

@@ -7,21 +7,21 @@ import contextlib
 import dataclasses
 import sys
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
 from .._files import write_json
-from ..api import likelihood_options, load_experiments, read_logs
+from ..api import likelihood_options
 from ..bag_writer import write_bag
 from ..comparison import compare_groups
 from ..criticism import criticise
 from ..demo import DEMO_TRUTH, run_demo
-from ..errors import InputError, describe, each_input
+from ..errors import InputError, each_input
 from ..executors import Executor, executor_for
 from ..experiment import Experiment, write_netcdf
-from ..export import export_prior, write_prior
+from ..export import export_prior, read_prior, write_prior
 from ..gridsearch import damping_grid, grid_search
 from ..inference import (
     ConvergenceWarning,
@@ -37,9 +37,15 @@ from ..plots import save_grid_plot
 from ..posterior import load_posterior, save_posterior, summarize
 from ..report import read_posteriors, save_report
 from ..residual_analysis import analyse
-from ..robot import RobotProfile, load_profile
+from ..robot import RobotProfile
 from ..simulate import NoiseSettings, simulate_series
-from ..tables import check_column_roles, write_csv
+from ..state_estimation import (
+    estimate_columns,
+    estimate_states,
+    score_estimates,
+    write_estimates,
+)
+from ..tables import write_csv
 from ..workflow import analyse_logs, ingest_logs
 from .output import (
     EXIT_BAD_INPUT,
@@ -48,21 +54,25 @@ from .output import (
     Reporter,
     analysis_text,
     comparison_table,
+    filter_table,
     grid_table,
     posterior_table,
     print_criticism,
     residual_table,
 )
 from .paths import check_named_outputs, family_files, group_name, summary_file
-
-
-def _robot(args: argparse.Namespace) -> RobotProfile:
-    return load_profile(args.robot)
+from .reading import (
+    each_experiment,
+    load_logs,
+    read_options,
+    robot_profile,
+    robot_with_topics,
+)
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
-    robot = _robot(args)
+    robot = robot_profile(args)
     noise = NoiseSettings(args.width, tuple(args.sigma_c), tuple(args.sigma_n), args.family)
     counts = {"v1": args.v1, "v2": args.v2}
     experiments = simulate_series(
@@ -86,23 +96,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _robot_with_topics(args: argparse.Namespace) -> RobotProfile:
-    """The profile with ``--topic ROLE NAME`` overrides applied."""
-    robot = _robot(args)
-    unknown = [role for role, _ in args.topic if role not in robot.topics]
-    if unknown:
-        raise InputError(
-            f"unknown topic role(s) {unknown}; use {sorted(robot.topics)}", field="--topic"
-        )
-    return robot.replace(topics={**robot.topics, **dict(args.topic)})
-
-
 def cmd_ingest(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     folder = Path(args.out)
     experiments, failed = ingest_logs(
         args.bags,
-        _robot_with_topics(args),
+        robot_with_topics(args),
         folder,
         window=args.window,
         max_gap=args.max_gap,
@@ -139,8 +138,8 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
 def cmd_grid(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
-    robot = _robot(args)
-    experiments = _load(args)
+    robot = robot_profile(args)
+    experiments = load_logs(args)
     result = grid_search(
         experiments,
         robot,
@@ -161,15 +160,15 @@ def cmd_grid(args: argparse.Namespace) -> int:
 
 def cmd_residuals(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
-    robot = _robot(args)
+    robot = robot_profile(args)
 
     def residuals(experiments: list) -> dict:
         return analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
 
     if len(args.experiments) == 1:
-        experiments, failed, code = _load(args), {}, EXIT_OK
+        experiments, failed, code = load_logs(args), {}, EXIT_OK
     else:  # each on its own first: a bad one is named, the others analysed together
-        done, failed, code = _each_experiment(args, out.say, lambda e: residuals([e]))
+        done, failed, code = each_experiment(args, out.say, lambda e: residuals([e]))
         experiments = [e for e, _ in done]
     if not experiments:  # every input named on stderr already
         out.result({"experiments": {}, "failed": failed})
@@ -273,65 +272,6 @@ def _likelihood_options(args: argparse.Namespace) -> dict:
     )
 
 
-def _each_experiment(
-    args: argparse.Namespace,
-    say: Callable[[str], None],
-    work: Callable[[Experiment], Any],
-    outputs: Callable[[Experiment], list[Path]] | None = None,
-    *,
-    results: Callable[..., AbstractContextManager[Iterable[tuple[str, Any]]]] | None = None,
-) -> tuple[list[tuple[Experiment, Any]], dict[str, str], int]:
-    """Without pooling: read and process each experiment on its own.
-
-    A bad input is reported on stderr as it is met, and the others finish.
-    ``outputs`` gives the files an experiment's work writes: they are checked
-    for every experiment before any work (:func:`.paths.check_named_outputs`).
-    ``results(loaded, fail)``: the experiments' jobs (e.g. all at once on an
-    executor), a context holding (input, value) pairs as each input's jobs
-    finish; ``loaded`` maps input -> Experiment, and ``fail(input,
-    exception)`` reports an input whose jobs failed. ``work`` is then
-    called as ``work(experiment, value)`` in this process; without
-    ``results``, as ``work(experiment)`` on each in turn.
-
-    Returns
-    -------
-    done : list of (Experiment, result)
-    failed : dict of str to str
-        Input -> reason.
-    code : int
-        The exit code: 2 when an input was bad, 1 when one failed otherwise.
-    """
-    failures = Failures(args.debug)
-    loaded, failed = read_logs(args.experiments, **_log_options(args), on_failure=failures)
-    if outputs is not None:
-        checked, refused = each_input(
-            loaded,
-            lambda given: check_named_outputs(args, outputs(loaded[given])),
-            on_failure=failures,
-        )
-        loaded, failed = {given: loaded[given] for given in checked}, failed | refused
-
-    def fail(given: str, exc: Exception) -> None:
-        failed[given] = describe(exc, given)
-        failures(given, exc)
-
-    done: dict[str, Any] = {}
-    in_turn = contextlib.nullcontext((given, None) for given in loaded)
-    with in_turn if results is None else results(loaded, fail) as finished:
-        for given, value in finished:  # in the order they finish
-            inputs = (loaded[given],) if results is None else (loaded[given], value)
-            result, crashed = each_input(
-                [given], lambda _, i=inputs: work(*i), catch=Exception, on_failure=failures
-            )
-            done |= result
-            failed |= crashed
-    done = {given: done[given] for given in loaded if given in done}
-    if failed:
-        total = len(args.experiments)
-        say(f"{len(done)} of {total} experiments done; failed: {', '.join(failed)}")
-    return [(loaded[given], result) for given, result in done.items()], failed, failures.code
-
-
 @dataclasses.dataclass(frozen=True)
 class _Labelled:
     """(input, ``job([experiment])``) of an (input, experiment) pair (picklable)."""
@@ -350,8 +290,8 @@ def _print_each(
     outputs: Callable[[Experiment], list[Path]],
     **options,
 ) -> int:
-    """:func:`_each_experiment`; JSON: ``experiments`` (name -> result) and ``failed``."""
-    done, failed, code = _each_experiment(args, out.say, work, outputs, **options)
+    """:func:`each_experiment`; JSON: ``experiments`` (name -> result) and ``failed``."""
+    done, failed, code = each_experiment(args, out.say, work, outputs, **options)
     out.result({"experiments": {e.name: result for e, result in done}, "failed": failed})
     return code
 
@@ -367,7 +307,7 @@ def cmd_sample(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     local = args.scheduler is None
     sampling = _Sampling(
-        _robot(args),
+        robot_profile(args),
         args.family,
         _likelihood_options(args),
         _sampler_settings(args),
@@ -382,7 +322,7 @@ def cmd_sample(args: argparse.Namespace) -> int:
         if not local:
             out.say(f"sampling on the Dask cluster at {args.scheduler}")
         if not sampling.each:
-            group = _load(args)
+            group = load_logs(args)
             with executor.run(sampling, [group]) as finished:
                 out.result(_save_sample(next(finished), sampling.path(group), out.say))
             return EXIT_OK
@@ -435,7 +375,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             warnings.simplefilter("ignore", ConvergenceWarning)  # report() prints them
             each = compare_groups(
                 groups,
-                _robot(args),
+                robot_profile(args),
                 families=families,
                 settings=_sampler_settings(args),
                 seed=args.seed,
@@ -476,7 +416,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     with executor:  # a cluster is reached (or refused) before any work
         if args.pooled or len(args.experiments) == 1:
-            experiments = _load(args)
+            experiments = load_logs(args)
             check_named_outputs(args, outputs(group_name(experiments)))
             announce(experiments)
             with comparisons({"pooled": experiments}) as each:
@@ -495,7 +435,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_export_prior(args: argparse.Namespace) -> int:
     out = Reporter(False)
     idata = load_posterior(args.posterior)
-    prior = export_prior(idata, order=args.order, source=args.posterior)
+    prior = export_prior(
+        idata, order=args.order, source=args.posterior, sensor_smoothness=args.sensor_smoothness
+    )
     path = write_prior(prior, args.out)
     noise = prior["noise"]
     size = len(prior["generalised_coordinates"]["precision"])
@@ -512,6 +454,45 @@ def cmd_export_prior(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_filter(args: argparse.Namespace) -> int:
+    out = Reporter(args.json)
+    prior, robot = read_prior(args.prior_file), robot_with_topics(args)
+    options = {
+        "filters": args.filters,
+        "order": args.order,
+        "parameters": args.parameters,
+        "sensor_precision": args.sensor_precision,
+        "lookahead": args.lookahead,
+        "robot": robot,
+    }
+
+    def estimate(experiment: Experiment) -> tuple[dict, dict]:
+        try:
+            estimates = estimate_states(experiment, prior, **options)
+        except InputError as exc:  # name the prior beside the experiment
+            if exc.source is not None:
+                raise
+            where = f"{args.prior_file} on {experiment.source}"
+            raise type(exc)(str(exc), source=where) from exc
+        return estimate_columns(experiment, estimates), score_estimates(experiment, estimates)
+
+    done, failed, code = each_experiment(args, out.say, estimate)
+    if done:
+        write_estimates(args.out, {e.name: columns for e, (columns, _) in done})
+        out.say(f"wrote {args.out}")
+    for experiment, (_, scores) in done:
+        filter_table(experiment.name, scores, out.say)
+    out.result(
+        {
+            "prior": args.prior_file,
+            "out": args.out if done else None,
+            "experiments": {e.name: scores for e, (_, scores) in done},
+            "failed": failed,
+        }
+    )
+    return code
+
+
 def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
     """``--prior NAME LOW HIGH`` items as {name: (low, high)}, validated by the library."""
     return prior_overrides({name: (low, high) for name, low, high in items}, field="--prior")
@@ -519,7 +500,7 @@ def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
 
 def cmd_analyse(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
-    robot = _robot_with_topics(args)
+    robot = robot_with_topics(args)
     options = _likelihood_options(args)
     with _executor(args, args.processes) as executor:
         result = analyse_logs(
@@ -535,7 +516,8 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             likelihood_options=options,
             window=args.window,
             max_gap=args.max_gap,
-            read_options=_read_options(args),
+            read_options=read_options(args),
+            state_estimation=args.state_estimation,
             say=out.say,
         )
     return analysis_text(result, out)
@@ -543,7 +525,9 @@ def cmd_analyse(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
-    result = run_demo(args.out, out.say, progress=not args.no_progress)
+    result = run_demo(
+        args.out, out.say, progress=not args.no_progress, state_estimation=args.state_estimation
+    )
     out.say(
         f"Truth (simulated): d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} "
         f"N s/m, sigma_h={NoiseSettings().width} s. The bags' vx and vy are derived from "
@@ -562,26 +546,3 @@ def cmd_report(args: argparse.Namespace) -> int:
     path = save_report(posteriors, args.out, args.formats)
     out.say(f"wrote {path} and its figures in {path.parent / (path.stem + '_figures')}/")
     return failures.code
-
-
-def _read_options(args: argparse.Namespace) -> dict:
-    """Keywords of reading experiment files (CSV, MATLAB) from ``--column`` and ``--rate``."""
-    return {"columns": check_column_roles(dict(args.column), field="--column"), "rate": args.rate}
-
-
-def _log_options(args: argparse.Namespace) -> dict:
-    """Keywords of :func:`~bayes_jackal.api.load_experiments` from the flags of reading logs.
-
-    Those of experiment files, and of bags (``--window``, ``--max-gap``,
-    ``--topic``); ``--robot``: topics and wheels of bags, the rate of files.
-    """
-    return _read_options(args) | {
-        "robot": _robot_with_topics(args),
-        "window": args.window,
-        "max_gap": args.max_gap,
-    }
-
-
-def _load(args: argparse.Namespace) -> list:
-    """The logs named on the command line, read as the library reads them (all or none)."""
-    return load_experiments(args.experiments, **_log_options(args))

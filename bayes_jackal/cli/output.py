@@ -70,6 +70,26 @@ def residual_table(result: dict, say: Callable[[str], None]) -> None:
         say(f"{label:12s} {runs:5d} {value:11.4f}")
 
 
+def filter_table(name: str, scores: dict, say: Callable[[str], None]) -> None:
+    """One experiment's filter scores: innovation RMSE, NIS in its band, state RMSE."""
+    say(f"{name}: prediction errors from sample {next(iter(scores.values()))['first_sample']}")
+    say(
+        f"{'filter':16s} {'channel':7s} {'innov. RMSE':>11s} {'NIS':>6s} "
+        f"{'95% band':>13s} {'':12s} {'state RMSE':>10s}"
+    )
+    for filter_name, score in scores.items():
+        for channel, rmse in score["innovation_rmse"].items():
+            nis = score["nis"][channel]
+            low, high = nis["band"]
+            verdict = "consistent" if nis["consistent"] else "INCONSISTENT"
+            truth = score["state_rmse"]
+            state = "-" if truth is None else f"{truth[channel]:.4g}"
+            say(
+                f"{filter_name:16s} {channel:7s} {rmse:11.4g} {nis['mean']:6.3f} "
+                f"[{low:5.3f},{high:5.3f}] {verdict:12s} {state:>10s}"
+            )
+
+
 def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
     say(
         f"{'':16s} {'mean':>10s} {'sd':>10s} {'hdi_3%':>10s} {'hdi_97%':>10s} "
@@ -128,6 +148,21 @@ def comparison_table(result: dict, say: Callable[[str], None]) -> None:
     say(f"best: {result['best']}. Verdict: {result['verdict_text']}")
 
 
+def state_estimation_text(state: dict, say: Callable[[str], None]) -> None:
+    """analyse's filter scores on each run left out of the prior; its failures on stderr."""
+    if state["skipped"]:
+        say(f"State estimation on runs left out of the prior: not run, {state['skipped']}.")
+        return
+    say(f"\nState estimation with the {state['family']} prior fitted to the other runs:")
+    for run, record in state["runs"].items():
+        trained = ", ".join(record["trained_on"])
+        filter_table(f"{run} (prior from {trained})", record["scores"], say)
+        for name, reason in record["filters_failed"].items():
+            print(f"bayes-jackal: WARNING: {run}: {name} could not run: {reason}", file=sys.stderr)
+    for reason in state["failed"].values():
+        print(f"bayes-jackal: WARNING: {reason}", file=sys.stderr)
+
+
 def analysis_text(result: dict, out: Reporter) -> int:
     """Print what analyse_logs found; warnings and bad inputs on stderr; the exit code."""
     out.say(
@@ -136,6 +171,7 @@ def analysis_text(result: dict, out: Reporter) -> int:
     )
     posterior_table(result["posterior"], out.say)
     out.say(f"Is the noise coloured? {result['comparison']['verdict_text']}")
+    state_estimation_text(result["state_estimation"], out.say)
     files = result["files"]
     out.say(
         f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "

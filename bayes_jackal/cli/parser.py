@@ -31,6 +31,9 @@ from ..defaults import (
     EXPERIMENT_FORMATS,
     FAMILY,
     FIGURE_FORMATS,
+    FILTER_PARAMETERS,
+    FILTERS,
+    LOOKAHEAD,
     MAX_GAP,
     MAX_GAP_STEPS,
     MAX_STEPS,
@@ -43,8 +46,11 @@ from ..defaults import (
     ROLES,
     SENSOR,
     SENSOR_MODELS,
+    SENSOR_PRECISIONS,
+    SENSOR_SMOOTHNESS,
     SERIES_COUNTS,
     SIMULATED_NOISE,
+    STATE_ESTIMATION,
     THESIS_CHANNEL,
     WALKERS,
 )
@@ -248,7 +254,8 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
         "--noise",
         choices=NOISE_SHARING,
         default=NOISE,
-        help=f"pooled: noise parameters shared or per experiment ({NOISE})",
+        help="noise parameters: shared by pooled experiments, per experiment, or shared "
+        f"with one width (smoothness) for every channel ({NOISE})",
     )
     parser.add_argument(
         "--engine", choices=ENGINES, default=ENGINE, help=f"likelihood engine ({ENGINE})"
@@ -279,6 +286,18 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
         "family) on a Dask cluster, e.g. tcp://127.0.0.1:8786 (`dask scheduler` and "
         "`dask worker`; pip install 'bayes-jackal[cluster]'); no progress bars there. "
         "Default: this machine",
+    )
+
+
+def _add_state_estimation(parser: argparse.ArgumentParser) -> None:
+    """``--state-estimation`` / ``--no-state-estimation`` of analyse and demo."""
+    parser.add_argument(
+        "--state-estimation",
+        action=argparse.BooleanOptionalAction,
+        default=STATE_ESTIMATION,
+        help="with two or more runs, score the filters on each run left out of the best "
+        "family's prior fitted to the others: one more posterior per run "
+        f"(default: {'on' if STATE_ESTIMATION else 'off'})",
     )
 
 
@@ -316,6 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=os.cpu_count() or 1,
         help="families sampled at once (default: the number of cores; not with --scheduler)",
     )
+    _add_state_estimation(analysis)
     _add_bag_flags(analysis, max_gap=None)
     _add_input_flags(analysis)
     _add_model_flags(analysis, pooling=False)
@@ -327,6 +347,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="bayes-jackal-demo", help="output folder")
     demo.add_argument("--no-progress", action="store_true", help="no progress display")
     demo.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    _add_state_estimation(demo)
 
     sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
     sim.add_argument("--out", required=True, help="output folder")
@@ -483,7 +504,64 @@ def build_parser() -> argparse.ArgumentParser:
         default=AUTO_ORDER,
         help=f"embedding order P of generalised coordinates ({AUTO_ORDER})",
     )
+    export.add_argument(
+        "--sensor-smoothness",
+        type=_positive,
+        default=SENSOR_SMOOTHNESS,
+        metavar="BINS",
+        help="Gaussian smoothness of the white sensor noise in Pi_z [time bins] "
+        f"({SENSOR_SMOOTHNESS}, SPM's default)",
+    )
     _add_common(export, json_flag=False)
+
+    filters = commands.add_parser("filter", help="state estimates of the filters a prior drives")
+    filters.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
+    filters.add_argument(
+        "--prior",
+        dest="prior_file",
+        required=True,
+        metavar="prior.json",
+        help="prior file from export-prior",
+    )
+    filters.add_argument(
+        "--out", required=True, metavar="estimates.csv", help="columns t and FILTER.STATE"
+    )
+    filters.add_argument(
+        "--filters",
+        type=_name_list(FILTERS, "filter(s)"),
+        default=FILTERS,
+        metavar=",".join(FILTERS),
+        help=f"comma-separated filters ({','.join(FILTERS)})",
+    )
+    filters.add_argument(
+        "--order",
+        type=_natural,
+        default=None,
+        help="embedding order P of the generalised filter (the prior's)",
+    )
+    filters.add_argument(
+        "--parameters",
+        choices=FILTER_PARAMETERS,
+        default=FILTER_PARAMETERS[0],
+        help="noise parameters at the posterior means, or averaged over the prior's draws "
+        f"({FILTER_PARAMETERS[0]})",
+    )
+    filters.add_argument(
+        "--sensor-precision",
+        choices=SENSOR_PRECISIONS,
+        default=SENSOR_PRECISIONS[0],
+        help="the generalised filter's Pi_z: embedded white noise, or the prior's sensor "
+        f"smoothness ({SENSOR_PRECISIONS[0]})",
+    )
+    filters.add_argument(
+        "--lookahead",
+        type=_natural,
+        default=LOOKAHEAD,
+        help=f"samples after t_k in the generalised filter's embedding ({LOOKAHEAD}: causal)",
+    )
+    _add_bag_flags(filters, max_gap=None)
+    _add_input_flags(filters)
+    _add_common(filters)
 
     report = commands.add_parser("report", help="HTML report with figures of posteriors")
     report.add_argument(

@@ -34,6 +34,8 @@ def planned_outputs(args: argparse.Namespace) -> list[Output]:
         return [Output(Path(p), "file", suffixes, flag) for p, suffixes, flag in files if p]
     if command == "export-prior":
         return [Output(Path(out), suffixes=(".json",))]
+    if command == "filter":
+        return [Output(Path(out), suffixes=(".csv",))]
     if command == "report":
         path = Path(out)
         return [
@@ -45,7 +47,7 @@ def planned_outputs(args: argparse.Namespace) -> list[Output]:
 
 def command_inputs(args: argparse.Namespace) -> list[str]:
     """The files and folders the command reads: never to be replaced by an output."""
-    inputs = [getattr(args, "posterior", None)]
+    inputs = [getattr(args, "posterior", None), getattr(args, "prior_file", None)]
     for name in ("experiments", "posteriors", "bags", "inputs"):
         inputs += getattr(args, name, None) or []
     inputs.append(getattr(args, "robot", None))  # last: failures name the data first

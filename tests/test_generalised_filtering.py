@@ -12,13 +12,9 @@ from synthetic_posteriors import posterior_at
 
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.export import export_prior, temporal_covariance
-from bayes_jackal.generalised_filter import (
-    embed,
-    generalised_filter,
-    generalised_filter_prior,
-    shift_operator,
-    white_sensor_precision,
-)
+from bayes_jackal.generalised_coordinates import white_sensor_precision
+from bayes_jackal.generalised_filtering import d_step, generalised_filter
+from bayes_jackal.generalised_filtering import process_precision as process_precision_of
 from bayes_jackal.physics import continuous_matrices, discrete_matrices
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
 
@@ -38,55 +34,10 @@ def process_precision(order: int) -> np.ndarray:
     return np.linalg.inv(temporal_covariance("gaussian", np.array(SIGMA_H), order)) / S_C**2
 
 
-@pytest.mark.parametrize("order", [0, 1, 2, 3, 4])
-def test_embedding_is_exact_on_polynomials_of_degree_up_to_the_order(order):
-    rng = np.random.default_rng(order)
-    dt = 0.05
-    t = np.arange(12) * dt
-    polynomial = np.polynomial.Polynomial(rng.normal(size=order + 1))
-    # Closed form: derivative j of the polynomial at every sample.
-    expected = np.column_stack([polynomial.deriv(j)(t) for j in range(order + 1)])
-    for lookahead in range(order + 1):
-        np.testing.assert_allclose(
-            embed(polynomial(t), order, dt, lookahead=lookahead), expected, rtol=1e-8, atol=1e-8
-        )
-    # One degree more is not exact: the centred first derivative of t^3 is
-    # ((t + h)^3 - (t - h)^3) / (2 h) = 3 t^2 + h^2, off by h^2 (closed form).
-    if order == 2:
-        embedded = embed(t**3, 2, dt)
-        np.testing.assert_allclose(embedded[1:-1, 1], 3 * t[1:-1] ** 2 + dt**2, rtol=1e-10)
-
-
-def test_embedding_of_several_series_and_too_short_series():
-    t = np.arange(6) * 0.1
-    both = embed(np.column_stack([t, 2 * t]), 1, 0.1)
-    assert both.shape == (6, 2, 2)
-    np.testing.assert_allclose(both[:, 1], [[1.0, 2.0]] * 6, rtol=1e-12)
-    with pytest.raises(InputError, match="needs at least 3 samples"):
-        embed(np.ones(2), 2, 0.1)
-    with pytest.raises(InputError, match=r"lookahead must lie in 0 \.\. 2"):
-        embed(np.ones(5), 2, 0.1, lookahead=3)
-
-
-@pytest.mark.parametrize(("order", "lookahead"), [(1, 0), (2, 1), (2, 0), (3, 1)])
-def test_sensor_precision_is_the_inverse_covariance_of_embedded_white_noise(order, lookahead):
-    # Monte Carlo: 200,000 white samples embedded; windows overlap, so about
-    # 200,000 / (p + 1) independent ones, and each variance is within
-    # ~sqrt(2 (p + 1) / 200,000) < 0.7 % (1 sd): 4 % is > 5 sd.
-    dt, sigma = 0.02, 0.3
-    noise = sigma * np.random.default_rng(5).standard_normal(200_000)
-    embedded = embed(noise, order, dt, lookahead=lookahead)[order:-order]
-    expected = np.linalg.inv(white_sensor_precision(order, dt, sigma, lookahead=lookahead))
-    scale = np.sqrt(np.diag(expected))
-    np.testing.assert_allclose(
-        np.cov(embedded.T) / np.outer(scale, scale), expected / np.outer(scale, scale), atol=0.04
-    )
-
-
 def run_filter(order, y, u, **options):
     lookahead = options.pop("lookahead", None)
     Pz = white_sensor_precision(order, DT, SIGMA_N, lookahead=lookahead)
-    return generalised_filter(
+    return d_step(
         A[YAW, YAW],
         B[YAW],
         DT,
@@ -227,75 +178,75 @@ def test_generalised_filter_beats_the_white_kalman_filter_on_coloured_noise():
     assert centred < causal < kalman < raw
 
 
-def test_prior_dict_drives_the_filter_per_channel():
-    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=2)
-    order, n = 1, 2
-    blocks = {"yaw": process_precision(order), "vx": 2 * process_precision(order)}
-    precision = np.zeros((order + 1, n, order + 1, n))
-    for c, channel in enumerate(["yaw", "vx"]):
-        precision[:, c, :, c] = blocks[channel]
-    # The fields of an exported prior (export.export_prior) the filter reads.
-    prior = {
-        "format": "bayes_jackal.prior/1",
-        "robot": {"name": ROBOT.name},
-        "dt": DT,
-        "model": {"A": A.tolist(), "B": B.tolist()},
-        "noise": {"channels": ["yaw", "vx"]},
-        "sensor_noise": {"sd": {"yaw": {"mean": SIGMA_N}, "vx": {"mean": 0.003}}},
-        "generalised_coordinates": {"order": order, "precision": precision.reshape(4, 4).tolist()},
-    }
-    mu = generalised_filter_prior(run, prior)
-    assert mu.shape == (len(run.t), 2, 2)
-    expected = generalised_filter(
-        A[0, 0],
-        B[0],
-        DT,
-        blocks["vx"],
-        run.vx,
-        run.inputs,
-        sensor_precision=white_sensor_precision(order, DT, 0.003),
-    )
-    np.testing.assert_array_equal(mu[:, 1], expected)
-    np.testing.assert_array_equal(
-        generalised_filter_prior(run, prior, channels=["vx"])[:, 0], expected
-    )
-    with pytest.raises(InputError, match="no channel 'vy'"):
-        generalised_filter_prior(run, prior, channels=["vy"])
-    with pytest.raises(InputError, match="experiment is sampled at 72 Hz"):
-        generalised_filter_prior(run, prior | {"dt": 0.01})
-    del prior["sensor_noise"]["sd"]["vx"]
-    with pytest.raises(InputError, match=r"no field 'sensor_noise\.sd\.vx\.mean'"):
-        generalised_filter_prior(run, prior)
-    with pytest.raises(InputError, match="pass sensor_precision"):
-        generalised_filter_prior(run, prior | {"sensor_noise": None})
-
-
-def test_shift_operator_moves_each_derivative_up():
-    x = np.array([1.0, 2.0, 3.0, 4.0])
-    np.testing.assert_array_equal(shift_operator(3) @ x, [2.0, 3.0, 4.0, 0.0])
-
-
-def test_an_exported_one_channel_prior_drives_the_filter():
+def test_an_exported_prior_drives_the_filter_and_its_predictions():
     # A yaw-only posterior names its sensor sd plain "sigma_n"; the filter reads
-    # it by channel from the export's sensor_noise block. Its Pi_z is then the
-    # embedded white noise at that sd, and Pi_w the exported block.
+    # the means by channel. Plug-in: Pi_w = inv(V) / s_c^2 at the means, Pi_z
+    # the embedded white noise at the mean sd, both built here by hand.
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
     prior = export_prior(posterior_at([run], [110.0, 30.0, 0.047, 0.01, 0.005]), order=2)
-    mu = generalised_filter_prior(run, prior, lookahead=0)
-    sigma_n = prior["sensor_noise"]["sd"]["yaw"]["mean"]
-    A, B = (np.asarray(prior["model"][k]) for k in ("A", "B"))
-    expected = generalised_filter(
-        A[2, 2],
-        B[2],
-        DT,
-        np.asarray(prior["generalised_coordinates"]["precision"]),
-        run.yaw_rate,
-        run.inputs,
-        sensor_precision=white_sensor_precision(2, DT, sigma_n, lookahead=0),
-        lookahead=0,
-    )
-    # The prior function takes the mean sd and the blocks by its own path
-    # (float sums in another order): equal to rounding, far below 1e-9 of
-    # each derivative's scale.
+    estimate = generalised_filter(run, prior)["yaw"]
+    means = {k: prior["noise"]["parameters"][k]["mean"] for k in ("sigma_h", "sigma_c", "sigma_n")}
+    A, B, Ad = (np.asarray(prior["model"][k]) for k in ("A", "B", "Ad"))
+    s_c = means["sigma_c"] * A[2, 2] / (Ad[2, 2] - 1)
+    Pw = np.linalg.inv(temporal_covariance("gaussian", np.array(means["sigma_h"]), 2)) / s_c**2
+    Pz = white_sensor_precision(2, DT, means["sigma_n"], lookahead=0)
+    expected = d_step(A[2, 2], B[2], DT, Pw, run.yaw_rate, run.inputs, sensor_precision=Pz,
+                      lookahead=0)  # fmt: skip
+    # The same operations in another order: equal to rounding, far below 1e-9
+    # of each derivative's scale.
     scale = np.abs(expected).max(axis=0)
-    assert np.all(np.abs(mu[:, 0] - expected) <= 1e-9 * scale)
+    assert np.all(np.abs(estimate.derivatives - expected) <= 1e-9 * scale)
+    np.testing.assert_array_equal(estimate.mean, estimate.derivatives[:, 0])
+    # The prediction of y_k is mu~[k-1] carried one step by the Taylor series
+    # (closed form: sum_j mu^(j) dt^j / j!), with variance t' Sigma t + sigma_n^2.
+    taylor = DT ** np.arange(3) / scipy.special.factorial(np.arange(3))
+    predicted = estimate.derivatives[:-1] @ taylor
+    np.testing.assert_allclose(estimate.innovation[1:], run.yaw_rate[1:] - predicted, atol=1e-15)
+    M = np.eye(3, k=1) - A[2, 2] * np.eye(3)
+    Sigma = np.linalg.inv(Pz + M.T @ Pw @ M)
+    np.testing.assert_allclose(estimate.variance, Sigma[0, 0], rtol=1e-9)
+    np.testing.assert_allclose(
+        estimate.innovation_variance[1:], taylor @ Sigma @ taylor + means["sigma_n"] ** 2,
+        rtol=1e-9,
+    )  # fmt: skip
+    assert np.isnan(estimate.innovation[0]) and np.isnan(estimate.innovation_variance[0])
+
+
+def test_averaged_process_precision_inverts_the_mean_covariance():
+    # averaged: inv(E[s_c^2 V]) over the prior's draws, built here by hand;
+    # the export's precision_mean_covariance is the same matrix with each
+    # draw's own damping in s_c's gain a / (alpha - 1), where the filter uses
+    # the mean model's: with a 2 % spread of the damping the gain moves by
+    # ~|a dt| / 2 x 2 % ~ 1e-3 relative at the yaw pole (|a| dt ~ 0.1), so
+    # 2e-3 bounds it. The mean precision (the export's "precision") is larger.
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
+    prior = export_prior(posterior_at([run], [110.0, 30.0, 0.047, 0.01, 0.005]), order=2)
+    draws = {k: np.asarray(prior["draws"][k]) for k in ("sigma_h", "sigma_c")}
+    A, Ad = (np.asarray(prior["model"][k]) for k in ("A", "Ad"))
+    s_c = draws["sigma_c"] * A[2, 2] / (Ad[2, 2] - 1)
+    V = temporal_covariance("gaussian", draws["sigma_h"], 2)
+    by_hand = np.linalg.inv(np.mean(V * s_c[:, None, None] ** 2, axis=0))
+    averaged = process_precision_of(prior, "yaw", 2, parameters="averaged")
+    np.testing.assert_allclose(averaged, by_hand, rtol=1e-10)
+    exported = np.asarray(prior["generalised_coordinates"]["precision_mean_covariance"])
+    np.testing.assert_allclose(averaged, exported, rtol=2e-3)
+    mean_precision = np.asarray(prior["generalised_coordinates"]["precision"])
+    assert np.all(np.diag(mean_precision) > np.diag(exported))
+    plug_in = process_precision_of(prior, "yaw", 2)
+    assert not np.allclose(plug_in, averaged, rtol=1e-6)  # the spread of the draws shows
+
+
+def test_prior_driven_filter_refuses_what_it_cannot_run():
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
+    prior = export_prior(posterior_at([run], [110.0, 30.0, 0.047, 0.01, 0.005]), order=2)
+    with pytest.raises(InputError, match="no channel 'vx'"):
+        generalised_filter(run, prior, channels=["vx"])
+    with pytest.raises(InputError, match="experiment is sampled at 72 Hz"):
+        generalised_filter(run, prior | {"dt": 0.01})
+    with pytest.raises(InputError, match="unknown sensor precision 'pink'"):
+        generalised_filter(run, prior, sensor_precision="pink")
+    with pytest.raises(InputError, match="sensor-noise sd"):
+        generalised_filter(run, prior | {"sensor_noise": None})
+    exponential = prior | {"noise": prior["noise"] | {"family": "exponential"}}
+    with pytest.raises(InputError, match="order"):
+        generalised_filter(run, exponential, order=1)

@@ -1,0 +1,291 @@
+"""State estimation with an exported prior: every filter on an experiment, scored.
+
+A reviewer's question, "does the identified noise model help estimation?",
+is answered by running the filters the prior drives on runs it has not
+seen and scoring them the same way:
+
+- ``kalman``: the Kalman filter that assumes white process noise of the
+  same per-step variance (:func:`bayes_jackal.kalman.kalman_filter`), the
+  baseline;
+- ``kalman-coloured``: the Kalman filter with the family's shaping filter in
+  its state, the exact conditional mean under the identified model;
+- ``generalised``: the DEM D-step in generalised coordinates
+  (:func:`bayes_jackal.generalised_filtering.generalised_filter`).
+
+Each filter predicts every measurement from the samples before it; the
+prediction error nu_k and its variance S_k give
+
+- the innovation RMSE, sqrt(mean nu_k^2) [channel units];
+- the normalised innovation squared, NIS = mean(nu_k^2 / S_k), which is
+  1 on average when the filter's account of its uncertainty is right: with
+  n samples, n NIS is chi-square(n) under the model, so it lies in the
+  band [chi2(0.025, n), chi2(0.975, n)] / n with probability 0.95
+  (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4; the samples are treated as
+  independent, which they are under the model);
+- the state RMSE against the truth, where the experiment carries a
+  simulated one (``truth_arrays["<channel>_state"]``).
+
+The scores start at the first sample every filter predicts from its own
+steady form: sample p + 1 when the generalised filter of order p runs (its
+first p estimates use an embedding window moved inside the run), else
+sample 1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import scipy.stats
+
+from . import defaults
+from ._files import atomic_path
+from .errors import InputError
+from .experiment import CHANNEL_FIELDS, Experiment
+from .generalised_filtering import LOOKAHEAD, SENSOR_PRECISIONS, generalised_filter
+from .kalman import KALMAN_FILTERS, StateEstimate, kalman_filter
+from .robot import RobotProfile
+
+__all__ = [
+    "FILTERS",
+    "NIS_PROBABILITY",
+    "estimate_columns",
+    "estimate_states",
+    "score_estimates",
+    "write_estimates",
+]
+
+#: The filters by name (``--filters``), in the order they are reported:
+#: the Kalman filters of :data:`bayes_jackal.kalman.KALMAN_FILTERS`, then ``generalised``.
+FILTERS = defaults.FILTERS
+#: Probability of the NIS band (two-sided).
+NIS_PROBABILITY = 0.95
+
+
+def _check_filters(filters: Sequence[str]) -> tuple[str, ...]:
+    filters = tuple(dict.fromkeys(filters))
+    unknown = [name for name in filters if name not in FILTERS]
+    if unknown or not filters:
+        raise InputError(
+            f"unknown filter {unknown[0] if unknown else None!r}; use one or more of {FILTERS}",
+            field="filters",
+        )
+    return filters
+
+
+def estimate_states(
+    experiment: Experiment,
+    prior: Mapping,
+    *,
+    filters: Sequence[str] = FILTERS,
+    channels: Sequence[str] | None = None,
+    parameters: str = "plug-in",
+    order: int | None = None,
+    sensor_precision: str = SENSOR_PRECISIONS[0],
+    lookahead: int = LOOKAHEAD,
+    robot: RobotProfile | None = None,
+) -> dict[str, dict[str, StateEstimate]]:
+    """Run each filter of ``filters`` on an experiment with an exported prior.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        A run at the prior's sample time, measuring the channels.
+    prior : mapping
+        An exported prior (:func:`bayes_jackal.export.export_prior`, ``prior.json``).
+    filters : sequence of str
+        Names from :data:`FILTERS`.
+    channels : sequence of str, optional
+        By default every channel of the prior.
+    parameters : {"plug-in", "averaged"}
+        Noise parameters at the posterior means, or the filters' covariances
+        and precisions averaged over the prior's draws.
+    order, sensor_precision, lookahead
+        The generalised filter's embedding order (default: the prior's),
+        Pi_z and look-ahead (:func:`bayes_jackal.generalised_filtering.generalised_filter`).
+    robot : RobotProfile, optional
+        When given, its constants must be the prior's.
+
+    Returns
+    -------
+    dict of str to dict of str to StateEstimate
+        ``[filter][channel]``.
+
+    Raises
+    ------
+    InputError
+        For an unknown filter, or a prior that does not fit the experiment
+        (:func:`bayes_jackal.filter_models.check_prior`).
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> robot = bj.load_profile()
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, "v2", rng=seed) for seed in (1, 2)]
+    >>> posterior = bj.sample(runs[:1], channels=["yaw"], max_steps=20, seed=1)
+    >>> estimates = bj.estimate_states(runs[1], bj.export_prior(posterior, order=2))
+    >>> {name: list(per_channel) for name, per_channel in estimates.items()}
+    {'kalman': ['yaw'], 'kalman-coloured': ['yaw'], 'generalised': ['yaw']}
+    """
+    estimates = {}
+    for name in _check_filters(filters):
+        if name in KALMAN_FILTERS:
+            estimates[name] = kalman_filter(experiment, prior, noise=KALMAN_FILTERS[name],
+                                            channels=channels, parameters=parameters,
+                                            robot=robot)  # fmt: skip
+        else:
+            estimates[name] = generalised_filter(experiment, prior, channels=channels,
+                                                 order=order, parameters=parameters,
+                                                 sensor_precision=sensor_precision,
+                                                 lookahead=lookahead, robot=robot)  # fmt: skip
+    return estimates
+
+
+def _first_scored(estimates: Mapping[str, Mapping[str, StateEstimate]]) -> int:
+    """Sample p + 1 when a generalised filter of order p ran, else 1 (module docstring)."""
+    sizes = [
+        e.derivatives.shape[1]
+        for per_channel in estimates.values()
+        for e in per_channel.values()
+        if e.derivatives is not None
+    ]
+    return max([1, *sizes])
+
+
+def _nis(innovation: np.ndarray, variance: np.ndarray) -> dict:
+    """Mean NIS, its band for len(innovation) samples, and whether it lies in it."""
+    n = len(innovation)
+    tail = (1.0 - NIS_PROBABILITY) / 2.0
+    band = scipy.stats.chi2.ppf([tail, 1.0 - tail], n) / n
+    mean = float(np.mean(innovation**2 / variance))
+    return {"mean": mean, "band": band.tolist(), "consistent": bool(band[0] <= mean <= band[1])}
+
+
+def _rmse(error: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(error))))
+
+
+def score_estimates(
+    experiment: Experiment, estimates: Mapping[str, Mapping[str, StateEstimate]]
+) -> dict[str, dict]:
+    """Innovation RMSE, NIS against its chi-square band, and state RMSE against a truth.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        The run the filters ran on; its ``truth_arrays["<channel>_state"]``,
+        where present, are the true states.
+    estimates : mapping
+        :func:`estimate_states`' result.
+
+    Returns
+    -------
+    dict
+        Per filter: ``innovation_rmse`` and ``nis`` (``mean``, ``band``,
+        ``consistent``) per channel, ``state_rmse`` per channel (None
+        without a truth), and ``first_sample``, the first sample scored
+        (module docstring).
+
+    Examples
+    --------
+    A filter whose innovations are standard normal and whose variance says
+    so is consistent:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.kalman import StateEstimate
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> n = len(run.t)
+    >>> nu = np.random.default_rng(2).standard_normal(n)
+    >>> made_up = StateEstimate(run.yaw_rate, np.zeros(n), nu, np.ones(n), steady_from=0)
+    >>> score = bj.score_estimates(run, {"kalman": {"yaw": made_up}})["kalman"]
+    >>> score["nis"]["yaw"]["consistent"], score["state_rmse"]["yaw"] > 0
+    (True, True)
+    """
+    first = _first_scored(estimates)
+    scores = {}
+    for name, per_channel in estimates.items():
+        truths = {c: experiment.truth_arrays.get(f"{c}_state") for c in per_channel}
+        scores[name] = {
+            "first_sample": first,
+            "innovation_rmse": {c: _rmse(e.innovation[first:]) for c, e in per_channel.items()},
+            "nis": {
+                c: _nis(e.innovation[first:], e.innovation_variance[first:])
+                for c, e in per_channel.items()
+            },
+            "state_rmse": None
+            if any(truth is None for truth in truths.values())
+            else {c: _rmse(e.mean[first:] - truths[c][first:]) for c, e in per_channel.items()},
+        }
+    return scores
+
+
+def estimate_columns(
+    experiment: Experiment, estimates: Mapping[str, Mapping[str, StateEstimate]]
+) -> dict[str, np.ndarray]:
+    """The estimates as columns ``t`` and ``FILTER.STATE`` (``kalman.yaw_rate``, ..).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.kalman import StateEstimate
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> estimate = StateEstimate(*np.zeros((4, len(run.t))), steady_from=0)
+    >>> list(bj.estimate_columns(run, {"kalman": {"yaw": estimate, "vx": estimate}}))
+    ['t', 'kalman.yaw_rate', 'kalman.vx']
+    """
+    columns = {"t": experiment.t}
+    for name, per_channel in estimates.items():
+        for channel, estimate in per_channel.items():
+            columns[f"{name}.{CHANNEL_FIELDS[channel]}"] = estimate.mean
+    return columns
+
+
+def write_estimates(path: str | Path, tables: Mapping[str, Mapping[str, np.ndarray]]) -> Path:
+    """Write estimate columns (:func:`estimate_columns`) as one CSV, atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV.
+    tables : mapping of str to columns
+        Per experiment name, its columns; with more than one experiment a
+        first column ``experiment`` names each row's run, and every table
+        must have the same columns.
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from bayes_jackal.state_estimation import write_estimates
+    >>> table = {"t": np.array([0.0, 0.1]), "kalman.vx": np.array([0.5, 0.51])}
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     text = write_estimates(Path(folder) / "estimates.csv", {"run": table}).read_text()
+    >>> print(text.strip())
+    t,kalman.vx
+    0,0.5
+    0.1,0.51
+    """
+    path = Path(path)
+    headers = {tuple(columns) for columns in tables.values()}
+    if len(headers) != 1:
+        raise InputError(
+            f"the experiments' estimates have different columns: {sorted(headers)}",
+            field="tables",
+        )
+    header = list(headers.pop())
+    several = len(tables) > 1
+    with atomic_path(path) as temporary, temporary.open("w") as file:
+        file.write(",".join((["experiment"] if several else []) + header) + "\n")
+        for name, columns in tables.items():
+            prefix = name.replace("%", "%%") + "," if several else ""
+            rows = np.column_stack([columns[key] for key in header])
+            np.savetxt(file, rows, fmt=prefix + ",".join(["%.10g"] * len(header)))
+    return path

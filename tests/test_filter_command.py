@@ -1,0 +1,126 @@
+"""``bayes-jackal filter``: estimates CSV, scores as JSON, bad priors and bad runs."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cli_helpers import strict_json
+from synthetic_posteriors import posterior_at
+from test_cli import assert_bad_input
+
+import bayes_jackal as bj
+from bayes_jackal.cli import main
+from bayes_jackal.experiment import write_netcdf
+
+ROBOT = bj.load_profile()
+HEADER = "t,kalman.yaw_rate,kalman-coloured.yaw_rate,generalised.yaw_rate"
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Two runs the prior has not seen (.nc keeps the truth, .csv does not) and the prior."""
+    folder = tmp_path_factory.mktemp("filter")
+    seen = bj.simulate_experiment(ROBOT, 110.0, 30.0, "v1", rng=100)
+    prior = bj.export_prior(posterior_at([seen], [110.0, 30.0, 0.047, 0.01, 0.005]), order=2)
+    runs = [bj.simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=seed) for seed in (1, 2)]
+    # yaw and vx: theta = (d_lat, d_long, then sigma_h, sigma_c, sigma_n per channel)
+    two = posterior_at([seen], [110.0, 30.0, 0.047, 0.01, 0.005, 0.05, 0.005, 0.003],
+                       channels=("yaw", "vx"))  # fmt: skip
+    yaw_only = dataclasses.replace(runs[1], vx=None, vy=None)
+    return {
+        "yaw_vx_prior": str(bj.write_prior(bj.export_prior(two, order=2), folder / "yaw_vx.json")),
+        "yaw_only": str(bj.write_csv(yaw_only, folder / "yaw_only.csv")),
+        "nc": str(write_netcdf(runs[0], folder / "left.nc")),
+        "csv": str(bj.write_csv(runs[1], folder / "right.csv")),
+        "prior": str(bj.write_prior(prior, folder / "prior.json")),
+        "runs": runs,
+    }
+
+
+def digest(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def test_filter_writes_estimates_and_scores(tmp_path, capsys, files):
+    out = tmp_path / "estimates.csv"
+    before = {key: digest(files[key]) for key in ("nc", "prior")}
+    code = main(["filter", files["nc"], "--prior", files["prior"], "--out", str(out), "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert out.read_text().splitlines()[0] == HEADER
+    result = strict_json(captured.out)
+    scores = result["experiments"][bj.load_experiments([files["nc"]])[0].name]
+    assert list(scores) == ["kalman", "kalman-coloured", "generalised"]
+    # The library's scores, to the JSON's digits.
+    run = files["runs"][0]
+    prior = bj.read_prior(files["prior"])
+    expected = bj.score_estimates(run, bj.estimate_states(run, prior))
+    for name, score in expected.items():
+        got = scores[name]
+        assert got["state_rmse"]["yaw"] == pytest.approx(score["state_rmse"]["yaw"], rel=1e-12)
+        assert got["nis"]["yaw"]["mean"] == pytest.approx(score["nis"]["yaw"]["mean"], rel=1e-12)
+        assert got["nis"]["yaw"]["band"] == pytest.approx(score["nis"]["yaw"]["band"], rel=1e-12)
+        assert got["nis"]["yaw"]["consistent"] == score["nis"]["yaw"]["consistent"]
+    back = np.loadtxt(out, delimiter=",", skiprows=1)
+    estimates = bj.estimate_states(run, prior)
+    np.testing.assert_allclose(back[:, 3], estimates["generalised"]["yaw"].mean, rtol=1e-9)
+    assert before == {key: digest(files[key]) for key in ("nc", "prior")}  # inputs unchanged
+
+
+def test_filter_options_reach_the_filters(tmp_path, capsys, files):
+    out = tmp_path / "estimates.csv"
+    code = main(
+        ["filter", files["csv"], "--prior", files["prior"], "--out", str(out),
+         "--filters", "generalised", "--order", "1", "--parameters", "averaged",
+         "--sensor-precision", "exported", "--lookahead", "1"]
+    )  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "generalised" in captured.out and "state RMSE" in captured.out
+    run = bj.load_experiments([files["csv"]])[0]
+    expected = bj.generalised_filter(
+        run, bj.read_prior(files["prior"]), order=1, parameters="averaged",
+        sensor_precision="exported", lookahead=1,
+    )["yaw"].mean  # fmt: skip
+    back = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert out.read_text().splitlines()[0] == "t,generalised.yaw_rate"
+    np.testing.assert_allclose(back[:, 1], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_a_prior_that_does_not_fit_is_named(tmp_path, capsys, files):
+    prior = json.loads(Path(files["prior"]).read_text())
+    fast = tmp_path / "fast.json"
+    fast.write_text(json.dumps(prior | {"dt": 0.01}))
+    out = tmp_path / "estimates.csv"
+    code = main(["filter", files["nc"], "--prior", str(fast), "--out", str(out)])
+    assert_bad_input(code, capsys.readouterr(), "fast.json", "left.nc", "dt", "100 Hz")
+    assert not out.exists()
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    code = main(["filter", files["nc"], "--prior", str(broken), "--out", str(out)])
+    assert_bad_input(code, capsys.readouterr(), "broken.json", "not JSON")
+    code = main(["filter", files["nc"], "--prior", files["nc"], "--out", str(out)])
+    assert_bad_input(code, capsys.readouterr(), "left.nc", "not JSON")
+    code = main(["filter", files["yaw_only"], "--prior", files["yaw_vx_prior"], "--out", str(out)])
+    assert_bad_input(code, capsys.readouterr(), "yaw_only.csv", "channel 'vx' is not in")
+
+
+def test_one_bad_run_does_not_stop_the_others(tmp_path, capsys, files):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,yaw_rate,omega_r,omega_l\n0,1,2\n")
+    out = tmp_path / "estimates.csv"
+    code = main(
+        ["filter", str(bad), files["csv"], "--prior", files["prior"], "--out", str(out), "--json"]
+    )
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "bad.csv" in captured.err and "Traceback" not in captured.err
+    result = strict_json(captured.out)
+    assert list(result["experiments"]) == ["right"] and list(result["failed"]) == [str(bad)]
+    assert result["experiments"]["right"]["kalman"]["state_rmse"] is None  # a CSV has no truth
+    assert out.read_text().splitlines()[0] == HEADER
