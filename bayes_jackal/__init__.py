@@ -25,6 +25,7 @@ _LAZY = {
     # state estimation with a prior (the filters)
     "FILTERS": ".state_estimation",
     "estimate_columns": ".state_estimation",
+    "estimate_each": ".state_estimation",
     "estimate_states": ".state_estimation",
     "generalised_filter": ".generalised_filtering",
     "kalman_filter": ".kalman",

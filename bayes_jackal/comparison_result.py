@@ -10,6 +10,7 @@ scale, in natural-log units: below 1 not worth more than a bare mention,
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from .evidence import Evidence, evidence_strength
 from .posterior import HDI_PROB, az, interval, posterior_metadata, summarize
 
-__all__ = ["COLOURED_LOG_BF", "WHITE_LOG_BF", "Comparison"]
+__all__ = ["COLOURED_LOG_BF", "WHITE_LOG_BF", "Comparison", "colour_verdict"]
 
 #: A family is called coloured when it beats white noise by more than this
 #: (ln B, "strong" on Kass & Raftery's scale) after two standard errors.
@@ -93,24 +94,8 @@ class Comparison:
         return a.log_evidence - b.log_evidence, float(np.hypot(a.error, b.error))
 
     def verdict(self) -> tuple[str, str]:
-        """Is the noise coloured? ('coloured' | 'not coloured' | 'inconclusive', sentence).
-
-        The best coloured family is set against white noise. 'coloured' needs
-        ln B - 2 se > 3 (strong), 'not coloured' needs ln B + 2 se < -1
-        (white better by positive evidence); anything between is
-        inconclusive, so a noisy estimate never gives a confident answer.
-        """
-        coloured = [name for name in self.evidence if name != "white"]
-        if "white" not in self.evidence or not coloured:
-            return "inconclusive", "white noise and a coloured family must both be compared"
-        rival = max(coloured, key=lambda name: self.evidence[name].log_evidence)
-        value, error = self.log_bayes_factor(rival, "white")
-        words = f"ln B = {value:.1f} +- {error:.2f}, {evidence_strength(value)}"
-        if value - 2 * error > COLOURED_LOG_BF:
-            return "coloured", f"coloured: {rival} over white, {words}"
-        if value + 2 * error < -WHITE_LOG_BF:
-            return "not coloured", f"not coloured: white over {rival}, {words}"
-        return "inconclusive", f"inconclusive: {rival} against white, {words}"
+        """Is the noise coloured? :func:`colour_verdict` of the families' evidence."""
+        return colour_verdict(self.evidence)
 
     def to_dict(self) -> dict:
         """The ``compare --json`` object (docs/design.md §6).
@@ -157,3 +142,38 @@ def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
     summary = summarize(idata)
     widths = layout.names_of(layout.width_name)
     return {name: interval(summary[name]) for name in widths} | {"hdi_prob": HDI_PROB}
+
+
+def colour_verdict(evidence: Mapping[str, Evidence]) -> tuple[str, str]:
+    """Is the noise coloured? ('coloured' | 'not coloured' | 'inconclusive', sentence).
+
+    The best coloured family is set against white noise. 'coloured' needs
+    ln B - 2 se > 3 (strong), 'not coloured' needs ln B + 2 se < -1
+    (white better by positive evidence); anything between is
+    inconclusive, so a noisy estimate never gives a confident answer.
+
+    Parameters
+    ----------
+    evidence : mapping of str to Evidence
+        Each family's log evidence.
+
+    Examples
+    --------
+    >>> from bayes_jackal.comparison_result import colour_verdict
+    >>> from bayes_jackal.evidence import Evidence
+    >>> colour_verdict({"white": Evidence(-10.0, 0.1, "bridge"),
+    ...                 "gaussian": Evidence(-9.5, 0.1, "bridge")})[0]
+    'inconclusive'
+    """
+    coloured = [name for name in evidence if name != "white"]
+    if "white" not in evidence or not coloured:
+        return "inconclusive", "white noise and a coloured family must both be compared"
+    rival = max(coloured, key=lambda name: evidence[name].log_evidence)
+    value = evidence[rival].log_evidence - evidence["white"].log_evidence
+    error = float(np.hypot(evidence[rival].error, evidence["white"].error))
+    words = f"ln B = {value:.1f} +- {error:.2f}, {evidence_strength(value)}"
+    if value - 2 * error > COLOURED_LOG_BF:
+        return "coloured", f"coloured: {rival} over white, {words}"
+    if value + 2 * error < -WHITE_LOG_BF:
+        return "not coloured", f"not coloured: white over {rival}, {words}"
+    return "inconclusive", f"inconclusive: {rival} against white, {words}"

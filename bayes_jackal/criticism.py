@@ -17,6 +17,8 @@ are :mod:`bayes_jackal.criticism_inputs`'s. All are importable from here.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from .criticism_inputs import (
@@ -47,6 +49,7 @@ from .posterior import (
     thinned_draws,
 )
 from .predictive import predictive_series
+from .priors import Prior
 from .residuals import channel_residuals
 
 __all__ = [
@@ -61,6 +64,7 @@ __all__ = [
     "RESIDUAL_INPUT_LAGS",
     "RESIDUAL_INPUT_LEVEL",
     "Check",
+    "boundary_check",
     "criticise",
     "damping_scale",
     "predictive_acf",
@@ -123,10 +127,46 @@ def prior_boundary(idata: az.InferenceData) -> Check:
     {'d_lat': 0.0, 'd_long': 2.56, 'sigma_c': 0.0, 'sigma_n': 0.99}
     """
     metadata = posterior_metadata(idata)
-    prior, layout = metadata.prior, metadata.layout
+    layout = metadata.layout
     draws, _ = parameter_draws(idata)
+    keys = [layout.prior_key(base) for base in layout.bases]
+    return boundary_check(draws.reshape(-1, len(keys)), metadata.prior, keys)
+
+
+def boundary_check(draws: np.ndarray, prior: Prior, keys: Sequence[str] | None = None) -> Check:
+    """:func:`prior_boundary`'s rule on plain draws: a warning per parameter piled at a bound.
+
+    Parameters
+    ----------
+    draws : ndarray, shape (draws, k)
+        Posterior draws in natural units, columns in ``prior.names`` order.
+    prior : Prior
+        Their prior's ranges.
+    keys : sequence of str, optional
+        The ``--prior`` key of each column in the advice; by default its name.
+
+    Returns
+    -------
+    Check
+        ``warnings`` (kind ``prior-boundary``) and the density ratios per parameter.
+
+    Examples
+    --------
+    Draws piled against a lower bound of 1 warn; draws in the middle do not:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.criticism import boundary_check
+    >>> from bayes_jackal.priors import Prior
+    >>> prior = Prior(("a", "b"), np.array([1.0, 1.0]), np.array([100.0, 100.0]),
+    ...               np.array([True, True]))
+    >>> rng = np.random.default_rng(1)
+    >>> draws = np.column_stack([1.0 + rng.exponential(0.2, 4000), rng.lognormal(2.3, 0.1, 4000)])
+    >>> [(w["parameter"], w["side"]) for w in boundary_check(draws, prior).warnings]
+    [('a', 'low')]
+    """
+    keys = list(prior.names if keys is None else keys)
     check = Check()
-    for j, name in enumerate(layout.names):
+    for j, name in enumerate(prior.names):
         bounds = {"low": float(prior.low[j]), "high": float(prior.high[j])}
         ratios = boundary_density(
             draws[..., j],
@@ -141,8 +181,9 @@ def prior_boundary(idata: az.InferenceData) -> Check:
         hdi_range = tuple(float(v) for v in az.hdi(draws[..., j].ravel(), hdi_prob=HDI_PROB))
         for side, ratio in zip(("low", "high"), ratios, strict=True):
             if ratio >= BOUNDARY_DENSITY:
-                key = layout.prior_key(layout.bases[j])
-                check.warnings.append(_boundary_warning(name, key, bounds[side], side, hdi_range))
+                check.warnings.append(
+                    _boundary_warning(name, keys[j], bounds[side], side, hdi_range)
+                )
     return check
 
 

@@ -25,7 +25,7 @@ __all__ = ["SHOWN_SECONDS", "plot_state_estimates", "shown_window"]
 SHOWN_SECONDS = 3.0
 
 
-def shown_window(experiment: Experiment, seconds: float = SHOWN_SECONDS) -> tuple[float, float]:
+def shown_window(experiment: Experiment, *, seconds: float = SHOWN_SECONDS) -> tuple[float, float]:
     """The ``seconds`` [s] around the middle of the steady window (or of the run), inside it.
 
     Examples
@@ -52,8 +52,8 @@ def plot_state_estimates(
     """Each filter's estimate with its +-2 sd band, against the measurements and any truth.
 
     One axes per filter, over :func:`shown_window`: the measurements as
-    dots, the filtered mean E[x_k | y_0..y_k] as a line and the band mean
-    +- 2 sqrt(variance); the simulated true state dashed, where the
+    dots, each filter's estimate of x_k (the Kalman filters' E[x_k | y_0..y_k])
+    as a line and the band mean +- 2 sqrt(variance); the simulated true state dashed, where the
     experiment carries one (``truth_arrays["<channel>_state"]``).
 
     Parameters
@@ -101,7 +101,7 @@ def plot_state_estimates(
         fig = Figure(layout="constrained", figsize=(7.0, 1.0 + 1.8 * len(estimates)))
         axes = fig.subplots(len(estimates), 1, sharex=True, squeeze=False)[:, 0]
     axes = np.atleast_1d(axes)
-    start, stop = shown_window(experiment, seconds)
+    start, stop = shown_window(experiment, seconds=seconds)
     shown = (experiment.t >= start) & (experiment.t <= stop)
     t = experiment.t[shown]
     truth = experiment.truth_arrays.get(f"{channel}_state")

@@ -57,6 +57,7 @@ from .export_consumers import (
     SENSOR_SMOOTHNESS,
     channel_moments,
     check_sensor_smoothness,
+    continuous_sd,
     generalised_precision,
     mean_covariance_precision,
     prior_additions,
@@ -270,22 +271,16 @@ def export_prior(
     draws, _ = parameter_draws(idata)
     draws = draws.reshape(-1, len(names))
     d = draws[:, :2]
-    A_draws, _ = continuous_matrices(robot, d[:, 0], d[:, 1])
-    Ad_draws, _ = discrete_matrices(robot, d[:, 0], d[:, 1], dt)
-    index = [CHANNELS.index(c) for c in channels]
-    # Per-step sd sigma_c -> continuous-time sd s_c = sigma_c A / (Ad - 1).
-    pole = A_draws[:, index, index]
-    gain = pole / (Ad_draws[:, index, index] - 1.0)
     # Shared noise: group c is channel c; white noise has unit widths.
     width, sigma_c, sigma_n = np.stack(
         [layout.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
     )
-    continuous_sd = sigma_c * gain
+    process_sd = continuous_sd(robot, d, dt, channels, sigma_c)
     if order is None:
-        order = min(AUTO_ORDER, max(allowed_orders(family, width, continuous_sd), default=0))
-    V, S, condition = _temporal_precision(family, width, continuous_sd, order)
+        order = min(AUTO_ORDER, max(allowed_orders(family, width, process_sd), default=0))
+    V, S, condition = _temporal_precision(family, width, process_sd, order)
     if not condition < MAX_CONDITION:
-        allowed = allowed_orders(family, width, continuous_sd)
+        allowed = allowed_orders(family, width, process_sd)
         raise InputError(
             f"order {order} gives a precision with condition number {condition:.3g} (above "
             f"{MAX_CONDITION:.0e}: it would keep fewer than 4 significant digits) for this "
@@ -334,7 +329,7 @@ def export_prior(
             "channels": channels,
             "parameters": noise_stats,
             "sigma_c_is": "process" if "sigma_n" in layout.noise_bases else "total",
-            "process_sd_continuous": channel_moments(continuous_sd, channels),
+            "process_sd_continuous": channel_moments(process_sd, channels),
             "sensor": layout.sensor,
         },
         "generalised_coordinates": {
@@ -343,9 +338,9 @@ def export_prior(
             "layout": "derivative-major: row i * len(channels) + c is derivative i of channel c",
             "temporal_covariance": V.mean(axis=0).tolist(),
             "temporal_precision": S.mean(axis=0).tolist(),
-            "noise_covariance": np.diag((continuous_sd**2).mean(axis=0)).tolist(),
-            "precision": generalised_precision(S, continuous_sd).tolist(),
-            "precision_mean_covariance": mean_covariance_precision(V, continuous_sd).tolist(),
+            "noise_covariance": np.diag((process_sd**2).mean(axis=0)).tolist(),
+            "precision": generalised_precision(S, process_sd).tolist(),
+            "precision_mean_covariance": mean_covariance_precision(V, process_sd).tolist(),
         },
         "draws": {
             "count": len(kept),
@@ -358,7 +353,7 @@ def export_prior(
         width=width,
         sigma_c=sigma_c,
         sigma_n=sigma_n if "sigma_n" in layout.noise_bases else None,
-        continuous_sd=continuous_sd,
+        continuous_sd=process_sd,
         temporal_bins=temporal_covariance(family, width / dt, order),
         sensor_temporal_bins=temporal_covariance("gaussian", np.array(sensor_smoothness), order),
         sensor_smoothness=sensor_smoothness,
@@ -407,6 +402,7 @@ def read_prior(path: str | Path) -> dict:
     Parameters
     ----------
     path : str or Path
+        A ``prior.json`` (format ``bayes_jackal.prior/1``).
 
     Returns
     -------

@@ -43,6 +43,7 @@ from .robot import RobotProfile
 __all__ = [
     "SENSOR_SMOOTHNESS",
     "channel_moments",
+    "continuous_sd",
     "gaussian_smoothness",
     "generalised_precision",
     "log_precision_moments",
@@ -53,6 +54,56 @@ __all__ = [
 
 #: Relative step of the damping for the Jacobian of A, B (exact: they are linear in it).
 _STEP = 1e-3
+
+
+def continuous_sd(
+    robot: RobotProfile,
+    damping: np.ndarray,
+    dt: float,
+    channels: Sequence[str],
+    sigma_c: np.ndarray,
+) -> np.ndarray:
+    """s_c = sigma_c a / (alpha - 1): the continuous-time sd of the per-step process noise.
+
+    The fitted sigma_c is the sd per step of x[k+1] = alpha x[k] + b u[k] + w[k];
+    noise of sd s_c in dx/dt = a x + b u + w, held over a step, gives it.
+
+    Parameters
+    ----------
+    robot : RobotProfile
+    damping : ndarray, shape (draws, 2)
+        (d_lat, d_long) per draw [N s/m].
+    dt : float
+        Sample time [s].
+    channels : sequence of str
+    sigma_c : ndarray, shape (draws, channels)
+        The per-step sd per draw [channel units].
+
+    Returns
+    -------
+    ndarray, shape (draws, channels)
+        [channel units / s].
+
+    Examples
+    --------
+    With alpha = exp(a dt), s_c dt / sigma_c = a dt / (exp(a dt) - 1), which
+    is close to 1 for a slow pole (|a| dt << 1):
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.export_consumers import continuous_sd
+    >>> from bayes_jackal.physics import continuous_matrices
+    >>> robot = bj.load_profile()
+    >>> s = continuous_sd(robot, np.array([[110.0, 30.0]]), robot.dt, ["vx"], np.array([[0.005]]))
+    >>> a_dt = continuous_matrices(robot, 110.0, 30.0)[0][0, 0] * robot.dt
+    >>> ratio = float(s[0, 0] * robot.dt / 0.005)
+    >>> round(ratio, 3), bool(np.isclose(ratio, a_dt / np.expm1(a_dt)))
+    (1.051, True)
+    """
+    A, _ = continuous_matrices(robot, damping[:, 0], damping[:, 1])
+    Ad, _ = discrete_matrices(robot, damping[:, 0], damping[:, 1], dt)
+    index = [CHANNELS.index(c) for c in channels]
+    return sigma_c * A[:, index, index] / (Ad[:, index, index] - 1.0)
 
 
 def generalised_precision(temporal_precision: np.ndarray, sd: np.ndarray) -> np.ndarray:
@@ -107,7 +158,8 @@ def mean_covariance_precision(temporal_covariance: np.ndarray, sd: np.ndarray) -
     Returns
     -------
     ndarray, shape ((P + 1) C, (P + 1) C)
-        Row i * C + c is derivative i of channel c.
+        Row i * C + c is derivative i of channel c [1 / (units / s^i) / (units / s^j)
+        for V in seconds and sd in units].
 
     Examples
     --------

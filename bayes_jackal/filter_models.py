@@ -59,7 +59,7 @@ from .kernels import FAMILIES, Family, get_family
 from .parameters import DAMPING, ParameterLayout
 from .physics import CHANNELS
 from .posterior_format import ROBOT_CONSTANTS
-from .robot import RobotProfile
+from .robot import RobotProfile, load_profile
 
 __all__ = [
     "NOISE_MODELS",
@@ -70,7 +70,9 @@ __all__ = [
     "check_prior",
     "filter_models",
     "noise_parameters",
+    "parameter_values",
     "prior_field",
+    "prior_robot",
 ]
 
 #: The process-noise models a filter can assume: the prior's family
@@ -361,7 +363,9 @@ def check_prior(
             f"the prior is for robot {constants.get('name')!r}, the experiment is of {name!r}",
             field="robot",
         )
-    for key in ROBOT_CONSTANTS if robot is not None else ():
+    # Where the profile came from is no constant: a prior exported elsewhere fits.
+    physical = [key for key in ROBOT_CONSTANTS if key != "source"]
+    for key in physical if robot is not None else ():
         if constants.get(key) != getattr(robot, key):
             raise InputError(
                 f"the prior's {constants.get(key)!r} differs from the profile's "
@@ -472,6 +476,43 @@ def filter_models(
     return models
 
 
+def parameter_values(prior: Mapping, *, parameters: str = "plug-in") -> np.ndarray:
+    """The prior's parameter vectors: the posterior means (one row) or its draws.
+
+    Parameters
+    ----------
+    prior : mapping
+        An exported prior.
+    parameters : {"plug-in", "averaged"}
+
+    Returns
+    -------
+    ndarray, shape (1, k) or (draws, k)
+        Columns in the layout's order: d_lat, d_long [N s/m], then the noise
+        parameters (:class:`bayes_jackal.parameters.ParameterLayout`).
+
+    Examples
+    --------
+    >>> from bayes_jackal.filter_models import parameter_values
+    >>> prior = {"damping": {"mean": [110.0, 30.0]},
+    ...          "noise": {"family": "white", "channels": ["yaw"], "sensor": "ma1",
+    ...                    "parameters": {"sigma_c": {"mean": 0.01}, "sigma_n": {"mean": 0.005}}},
+    ...          "draws": {"d_lat": [100.0, 120.0], "d_long": [30.0, 30.0],
+    ...                    "sigma_c": [0.01, 0.01], "sigma_n": [0.004, 0.006]}}
+    >>> parameter_values(prior).tolist(), parameter_values(prior, parameters="averaged").shape
+    ([[110.0, 30.0, 0.01, 0.005]], (2, 4))
+    """
+    if parameters not in PARAMETERS:
+        raise InputError(
+            f"unknown parameters {parameters!r}; use one of {PARAMETERS}", field="parameters"
+        )
+    names = _layout(prior).names
+    if parameters == "plug-in":
+        means = [prior_field(prior, f"noise.parameters.{n}.mean") for n in names[len(DAMPING) :]]
+        return np.array([[*prior_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
+    return np.column_stack([prior_field(prior, f"draws.{n}") for n in names]).astype(float)
+
+
 def noise_parameters(
     prior: Mapping, channel: str, *, parameters: str = "plug-in"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -484,7 +525,8 @@ def noise_parameters(
     channel : str
         One of the prior's channels.
     parameters : {"plug-in", "averaged"}
-        The posterior means (one value each) or the prior's draws.
+        The posterior means (one value each) or the prior's draws
+        (:func:`parameter_values`).
 
     Returns
     -------
@@ -514,17 +556,26 @@ def noise_parameters(
     >>> noise_parameters(prior, "yaw", parameters="averaged")[0].tolist()
     [0.04, 0.06]
     """
-    if parameters not in PARAMETERS:
-        raise InputError(
-            f"unknown parameters {parameters!r}; use one of {PARAMETERS}", field="parameters"
-        )
+    theta = parameter_values(prior, parameters=parameters)
     layout = _layout(prior)
     (channel,) = _prior_channels(prior, [channel])
-    if parameters == "plug-in":
-        means = [prior_field(prior, f"noise.parameters.{n}.mean") for n in layout.names[2:]]
-        theta = np.array([[*prior_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
-    else:
-        theta = np.column_stack([prior_field(prior, f"draws.{n}") for n in layout.names]).astype(
-            float
-        )
     return layout.noise_parameters(theta, layout.channels.index(channel))
+
+
+def prior_robot(prior: Mapping) -> RobotProfile:
+    """The robot an exported prior was identified on: its constants in the default profile.
+
+    Only the physical constants, the rate and the wheel-speed conversion
+    enter the model; the profile's priors, topics and wheel joints are the
+    installed default's.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.filter_models import prior_robot
+    >>> prior = {"robot": {"name": "jackal", "mass": 20.0}}
+    >>> prior_robot(prior).mass, prior_robot(prior).wheel_radius == bj.load_profile().wheel_radius
+    (20.0, True)
+    """
+    constants = prior_field(prior, "robot")
+    return load_profile().replace(**{k: v for k, v in constants.items() if k in ROBOT_CONSTANTS})

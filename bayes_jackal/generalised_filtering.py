@@ -59,7 +59,14 @@ from . import defaults
 from .errors import InputError
 from .experiment import Experiment
 from .export import temporal_covariance
-from .filter_models import check_prior, noise_parameters, prior_field
+from .export_consumers import continuous_sd, mean_covariance_precision
+from .filter_models import (
+    check_prior,
+    noise_parameters,
+    parameter_values,
+    prior_field,
+    prior_robot,
+)
 from .generalised_coordinates import (
     embed,
     shift_operator,
@@ -69,6 +76,7 @@ from .generalised_coordinates import (
 from .kalman import StateEstimate
 from .kernels import get_family
 from .lti import lti_outputs
+from .parameters import DAMPING
 from .physics import CHANNELS
 from .robot import RobotProfile
 
@@ -276,15 +284,15 @@ def process_precision(
     """Pi_w of one channel at embedding order p, from an exported prior's noise parameters.
 
     inv(s_c^2 V) (:func:`bayes_jackal.export.temporal_covariance`), with
-    s_c = sigma_c a / (alpha - 1) the continuous-time sd at the prior's
-    model (``model.A``, ``model.Ad``), as the export computes it. ``plug-in``
-    evaluates it at the posterior means; ``averaged`` inverts the draws'
-    mean covariance, E[s_c^2 V]: the Gaussian that matches the noise's
-    covariance under the posterior, as the Kalman filters average Q. (The
-    draws' mean precision, E[inv(V) / s_c^2], the export's
-    ``generalised_coordinates.precision``, is larger by Jensen's inequality:
-    twice the plug-in on a wide posterior, where it makes the filter trust
-    a poorly identified model; ``precision_mean_covariance`` is this one.)
+    s_c the continuous-time sd (:func:`bayes_jackal.export_consumers.continuous_sd`,
+    each draw's damping in its pole). ``plug-in`` evaluates it at the
+    posterior means; ``averaged`` inverts the draws' mean covariance,
+    E[s_c^2 V] (:func:`bayes_jackal.export_consumers.mean_covariance_precision`,
+    the export's ``precision_mean_covariance``): the Gaussian that matches
+    the noise's covariance under the posterior, as the Kalman filters
+    average Q. (The draws' mean precision, E[inv(V) / s_c^2], the export's
+    ``precision``, is larger by Jensen's inequality: twice the plug-in on a
+    wide posterior, where it makes the filter trust a poorly identified model.)
 
     Parameters
     ----------
@@ -301,7 +309,7 @@ def process_precision(
     Returns
     -------
     ndarray, shape (p + 1, p + 1)
-        [1 / (units / s^i) / (units / s^j) per s].
+        [s^(i + j + 2) / units^2]: w is in units / s (dx/dt = a x + b u + w).
 
     Examples
     --------
@@ -309,27 +317,26 @@ def process_precision(
     derivative's precision 2 sigma_h^2 / s_c^2:
 
     >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.export_consumers import continuous_sd
     >>> from bayes_jackal.generalised_filtering import process_precision
-    >>> a, alpha = -2.0, np.exp(-2.0 * 0.01)  # vx's pole, continuous and per 0.01 s step
-    >>> prior = {"damping": {"mean": [110.0, 30.0]},
-    ...          "model": {"A": np.diag([a, -5.0, -9.0]), "Ad": np.diag([alpha, 0.9, 0.8])},
+    >>> robot = bj.load_profile()
+    >>> prior = {"robot": {"name": "jackal"}, "dt": robot.dt, "damping": {"mean": [110.0, 30.0]},
     ...          "noise": {"family": "gaussian", "channels": ["vx"], "sensor": "ma1",
     ...                    "parameters": {"sigma_h": {"mean": 0.05}, "sigma_c": {"mean": 0.01},
     ...                                   "sigma_n": {"mean": 0.005}}}}
-    >>> s = 0.01 * a / (alpha - 1.0)
+    >>> s = continuous_sd(robot, np.array([[110.0, 30.0]]), robot.dt, ["vx"], np.array([[0.01]]))
     >>> Pw = process_precision(prior, "vx", 1)
-    >>> bool(np.allclose(Pw, np.diag([1.0, 2 * 0.05**2]) / s**2))
+    >>> bool(np.allclose(Pw, np.diag([1.0, 2 * 0.05**2]) / s[0, 0] ** 2))
     True
     """
     family = str(prior_field(prior, "noise.family"))
     get_family(family).check_order(order)
     width, sigma_c, _ = noise_parameters(prior, channel, parameters=parameters)
-    i = CHANNELS.index(channel)
-    a = np.asarray(prior_field(prior, "model.A"), float)[i, i]
-    alpha = np.asarray(prior_field(prior, "model.Ad"), float)[i, i]
-    continuous_sd = sigma_c * a / (alpha - 1.0)
-    V = temporal_covariance(family, width, order)
-    return np.linalg.inv((V * continuous_sd[:, None, None] ** 2).mean(axis=0))
+    damping = parameter_values(prior, parameters=parameters)[:, : len(DAMPING)]
+    dt = float(prior_field(prior, "dt"))
+    sd = continuous_sd(prior_robot(prior), damping, dt, [channel], sigma_c[:, None])
+    return mean_covariance_precision(temporal_covariance(family, width, order)[:, None], sd)
 
 
 def generalised_filter(
@@ -381,7 +388,9 @@ def generalised_filter(
     dict of str to StateEstimate
         Per channel: the state, its conditional variance, the prediction
         error and its variance (NaN at the first sample, which has no
-        estimate before it), and ``derivatives``, mu~ shaped (N, p + 1).
+        estimate before it, and everywhere with a look-ahead, where the
+        estimate at t_(k-1) has seen y_k), and ``derivatives``, mu~ shaped
+        (N, p + 1).
 
     Raises
     ------
@@ -440,7 +449,9 @@ def generalised_filter(
         Sigma = conditional_covariance(A[row, row], Pw, Pz)
         step = taylor_step(order, dt)
         _, _, sigma_n = noise_parameters(prior, channel, parameters=parameters)
-        predicted = np.concatenate([[np.nan], mu[:-1] @ step])
+        predicted = np.full(len(y), np.nan)
+        if lookahead == 0:  # with a look-ahead the estimate at t_(k-1) has seen y_k
+            predicted[1:] = mu[:-1] @ step
         spread = step @ Sigma @ step + np.mean(sigma_n**2)
         estimates[channel] = StateEstimate(
             mean=mu[:, 0],

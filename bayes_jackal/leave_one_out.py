@@ -42,7 +42,7 @@ from pathlib import Path
 
 from ._files import write_json
 from .comparison import compare_groups
-from .errors import DataError, describe
+from .errors import describe
 from .executors import Executor
 from .experiment import Experiment
 from .export import export_prior, write_prior
@@ -53,7 +53,7 @@ from .robot import RobotProfile
 from .state_estimation import (
     FILTERS,
     estimate_columns,
-    estimate_states,
+    estimate_each,
     score_estimates,
     write_estimates,
 )
@@ -112,31 +112,6 @@ class LeaveOneOut:
         }
 
 
-def _run_filters(
-    left_out: Experiment, prior: Mapping, filters: Sequence[str], robot: RobotProfile
-) -> tuple[dict[str, dict[str, StateEstimate]], dict[str, str]]:
-    """Each filter on its own, past those that fail: (estimates, reason per filter failed).
-
-    A filter may refuse a prior (the generalised filter needs a sensor-noise
-    sd); the others still run.
-
-    Raises
-    ------
-    DataError
-        When no filter could run, with each reason.
-    """
-    estimates, refused = {}, {}
-    for name in filters:
-        try:
-            estimates |= estimate_states(left_out, prior, filters=(name,), robot=robot)
-        except Exception as exc:  # the others go on
-            refused[name] = describe(exc)
-    if not estimates:
-        reasons = "; ".join(f"{name}: {reason}" for name, reason in refused.items())
-        raise DataError(f"no filter could run: {reasons}", field="filters")
-    return estimates, refused
-
-
 def _estimate(
     left_out: Experiment,
     idata,
@@ -152,7 +127,7 @@ def _estimate(
         "posterior": str(posterior),
         "prior": str(write_prior(prior, folder / f"{name}.prior.json")),
     }
-    estimates, refused = _run_filters(left_out, prior, filters, robot)
+    estimates, refused = estimate_each(left_out, prior, filters=filters, robot=robot)
     columns = {name: estimate_columns(left_out, estimates)}
     files["estimates"] = str(write_estimates(folder / f"{name}.csv", columns))
     record = {

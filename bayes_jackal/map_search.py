@@ -18,7 +18,7 @@ from .errors import InputError
 from .noise_profile import profile_starts
 from .priors import LogPosterior, Prior
 
-__all__ = ["find_map", "laplace_walkers"]
+__all__ = ["find_map", "laplace_walkers", "local_maximum"]
 
 
 #: Local searches of :func:`find_map`, from the best points of the profile.
@@ -101,24 +101,63 @@ def find_map(
             "data allow",
             field="priors",
         )
-    bounds = list(zip(prior.z_low, prior.z_high, strict=True))
-
-    def maximise(function: LogPosterior, start: np.ndarray) -> scipy.optimize.OptimizeResult:
-        # Finite differences next to a -inf region subtract inf - inf there;
-        # L-BFGS-B treats the NaN as a failed step and backs off.
-        with np.errstate(invalid="ignore"):
-            return scipy.optimize.minimize(
-                _with_gradient(function, prior), start, method="L-BFGS-B", jac=True, bounds=bounds
-            )
-
-    best = max((maximise(scan_posterior, start) for start in starts), key=lambda r: -r.fun)
+    best = _best_local(scan_posterior, starts)
     for _ in range(3):
         swept = _sweep_widths(scan_posterior, best.x, prior)
         if np.array_equal(swept, best.x):
             break
-        best = maximise(scan_posterior, swept)
-    polished = maximise(log_posterior, best.x)
+        best = _best_local(scan_posterior, swept[None])
+    polished = _best_local(log_posterior, best.x[None])
     return polished.x if np.isfinite(polished.fun) else best.x
+
+
+def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimize.OptimizeResult:
+    """The best of L-BFGS-B maximisations within the prior's box from each row of ``starts``."""
+    prior = log_posterior.prior
+    bounds = list(zip(prior.z_low, prior.z_high, strict=True))
+
+    def maximise(start: np.ndarray) -> scipy.optimize.OptimizeResult:
+        # Finite differences next to a -inf region subtract inf - inf there;
+        # L-BFGS-B treats the NaN as a failed step and backs off.
+        with np.errstate(invalid="ignore"):
+            return scipy.optimize.minimize(
+                _with_gradient(log_posterior, prior), start, method="L-BFGS-B", jac=True,
+                bounds=bounds,
+            )  # fmt: skip
+
+    return max((maximise(start) for start in starts), key=lambda result: -result.fun)
+
+
+def local_maximum(log_posterior: LogPosterior, starts: np.ndarray) -> np.ndarray:
+    """The highest local maximum of a log-posterior reached from ``starts`` (in z = log theta).
+
+    L-BFGS-B within the prior's box, with finite-difference gradients, from
+    each start; the best end point. :func:`find_map` runs it from the best
+    points of the profile likelihood; a noise series' fit from a design.
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+        Or any callable over rows of z with a ``prior``.
+    starts : ndarray, shape (S, k)
+
+    Returns
+    -------
+    ndarray, shape (k,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.map_search import local_maximum
+    >>> from bayes_jackal.priors import Prior
+    >>> def log_posterior(z):
+    ...     return -np.sum((np.atleast_2d(z) - np.log(2.0)) ** 2, axis=-1)
+    >>> log_posterior.prior = Prior(("a",), np.array([0.1]), np.array([10.0]), np.array([True]))
+    >>> z = local_maximum(log_posterior, np.array([[0.0], [1.5]]))
+    >>> round(float(np.exp(z[0])), 6)
+    2.0
+    """
+    return _best_local(log_posterior, np.atleast_2d(starts)).x
 
 
 def _with_gradient(function: LogPosterior, prior: Prior):

@@ -28,6 +28,7 @@ from . import estimate_plots, plots
 from .physics import CHANNELS, discrete_matrices
 from .posterior import az, posterior_metadata, summarize
 from .report_figures import ReportFigures
+from .state_estimation import score_rows
 
 if TYPE_CHECKING:
     from .leave_one_out import LeaveOneOut
@@ -340,26 +341,12 @@ def posterior_section(
 
 def _filter_rows(run: str, record: dict) -> list[list]:
     """A left-out run's table rows: per filter and channel, its scores."""
-    rows = []
     trained = ", ".join(record["trained_on"])
-    for name, score in record["scores"].items():
-        for channel, rmse in score["innovation_rmse"].items():
-            nis = score["nis"][channel]
-            state = score["state_rmse"]
-            rows.append(
-                [
-                    run,
-                    trained,
-                    name,
-                    channel,
-                    rmse,
-                    nis["mean"],
-                    "{:.3f}-{:.3f}".format(*nis["band"]),
-                    "consistent" if nis["consistent"] else "INCONSISTENT",
-                    None if state is None else state[channel],
-                ]
-            )
-    return rows
+    return [
+        [run, trained, name, channel, rmse, nis,
+         None if band is None else "{:.3f}-{:.3f}".format(*band), verdict, state]
+        for name, channel, rmse, nis, band, verdict, state in score_rows(record["scores"])
+    ]  # fmt: skip
 
 
 def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str:
@@ -373,7 +360,7 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
         "model help estimation, on data the prior has not seen? Each run is left out in "
         f"turn: the {family}-noise posterior is fitted to the other runs, its Active "
         "Inference prior is exported (as the analysis' <code>prior.json</code> is), and "
-        "three filters driven by that prior estimate the states of the run left out. "
+        "the filters driven by that prior estimate the states of the run left out. "
         "<b>kalman</b> assumes white process noise (the baseline); <b>kalman-coloured</b> "
         "carries the family's shaping filter in its state, the best linear filter under the "
         "identified model; "

@@ -17,13 +17,17 @@ prediction error nu_k and its variance S_k give
 
 - the innovation RMSE, sqrt(mean nu_k^2) [channel units];
 - the normalised innovation squared, NIS = mean(nu_k^2 / S_k), which is
-  1 on average when the filter's account of its uncertainty is right: with
-  n samples, n NIS is chi-square(n) under the model, so it lies in the
-  band [chi2(0.025, n), chi2(0.975, n)] / n with probability 0.95
-  (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4; the samples are treated as
-  independent, which they are under the model);
-- the state RMSE against the truth, where the experiment carries a
-  simulated one (``truth_arrays["<channel>_state"]``).
+  1 on average when the filter's account of its uncertainty is right. For
+  a Kalman filter under its own model the innovations are independent, so
+  n NIS is chi-square(n) and lies in the band [chi2(0.025, n),
+  chi2(0.975, n)] / n with probability 0.95 (Bar-Shalom, Li & Kirubarajan
+  2001, sec. 5.4). The generalised filter's predictions come from
+  overlapping windows and its variance from the Laplace approximation, so
+  its innovations are correlated and the band is a yardstick there, not a
+  test; with a look-ahead its estimate at t_(k-1) has seen y_k, so it
+  predicts nothing and has no innovation scores (None);
+- the state RMSE against the truth, per channel where the experiment
+  carries a simulated one (``truth_arrays["<channel>_state"]``; else None).
 
 The scores start at the first sample every filter predicts from its own
 steady form: sample p + 1 when the generalised filter of order p runs (its
@@ -43,6 +47,7 @@ from . import defaults
 from ._files import atomic_path
 from .errors import InputError
 from .experiment import CHANNEL_FIELDS, Experiment
+from .filter_models import check_prior
 from .generalised_filtering import LOOKAHEAD, SENSOR_PRECISIONS, generalised_filter
 from .kalman import KALMAN_FILTERS, StateEstimate, kalman_filter
 from .robot import RobotProfile
@@ -51,8 +56,10 @@ __all__ = [
     "FILTERS",
     "NIS_PROBABILITY",
     "estimate_columns",
+    "estimate_each",
     "estimate_states",
     "score_estimates",
+    "score_rows",
     "write_estimates",
 ]
 
@@ -64,13 +71,16 @@ NIS_PROBABILITY = 0.95
 
 
 def _check_filters(filters: Sequence[str]) -> tuple[str, ...]:
+    if isinstance(filters, str):
+        raise InputError(
+            f"filters must be a sequence of names, got the string {filters!r}", field="filters"
+        )
     filters = tuple(dict.fromkeys(filters))
     unknown = [name for name in filters if name not in FILTERS]
-    if unknown or not filters:
-        raise InputError(
-            f"unknown filter {unknown[0] if unknown else None!r}; use one or more of {FILTERS}",
-            field="filters",
-        )
+    if unknown:
+        raise InputError(f"unknown filter {unknown[0]!r}; use some of {FILTERS}", field="filters")
+    if not filters:
+        raise InputError(f"no filter given; use some of {FILTERS}", field="filters")
     return filters
 
 
@@ -142,6 +152,55 @@ def estimate_states(
     return estimates
 
 
+def estimate_each(
+    experiment: Experiment, prior: Mapping, *, filters: Sequence[str] = FILTERS, **options
+) -> tuple[dict[str, dict[str, StateEstimate]], dict[str, str]]:
+    """:func:`estimate_states` filter by filter: one the prior cannot drive is skipped, named.
+
+    The generalised filter needs a sensor-noise sd, which white noise
+    fitted with the diagonal sensor term does not have; the Kalman filters
+    run on such a prior. ``options`` are :func:`estimate_states`'.
+
+    Returns
+    -------
+    estimates : dict
+        As :func:`estimate_states`, for the filters that ran.
+    refused : dict of str to str
+        Filter -> why the prior cannot drive it.
+
+    Raises
+    ------
+    InputError
+        When no filter can run (every reason named), or for a prior that
+        does not fit the experiment.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.state_estimation import estimate_each
+    >>> robot = bj.load_profile()
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, "v2", rng=seed) for seed in (1, 2)]
+    >>> posterior = bj.sample(runs[:1], family="white", channels=["yaw"], sensor="diagonal",
+    ...                       max_steps=20, seed=1)
+    >>> estimates, refused = estimate_each(runs[1], bj.export_prior(posterior, order=0))
+    >>> list(estimates), list(refused)
+    (['kalman', 'kalman-coloured'], ['generalised'])
+    """
+    filters = _check_filters(filters)
+    # A prior that does not fit the experiment fits no filter: that error stops all.
+    check_prior(prior, experiment, options.get("channels"), robot=options.get("robot"))
+    estimates, refused = {}, {}
+    for name in filters:
+        try:
+            estimates |= estimate_states(experiment, prior, filters=(name,), **options)
+        except InputError as exc:
+            refused[name] = str(exc)
+    if not estimates:
+        reasons = "; ".join(f"{name}: {reason}" for name, reason in refused.items())
+        raise InputError(f"no filter can run with this prior: {reasons}", field="filters")
+    return estimates, refused
+
+
 def _first_scored(estimates: Mapping[str, Mapping[str, StateEstimate]]) -> int:
     """Sample p + 1 when a generalised filter of order p ran, else 1 (module docstring)."""
     sizes = [
@@ -153,8 +212,10 @@ def _first_scored(estimates: Mapping[str, Mapping[str, StateEstimate]]) -> int:
     return max([1, *sizes])
 
 
-def _nis(innovation: np.ndarray, variance: np.ndarray) -> dict:
-    """Mean NIS, its band for len(innovation) samples, and whether it lies in it."""
+def _nis(innovation: np.ndarray, variance: np.ndarray) -> dict | None:
+    """Mean NIS, its band for n samples, whether it lies in it; None without predictions."""
+    if not np.isfinite(innovation).any():
+        return None
     n = len(innovation)
     tail = (1.0 - NIS_PROBABILITY) / 2.0
     band = scipy.stats.chi2.ppf([tail, 1.0 - tail], n) / n
@@ -162,8 +223,9 @@ def _nis(innovation: np.ndarray, variance: np.ndarray) -> dict:
     return {"mean": mean, "band": band.tolist(), "consistent": bool(band[0] <= mean <= band[1])}
 
 
-def _rmse(error: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.square(error))))
+def _rmse(error: np.ndarray) -> float | None:
+    """Root mean square [units]; None where there is nothing to score (NaN)."""
+    return float(np.sqrt(np.mean(np.square(error)))) if np.isfinite(error).any() else None
 
 
 def score_estimates(
@@ -183,9 +245,9 @@ def score_estimates(
     -------
     dict
         Per filter: ``innovation_rmse`` and ``nis`` (``mean``, ``band``,
-        ``consistent``) per channel, ``state_rmse`` per channel (None
-        without a truth), and ``first_sample``, the first sample scored
-        (module docstring).
+        ``consistent``) per channel (None where the filter predicts
+        nothing), ``state_rmse`` per channel (None without a truth), and
+        ``first_sample``, the first sample scored (module docstring).
 
     Examples
     --------
@@ -214,17 +276,75 @@ def score_estimates(
                 c: _nis(e.innovation[first:], e.innovation_variance[first:])
                 for c, e in per_channel.items()
             },
-            "state_rmse": None
-            if any(truth is None for truth in truths.values())
-            else {c: _rmse(e.mean[first:] - truths[c][first:]) for c, e in per_channel.items()},
+            "state_rmse": {
+                c: None if truths[c] is None else _rmse(e.mean[first:] - truths[c][first:])
+                for c, e in per_channel.items()
+            },
         }
     return scores
+
+
+def score_rows(scores: Mapping[str, Mapping]) -> list[tuple]:
+    """One experiment's scores as table rows, one per filter and channel.
+
+    Returns
+    -------
+    list of tuple
+        (filter, channel, innovation RMSE, NIS mean, (band low, band high),
+        verdict, state RMSE); None where a score does not exist, verdict
+        ``consistent``, ``INCONSISTENT`` or ``no prediction``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.state_estimation import score_rows
+    >>> nis = {"mean": 1.3, "band": [0.9, 1.1], "consistent": False}
+    >>> scores = {"kalman": {"innovation_rmse": {"yaw": 0.01}, "nis": {"yaw": nis},
+    ...                      "state_rmse": {"yaw": None}}}
+    >>> score_rows(scores)
+    [('kalman', 'yaw', 0.01, 1.3, (0.9, 1.1), 'INCONSISTENT', None)]
+    """
+    rows = []
+    for name, score in scores.items():
+        for channel, rmse in score["innovation_rmse"].items():
+            nis = score["nis"][channel]
+            verdict = (
+                "no prediction"
+                if nis is None
+                else "consistent"
+                if nis["consistent"]
+                else "INCONSISTENT"
+            )
+            rows.append(
+                (
+                    name,
+                    channel,
+                    rmse,
+                    None if nis is None else nis["mean"],
+                    None if nis is None else tuple(nis["band"]),
+                    verdict,
+                    score["state_rmse"][channel],
+                )
+            )
+    return rows
 
 
 def estimate_columns(
     experiment: Experiment, estimates: Mapping[str, Mapping[str, StateEstimate]]
 ) -> dict[str, np.ndarray]:
     """The estimates as columns ``t`` and ``FILTER.STATE`` (``kalman.yaw_rate``, ..).
+
+    Parameters
+    ----------
+    experiment : Experiment
+        The run the filters ran on (its ``t``).
+    estimates : mapping
+        :func:`estimate_states`' result.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (N,)
+        ``t`` [s], then each filter's estimate of each channel's state
+        [m/s, rad/s], named after the experiment's column (:func:`write_estimates`).
 
     Examples
     --------
@@ -285,7 +405,14 @@ def write_estimates(path: str | Path, tables: Mapping[str, Mapping[str, np.ndarr
     with atomic_path(path) as temporary, temporary.open("w") as file:
         file.write(",".join((["experiment"] if several else []) + header) + "\n")
         for name, columns in tables.items():
-            prefix = name.replace("%", "%%") + "," if several else ""
+            prefix = _csv_field(name).replace("%", "%%") + "," if several else ""
             rows = np.column_stack([columns[key] for key in header])
             np.savetxt(file, rows, fmt=prefix + ",".join(["%.10g"] * len(header)))
     return path
+
+
+def _csv_field(text: str) -> str:
+    """``text`` as one CSV field: quoted (RFC 4180) when it holds a comma, quote or newline."""
+    if any(mark in text for mark in ',"\n\r'):
+        return '"' + text.replace('"', '""') + '"'
+    return text

@@ -190,7 +190,7 @@ def main() -> None:
     )
     if jackal["s_w"] is not None:
         # The filter's plug-in PI_w = inv(V(s_w)) / sigma_w^2 against the file's
-        # block of that channel, averaged over draws: the gap is the uncertainty.
+        # block of that channel, the draws' mean precision: the gap is the uncertainty.
         n = len(channels)
         block = model["Pi_w"][channels.index(jackal["channel"]) :: n][
             :, channels.index(jackal["channel"]) :: n
@@ -198,7 +198,7 @@ def main() -> None:
         plug_in = np.linalg.inv(gaussian_temporal_covariance(order, jackal["s_w"]))
         plug_in /= jackal["sigma_w"] ** 2
         gap = np.linalg.norm(block - plug_in) / np.linalg.norm(block)
-        print(f"Jackal PI_w (plug-in) against the draw-averaged block: {gap:.2%} apart")
+        print(f"Jackal PI_w (plug-in) against the draws' mean precision: {gap:.2%} apart")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "consumers.json").write_text(json.dumps(consumers, indent=1))

@@ -18,12 +18,19 @@ ROBOT = load_profile()
 
 
 def posterior_at(
-    experiments, theta, family="gaussian", channels=("yaw",), spread=0.02, shared_width=False
+    experiments,
+    theta,
+    family="gaussian",
+    channels=("yaw",),
+    spread=0.02,
+    shared_width=False,
+    sensor="ma1",
 ):
     """A posterior concentrated around theta (log-normal spread), built as a sampled one is."""
     likelihood = ResidualLikelihood(
-        experiments, ROBOT, family=family, channels=channels, shared_width=shared_width
-    )
+        experiments, ROBOT, family=family, channels=channels, shared_width=shared_width,
+        sensor=sensor,
+    )  # fmt: skip
     prior = Prior.for_likelihood(likelihood, ROBOT)
     z = np.log(theta) + spread * np.random.default_rng(8).normal(size=(40, 8, len(theta)))
     names = prior.names

@@ -32,7 +32,10 @@ def files(tmp_path_factory):
     two = posterior_at([seen], [110.0, 30.0, 0.047, 0.01, 0.005, 0.05, 0.005, 0.003],
                        channels=("yaw", "vx"))  # fmt: skip
     yaw_only = dataclasses.replace(runs[1], vx=None, vy=None)
+    # White noise with the diagonal sensor term: one total sd, no sensor-noise sd.
+    total = posterior_at([seen], [110.0, 30.0, 0.011], family="white", sensor="diagonal")
     return {
+        "total_prior": str(bj.write_prior(bj.export_prior(total, order=0), folder / "total.json")),
         "yaw_vx_prior": str(bj.write_prior(bj.export_prior(two, order=2), folder / "yaw_vx.json")),
         "yaw_only": str(bj.write_csv(yaw_only, folder / "yaw_only.csv")),
         "nc": str(write_netcdf(runs[0], folder / "left.nc")),
@@ -122,5 +125,38 @@ def test_one_bad_run_does_not_stop_the_others(tmp_path, capsys, files):
     assert "bad.csv" in captured.err and "Traceback" not in captured.err
     result = strict_json(captured.out)
     assert list(result["experiments"]) == ["right"] and list(result["failed"]) == [str(bad)]
-    assert result["experiments"]["right"]["kalman"]["state_rmse"] is None  # a CSV has no truth
+    assert result["experiments"]["right"]["kalman"]["state_rmse"] == {"yaw": None}  # no truth
     assert out.read_text().splitlines()[0] == HEADER
+
+
+def test_a_prior_from_another_install_fits_and_other_constants_do_not(tmp_path, capsys, files):
+    # The profile's path is where it was read, not a constant of the robot.
+    prior = json.loads(Path(files["prior"]).read_text())
+    moved = tmp_path / "moved.json"
+    moved.write_text(json.dumps(prior | {"robot": prior["robot"] | {"source": "/elsewhere.toml"}}))
+    out = tmp_path / "estimates.csv"
+    code = main(["filter", files["nc"], "--prior", str(moved), "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(prior | {"robot": prior["robot"] | {"wheel_radius": 0.2}}))
+    code = main(["filter", files["nc"], "--prior", str(other), "--out", str(tmp_path / "o.csv")])
+    assert_bad_input(code, capsys.readouterr(), "other.json", r"robot\.wheel_radius", "0.2")
+
+
+def test_a_filter_the_prior_cannot_drive_is_skipped_and_named(tmp_path, capsys, files):
+    # White noise fitted with the diagonal sensor term has no sensor-noise sd,
+    # which the generalised filter needs; the Kalman filters run.
+    out = tmp_path / "estimates.csv"
+    code = main(["filter", files["nc"], "--prior", files["total_prior"], "--out", str(out),
+                 "--json"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    result = strict_json(captured.out)
+    name = bj.load_experiments([files["nc"]])[0].name
+    assert list(result["experiments"][name]) == ["kalman", "kalman-coloured"]
+    assert list(result["filters_failed"][name]) == ["generalised"]
+    assert "generalised cannot run with this prior" in captured.err
+    assert out.read_text().splitlines()[0] == "t,kalman.yaw_rate,kalman-coloured.yaw_rate"
+    code = main(["filter", files["nc"], "--prior", files["total_prior"], "--out",
+                 str(tmp_path / "g.csv"), "--filters", "generalised"])  # fmt: skip
+    assert_bad_input(code, capsys.readouterr(), "no filter can run", "sensor-noise sd")

@@ -18,7 +18,7 @@ import xarray as xr
 from cli_helpers import CLI
 
 from bayes_jackal import interrupt
-from bayes_jackal.inference import BufferedHDFBackend, SamplerSettings, _run_until_converged
+from bayes_jackal.chains import BufferedHDFBackend, SamplerSettings, _run_until_converged
 
 #: The console script's entry point, run in a fresh interpreter.
 #: One experiment, short chains, two families: the cheapest runs of every command.

@@ -62,8 +62,10 @@ def test_estimates_are_the_filters_own(prior):
     assert bj.score_estimates(run, {"kalman": estimates["kalman"]})["kalman"]["first_sample"] == 1
     with pytest.raises(InputError, match="unknown filter 'particle'"):
         bj.estimate_states(run, prior, filters=["kalman", "particle"])
-    with pytest.raises(InputError, match="unknown filter None"):
+    with pytest.raises(InputError, match="no filter given"):
         bj.estimate_states(run, prior, filters=[])
+    with pytest.raises(InputError, match="sequence of names, got the string 'kalman'"):
+        bj.estimate_states(run, prior, filters="kalman")
 
 
 def test_nis_band_and_state_rmse_by_hand():
@@ -84,7 +86,8 @@ def test_nis_band_and_state_rmse_by_hand():
     assert score["state_rmse"]["yaw"] == pytest.approx(0.25, rel=1e-12)
     assert score["innovation_rmse"]["yaw"] == pytest.approx(2 * np.sqrt(np.mean(nu[1:] ** 2)))
     untrue = bj.Experiment(**{**vars(run), "truth_arrays": {}})
-    assert bj.score_estimates(untrue, {"kalman": {"yaw": made_up}})["kalman"]["state_rmse"] is None
+    untrue_score = bj.score_estimates(untrue, {"kalman": {"yaw": made_up}})["kalman"]
+    assert untrue_score["state_rmse"] == {"yaw": None}
 
 
 def test_estimates_are_written_as_columns(tmp_path, prior):
@@ -107,6 +110,11 @@ def test_estimates_are_written_as_columns(tmp_path, prior):
     assert [line.split(",")[0] for line in lines[1:]] == [
         n for n, r in zip(names, runs, strict=True) for _ in r.t
     ]
+    # A name with a comma is quoted (RFC 4180), so the CSV reads back.
+    quoted = bj.write_estimates(
+        tmp_path / "quoted.csv", {"a,b": tables["left"], "c": tables["right"]}
+    )
+    assert quoted.read_text().splitlines()[1].startswith('"a,b",0,')
     with pytest.raises(InputError, match="different columns"):
         bj.write_estimates(tmp_path / "bad.csv", {"a": tables["left"], "b": {"t": runs[1].t}})
     assert not (tmp_path / "bad.csv").exists()
@@ -161,3 +169,14 @@ def test_every_family_drives_every_filter(family, width):
             assert rmse["kalman-coloured"] == pytest.approx(rmse["kalman"], rel=1e-9)
         else:
             assert rmse["kalman-coloured"] < 0.95 * rmse["kalman"]
+
+
+def test_a_smoother_has_no_prediction_to_score(prior):
+    # With a look-ahead the estimate at t_(k-1) has seen y_k: no innovation
+    # scores, a state RMSE still.
+    run = bj.simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=7)
+    estimates = bj.estimate_states(run, prior, filters=["generalised"], lookahead=1)
+    assert np.isnan(estimates["generalised"]["yaw"].innovation).all()
+    score = bj.score_estimates(run, estimates)["generalised"]
+    assert score["nis"] == {"yaw": None} and score["innovation_rmse"] == {"yaw": None}
+    assert score["state_rmse"]["yaw"] > 0

@@ -41,7 +41,7 @@ from ..robot import RobotProfile
 from ..simulate import NoiseSettings, simulate_series
 from ..state_estimation import (
     estimate_columns,
-    estimate_states,
+    estimate_each,
     score_estimates,
     write_estimates,
 )
@@ -466,27 +466,32 @@ def cmd_filter(args: argparse.Namespace) -> int:
         "robot": robot,
     }
 
-    def estimate(experiment: Experiment) -> tuple[dict, dict]:
+    def estimate(experiment: Experiment) -> tuple[dict, dict, dict]:
         try:
-            estimates = estimate_states(experiment, prior, **options)
+            estimates, refused = estimate_each(experiment, prior, **options)
         except InputError as exc:  # name the prior beside the experiment
             if exc.source is not None:
                 raise
-            where = f"{args.prior_file} on {experiment.source}"
-            raise type(exc)(str(exc), source=where) from exc
-        return estimate_columns(experiment, estimates), score_estimates(experiment, estimates)
+            named = type(exc)(str(exc), source=f"{args.prior_file} on {experiment.source}")
+            named.field = exc.field
+            raise named from exc
+        for name, reason in refused.items():
+            out.say(f"{experiment.name}: {name} cannot run with this prior: {reason}")
+        columns = estimate_columns(experiment, estimates)
+        return columns, score_estimates(experiment, estimates), refused
 
     done, failed, code = each_experiment(args, out.say, estimate)
     if done:
-        write_estimates(args.out, {e.name: columns for e, (columns, _) in done})
+        write_estimates(args.out, {e.name: columns for e, (columns, _, _) in done})
         out.say(f"wrote {args.out}")
-    for experiment, (_, scores) in done:
+    for experiment, (_, scores, _) in done:
         filter_table(experiment.name, scores, out.say)
     out.result(
         {
             "prior": args.prior_file,
             "out": args.out if done else None,
-            "experiments": {e.name: scores for e, (_, scores) in done},
+            "experiments": {e.name: scores for e, (_, scores, _) in done},
+            "filters_failed": {e.name: refused for e, (_, _, refused) in done if refused},
             "failed": failed,
         }
     )

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from .._files import json_text
 from ..errors import InputError, describe
 from ..gridsearch import GridResult
+from ..state_estimation import score_rows
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -75,19 +76,20 @@ def filter_table(name: str, scores: dict, say: Callable[[str], None]) -> None:
     say(f"{name}: prediction errors from sample {next(iter(scores.values()))['first_sample']}")
     say(
         f"{'filter':16s} {'channel':7s} {'innov. RMSE':>11s} {'NIS':>6s} "
-        f"{'95% band':>13s} {'':12s} {'state RMSE':>10s}"
+        f"{'95% band':>13s} {'':13s} {'state RMSE':>10s}"
     )
-    for filter_name, score in scores.items():
-        for channel, rmse in score["innovation_rmse"].items():
-            nis = score["nis"][channel]
-            low, high = nis["band"]
-            verdict = "consistent" if nis["consistent"] else "INCONSISTENT"
-            truth = score["state_rmse"]
-            state = "-" if truth is None else f"{truth[channel]:.4g}"
-            say(
-                f"{filter_name:16s} {channel:7s} {rmse:11.4g} {nis['mean']:6.3f} "
-                f"[{low:5.3f},{high:5.3f}] {verdict:12s} {state:>10s}"
-            )
+    for filter_name, channel, rmse, nis, band, verdict, state in score_rows(scores):
+        say(
+            f"{filter_name:16s} {channel:7s} {_number(rmse, '11.4g')} {_number(nis, '6.3f')} "
+            f"{'-' if band is None else '[{:5.3f},{:5.3f}]'.format(*band):>13s} {verdict:13s} "
+            f"{_number(state, '10.4g')}"
+        )
+
+
+def _number(value: float | None, spec: str) -> str:
+    """``value`` formatted, or a dash as wide where there is none."""
+    width = int(spec.split(".")[0])
+    return "-".rjust(width) if value is None else format(value, spec)
 
 
 def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
