@@ -22,6 +22,10 @@ _LAZY = {
     "read_prior": ".export",
     "write_report": ".report",
     "analyse_logs": ".workflow",
+    # a bare noise series
+    "NoiseSeries": ".noise_series",
+    "characterise_noise": ".noise_characterisation",
+    "read_noise_series": ".noise_series",
     # state estimation with a prior (the filters)
     "FILTERS": ".state_estimation",
     "estimate_columns": ".state_estimation",

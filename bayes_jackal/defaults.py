@@ -46,6 +46,7 @@ __all__ = [
     "SENSOR_PRECISIONS",
     "SENSOR_SMOOTHNESS",
     "SERIES_COUNTS",
+    "SERIES_ENGINES",
     "SHARED_NOISE",
     "SIMULATED_NOISE",
     "STATE_ESTIMATION",
@@ -160,3 +161,7 @@ LOOKAHEAD = 0
 #: Whether ``analyse`` scores the filters on each run left out of the prior
 #: (``analyse --no-state-estimation`` turns it off; ``leave_one_out``).
 STATE_ESTIMATION = True
+
+# -- a bare noise series (series_likelihood, noise_characterisation)
+#: Likelihood engines of a noise series (``noise --engine``); the first is the default.
+SERIES_ENGINES = ("fast", "exact")

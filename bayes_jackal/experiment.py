@@ -247,6 +247,23 @@ def _window(window: object, source: str) -> tuple[float, float]:
     return start, stop
 
 
+def check_finite(
+    values: np.ndarray, source: str | None, field: str, row_name: Callable[[int], str]
+) -> None:
+    """Refuse a column with a NaN or an infinity, naming the first and where it is.
+
+    ``row_name(i)`` says where sample i is in the file (a line, an index).
+    Raises :class:`~bayes_jackal.errors.DataError` naming ``source`` and ``field``.
+    """
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise DataError(
+            f"{values[bad[0]]} at {row_name(int(bad[0]))} ({bad.size} non-finite values)",
+            source=source,
+            field=field,
+        )
+
+
 def _check_values(
     columns: dict[str, np.ndarray], source: str, row_name: Callable[[int], str]
 ) -> None:
@@ -259,13 +276,7 @@ def _check_values(
             f"only {len(columns['t'])} samples; at least {MIN_SAMPLES} are needed", source=source
         )
     for key, values in columns.items():
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            raise DataError(
-                f"{values[bad[0]]} at {row_name(bad[0])} ({bad.size} non-finite values)",
-                source=source,
-                field=key,
-            )
+        check_finite(values, source, key, row_name)
         limit = MAGNITUDE_LIMITS.get(key, math.inf)
         bad = np.flatnonzero(np.abs(values) >= limit)
         if bad.size:

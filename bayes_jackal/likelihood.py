@@ -546,21 +546,11 @@ class ResidualLikelihood:
         -inf without ``fallback``.
         """
         loglike = np.full(len(c), -np.inf)
-        pending = np.arange(len(c))
-        for size in block.grids():
-            lags = min(block.n, size // 2 + 1)
-            certified = []
-            # Per set: the grid's arrays, and the boundary's (2E, ~2m <= size).
-            per_set = size * (1 + 2 * block.count)
-            for rows in chunks(len(pending), per_set, budget=spectral.CHUNK_ELEMENTS):
-                chunk = pending[rows]
-                acov = self._autocovariance(block, noise[chunk], lags)
-                values, converged = spectral_loglike(acov, block, c[chunk], size)
-                loglike[chunk[converged]] = values[converged]
-                certified.append(converged)
-            pending = pending[~np.concatenate(certified)]
-            if not len(pending):
-                return loglike
-        if self.fallback:
+
+        def autocovariance(rows: np.ndarray, lags: int) -> np.ndarray:
+            return self._autocovariance(block, noise[rows], lags)
+
+        pending = spectral.evaluate_on_grids(block, autocovariance, c, spectral_loglike, loglike)
+        if len(pending) and self.fallback:
             loglike[pending] = self._recursion(block, noise[pending], c[pending], FAST_TOLERANCE)
         return loglike

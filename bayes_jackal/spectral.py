@@ -30,20 +30,33 @@ where its spectral factor converged (cepstrum below 1e-10 and autocovariance
 below 1e-13 of its variance over the grid's last half); otherwise on a grid
 of at least 2n points, where the autocovariance is represented exactly; the
 caller falls back to the Durbin-Levinson recursion where even that has not
-converged (long memory).
+converged (long memory): :func:`evaluate_on_grids` is that loop, shared by
+the engines. The factor depends on the autocovariance only, so
+:func:`spectral_forms` gives the quadratic forms of several coefficient
+vectors from one factorisation (the bare series of
+:mod:`bayes_jackal.series_likelihood` needs three).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 import scipy.fft
 
+from ._chunks import chunks
 from .whittle import cross_periodogram
 
-__all__ = ["CHUNK_ELEMENTS", "SHORT_GRIDS", "ResidualBlock", "spectral_loglike"]
+__all__ = [
+    "CHUNK_ELEMENTS",
+    "SHORT_GRIDS",
+    "ResidualBlock",
+    "evaluate_on_grids",
+    "spectral_forms",
+    "spectral_loglike",
+]
 
 #: Spectral grids tried before the full one (>= 2n points), in this order.
 #: Doubling bounds the work on grids too short for a set by the work on the
@@ -179,6 +192,94 @@ class ResidualBlock:
         )
 
 
+def spectral_forms(
+    acov: np.ndarray, block: ResidualBlock, coefficients: np.ndarray, size: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """log det T_n and the quadratic forms of several coefficient vectors, from one factorisation.
+
+    The spectral factor (the log-determinant and the predictor) depends on
+    the autocovariance only, so K coefficient vectors per parameter set
+    share it: x' T_n^-1 x of x = Z c_k for each k at the cost of one extra
+    lagged-sum contraction and boundary correlation each.
+
+    Parameters
+    ----------
+    acov : ndarray, shape (B, min(n, size // 2 + 1))
+        Autocovariance at lags 0, 1, ... (as :func:`spectral_loglike`).
+    block : ResidualBlock
+        E series of length n.
+    coefficients : ndarray, shape (B, K, 4)
+        K coefficient vectors c_k of each parameter set.
+    size : int
+        Spectral grid: one of ``block.grids()``.
+
+    Returns
+    -------
+    forms : ndarray, shape (B, 1 + K)
+        Column 0: log det T_n of one series [nats]; column 1 + k: x' T_n^-1 x
+        of x = Z c_k, summed over the block's series. Meaningful where
+        ``converged``.
+    converged : ndarray of bool, shape (B,)
+        As :func:`spectral_loglike`.
+
+    Examples
+    --------
+    White noise of variance 4: log det = n log 4 and x' T^-1 x = |x|^2 / 4,
+    here for x = y and x = 2 y:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.spectral import ResidualBlock, spectral_forms
+    >>> y = np.random.default_rng(1).standard_normal(100)
+    >>> regressors = np.zeros((1, 100, 4))
+    >>> regressors[0, :, 0] = y
+    >>> block = ResidualBlock("series", 0, 0.01, regressors)
+    >>> acov = np.zeros((1, 100))
+    >>> acov[0, 0] = 4.0
+    >>> c = np.array([[[1.0, 0, 0, 0], [2.0, 0, 0, 0]]])
+    >>> forms, converged = spectral_forms(acov, block, c, block.size)
+    >>> expected = [100 * np.log(4.0), y @ y / 4, y @ y]
+    >>> bool(converged[0]), bool(np.allclose(forms[0], expected))
+    (True, True)
+    """
+    batch, lags = acov.shape
+    n, half = block.n, size // 2
+    symmetric = np.zeros((batch, size))
+    symmetric[:, :lags] = acov
+    symmetric[:, size - lags + 1 :] = acov[:, :0:-1]
+    spectrum = scipy.fft.rfft(symmetric).real
+    positive = np.all(spectrum > 0, axis=-1)
+    cepstrum = scipy.fft.irfft(np.log(np.where(positive[:, None], spectrum, 1.0)), size)
+    causal = np.zeros((batch, size))
+    causal[:, 1:half] = cepstrum[:, 1:half]
+    predictor = np.exp(-scipy.fft.rfft(causal))
+    log_v = cepstrum[:, 0]
+    log_det = n * log_v + np.sum(np.arange(1, half) * cepstrum[:, 1:half] ** 2, axis=-1)
+    tail = min(n, half) // 2
+    converged = positive & (np.abs(cepstrum[:, tail:half]).max(axis=-1) < CEPSTRUM_TOLERANCE)
+    if lags < n:
+        beyond = np.abs(acov[:, lags // 2 :]).max(axis=-1)
+        converged &= beyond <= ACOV_TOLERANCE * acov[:, 0]
+    # The predictor's taps down to 1e-14, each set its own (a_0 = 1).
+    a = scipy.fft.irfft(predictor, size)[:, : min(n, half)]
+    significant = np.abs(a) > PREDICTOR_TOLERANCE
+    last = a.shape[1] - 1 - np.argmax(significant[:, ::-1], axis=1)
+    m = max(2, int(last[converged].max()) + 1) if converged.any() else 2
+    taps = np.where(np.arange(m) <= last[:, None], a[:, :m], 0.0)
+    length = 2 * scipy.fft.next_fast_len(m, real=True)  # even, >= 2m
+    taps_spectrum = scipy.fft.rfft(taps, length)
+    # |L(a)'x|^2 summed over the series: the full convolution's energy,
+    # sum_{|l|<m} r_a(l) R(l), less the boundary terms.
+    predictor_acf = scipy.fft.irfft(np.abs(taps_spectrum) ** 2, length)[:, :m]
+    weights = np.full(m, 2.0)
+    weights[0] = 1.0
+    forms = coefficients.shape[1]
+    sums = block.lagged_sums(coefficients.reshape(-1, 4), m).reshape(batch, forms, m)
+    full = np.sum(predictor_acf[:, None, :] * sums * weights, axis=-1)
+    boundary = _boundary_energy(taps_spectrum, m, block, coefficients)
+    quadratic = (full - boundary) / np.exp(log_v)[:, None]
+    return np.column_stack([log_det, quadratic]), converged
+
+
 def spectral_loglike(
     acov: np.ndarray, block: ResidualBlock, coefficients: np.ndarray, size: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -229,61 +330,100 @@ def spectral_loglike(
     >>> bool(converged[0]), bool(abs(value[0] - exact[0]) < 1e-6)
     (True, True)
     """
-    batch, lags = acov.shape
-    n, half = block.n, size // 2
-    symmetric = np.zeros((batch, size))
-    symmetric[:, :lags] = acov
-    symmetric[:, size - lags + 1 :] = acov[:, :0:-1]
-    spectrum = scipy.fft.rfft(symmetric).real
-    positive = np.all(spectrum > 0, axis=-1)
-    cepstrum = scipy.fft.irfft(np.log(np.where(positive[:, None], spectrum, 1.0)), size)
-    causal = np.zeros((batch, size))
-    causal[:, 1:half] = cepstrum[:, 1:half]
-    predictor = np.exp(-scipy.fft.rfft(causal))
-    log_v = cepstrum[:, 0]
-    log_det = n * log_v + np.sum(np.arange(1, half) * cepstrum[:, 1:half] ** 2, axis=-1)
-    tail = min(n, half) // 2
-    converged = positive & (np.abs(cepstrum[:, tail:half]).max(axis=-1) < CEPSTRUM_TOLERANCE)
-    if lags < n:
-        beyond = np.abs(acov[:, lags // 2 :]).max(axis=-1)
-        converged &= beyond <= ACOV_TOLERANCE * acov[:, 0]
-    # The predictor's taps down to 1e-14, each set its own (a_0 = 1).
-    a = scipy.fft.irfft(predictor, size)[:, : min(n, half)]
-    significant = np.abs(a) > PREDICTOR_TOLERANCE
-    last = a.shape[1] - 1 - np.argmax(significant[:, ::-1], axis=1)
-    m = max(2, int(last[converged].max()) + 1) if converged.any() else 2
-    taps = np.where(np.arange(m) <= last[:, None], a[:, :m], 0.0)
-    length = 2 * scipy.fft.next_fast_len(m, real=True)  # even, >= 2m
-    taps_spectrum = scipy.fft.rfft(taps, length)
-    # |L(a)'x|^2 summed over the series: the full convolution's energy,
-    # sum_{|l|<m} r_a(l) R(l), less the boundary terms.
-    predictor_acf = scipy.fft.irfft(np.abs(taps_spectrum) ** 2, length)[:, :m]
-    weights = np.full(m, 2.0)
-    weights[0] = 1.0
-    full = np.sum(predictor_acf * block.lagged_sums(coefficients, m) * weights, axis=-1)
-    boundary = _boundary_energy(taps_spectrum, m, block, coefficients)
-    quadratic = (full - boundary) / np.exp(log_v)
-    loglike = -0.5 * (block.count * log_det + quadratic + block.count * n * _LOG_2PI)
+    forms, converged = spectral_forms(acov, block, coefficients[:, None, :], size)
+    log_det, quadratic = forms[:, 0], forms[:, 1]
+    loglike = -0.5 * (block.count * log_det + quadratic + block.count * block.n * _LOG_2PI)
     return loglike, converged
+
+
+def evaluate_on_grids(
+    block: ResidualBlock,
+    autocovariance: Callable[[np.ndarray, int], np.ndarray],
+    coefficients: np.ndarray,
+    evaluate: Callable[..., tuple[np.ndarray, np.ndarray]],
+    out: np.ndarray,
+) -> np.ndarray:
+    """Evaluate each parameter set on the first of ``block.grids()`` that certifies it.
+
+    The grid loop of the ``fast`` engines, in chunks of sets whose work
+    arrays stay within :data:`CHUNK_ELEMENTS`.
+
+    Parameters
+    ----------
+    block : ResidualBlock
+    autocovariance : callable
+        ``autocovariance(rows, lags)``: the autocovariance at lags
+        0..lags-1 of the sets indexed by the integer array ``rows``, shape
+        (len(rows), lags).
+    coefficients : ndarray, shape (B, 4) or (B, K, 4)
+        The sets' coefficient vectors, as ``evaluate`` takes them.
+    evaluate : callable
+        :func:`spectral_loglike` or :func:`spectral_forms`:
+        ``evaluate(acov, block, coefficients, size) -> (values, converged)``.
+    out : ndarray, shape (B, ...)
+        Receives each certified set's values (in place); the others are
+        left as they were.
+
+    Returns
+    -------
+    ndarray of int
+        The sets no grid certifies (long memory), for the caller's fallback.
+
+    Examples
+    --------
+    A white series of variance 2 is certified on the first grid:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.spectral import ResidualBlock, evaluate_on_grids, spectral_loglike
+    >>> regressors = np.zeros((1, 50, 4))
+    >>> regressors[0, :, 0] = 1.0
+    >>> block = ResidualBlock("series", 0, 0.01, regressors)
+    >>> def white(rows, lags):
+    ...     return 2.0 * (np.arange(lags) == 0) * np.ones((len(rows), 1))
+    >>> out = np.full(1, -np.inf)
+    >>> c = np.array([[1.0, 0, 0, 0]])
+    >>> evaluate_on_grids(block, white, c, spectral_loglike, out).tolist()
+    []
+    >>> expected = -0.5 * (50 * np.log(2.0) + 50 / 2.0 + 50 * np.log(2 * np.pi))
+    >>> bool(np.isclose(out[0], expected))
+    True
+    """
+    pending = np.arange(len(coefficients))
+    forms = int(np.prod(coefficients.shape[1:-1]))
+    for size in block.grids():
+        if not len(pending):
+            break
+        lags = min(block.n, size // 2 + 1)
+        certified = []
+        # Per set: the grid's arrays, and the boundary's (K x 2E, ~2m <= size).
+        per_set = size * (1 + 2 * block.count * forms)
+        for rows in chunks(len(pending), per_set, budget=CHUNK_ELEMENTS):
+            chunk = pending[rows]
+            acov = autocovariance(chunk, lags)
+            values, converged = evaluate(acov, block, coefficients[chunk], size)
+            out[chunk[converged]] = values[converged]
+            certified.append(converged)
+        pending = pending[~np.concatenate(certified)]
+    return pending
 
 
 def _boundary_energy(
     taps_spectrum: np.ndarray, m: int, block: ResidualBlock, coefficients: np.ndarray
 ) -> np.ndarray:
-    """The convolution's tail plus |L(a~)' x|^2, summed over the block's series, shape (B,).
+    """The convolution's tail plus |L(a~)' x|^2, summed over the block's series, shape (B, K).
 
     The tail sum_{k>=r} a_k x_{k-r} and the rows of L(a~)' x are both lag-r
     correlations of the m taps a (r = 1..m-1, from their spectrum on
     >= 2m points) with the first m samples and with the reversed last m
-    samples of each series.
+    samples of each series, for each of the K coefficient vectors (B, K, 4).
     """
     n = block.n
     length = 2 * (taps_spectrum.shape[1] - 1)  # even
     segments = np.concatenate(
         [block.regressors[:, :m], block.regressors[:, n - m :][:, ::-1]], axis=0
     )
-    edges = np.einsum("smk,bk->bsm", segments, coefficients)  # (B, 2E, m)
+    edges = np.einsum("smk,bjk->bjsm", segments, coefficients)  # (B, K, 2E, m)
     correlation = scipy.fft.irfft(
-        taps_spectrum[:, None, :] * scipy.fft.rfft(edges, length).conj(), length
+        taps_spectrum[:, None, None, :] * scipy.fft.rfft(edges, length).conj(), length
     )
-    return np.sum(correlation[..., 1:m] ** 2, axis=(1, 2))
+    return np.sum(correlation[..., 1:m] ** 2, axis=(2, 3))

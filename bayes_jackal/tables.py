@@ -216,32 +216,8 @@ def read_csv(
     """
     path = Path(path)
     source = str(path)
-    try:  # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is not part of the header
-        with open(path, newline="", encoding="utf-8-sig") as stream:
-            rows = list(csv.reader(stream))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DataError(f"cannot read CSV ({exc})", source=source) from None
-    while rows and not "".join(rows[-1]).strip():  # trailing blank lines
-        rows.pop()
-    if not rows:
-        raise DataError("file is empty", source=source)
-    header = [cell.strip() for cell in rows[0]]
-    repeated = [name for i, name in enumerate(header) if name and name in header[:i]]
-    if repeated:
-        raise DataError(
-            f"column {repeated[0]!r} appears {header.count(repeated[0])} times in the header; "
-            "which one is meant is ambiguous (rename one)",
-            source=source,
-            field=repeated[0],
-        )
+    header, body = _csv_table(path, source)
     names = _mapped(header, columns, source)
-    body = rows[1:]
-    short = [i for i, row in enumerate(body) if len(row) != len(header)]
-    if short:
-        raise DataError(
-            f"line {short[0] + 2} has {len(body[short[0]])} fields, the header has {len(header)}",
-            source=source,
-        )
     values = {
         role: _numeric_column(body, header.index(column), column, source)
         for role, column in names.items()
@@ -321,6 +297,45 @@ def read_mat(
         rate=rate,
         max_gap=max_gap,
     )
+
+
+def _csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]:
+    """A CSV file's header (stripped, unique names) and its rows of text cells.
+
+    Shared by :func:`read_csv` and :func:`bayes_jackal.noise_series.read_noise_series`.
+
+    Raises
+    ------
+    DataError
+        For an unreadable or empty file, a column named twice, or a line
+        with more or fewer fields than the header (naming the line).
+    """
+    try:  # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is not part of the header
+        with open(path, newline="", encoding="utf-8-sig") as stream:
+            rows = list(csv.reader(stream))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DataError(f"cannot read CSV ({exc})", source=source) from None
+    while rows and not "".join(rows[-1]).strip():  # trailing blank lines
+        rows.pop()
+    if not rows:
+        raise DataError("file is empty", source=source)
+    header = [cell.strip() for cell in rows[0]]
+    repeated = [name for i, name in enumerate(header) if name and name in header[:i]]
+    if repeated:
+        raise DataError(
+            f"column {repeated[0]!r} appears {header.count(repeated[0])} times in the header; "
+            "which one is meant is ambiguous (rename one)",
+            source=source,
+            field=repeated[0],
+        )
+    body = rows[1:]
+    short = [i for i, row in enumerate(body) if len(row) != len(header)]
+    if short:
+        raise DataError(
+            f"line {short[0] + 2} has {len(body[short[0]])} fields, the header has {len(header)}",
+            source=source,
+        )
+    return header, body
 
 
 def _numeric_column(rows: list[list[str]], index: int, key: str, source: str) -> np.ndarray:

@@ -799,7 +799,7 @@ print(len(commands.choices), heavy)
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
     )
     assert process.returncode == 0, process.stderr
-    assert process.stdout == "11 []\n"  # ten commands, and filter (issue 14)
+    assert process.stdout == "12 []\n"  # ten commands, filter (issue 14) and noise (15)
 
 
 def test_parser_defaults_are_the_librarys():

@@ -12,12 +12,16 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import importlib
 import signal
 import sys
 import warnings
 from collections.abc import Iterator
 
 __all__ = ["build_parser", "console", "main"]
+
+#: The module of each command not in :mod:`.commands`.
+_MODULES = {"noise": ".noise_command"}
 
 
 def __getattr__(name: str):
@@ -90,7 +94,9 @@ def _run(argv: list[str] | None) -> int:
 
         return EXIT_BAD_INPUT
     from ..errors import InputError
-    from . import commands  # the command's imports, numpy and the rest
+
+    # The command's module and its imports, numpy and the rest.
+    commands = importlib.import_module(_MODULES.get(args.command, ".commands"), __name__)
     from .output import print_failure
     from .paths import command_inputs, guarded
 

@@ -49,6 +49,7 @@ from ..defaults import (
     SENSOR_PRECISIONS,
     SENSOR_SMOOTHNESS,
     SERIES_COUNTS,
+    SERIES_ENGINES,
     SIMULATED_NOISE,
     STATE_ESTIMATION,
     THESIS_CHANNEL,
@@ -562,6 +563,55 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bag_flags(filters, max_gap=None)
     _add_input_flags(filters)
     _add_common(filters)
+
+    noise = commands.add_parser(
+        "noise", help="a bare noise series: families, smoothness and evidence"
+    )
+    noise.add_argument(
+        "series", nargs="+", metavar="SERIES", help="CSV, MATLAB (.mat) or bag (.bag, .mcap, .db3)"
+    )
+    noise.add_argument("--column", metavar="NAME", help="the series' column (CSV, .mat)")
+    noise.add_argument(
+        "--rate",
+        type=_positive,
+        metavar="HZ",
+        help="sampling rate [Hz] of a file without a time column",
+    )
+    noise.add_argument("--topic", metavar="NAME", help="a bag's topic, e.g. /imu/data")
+    noise.add_argument(
+        "--field", metavar="PATH", help="the topic's field, e.g. angular_velocity.z"
+    )
+    noise.add_argument(
+        "--max-gap",
+        type=_positive,
+        default=None,
+        help=f"longest dropout filled [s] (default {MAX_GAP_STEPS} sample steps)",
+    )
+    noise.add_argument(
+        "--families",
+        type=_family_list,
+        metavar="white,gaussian,...",
+        help="comma-separated families (every registered family)",
+    )
+    noise.add_argument("--out", metavar="DIR", help="write <series>.noise.json here")
+    noise.add_argument("--seed", type=_natural, default=None, help="seed: same seed, same answer")
+    noise.add_argument(
+        "--max-steps", type=_count, default=MAX_STEPS, help=f"step cap per family ({MAX_STEPS})"
+    )
+    noise.add_argument(
+        "--engine",
+        choices=SERIES_ENGINES,
+        default=SERIES_ENGINES[0],
+        help=f"likelihood engine ({SERIES_ENGINES[0]})",
+    )
+    noise.add_argument(
+        "--processes",
+        type=_count,
+        default=os.cpu_count() or 1,
+        help="families sampled at once, one per process (default: the number of cores)",
+    )
+    noise.add_argument("--no-progress", action="store_true", help="no progress bar")
+    noise.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
     report = commands.add_parser("report", help="HTML report with figures of posteriors")
     report.add_argument(

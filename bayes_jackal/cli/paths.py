@@ -24,7 +24,9 @@ PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 def planned_outputs(args: argparse.Namespace) -> list[Output]:
     """What the command writes under the names the user gave; the main output first."""
     command, out = args.command, getattr(args, "out", None)
-    if command in ("simulate", "ingest", "analyse", "demo") or (command == "compare" and out):
+    if command in ("simulate", "ingest", "analyse", "demo") or (
+        command in ("compare", "noise") and out
+    ):
         return [Output(Path(out), "folder")]
     if command == "sample":
         path = Path(out)
@@ -48,7 +50,7 @@ def planned_outputs(args: argparse.Namespace) -> list[Output]:
 def command_inputs(args: argparse.Namespace) -> list[str]:
     """The files and folders the command reads: never to be replaced by an output."""
     inputs = [getattr(args, "posterior", None), getattr(args, "prior_file", None)]
-    for name in ("experiments", "posteriors", "bags", "inputs"):
+    for name in ("experiments", "posteriors", "bags", "inputs", "series"):
         inputs += getattr(args, name, None) or []
     inputs.append(getattr(args, "robot", None))  # last: failures name the data first
     return [given for given in inputs if given]
