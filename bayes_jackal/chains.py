@@ -376,8 +376,8 @@ def run_chain(
     initial: Callable[[np.random.Generator, int], np.ndarray],
     *,
     settings: SamplerSettings,
-    seed: int | None,
-    fingerprint: str,
+    seed: int | list[int] | None,
+    fingerprint: str = "",
     chain_file: str | Path | None = None,
     say: Callable[[str], None] | None = None,
 ) -> Chain:
@@ -392,10 +392,12 @@ def run_chain(
         ``initial(rng, walkers)``: the walkers' starting points (walkers, k),
         drawn with ``rng``; called only when the chain starts afresh.
     settings : SamplerSettings
-    seed : int, optional
-        Seeds ``initial`` and emcee's moves: same seed, same chain.
+    seed : int or list of int, optional
+        Seeds ``initial`` and emcee's moves (numpy's seed: an entropy list
+        too): same seed, same chain.
     fingerprint : str
-        What defines the chain: a stored chain with another is not resumed.
+        What defines the chain: a stored chain with another is not resumed
+        (needed with a ``chain_file``).
     chain_file : str or Path, optional
         HDF5 file of the chain; a run with the same file and fingerprint resumes.
     say : callable, optional
@@ -421,7 +423,7 @@ def run_chain(
     >>> def initial(rng, walkers):
     ...     return 0.1 * rng.standard_normal((walkers, 2))
     >>> settings = SamplerSettings(max_steps=3000, progress=False)
-    >>> chain = run_chain(log_posterior, initial, settings=settings, seed=1, fingerprint="normal")
+    >>> chain = run_chain(log_posterior, initial, settings=settings, seed=1)
     >>> z = chain.samples.reshape(-1, 2)
     >>> chain.diagnostics["converged"], bool(np.all(np.abs(z.std(axis=0) - 1) < 0.1))
     (True, True)

@@ -22,7 +22,6 @@ The priors are scaled to the series (:func:`series_prior`), log-uniform:
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -38,9 +37,10 @@ from .executors import Executor, SerialExecutor
 from .kernels import FAMILIES
 from .map_search import laplace_walkers, local_maximum
 from .noise_series import NoiseSeries
+from .posterior import HDI_PROB, az
 from .priors import LogPosterior, Prior
 from .sampler_warnings import keep_warnings
-from .series_likelihood import SeriesLikelihood
+from .series_likelihood import SERIES_ENGINES, SeriesLikelihood
 
 __all__ = [
     "RECORD_FRACTION",
@@ -59,8 +59,6 @@ WIDTH_FLOOR = 0.25
 RECORD_FRACTION = 0.1
 #: The sds' prior range relative to the series' sample sd.
 SD_RANGE = (1e-3, 10.0)
-#: Points of the design over the prior from which the MAP search starts.
-DESIGN_POINTS = 512
 #: Local searches from the best design points.
 MAP_STARTS = 4
 
@@ -96,7 +94,9 @@ def series_prior(likelihood: SeriesLikelihood) -> Prior:
     return Prior(likelihood.names, low, high, np.ones(len(low), bool))
 
 
-def _start(log_posterior: LogPosterior) -> Callable[[np.random.Generator, int], np.ndarray]:
+def _start(
+    log_posterior: LogPosterior, design_points: int
+) -> Callable[[np.random.Generator, int], np.ndarray]:
     """The walkers' start: the best of a design over the prior, polished, then its Laplace ball.
 
     The design and the polish skip the long-memory sets the spectral grids
@@ -106,7 +106,7 @@ def _start(log_posterior: LogPosterior) -> Callable[[np.random.Generator, int], 
     scan = LogPosterior(replace(log_posterior.likelihood, fallback=False), log_posterior.prior)
 
     def initial(rng: np.random.Generator, walkers: int) -> np.ndarray:
-        design = log_posterior.prior.draw(DESIGN_POINTS, rng)
+        design = log_posterior.prior.draw(design_points, rng)
         best = design[np.argsort(scan(design))[::-1][:MAP_STARTS]]
         return laplace_walkers(log_posterior, local_maximum(scan, best), walkers, rng)
 
@@ -160,7 +160,7 @@ class FamilyFit:
         if name not in self.names:
             return None
         seconds = self.draws[:, self.names.index(name)]
-        low, high = np.quantile(seconds, [0.03, 0.97])
+        low, high = az.hdi(seconds, hdi_prob=HDI_PROB)
         summary = {"mean": seconds.mean(), "sd": seconds.std(), "hdi_3%": low, "hdi_97%": high}
         return {
             "name": name,
@@ -187,7 +187,7 @@ def fit_family(
     *,
     settings: SamplerSettings | None = None,
     seed: int | None = None,
-    engine: str = "fast",
+    engine: str = SERIES_ENGINES[0],
 ) -> FamilyFit:
     """Sample one family's posterior for a series and estimate its evidence.
 
@@ -223,26 +223,25 @@ def fit_family(
                                   engine=engine)  # fmt: skip
     prior = series_prior(likelihood)
     log_posterior = LogPosterior(likelihood, prior)
-    fingerprint = hashlib.sha256(
-        series.values.tobytes() + repr((series.dt, family, engine, prior)).encode()
-    ).hexdigest()
     key = list(FAMILIES).index(family)
-    family_seed = None if seed is None else [seed, key]
-    with keep_warnings() as kept:
-        chain = run_chain(log_posterior, _start(log_posterior), settings=settings,
-                          seed=family_seed, fingerprint=fingerprint)  # fmt: skip
-    kept.issue()
-    evidence = bridge_sampling(log_posterior, chain.samples, chain.log_prob,
-                               rng=np.random.default_rng(family_seed))  # fmt: skip
+    # The chain and the bridge draw from streams of their own: same seed, same answer.
+    chain_seed, bridge_seed = (None, None) if seed is None else ([seed, key], [seed, key, 1])
+    with keep_warnings() as kept:  # kept in the fit: a worker process's would be lost
+        chain = run_chain(log_posterior, _start(log_posterior, settings.design_points),
+                          settings=settings, seed=chain_seed)  # fmt: skip
+        evidence = bridge_sampling(log_posterior, chain.samples, chain.log_prob,
+                                   rng=np.random.default_rng(bridge_seed))  # fmt: skip
     draws = prior.to_natural(chain.samples.reshape(-1, len(prior.names)))
-    convergence = [{"kind": "convergence", "message": m} for m in kept.convergence]
+    kept_warnings = [{"kind": "convergence", "message": m} for m in kept.convergence] + [
+        {"kind": "warning", "message": message} for _, message in kept.other
+    ]
     return FamilyFit(
         family=family,
         names=tuple(prior.names),
         draws=draws,
         evidence=evidence,
         diagnostics=chain.diagnostics,
-        warnings=boundary_check(draws, prior).warnings + convergence,
+        warnings=boundary_check(draws, prior).warnings + kept_warnings,
         dt=series.dt,
     )
 
@@ -333,7 +332,7 @@ def characterise_noise(
     families: Sequence[str] | None = None,
     settings: SamplerSettings | None = None,
     seed: int | None = None,
-    engine: str = "fast",
+    engine: str = SERIES_ENGINES[0],
     executor: Executor | None = None,
 ) -> NoiseCharacterisation:
     """Each family's posterior and evidence for a noise series, the classical widths, a verdict.
@@ -383,13 +382,15 @@ def characterise_noise(
         if dt is None:
             raise InputError("a series given as an array needs its sample time dt", field="dt")
         series = NoiseSeries(values=np.asarray(series, float), dt=float(dt), name="series")
+    if isinstance(families, str):
+        raise InputError(
+            f"families must be a sequence of names, got {families!r}", field="families"
+        )
     families = tuple(FAMILIES if families is None else families)
     unknown = [name for name in families if name not in FAMILIES]
     if unknown or not families:
-        raise InputError(
-            f"unknown family {unknown[0] if unknown else None!r}; use some of {list(FAMILIES)}",
-            field="families",
-        )
+        what = f"unknown family {unknown[0]!r}" if unknown else "no family given"
+        raise InputError(f"{what}; use some of {list(FAMILIES)}", field="families")
     job = _FitJob(series, settings or SamplerSettings(), seed, engine)
     with (executor or SerialExecutor()).run(job, families) as finished:
         fits = dict(finished)

@@ -123,3 +123,11 @@ def test_noise_command_reads_series_and_names_the_bad_ones(tmp_path, capsys):
     assert digest(good) == before
     code = main(["noise", str(good), "--column", "accel", "--families", "white"])
     assert code == 2 and "accel" in capsys.readouterr().err
+    # Two files of one name: the second is refused, not written over the first.
+    (tmp_path / "other").mkdir()
+    twin = tmp_path / "other" / "gyro.csv"
+    twin.write_bytes(good.read_bytes())
+    code = main(["noise", str(good), str(twin), *flags, "--json"])
+    captured = capsys.readouterr()
+    assert code == 2 and list(strict_json(captured.out)["failed"]) == [str(twin)]
+    assert "named 'gyro' was read already" in captured.err

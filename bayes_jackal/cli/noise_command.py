@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .._files import write_json
 from ..chains import SamplerSettings
-from ..errors import each_input
+from ..errors import InputError, each_input
 from ..executors import ProcessExecutor
 from ..noise_characterisation import NoiseCharacterisation, characterise_noise
 from ..noise_series import read_noise_series
@@ -24,6 +24,12 @@ def cmd_noise(args: argparse.Namespace) -> int:
     def characterise(path: str) -> NoiseCharacterisation:
         series = read_noise_series(path, column=args.column, rate=args.rate, topic=args.topic,
                                    field=args.field, max_gap=args.max_gap)  # fmt: skip
+        if series.name in results:  # its results and file would replace the other's
+            raise InputError(
+                f"a series named {series.name!r} was read already: rename one file",
+                source=path,
+                field="series",
+            )
         out.say(f"{series.name}: {len(series.values)} samples at {1 / series.dt:.4g} Hz")
         with ProcessExecutor(args.processes) as executor:
             result = characterise_noise(series, families=args.families, settings=settings,

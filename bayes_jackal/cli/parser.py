@@ -9,9 +9,7 @@ to run one, ``cmd_<command>``.
 from __future__ import annotations
 
 import argparse
-import math
 import os
-from collections.abc import Callable
 
 from .. import __version__
 from ..defaults import (
@@ -49,85 +47,40 @@ from ..defaults import (
     SENSOR_PRECISIONS,
     SENSOR_SMOOTHNESS,
     SERIES_COUNTS,
-    SERIES_ENGINES,
     SIMULATED_NOISE,
     STATE_ESTIMATION,
     THESIS_CHANNEL,
     WALKERS,
 )
 from ..errors import InputError
-
-
-def _name_list(allowed, what: str) -> Callable[[str], tuple[str, ...]]:
-    """argparse type of a comma-separated list of names, e.g. ``--channels yaw,vx``."""
-
-    def parse(text: str) -> tuple[str, ...]:
-        names = tuple(name.strip() for name in text.split(",") if name.strip())
-        unknown = [name for name in names if name not in allowed]
-        if unknown or not names:
-            raise argparse.ArgumentTypeError(
-                f"unknown {what} {unknown or text!r}; use some of {','.join(allowed)}"
-            )
-        return names
-
-    return parse
-
-
-_channel_list = _name_list(CHANNELS, "channel(s)")
-
-
-def _registered_families() -> tuple[str, ...]:
-    """The keys of ``kernels.FAMILIES``, imported when a family flag is given.
-
-    The registry is the one list of families (docs/families.md), and reading it
-    loads numpy: so ``--help`` does not, and a family flag is checked here.
-    """
-    from ..kernels import FAMILIES  # imported with a family given: the command runs
-
-    return tuple(FAMILIES)
-
-
-def _family_list(text: str) -> tuple[str, ...]:
-    """argparse type of ``--families white,gaussian``: registered families."""
-    return _name_list(_registered_families(), "families")(text)
-
-
-def _family(text: str) -> str:
-    """argparse type of ``--family gaussian``: a registered family."""
-    families = _registered_families()
-    if text not in families:
-        raise argparse.ArgumentTypeError(
-            f"unknown family {text!r}; use one of {','.join(families)}"
-        )
-    return text
-
-
-def _bounded(convert: type, what: str, *, minimum: float, strict: bool = False) -> Callable:
-    """argparse type of a finite number (``convert``: int or float) >= ``minimum`` (> if strict).
-
-    ``what`` states the allowed range in the message, e.g. "an integer >= 0".
-    Checked while parsing, so a bad flag is refused before any work.
-    """
-
-    def parse(text: str) -> float:
-        try:
-            value = convert(text)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and (value > minimum if strict else value >= minimum)):
-            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
-        return value
-
-    return parse
-
-
-#: Counts and seeds (numpy's seeds are >= 0), counts of at least one, and
-#: physical quantities: positive, or non-negative (a noise sd of 0 is none).
-_natural = _bounded(int, "an integer >= 0", minimum=0)
-_count = _bounded(int, "an integer >= 1", minimum=1)
-_positive = _bounded(float, "a finite number > 0", minimum=0.0, strict=True)
-_non_negative = _bounded(float, "a finite number >= 0", minimum=0.0)
-_finite = _bounded(float, "a finite number", minimum=-math.inf)
+from .noise_parser import add_noise_parser
+from .parser_types import (
+    channel_list as _channel_list,
+)
+from .parser_types import (
+    count as _count,
+)
+from .parser_types import (
+    family as _family,
+)
+from .parser_types import (
+    family_list as _family_list,
+)
+from .parser_types import (
+    finite as _finite,
+)
+from .parser_types import (
+    name_list as _name_list,
+)
+from .parser_types import (
+    natural as _natural,
+)
+from .parser_types import (
+    non_negative as _non_negative,
+)
+from .parser_types import (
+    positive as _positive,
+)
 
 
 class _Grid(argparse.Action):
@@ -564,54 +517,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_input_flags(filters)
     _add_common(filters)
 
-    noise = commands.add_parser(
-        "noise", help="a bare noise series: families, smoothness and evidence"
-    )
-    noise.add_argument(
-        "series", nargs="+", metavar="SERIES", help="CSV, MATLAB (.mat) or bag (.bag, .mcap, .db3)"
-    )
-    noise.add_argument("--column", metavar="NAME", help="the series' column (CSV, .mat)")
-    noise.add_argument(
-        "--rate",
-        type=_positive,
-        metavar="HZ",
-        help="sampling rate [Hz] of a file without a time column",
-    )
-    noise.add_argument("--topic", metavar="NAME", help="a bag's topic, e.g. /imu/data")
-    noise.add_argument(
-        "--field", metavar="PATH", help="the topic's field, e.g. angular_velocity.z"
-    )
-    noise.add_argument(
-        "--max-gap",
-        type=_positive,
-        default=None,
-        help=f"longest dropout filled [s] (default {MAX_GAP_STEPS} sample steps)",
-    )
-    noise.add_argument(
-        "--families",
-        type=_family_list,
-        metavar="white,gaussian,...",
-        help="comma-separated families (every registered family)",
-    )
-    noise.add_argument("--out", metavar="DIR", help="write <series>.noise.json here")
-    noise.add_argument("--seed", type=_natural, default=None, help="seed: same seed, same answer")
-    noise.add_argument(
-        "--max-steps", type=_count, default=MAX_STEPS, help=f"step cap per family ({MAX_STEPS})"
-    )
-    noise.add_argument(
-        "--engine",
-        choices=SERIES_ENGINES,
-        default=SERIES_ENGINES[0],
-        help=f"likelihood engine ({SERIES_ENGINES[0]})",
-    )
-    noise.add_argument(
-        "--processes",
-        type=_count,
-        default=os.cpu_count() or 1,
-        help="families sampled at once, one per process (default: the number of cores)",
-    )
-    noise.add_argument("--no-progress", action="store_true", help="no progress bar")
-    noise.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    add_noise_parser(commands)
 
     report = commands.add_parser("report", help="HTML report with figures of posteriors")
     report.add_argument(
