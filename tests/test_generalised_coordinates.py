@@ -25,12 +25,18 @@ def test_embedding_is_exact_on_polynomials_of_degree_up_to_the_order(order):
     expected = np.column_stack([polynomial.deriv(j)(t) for j in range(order + 1)])
     for lookahead in range(order + 1):
         np.testing.assert_allclose(
-            embed(polynomial(t), order, dt, lookahead=lookahead), expected, rtol=1e-8, atol=1e-8
+            # inv(T) of a Vandermonde-like system at dt = 0.05: its condition
+            # number grows as dt^-p (~1e5 at p = 4), so 1e-8 leaves rounding room
+            embed(polynomial(t), order, dt, lookahead=lookahead),
+            expected,
+            rtol=1e-8,
+            atol=1e-8,
         )
     # One degree more is not exact: the centred first derivative of t^3 is
     # ((t + h)^3 - (t - h)^3) / (2 h) = 3 t^2 + h^2, off by h^2 (closed form).
     if order == 2:
         embedded = embed(t**3, 2, dt)
+        # a closed form against a 3 x 3 solve: rounding, far below 1e-10
         np.testing.assert_allclose(embedded[1:-1, 1], 3 * t[1:-1] ** 2 + dt**2, rtol=1e-10)
 
 
@@ -71,6 +77,7 @@ def test_taylor_step_is_the_motion_over_one_step(order):
     dt = 0.03
     polynomial = np.polynomial.Polynomial(np.arange(1.0, order + 2))
     here = np.array([polynomial.deriv(j)(0.2) for j in range(order + 1)])
+    # exact but for rounding of p + 1 terms of order 1: 1e-13 is ~500 ulps
     assert taylor_step(order, dt) @ here == pytest.approx(polynomial(0.2 + dt), rel=1e-13)
     np.testing.assert_allclose(
         taylor_step(order, dt), scipy.linalg.expm(shift_operator(order) * dt)[0], rtol=1e-13
