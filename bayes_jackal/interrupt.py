@@ -10,7 +10,9 @@ code runs inside :func:`deferred`, where a signal only records a stop that
 :func:`check` raises between steps; a second signal raises at once.
 A stop raised where Python cannot propagate it (a finaliser, a weakref
 callback of the garbage collector, Cython) is sent again as soon as that
-code has returned.
+code has returned. Once a stop has been raised, the finaliser of an object
+it cut short mid-construction fails quietly (h5netcdf's ``File`` stopped
+in its ``__init__`` has no ``_closed`` to close by).
 
 Worker processes call :func:`quiet_worker` first: they ignore SIGINT (the
 terminal sends Ctrl-C to them too; the main process stops them) and die
@@ -70,6 +72,7 @@ class Interrupted(KeyboardInterrupt):
 _pending: int | None = None
 _deferring = 0
 _resent = False  # the next signal is a swallowed stop sent again, not a second one
+_raised = False  # a stop was raised: what it cut short may fail in its finaliser
 
 
 def _handler(signum: int, frame) -> None:
@@ -78,6 +81,13 @@ def _handler(signum: int, frame) -> None:
     _pending, _resent = signum, False  # kept until check() raises it
     if _deferring and first:
         return
+    _stop(signum)
+
+
+def _stop(signum: int) -> None:
+    """Raise :class:`Interrupted`, noting that the run is stopping."""
+    global _raised
+    _raised = True
     raise Interrupted(signum)
 
 
@@ -91,10 +101,14 @@ def _unraisable(hook: sys.UnraisableHookArgs) -> None:
     command has left (6.7 s of report figures, in CI). The stop stays
     pending instead and :func:`_resend` delivers it again once the code
     that swallowed it has returned.
+
+    Once a stop has been raised, any other exception here comes from the
+    finaliser of an object the stop cut short (a file closed before it was
+    opened): it is dropped, as the run's last line has said why it stopped.
     """
     if isinstance(hook.exc_value, Interrupted):
         _resend(hook.exc_value.signum)
-    else:
+    elif not _raised:
         _previous_hooks["unraisablehook"](hook)
 
 
@@ -186,8 +200,8 @@ def install() -> dict:
     >>> signal.getsignal(signal.SIGTERM) is previous[signal.SIGTERM]
     True
     """
-    global _pending
-    _pending = None
+    global _pending, _raised
+    _pending, _raised = None, False
     previous = {signum: signal.signal(signum, _handler) for signum in SIGNALS}
     # Beyond a file-size limit (ulimit -f) a write then fails with EFBIG, which
     # the writers report naming the file, instead of the signal killing the run.
@@ -256,7 +270,7 @@ def check() -> None:
     global _pending
     signum, _pending = _pending, None
     if signum is not None:
-        raise Interrupted(signum)
+        _stop(signum)
 
 
 @contextlib.contextmanager

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import shutil
@@ -120,6 +121,34 @@ def test_a_stop_raised_where_python_cannot_propagate_it_is_silent_and_sent_again
     assert time.monotonic() - started < 1.0
     assert stop.value.signum == signal.SIGINT
     assert capsys.readouterr().err == ""
+
+
+class _CutShort:
+    """Stopped in its constructor before the attribute its finaliser reads (h5netcdf's File)."""
+
+    def __init__(self):
+        os.kill(os.getpid(), signal.SIGTERM)
+        self._closed = False
+
+    def __del__(self):
+        if not self._closed:  # AttributeError: "Exception ignored in ..." without the hook
+            self._closed = True
+
+
+def test_the_finaliser_of_what_a_stop_cut_short_fails_quietly(handlers, capsys):
+    with pytest.raises(interrupt.Interrupted) as stop:
+        _CutShort()
+    del stop  # its traceback held the half-built object
+    gc.collect()
+    assert capsys.readouterr().err == ""
+
+
+def test_a_finaliser_failing_before_any_stop_is_still_reported(handlers, monkeypatch):
+    shown = []
+    monkeypatch.setitem(interrupt._previous_hooks, "unraisablehook", shown.append)
+    _CutShort.__new__(_CutShort)  # never constructed, and no stop: a real fault
+    gc.collect()
+    assert [type(hook.exc_value) for hook in shown] == [AttributeError]
 
 
 def test_a_swallowed_stop_sent_again_inside_deferred_is_held_as_the_first(handlers):
