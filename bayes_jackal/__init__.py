@@ -25,7 +25,9 @@ _LAZY = {
     # a bare noise series
     "NoiseSeries": ".noise_series",
     "characterise_noise": ".noise_characterisation",
+    "export_noise_prior": ".noise_prior",
     "read_noise_series": ".noise_series",
+    "write_noise_report": ".noise_report",
     # state estimation with a prior (the filters)
     "FILTERS": ".state_estimation",
     "estimate_columns": ".state_estimation",

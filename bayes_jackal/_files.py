@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import json
 import math
 import os
@@ -161,3 +162,25 @@ def write_json(path: str | Path, payload: object, *, indent: int = 2) -> Path:
     with atomic_path(path) as temporary:
         temporary.write_text(json_text(payload, indent=indent))
     return path
+
+
+def file_sha256(path: Path) -> str:
+    """sha256 (hex) of a file, or of a directory's files (a ROS2 bag) in name order.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal._files import file_sha256
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     _ = (Path(folder) / "a.txt").write_bytes(b"abc")
+    ...     print(file_sha256(Path(folder) / "a.txt")[:16], file_sha256(Path(folder))[:16])
+    ba7816bf8f01cfea ba7816bf8f01cfea
+    """
+    digest = hashlib.sha256()
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    for file in files:
+        with open(file, "rb") as stream:
+            for block in iter(lambda s=stream: s.read(1 << 20), b""):
+                digest.update(block)
+    return digest.hexdigest()

@@ -13,7 +13,7 @@ import scipy.io
 
 from .errors import DataError
 
-__all__ = ["mat_arrays"]
+__all__ = ["mat_arrays", "mat_vector"]
 
 #: What scipy.io and h5py raise on files they cannot read.
 _MAT_ERRORS = (
@@ -52,6 +52,50 @@ def mat_arrays(path: Path, source: str) -> dict[str, np.ndarray]:
         raise DataError(
             f"not a readable MATLAB file ({type(exc).__name__}: {exc})", source=source
         ) from None
+
+
+def mat_vector(
+    variables: dict[str, np.ndarray], name: str, source: str, *, role: str | None = None
+) -> np.ndarray:
+    """The variable ``name`` of :func:`mat_arrays` as a float vector (``role``: named in errors).
+
+    Parameters
+    ----------
+    variables : dict of str to ndarray
+        The file's numeric arrays (:func:`mat_arrays`), struct fields as ``struct.field``.
+    name : str
+        The variable read; a key of ``variables``.
+    source : str
+        The file named in the error.
+    role : str, optional
+        What the variable stands for (e.g. ``"t"``), named in the error.
+
+    Returns
+    -------
+    ndarray of float, shape (n,)
+        Row and column vectors alike (singleton axes squeezed).
+
+    Raises
+    ------
+    DataError
+        For a variable that is not a vector once squeezed, naming its shape.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal._matlab import mat_vector
+    >>> mat_vector({"log.t": np.arange(3).reshape(1, 3)}, "log.t", "log.mat")
+    array([0., 1., 2.])
+    """
+    vector = np.squeeze(variables[name])
+    if vector.ndim != 1:
+        what = "" if role is None else f" ({role})"
+        raise DataError(
+            f"variable {name!r}{what} has shape {variables[name].shape}; a vector is needed",
+            source=source,
+            field=name,
+        )
+    return vector.astype(float)
 
 
 def _arrays(contents: dict, prefix: str) -> dict[str, np.ndarray]:

@@ -1,11 +1,12 @@
 """What the figures share: new axes without pyplot, colours, units, the band's percentiles.
 
-Private to :mod:`bayes_jackal.plots`, :mod:`bayes_jackal.grid_plots` and
-:mod:`bayes_jackal.predictive_plots`.
+Private to :mod:`bayes_jackal.plots`, :mod:`bayes_jackal.grid_plots`,
+:mod:`bayes_jackal.predictive_plots` and :mod:`bayes_jackal.noise_plots`.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
@@ -22,3 +23,10 @@ def new_axes(ax: Axes | None, **figure_options) -> tuple[Figure, Axes]:
         return ax.figure, ax
     fig = Figure(layout="constrained", **figure_options)
     return fig, fig.add_subplot()
+
+
+def draw_band(ax: Axes, x: np.ndarray, draws: np.ndarray, *, color, label: str) -> None:
+    """The central :data:`BAND` of ``draws`` (shape (B, len(x))) over x, filled, and its median."""
+    low, median, high = np.percentile(draws, [BAND[0], 50.0, BAND[1]], axis=0)
+    ax.fill_between(x, low, high, color=color, alpha=0.3, label=label)
+    ax.plot(x, median, color=color, lw=1)

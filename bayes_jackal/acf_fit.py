@@ -48,7 +48,8 @@ import scipy.optimize
 
 from .errors import InputError
 from .residual_analysis import LAGS, SIGMA_H_GRID, fit_sigma_h
-from .series_statistics import _check_dt, sample_autocorrelation
+from .series_statistics import sample_autocorrelation
+from .stamps import positive_number
 
 __all__ = ["LEAST_SQUARES_LAGS", "THESIS_LAGS", "acf_least_squares", "thesis_fit"]
 
@@ -142,7 +143,7 @@ def acf_least_squares(
     >>> bool(np.isclose(widths[1], (1 / 120) / (2 * np.sqrt(-np.log(r1)))))
     True
     """
-    dt = _check_dt(dt)
+    dt = positive_number(dt, name="dt", unit="s", required=True, what="the sample time")
     counts = _check_counts(lags)
     r = sample_autocorrelation(values, counts[-1])
     return {count: dt * _least_squares_width(r[1 : count + 1]) for count in counts}
@@ -176,7 +177,7 @@ def thesis_fit(values: np.ndarray, dt: float) -> float:
     >>> thesis_fit(get_family("gaussian").noise(0.047, 1 / 72, 20000, rng=1), 1 / 72)
     0.047
     """
-    dt = _check_dt(dt)
+    dt = positive_number(dt, name="dt", unit="s", required=True, what="the sample time")
     # The grid's widest filter (1 s) has 6 s / dt taps: fit the grid in pieces
     # of ~_CHUNK_TAPS taps in all (in one piece, 1 kHz would take ~0.4 GB).
     chunks = np.array_split(

@@ -27,7 +27,7 @@ from scipy.integrate import cumulative_trapezoid
 from scipy.interpolate import CubicSpline
 
 from ._files import atomic_path
-from .bags import typestore
+from .bag_reading import typestore
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import as_rng
@@ -37,7 +37,7 @@ from .simulate import Series, command_profile
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BagMessage", "bag_messages", "write_bag", "write_messages"]
+__all__ = ["BagMessage", "bag_messages", "stamped_header", "write_bag", "write_messages"]
 
 #: :func:`write_bag`: motion-capture rate [Hz], fraction of pose messages
 #: published twice, receive latency [ns], epoch of time zero [s], and the
@@ -73,7 +73,7 @@ class BagMessage:
     >>> from pathlib import Path
     >>> from rosbags.highlevel import AnyReader
     >>> from bayes_jackal.bag_writer import BagMessage, write_messages
-    >>> from bayes_jackal.bags import typestore
+    >>> from bayes_jackal.bag_reading import typestore
     >>> store = typestore("ros2")
     >>> Twist, Vector3 = (store.types[f"geometry_msgs/msg/{n}"] for n in ("Twist", "Vector3"))
     >>> twist = Twist(linear=Vector3(x=0.3, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.39))
@@ -177,7 +177,7 @@ def bag_messages(
     types = store.types
     messages = []
     for k, stamp in enumerate(stamps):
-        header = _header(store, stamp, "imu_link", k)
+        header = stamped_header(store, stamp, "imu_link", k)
         messages.append(
             BagMessage(
                 robot.topics["imu"],
@@ -211,7 +211,7 @@ def bag_messages(
                 "sensor_msgs/msg/JointState",
                 int(stamp) + LATENCY_NS,
                 types["sensor_msgs/msg/JointState"](
-                    header=_header(store, stamp, "base_link", k),
+                    header=stamped_header(store, stamp, "base_link", k),
                     name=names,
                     position=position[k],
                     velocity=velocity[k],
@@ -234,7 +234,7 @@ def bag_messages(
         )
     for k, stamp in enumerate(pose_stamps):
         message = types["geometry_msgs/msg/PoseStamped"](
-            header=_header(store, stamp, "world", k),
+            header=stamped_header(store, stamp, "world", k),
             pose=types["geometry_msgs/msg/Pose"](
                 position=types["geometry_msgs/msg/Point"](x=x[k], y=y[k], z=0.0),
                 orientation=_quaternion(store, psi[k]),
@@ -253,7 +253,17 @@ def bag_messages(
     return messages
 
 
-def _header(store: Typestore, stamp: int, frame: str, seq: int) -> object:
+def stamped_header(store: Typestore, stamp: int, frame: str, seq: int) -> object:
+    """A ``std_msgs/Header`` of ``store`` stamped ``stamp`` [ns] (``seq`` where ROS1 has it).
+
+    Examples
+    --------
+    >>> from bayes_jackal.bag_reading import typestore
+    >>> from bayes_jackal.bag_writer import stamped_header
+    >>> header = stamped_header(typestore("ros1"), 1_500_000_000, "imu_link", 7)
+    >>> header.stamp.sec, header.stamp.nanosec, header.seq
+    (1, 500000000, 7)
+    """
     fields = {f.name for f in dataclasses.fields(store.types["std_msgs/msg/Header"])}
     time = store.types["builtin_interfaces/msg/Time"](
         sec=int(stamp) // 1_000_000_000, nanosec=int(stamp) % 1_000_000_000
@@ -310,7 +320,7 @@ def write_messages(
     >>> from pathlib import Path
     >>> from rosbags.highlevel import AnyReader
     >>> from bayes_jackal.bag_writer import BagMessage, bag_messages, write_messages
-    >>> from bayes_jackal.bags import typestore
+    >>> from bayes_jackal.bag_reading import typestore
     >>> from bayes_jackal.robot import load_profile
     >>> from bayes_jackal.simulate import Series, simulate_experiment
     >>> robot = load_profile()

@@ -46,32 +46,24 @@ The writer of simulated experiments as bags is :mod:`bayes_jackal.bag_writer`.
 
 from __future__ import annotations
 
-import hashlib
-import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.rosbag1 import ReaderError as Reader1Error
-from rosbags.rosbag2 import ReaderError as Reader2Error
-from rosbags.serde import SerdeError
-from rosbags.typesys import Stores, TypesysError, get_typestore
+from rosbags.highlevel import AnyReader
 from scipy.signal import savgol_filter
 
-from .defaults import BAG_FORMATS, MAX_GAP
+from ._files import file_sha256
+from .bag_reading import READ_ERRORS, bag_format, header_stamp, open_bag, receive_time_for_zero
+from .defaults import MAX_GAP
 from .errors import DataError, InputError
 from .experiment import Experiment, detect_steady
 from .progress import Progress
 from .robot import RobotProfile
 from .stamps import MIN_SAMPLES, longest_run, sort_stamps
 
-if TYPE_CHECKING:
-    from rosbags.typesys.store import Typestore
-
-__all__ = ["MESSAGE_TYPES", "read_bag", "typestore"]
+__all__ = ["MESSAGE_TYPES", "read_bag"]
 
 #: Accepted message types per topic role (rosbags' normalised type names).
 MESSAGE_TYPES = {
@@ -93,24 +85,6 @@ QUATERNION_TOLERANCE = 0.01
 #: Shortest usable run after cutting at dropouts [s].
 MIN_DURATION = 1.0
 
-#: What rosbags raises on unreadable or corrupt files (its readers check some
-#: record fields with ``assert``, hence AssertionError).
-_READ_ERRORS = (
-    AssertionError,
-    ArithmeticError,
-    AnyReaderError,
-    Reader1Error,
-    Reader2Error,
-    SerdeError,
-    TypesysError,
-    OSError,
-    ValueError,
-    KeyError,
-    IndexError,
-    EOFError,
-    struct.error,
-)
-
 
 @dataclass
 class _Stream:
@@ -129,22 +103,6 @@ class _Stream:
             self.recv[index],
             self.values[index],
         )
-
-
-def typestore(format: str) -> Typestore:
-    """The rosbags typestore of a bag format (``"ros1"``: Noetic, ``"ros2"``: Humble).
-
-    Examples
-    --------
-    >>> from bayes_jackal.bags import typestore
-    >>> "sensor_msgs/msg/Imu" in typestore("ros1").types
-    True
-    """
-    if format not in BAG_FORMATS:
-        raise InputError(
-            f"unknown bag format {format!r}; use one of {BAG_FORMATS}", field="format"
-        )
-    return get_typestore(Stores.ROS1_NOETIC if format == "ros1" else Stores.ROS2_HUMBLE)
 
 
 # --------------------------------------------------------------------------- reading
@@ -216,17 +174,12 @@ def read_bag(
         raise DataError("no such file", source=source)
     if not (np.isfinite(max_gap) and max_gap > 0):
         raise InputError(f"must be positive, got {max_gap!r} s", field="max_gap")
-    digest = _sha256(path)
+    digest = file_sha256(path)
     repairs: list[str] = []
-    format_name = "ros1" if path.suffix == ".bag" else "ros2"
-    try:
-        with AnyReader([path], default_typestore=typestore(format_name)) as reader:
-            start = reader.start_time
-            streams = _collect(reader, robot, source, repairs, progress)
-    except DataError:
-        raise
-    except _READ_ERRORS as exc:
-        raise DataError(f"cannot read bag ({type(exc).__name__}: {exc})", source=source) from None
+    format_name = bag_format(path)
+    with open_bag(path, source) as reader:
+        start = reader.start_time
+        streams = _collect(reader, robot, source, repairs, progress)
 
     def where(ns: float) -> str:
         return f"stamp {ns * 1e-9:.6f} s ({(ns - start) * 1e-9:.3f} s into the bag)"
@@ -300,17 +253,6 @@ def read_bag(
     )
 
 
-def _sha256(path: Path) -> str:
-    """sha256 of a file, or of a bag directory's files in name order."""
-    digest = hashlib.sha256()
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    for file in files:
-        with open(file, "rb") as stream:
-            for block in iter(lambda s=stream: s.read(1 << 20), b""):
-                digest.update(block)
-    return digest.hexdigest()
-
-
 def _collect(
     reader: AnyReader,
     robot: RobotProfile,
@@ -365,12 +307,12 @@ def _collect(
         for connection, time, raw in messages:
             role = roles[connection.topic]
             message = reader.deserialize(raw, connection.msgtype)
-            stamp = 0 if role == "cmd_vel" else _stamp(message)
+            stamp = 0 if role == "cmd_vel" else header_stamp(message)
             rows[role].append((stamp, time, *_values(role, message, right, left, time, source)))
             last = (connection.topic, time)
     except DataError:
         raise
-    except _READ_ERRORS as exc:
+    except READ_ERRORS as exc:
         after = (
             ""
             if last is None
@@ -382,26 +324,14 @@ def _collect(
     streams = {}
     for topic, role in roles.items():
         table = np.array(rows[role], dtype=object)
-        stamp, recv = table[:, 0].astype(np.int64), table[:, 1].astype(np.int64)
-        zero = stamp == 0
-        if zero.any() and role != "cmd_vel":
-            repairs.append(
-                f"{role}: {zero.sum()} of {len(stamp)} messages on {topic} have a zero header "
-                f"stamp; used their receive time"
-            )
-        streams[role] = _Stream(
-            topic,
-            topics[topic].msgtype,
-            np.where(zero, recv, stamp),
-            recv,
-            table[:, 2:].astype(float),
+        recv = table[:, 1].astype(np.int64)
+        stamp, repaired = receive_time_for_zero(
+            table[:, 0].astype(np.int64), recv, f"{role} ({topic})"
         )
+        repairs += [] if role == "cmd_vel" else repaired
+        values = table[:, 2:].astype(float)
+        streams[role] = _Stream(topic, topics[topic].msgtype, stamp, recv, values)
     return streams
-
-
-def _stamp(message: object) -> int:
-    stamp = message.header.stamp
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def _values(

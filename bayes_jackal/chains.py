@@ -24,7 +24,7 @@ import numpy as np
 
 from . import interrupt
 from ._files import check_space
-from .defaults import MAX_STEPS, WALKERS
+from .defaults import BRIDGE_MIN_DRAWS, MAX_STEPS, MIN_EVIDENCE_STEPS, WALKERS
 from .errors import InputError, OutputError
 from .outputs import OutputLock
 from .progress import Progress
@@ -101,6 +101,32 @@ class SamplerSettings:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise InputError(f"must be a finite number > 0, got {value!r}", field=name)
+
+    def check_evidence_steps(self) -> None:
+        """Refuse a step cap too short for bridge sampling (before any sampling).
+
+        Raises
+        ------
+        InputError
+            For ``max_steps`` < :data:`bayes_jackal.defaults.MIN_EVIDENCE_STEPS`.
+
+        Examples
+        --------
+        >>> import bayes_jackal as bj
+        >>> try:
+        ...     bj.SamplerSettings(max_steps=10).check_evidence_steps()
+        ... except bj.InputError as error:
+        ...     print(error)
+        max_steps: must be at least 16 to estimate the evidence (bridge sampling needs 8 draws
+        from the chain's second half), got 10
+        """
+        if self.max_steps < MIN_EVIDENCE_STEPS:
+            raise InputError(
+                f"must be at least {MIN_EVIDENCE_STEPS} to estimate the evidence (bridge sampling "
+                f"needs {BRIDGE_MIN_DRAWS} draws from the chain's second half), got "
+                f"{self.max_steps}",
+                field="max_steps",
+            )
 
     def n_walkers(self, ndim: int) -> int:
         walkers = self.walkers or max(32, 4 * ndim)
@@ -406,8 +432,10 @@ def run_chain(
     Returns
     -------
     Chain
-        After 2 tau of burn-in, thinned by tau / 2; a chain that did not
-        converge warns (:class:`ConvergenceWarning`).
+        After 2 tau of burn-in (at most half), thinned by tau / 2 (at most
+        so far that :data:`~bayes_jackal.defaults.BRIDGE_MIN_DRAWS` draws of
+        each walker remain); a chain that did not converge warns
+        (:class:`ConvergenceWarning`).
 
     Examples
     --------
@@ -471,13 +499,26 @@ def run_chain(
         return _kept(sampler, names, tau, converged, settings, seed)
 
 
-def _kept(sampler, names, tau, converged, settings, seed) -> Chain:
-    """Keep the chain after 2 tau of burn-in, thinned by tau / 2, with its diagnostics."""
-    # A chain too short to estimate tau (NaN) keeps its second half, unthinned.
+def _burn_in_and_thinning(steps: int, tau: np.ndarray) -> tuple[int, int]:
+    """The steps discarded (2 tau, at most half) and the thinning (tau / 2) of a chain.
+
+    The thinning is capped so that :data:`~bayes_jackal.defaults.BRIDGE_MIN_DRAWS`
+    draws of each walker remain from a chain of at least
+    :data:`~bayes_jackal.defaults.MIN_EVIDENCE_STEPS` steps, whatever tau was
+    estimated (emcee's window bounds it by steps / 5, where tau / 2 would leave
+    6 draws); the cap does not bind on a converged chain (steps > 50 tau). A
+    chain too short to estimate tau (NaN) keeps its second half, unthinned.
+    """
     estimated = bool(np.all(np.isfinite(tau)))
-    half = sampler.iteration // 2
+    half = steps // 2
     discard = min(int(np.ceil(2 * np.max(tau))), half) if estimated else half
     thin = max(1, int(np.min(tau) / 2)) if estimated else 1
+    return discard, max(1, min(thin, (steps - discard) // BRIDGE_MIN_DRAWS))
+
+
+def _kept(sampler, names, tau, converged, settings, seed) -> Chain:
+    """Keep the chain after 2 tau of burn-in, thinned by tau / 2, with its diagnostics."""
+    discard, thin = _burn_in_and_thinning(sampler.iteration, tau)
     kept = sampler.iteration - discard
     diagnostics = {
         "converged": converged,

@@ -302,6 +302,7 @@ def compare_groups(
             f"families must be distinct names from {list(FAMILIES)}, got {list(families)}",
             field="families",
         )
+    (settings or SamplerSettings()).check_evidence_steps()
     executor = executor or SerialExecutor()
     if not executor.terminal:  # workers have no terminal
         settings = dataclasses.replace(settings or SamplerSettings(), progress=False)

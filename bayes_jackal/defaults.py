@@ -12,6 +12,7 @@ from __future__ import annotations
 __all__ = [
     "AUTO_ORDER",
     "BAG_FORMATS",
+    "BRIDGE_MIN_DRAWS",
     "CHANNELS",
     "CONVERSIONS",
     "DAMPING_GRID",
@@ -34,7 +35,9 @@ __all__ = [
     "MAX_STEPS",
     "METHOD",
     "METHODS",
+    "MIN_EVIDENCE_STEPS",
     "NOISE",
+    "NOISE_MAX_STEPS",
     "NOISE_SHARING",
     "OPTIONAL",
     "REQUIRED",
@@ -86,6 +89,17 @@ NOISE = NOISE_SHARING[0 if SHARED_NOISE else 1]
 # -- the sampler (inference.SamplerSettings)
 #: Step cap of each chain (``--max-steps``); a chain that reaches it is NOT CONVERGED.
 MAX_STEPS = 20_000
+#: Step cap of each family's chain of a noise series (``noise --max-steps``): on
+#: white noise a coloured family's width is not identified and its chain never
+#: converges (measured: 8 min per family at MAX_STEPS on 1,000 samples), while the
+#: chains of a coloured series converge within it (bayes_jackal.noise_characterisation).
+NOISE_MAX_STEPS = 5_000
+#: Fewest draws bridge sampling takes (the first half fits its proposal).
+BRIDGE_MIN_DRAWS = 8
+#: Fewest steps of a chain whose evidence is estimated (compare, analyse, noise):
+#: the chain keeps at least its second half, thinned to no fewer than BRIDGE_MIN_DRAWS
+#: draws of each walker (bayes_jackal.chains).
+MIN_EVIDENCE_STEPS = 2 * BRIDGE_MIN_DRAWS
 #: Ensemble size (``--walkers``); 0: max(32, 4 x parameters).
 WALKERS = 0
 

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.special
 import scipy.stats
 
+from .defaults import BRIDGE_MIN_DRAWS
 from .errors import InputError
 from .kernels import as_rng
 from .priors import Prior
@@ -144,9 +145,10 @@ def bridge_sampling(
     (1.84, 1.84, True)
     """
     chain = np.asarray(chain, float)
-    if chain.ndim != 3 or chain.shape[0] < 8:
+    if chain.ndim != 3 or chain.shape[0] < BRIDGE_MIN_DRAWS:
         raise InputError(
-            f"need a chain of shape (draws >= 8, walkers, P), got {chain.shape}", field="chain"
+            f"need a chain of shape (draws >= {BRIDGE_MIN_DRAWS}, walkers, P), got {chain.shape}",
+            field="chain",
         )
     draws, walkers, ndim = chain.shape
     half = draws // 2
@@ -168,7 +170,11 @@ def bridge_sampling(
     # Fruehwirth-Schnatter's f1 (proposal draws, independent) and f2 (chain).
     f1 = np.exp(l2 - shift - log_r - np.logaddexp(np.log(s1) + l2 - shift - log_r, np.log(s2)))
     f2 = np.exp(-np.logaddexp(np.log(s1) + l1 - shift - log_r, np.log(s2)))
-    tau = emcee.autocorr.integrated_time(f2.reshape(-1, walkers), tol=0)[0]
+    # A walker stuck through the kept chain has a constant f2, whose
+    # autocorrelation is undefined (emcee divides by its zero variance).
+    per_walker = f2.reshape(-1, walkers)
+    moving = per_walker[:, np.ptp(per_walker, axis=0) > 0]
+    tau = emcee.autocorr.integrated_time(moving, tol=0)[0] if moving.size else 1.0
     relative_mse = (
         np.var(f1) / np.mean(f1) ** 2 / n2 + max(tau, 1.0) * np.var(f2) / np.mean(f2) ** 2 / n1
     )

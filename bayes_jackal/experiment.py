@@ -44,7 +44,9 @@ __all__ = [
     "STEADY_YAW_FLOOR",
     "STEADY_YAW_TOLERANCE",
     "Experiment",
+    "check_values",
     "detect_steady",
+    "numeric_array",
     "read_netcdf",
     "steady_smoothing",
     "write_netcdf",
@@ -148,11 +150,11 @@ class Experiment:
     def __post_init__(self) -> None:
         columns = {key: getattr(self, key) for key in (*REQUIRED, *OPTIONAL)}
         columns = {
-            key: _numeric(value, self.source, key)
+            key: numeric_array(value, self.source, key)
             for key, value in columns.items()
             if value is not None
         }
-        _check_values(columns, self.source, lambda i: f"sample {i}")
+        check_values(columns, self.source, lambda i: f"sample {i}")
         _check_uniform(columns["t"], self.source, lambda i: f"sample {i}")
         if self.steady_window is not None:
             object.__setattr__(self, "steady_window", _window(self.steady_window, self.source))
@@ -218,8 +220,20 @@ class Experiment:
         return self if self.steady_window is None else self.window(*self.steady_window)
 
 
-def _numeric(values: object, source: str, field: str) -> np.ndarray:
-    """``values`` as a float array; a DataError when they are not numbers (text, objects)."""
+def numeric_array(values: object, source: str | None, field: str) -> np.ndarray:
+    """``values`` as a float array; a DataError naming ``source`` and ``field`` for text, objects.
+
+    Examples
+    --------
+    >>> from bayes_jackal.experiment import numeric_array
+    >>> numeric_array([1, 2], "run.nc", "vx")
+    array([1., 2.])
+    >>> try:
+    ...     numeric_array(["1", "x"], "run.nc", "vx")
+    ... except ValueError as exc:
+    ...     print(exc)
+    run.nc: vx: expected numbers, got values of type <U1 (first: '1')
+    """
     array = np.asarray(values)
     if array.dtype.kind not in "iuf":
         first = f" (first: {array.ravel()[:1].tolist()[0]!r})" if array.size else ""
@@ -264,10 +278,44 @@ def check_finite(
         )
 
 
-def _check_values(
+def check_values(
     columns: dict[str, np.ndarray], source: str, row_name: Callable[[int], str]
 ) -> None:
-    """Check lengths, finiteness and magnitudes; ``row_name`` labels sample i."""
+    """Refuse an experiment's columns of unequal lengths, too short, non-finite or too large.
+
+    The check of :class:`Experiment` and of the log readers
+    (:mod:`bayes_jackal.tables`), before any stamp is repaired.
+
+    Parameters
+    ----------
+    columns : dict of str to ndarray, shape (n,)
+        By role: ``t`` [s] and the measured columns (:data:`UNITS`).
+    source : str
+        The file named in errors.
+    row_name : callable
+        ``row_name(i)`` says where sample i is in the file (a line, an index).
+
+    Raises
+    ------
+    DataError
+        Naming ``source``, the column and the first bad value: columns of
+        different lengths or not 1-D, fewer than
+        :data:`bayes_jackal.stamps.MIN_SAMPLES` samples, a NaN or infinity, or
+        a magnitude at or above ``MAGNITUDE_LIMITS``
+        (wrong units or a corrupt file).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.experiment import check_values
+    >>> t = np.arange(100) / 72
+    >>> try:
+    ...     check_values({"t": t, "yaw_rate": np.full(100, 1e3)}, "run.csv", "line {}".format)
+    ... except ValueError as exc:
+    ...     print(exc)
+    run.csv: yaw_rate: 1000 rad/s at line 0 (100 values): magnitudes must be below 100
+    rad/s, beyond any ground robot (wrong units or a corrupt file?)
+    """
     lengths = {key: value.shape for key, value in columns.items()}
     if len(set(lengths.values())) != 1 or len(columns["t"].shape) != 1:
         raise DataError(f"columns differ in length or are not 1-D: {lengths}", source=source)
@@ -515,7 +563,7 @@ def read_netcdf(path: str | Path) -> Experiment:
         steady_window=dataset.attrs.get("steady_window"),
         truth=_json_attribute(dataset.attrs, "truth", source, null=True),
         truth_arrays={
-            key.removeprefix("truth_"): _numeric(dataset[key].values, source, key)
+            key.removeprefix("truth_"): numeric_array(dataset[key].values, source, key)
             for key in dataset.data_vars
             if key.startswith("truth_")
         },

@@ -83,6 +83,7 @@ __all__ = [
     "SENSOR_SMOOTHNESS",
     "allowed_orders",
     "autocorrelation_derivatives",
+    "checked_precision",
     "export_prior",
     "read_prior",
     "temporal_covariance",
@@ -90,67 +91,177 @@ __all__ = [
 ]
 
 PRIOR_FORMAT = "bayes_jackal.prior/1"
-#: Largest condition number of the exported precision: inverting V, and
-#: any computation a filter does with Pi in double precision, loses about
-#: log10(condition) of its 16 significant digits, so 1e12 leaves 4. Where
-#: V exists the bound is what limits the order: for the Gaussian family the
-#: condition grows ~1000-fold per order at the thesis' sigma_h = 0.047 s
-#: (order 4: 5e11, order 5: 1e15), so order 99 is noise or NaN.
+#: Largest condition number of an exported precision Pi, in each time unit
+#: the file holds it in: seconds and time bins. Inverting V or solving
+#: with Pi by Cholesky or LU loses about log10 of the condition number of
+#: the Jacobi-scaled D Pi D (D = diag(Pi)^-1/2), the same in both units (a
+#: change of unit scales derivative i by dt^i, a diagonal scaling) and
+#: never much above Pi's own. A consumer's eigenvalues or singular values (a log-determinant,
+#: a matrix square root, ``numpy.linalg.cond``) lose log10 of the matrix's own
+#: condition number in the unit it works in, and absolute thresholds, as
+#: SPM's ``spm_logdet`` keeps entries and singular values between 1e-16 and
+#: 1e16, depend on the unit too. So Pi must be below the bound in seconds
+#: and in bins: 1e12 leaves 4 of double precision's 16 digits. Where V
+#: exists the bound limits the order: for the Gaussian family the condition
+#: grows ~1000-fold per order in seconds at the thesis' sigma_h = 0.047 s
+#: (order 4: 5e11, order 5: 1e15; in bins, 3.4 bins at 72 Hz, 1e4 and 6e4),
+#: so order 99 is noise or NaN. A width of many bins is limited in bins
+#: instead (0.5 s at dt = 0.01 s: 2e10 at order 3, 3e13 at order 4).
 MAX_CONDITION = 1e12
 #: Posterior draws written beside the averaged matrices.
 MAX_DRAWS = 1000
 
 
 def _temporal_precision(
-    family: str, width: np.ndarray, continuous_sd: np.ndarray, order: int
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """V, inv(V) per draw and channel, and the condition number of Pi at ``order``.
+    family: str, width: np.ndarray, continuous_sd: np.ndarray, order: int, dt: float | None
+) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+    """V, inv(V) per draw and channel, and Pi's condition number at ``order`` per time unit.
 
-    Pi's block of channel c is the draws' mean of inv(V_c) / s_c^2; the
-    condition number is the largest over channels, infinite when any
-    number is not finite.
+    Pi's block of channel c is the draws' mean of inv(V_c) / s_c^2, in
+    ``seconds`` and, with ``dt`` [s], in ``bins`` (entry (i, j) divided by
+    dt^(i+j); a factor common to all entries, as the rate's dt^-2, changes
+    no condition number). Each is the largest over channels, infinite when
+    any number is not finite.
     """
+    k = np.arange(order + 1)
     with np.errstate(all="ignore"):  # overflow is caught below, as a non-finite matrix
+        scales = {"seconds": 1.0} | ({} if dt is None else {"bins": dt ** -np.add.outer(k, k)})
         V = temporal_covariance(family, width, order)  # (draws, channels, P+1, P+1)
         try:
             S = np.linalg.inv(V)
         except np.linalg.LinAlgError:  # exactly singular
-            return V, np.full_like(V, math.nan), math.inf
+            return V, np.full_like(V, math.nan), dict.fromkeys(scales, math.inf)
         blocks = (S / continuous_sd[..., None, None] ** 2).mean(axis=0)
-        finite = np.isfinite(V).all() and np.isfinite(S).all() and np.isfinite(blocks).all()
-        condition = float(np.linalg.cond(blocks).max()) if finite else math.inf
-    return V, S, condition if math.isfinite(condition) else math.inf
+        finite = np.isfinite(V).all() and np.isfinite(S).all()
+        conditions = {unit: _condition(blocks * scale, finite) for unit, scale in scales.items()}
+    return V, S, conditions
 
 
-def allowed_orders(family: str, width: np.ndarray, continuous_sd: np.ndarray) -> list[int]:
+def _condition(blocks: np.ndarray, finite: bool) -> float:
+    """The largest condition number of the channels' blocks; infinite for a non-finite one."""
+    if not (finite and np.isfinite(blocks).all()):
+        return math.inf
+    condition = float(np.linalg.cond(blocks).max())
+    return condition if math.isfinite(condition) else math.inf
+
+
+def allowed_orders(
+    family: str, width: np.ndarray, continuous_sd: np.ndarray, *, dt: float | None = None
+) -> list[int]:
     """The embedding orders 0, 1, .. whose precision is finite and well conditioned.
 
     An order is allowed when the family's noise has that many derivatives
     (:attr:`~bayes_jackal.kernels.Family.max_order`) and Pi's condition number is below
     :data:`MAX_CONDITION` at these draws of the width [s] and the
-    continuous-time sd ``continuous_sd``, both shaped (draws, channels).
+    continuous-time sd ``continuous_sd``, both shaped (draws, channels):
+    Pi in seconds and, given the sample time ``dt`` [s], in time bins too.
     The condition grows with the order, so the orders are counted up to the
     first one that fails.
 
     Examples
     --------
     At the thesis' sigma_h = 0.047 s the Gaussian family allows orders up to 4
-    (order 5 is too ill-conditioned); the exponential family's noise has no
-    derivative:
+    (order 5 is too ill-conditioned in seconds); the exponential family's
+    noise has no derivative. A width of 0.5 s is limited by Pi in bins of
+    0.01 s (50 bins) instead:
 
     >>> import numpy as np
     >>> from bayes_jackal.export import allowed_orders
     >>> width, sd = np.full((10, 1), 0.047), np.full((10, 1), 0.1)  # (draws, channels)
     >>> allowed_orders("gaussian", width, sd), allowed_orders("exponential", width, sd)
     ([0, 1, 2, 3, 4], [0])
+    >>> wide = np.full((10, 1), 0.5)
+    >>> allowed_orders("gaussian", wide, sd)[-1], allowed_orders("gaussian", wide, sd, dt=0.01)
+    (9, [0, 1, 2, 3])
     """
     limit = get_family(family).max_order
     orders = []
     while limit is None or len(orders) <= limit:
-        if not _temporal_precision(family, width, continuous_sd, len(orders))[2] < MAX_CONDITION:
+        conditions = _temporal_precision(family, width, continuous_sd, len(orders), dt)[2]
+        if not max(conditions.values()) < MAX_CONDITION:
             break
         orders.append(len(orders))
     return orders
+
+
+def checked_precision(
+    family: str,
+    width: np.ndarray,
+    continuous_sd: np.ndarray,
+    order: int | None,
+    *,
+    dt: float,
+    source: str | None = None,
+) -> tuple[int, np.ndarray, np.ndarray]:
+    """The order, V and inv(V) per draw and channel, refusing an order that is not allowed.
+
+    Parameters
+    ----------
+    family : str
+    width, continuous_sd : ndarray, shape (draws, channels)
+        As :func:`allowed_orders`: the width [s] and the noise's sd.
+    order : int or None
+        Embedding order P; None: the highest :func:`allowed_orders` gives,
+        at most :data:`AUTO_ORDER`.
+    dt : float
+        The sample time [s]: Pi is checked in seconds and in time bins.
+    source : str, optional
+        Named in the error.
+
+    Returns
+    -------
+    order : int
+    V, inv_V : ndarray, shape (draws, channels, P + 1, P + 1)
+        :func:`temporal_covariance` [s^-(i+j)] and its inverse.
+
+    Raises
+    ------
+    InputError
+        For an order the family's noise cannot give, or whose precision's
+        condition number is above :data:`MAX_CONDITION` in seconds or in
+        bins (naming both and the allowed orders).
+
+    Examples
+    --------
+    At the thesis' sigma_h = 0.047 s and 72 Hz the Gaussian family gives the
+    default order 2; the exponential family's noise has no derivative. At a
+    width of 1 ms, order 2 is refused by Pi in seconds, though in bins of
+    1 ms it is well conditioned:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.export import checked_precision
+    >>> width, sd = np.full((10, 1), 0.047), np.full((10, 1), 0.1)  # (draws, channels)
+    >>> order, V, inv_V = checked_precision("gaussian", width, sd, None, dt=1 / 72)
+    >>> order, V.shape, bool(np.allclose(V[0, 0] @ inv_V[0, 0], np.eye(3)))
+    (2, (10, 1, 3, 3), True)
+    >>> try:
+    ...     checked_precision("exponential", width, sd, 1, dt=1 / 72)
+    ... except ValueError as error:
+    ...     print(str(error).split(": ")[0], "|", str(error).split(": ")[-1])
+    order | generalised coordinates exist up to order 0, got 1
+    >>> try:
+    ...     checked_precision("gaussian", np.full((10, 1), 0.001), sd, 2, dt=0.001)
+    ... except ValueError as error:
+    ...     print(str(error).split("number ")[1].split(" (")[0], "|", str(error).split("; ")[1])
+    1.13e+12 in seconds, 3.87 in bins | the orders allowed here are 0, 1
+    """
+    if order is None:
+        order = min(
+            AUTO_ORDER, max(allowed_orders(family, width, continuous_sd, dt=dt), default=0)
+        )
+    V, S, conditions = _temporal_precision(family, width, continuous_sd, order, dt)
+    if not max(conditions.values()) < MAX_CONDITION:
+        allowed = allowed_orders(family, width, continuous_sd, dt=dt)
+        numbers = ", ".join(f"{value:.3g} in {unit}" for unit, value in conditions.items())
+        raise InputError(
+            f"order {order} gives a precision with condition number {numbers} (above "
+            f"{MAX_CONDITION:.0e} in one unit: it would keep fewer than 4 significant digits) "
+            f"for this {family} noise; the orders allowed here are "
+            f"{', '.join(map(str, allowed)) or 'none'}",
+            source=source,
+            field="order",
+        )
+    return order, V, S
 
 
 def autocorrelation_derivatives(family: str, width: np.ndarray, order: int) -> np.ndarray:
@@ -276,19 +387,7 @@ def export_prior(
         [layout.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
     )
     process_sd = continuous_sd(robot, d, dt, channels, sigma_c)
-    if order is None:
-        order = min(AUTO_ORDER, max(allowed_orders(family, width, process_sd), default=0))
-    V, S, condition = _temporal_precision(family, width, process_sd, order)
-    if not condition < MAX_CONDITION:
-        allowed = allowed_orders(family, width, process_sd)
-        raise InputError(
-            f"order {order} gives a precision with condition number {condition:.3g} (above "
-            f"{MAX_CONDITION:.0e}: it would keep fewer than 4 significant digits) for this "
-            f"posterior's {family} noise; the orders allowed here are "
-            f"{', '.join(map(str, allowed)) or 'none'}",
-            source=source,
-            field="order",
-        )
+    order, V, S = checked_precision(family, width, process_sd, order, dt=dt, source=source)
     mean_d = d.mean(axis=0)
     A, B = continuous_matrices(robot, *mean_d)
     Ad, Bd = discrete_matrices(robot, *mean_d, dt)

@@ -29,8 +29,10 @@ Three engines evaluate log N(r; 0, Sigma), vectorised over parameter sets:
   not grow with N, equal to ``exact`` within 1e-6 nats (measured 2e-10
   to 2e-8 nats on 1e3 to 1e5 residuals, ``benchmarks/bench_engine.py``).
   Parameter sets whose predictor has not converged within the series fall
-  back to the recursion, stopped once its partial autocorrelations are
-  below 1e-13.
+  back to :func:`bayes_jackal.toeplitz.fallback_loglike`: the banded
+  Cholesky factor, O(N p^2), where the autocovariance ends at a lag p,
+  p + 1 <= 4 sqrt(N) (every family but the exponential), else the recursion
+  stopped once its partial autocorrelations are below 1e-13.
 - ``whittle``: the debiased Whittle likelihood (Sykulski et al. 2019) over
   cross-periodograms of Z computed once, so a new (d_lat, d_long) costs
   O(N). An approximation: it drops the boundary terms of the Toeplitz
@@ -43,7 +45,7 @@ Three engines evaluate log N(r; 0, Sigma), vectorised over parameter sets:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,6 +70,7 @@ from .physics import channel_coefficients
 from .residuals import check_residual_window, residual_regressors
 from .robot import RobotProfile
 from .spectral import ResidualBlock, spectral_loglike
+from .toeplitz import FAST_TOLERANCE, fallback_loglike, toeplitz_loglike
 from .whittle import debiased_whittle_loglike
 
 __all__ = [
@@ -84,13 +87,6 @@ __all__ = [
 
 #: Fewest residuals a channel must have to enter the likelihood.
 MIN_RESIDUALS = 32
-_LOG_2PI = np.log(2.0 * np.pi)
-#: Consecutive negligible partial autocorrelations that end the recursion.
-_QUIET_STEPS = 16
-#: Threshold of a negligible partial autocorrelation in the fallback recursion:
-#: the error grows with tol and n (measured on 2 x 5,000 moving-average
-#: residuals: 2.3e-6 nats at 1e-10, 1e-8 at 1e-12, 8e-10 at 1e-13).
-FAST_TOLERANCE = 1e-13
 
 
 def residual_autocovariance(
@@ -196,88 +192,6 @@ def sample_stationary(
     return scipy.fft.fft(np.sqrt(eigenvalues / m) * white, axis=1).real[:, :n]
 
 
-def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) -> np.ndarray:
-    """Gaussian log-density of series with Toeplitz covariance (Durbin-Levinson).
-
-    The log-determinant is the sum of the log prediction-error variances,
-    the quadratic form the sum of the squared standardised innovations of
-    the order-k predictors. The recursion over the order k is sequential;
-    every step is vectorised over the batch.
-
-    With ``tol`` the recursion stops once 16 consecutive partial
-    autocorrelations of every batch member are below ``tol``; the rest of
-    each series is then predicted by that converged predictor (an FFT
-    convolution). The error grows with tol and n (the innovations' errors
-    are of order tol times the predictor's size); ``tol = 1e-13`` is exact
-    to ~1e-9 nats on 10,000 residuals while the recursion runs a few
-    hundred steps instead of n. A process whose partial autocorrelations do
-    not die out runs the full recursion.
-
-    Parameters
-    ----------
-    acov : ndarray, shape (B, n)
-        Autocovariance at lags 0..n-1 of each batch member.
-    x : ndarray, shape (B, E, n)
-        E series per batch member, all with that member's covariance.
-    tol : float, optional
-        Convergence threshold of the partial autocorrelations; None runs
-        the full O(n^2) recursion.
-
-    Returns
-    -------
-    ndarray, shape (B, E)
-        log N(x; 0, T(acov)); -inf where T(acov) is not positive definite.
-
-    Examples
-    --------
-    Against the dense Gaussian density with covariance toeplitz(acov):
-
-    >>> import numpy as np
-    >>> import scipy.linalg
-    >>> import scipy.stats
-    >>> from bayes_jackal.likelihood import toeplitz_loglike
-    >>> acov = 0.5 ** np.arange(8)[None]  # one batch member
-    >>> x = np.random.default_rng(1).standard_normal((1, 3, 8))  # three series
-    >>> dense = scipy.stats.multivariate_normal(cov=scipy.linalg.toeplitz(acov[0]))
-    >>> bool(np.allclose(toeplitz_loglike(acov, x), dense.logpdf(x[0])))
-    True
-    """
-    batch, n = acov.shape
-    phi = np.zeros((batch, n))
-    variances = np.empty((batch, n))
-    innovations = np.empty(x.shape)
-    variances[:, 0] = acov[:, 0]
-    innovations[..., 0] = x[..., 0]
-    variance = acov[:, 0].copy()
-    order, quiet = n, 0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        for k in range(1, n):
-            previous = phi[:, : k - 1]
-            kappa = acov[:, k] - np.einsum("bj,bj->b", previous, acov[:, k - 1 : 0 : -1])
-            kappa /= variance
-            phi[:, : k - 1] = previous - kappa[:, None] * previous[:, ::-1]
-            phi[:, k - 1] = kappa
-            variance = variance * (1.0 - kappa**2)
-            variances[:, k] = variance
-            prediction = np.einsum("bj,bej->be", phi[:, :k], x[..., k - 1 :: -1])
-            innovations[..., k] = x[..., k] - prediction
-            if tol is not None:
-                quiet = quiet + 1 if np.max(np.abs(kappa)) < tol else 0
-                if quiet == _QUIET_STEPS:
-                    order = k + 1
-                    break
-        if order < n:
-            filter_ = np.concatenate([np.ones((batch, 1)), -phi[:, : order - 1]], axis=1)
-            size = scipy.fft.next_fast_len(n + order, real=True)
-            spectrum = scipy.fft.rfft(x, size) * scipy.fft.rfft(filter_, size)[:, None, :]
-            innovations[..., order:] = scipy.fft.irfft(spectrum, size)[..., order:n]
-            variances[:, order:] = variance[:, None]
-        quadratic = np.sum(innovations**2 / variances[:, None, :], axis=-1)
-        log_det = np.sum(np.log(variances), axis=-1)
-    loglike = -0.5 * (log_det[:, None] + quadratic + n * _LOG_2PI)
-    return np.where(np.isfinite(loglike), loglike, -np.inf)
-
-
 def resolve_channels(
     experiments: list[Experiment], channels: Sequence[str] | None = None
 ) -> tuple[str, ...]:
@@ -370,8 +284,9 @@ class ResidualLikelihood:
         Use the steady-state window of each experiment.
     fallback : bool
         With the ``fast`` engine, evaluate parameter sets the spectral
-        method cannot certify (long memory) by the recursion (True), or give
-        them -inf (False: a quick, exact-where-defined scan of the prior).
+        method cannot certify (long memory, spectral nulls) in the time
+        domain (True: :func:`~bayes_jackal.toeplitz.fallback_loglike`), or
+        give them -inf (False: a quick, exact-where-defined scan of the prior).
     shared_width : bool
         One width for every channel and experiment (True), or the family's
         width in every noise group (False; ``--noise one-width`` is True
@@ -529,21 +444,25 @@ class ResidualLikelihood:
         return loglike
 
     def _recursion(
-        self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray, tol: float | None = None
+        self,
+        block: ResidualBlock,
+        noise: np.ndarray,
+        c: np.ndarray,
+        density: Callable[[np.ndarray, np.ndarray], np.ndarray] = toeplitz_loglike,
     ) -> np.ndarray:
-        """The Durbin-Levinson recursion (:func:`toeplitz_loglike`) in chunks of sets."""
+        """A time-domain density (default: :func:`toeplitz_loglike`) in chunks of sets."""
         loglike = np.empty(len(c))
         for rows in chunks(len(c), block.count * block.n, budget=spectral.CHUNK_ELEMENTS):
             acov = self._autocovariance(block, noise[rows], block.n)
-            loglike[rows] = toeplitz_loglike(acov, block.residuals(c[rows]), tol).sum(axis=-1)
+            loglike[rows] = density(acov, block.residuals(c[rows])).sum(axis=-1)
         return loglike
 
     def _fast(self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray) -> np.ndarray:
         """The ``fast`` engine: each set on the first spectral grid that certifies it.
 
-        Sets no grid certifies (long memory) go to the Durbin-Levinson
-        recursion stopped at converged partial autocorrelations, or get
-        -inf without ``fallback``.
+        Sets no grid certifies (long memory, or a moving-average kernel's
+        spectral nulls) go to :func:`~bayes_jackal.toeplitz.fallback_loglike`,
+        or get -inf without ``fallback``.
         """
         loglike = np.full(len(c), -np.inf)
 
@@ -552,5 +471,5 @@ class ResidualLikelihood:
 
         pending = spectral.evaluate_on_grids(block, autocovariance, c, spectral_loglike, loglike)
         if len(pending) and self.fallback:
-            loglike[pending] = self._recursion(block, noise[pending], c[pending], FAST_TOLERANCE)
+            loglike[pending] = self._recursion(block, noise[pending], c[pending], fallback_loglike)
         return loglike

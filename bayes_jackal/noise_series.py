@@ -10,7 +10,8 @@ inputs that experiments come in (docs/design.md §2):
 - MATLAB (``.mat``, v5/v7 or v7.3): numeric vectors, struct fields named
   ``struct.field`` (:func:`bayes_jackal._matlab.mat_arrays`); the stamps as
   in a CSV file, or a struct field so named (``log.t``).
-- ROS bags (``.bag``, ``.mcap``, ``.db3`` or a ROS2 bag directory, read with
+- ROS bags (``.bag``, ``.mcap``, ``.db3`` or a ROS2 bag directory, the one
+  kind of directory read, known by its ``metadata.yaml``; read with
   rosbags as :mod:`bayes_jackal.bags` reads them): one numeric field of one
   topic, ``topic="/imu/data", field="angular_velocity.z"`` (a number in the
   path indexes an array: ``velocity.0``). Stamps are the header stamps;
@@ -33,27 +34,35 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from rosbags.highlevel import AnyReader
 
-from ._matlab import mat_arrays
-from .bags import _READ_ERRORS, _sha256, _stamp, typestore
+from ._files import file_sha256
+from ._matlab import mat_arrays, mat_vector
+from .bag_reading import BAG_SUFFIXES, bag_format, header_stamp, open_bag, receive_time_for_zero
 from .errors import DataError, InputError
-from .experiment import _numeric, check_finite
-from .stamps import _positive, uniform_clock
-from .tables import _csv_table, _numeric_column
+from .experiment import check_finite
+from .series_likelihood import check_length, check_series
+from .stamps import positive_number, uniform_clock
+from .tables import numeric_column, read_csv_table
 
-__all__ = ["BAG_SUFFIXES", "MIN_SERIES_SAMPLES", "TIME_NAMES", "NoiseSeries", "read_noise_series"]
+__all__ = [
+    "BAG_SUFFIXES",
+    "MIN_SERIES_SAMPLES",
+    "ROS2_METADATA",
+    "TIME_NAMES",
+    "NoiseSeries",
+    "read_noise_series",
+]
 
 #: Fewest samples of a noise series: the thesis' fit (:func:`bayes_jackal.acf_fit.thesis_fit`)
 #: uses 30 lags, which need 31 samples, and the mean takes one more.
 MIN_SERIES_SAMPLES = 32
 #: Names of a stamps column [s] found without ``time_column`` (compared in lower case).
 TIME_NAMES = ("t", "time")
-#: File suffixes read as ROS bags (a directory is a ROS2 bag).
-BAG_SUFFIXES = (".bag", ".mcap", ".db3")
+#: The file that makes a directory a ROS2 bag (rosbags reads the bag from it).
+ROS2_METADATA = "metadata.yaml"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class NoiseSeries:
     """A uniformly sampled noise series and where it came from.
 
@@ -94,7 +103,8 @@ class NoiseSeries:
     ...     NoiseSeries(values=np.full(100, 0.5), dt=0.01, source="still.csv", field="gyro_z")
     ... except ValueError as exc:
     ...     print(exc)
-    still.csv: gyro_z: the series is constant (every sample 0.5): no noise to characterise
+    still.csv: gyro_z: the series is constant (every sample 0.5): a constant series has no
+    noise to characterise
     """
 
     values: np.ndarray
@@ -105,34 +115,10 @@ class NoiseSeries:
     provenance: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        values = _numeric(self.values, self.source, self.field)
-        if values.ndim != 1:
-            raise DataError(
-                f"a series is 1-D, got shape {values.shape}", source=self.source, field=self.field
-            )
-        check_finite(values, self.source, self.field, lambda i: f"sample {i}")
-        _check_count(len(values), self.source, self.field)
-        if np.ptp(values) == 0:
-            raise DataError(
-                f"the series is constant (every sample {values[0]:g}): no noise to characterise",
-                source=self.source,
-                field=self.field,
-            )
-        dt = _positive(self.dt, "dt", "s")
-        if dt is None:
-            raise InputError("a series needs its sample time [s]", field="dt")
-        values.setflags(write=False)
+        values, dt = check_series(self.values, self.dt, source=self.source, field=self.field,
+                                  minimum=MIN_SERIES_SAMPLES)  # fmt: skip
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "dt", dt)
-
-
-def _check_count(samples: int, source: str, field: str, where: str = "") -> None:
-    if samples < MIN_SERIES_SAMPLES:
-        raise DataError(
-            f"only {samples} samples{where}; a noise series needs at least {MIN_SERIES_SAMPLES}",
-            source=source,
-            field=field,
-        )
 
 
 def read_noise_series(
@@ -210,7 +196,7 @@ def read_noise_series(
     source = str(path)
     if not path.exists():
         raise DataError("no such file", source=source)
-    bag = path.is_dir() or path.suffix.lower() in BAG_SUFFIXES
+    bag = _is_bag(path, source)
     _check_options(bag, column=column, time_column=time_column, topic=topic, field=field)
     if bag:
         stamps, values, provenance, repairs = _bag_channel(path, source, topic, field)
@@ -225,16 +211,17 @@ def read_noise_series(
         provenance["time_column"] = time_name
         repairs = []
         time_name = time_name or "t"
-    rate = _positive(rate, "rate", "Hz")
+    rate = positive_number(rate, name="rate", unit="Hz")
     check_finite(values, source, data_name, row_name)
-    _check_count(len(values), source, data_name)
+    check_length(len(values), minimum=MIN_SERIES_SAMPLES, source=source, field=data_name)
     if stamps is None:  # the declared rate's clock
         stamps = np.arange(len(values)) / rate
     check_finite(stamps, source, time_name, row_name)
     clock = uniform_clock(
         stamps, rate=rate, max_gap=max_gap, source=source, row_name=row_name, field=time_name
     )
-    _check_count(len(clock.t), source, data_name, " on the uniform clock")
+    check_length(len(clock.t), minimum=MIN_SERIES_SAMPLES, source=source, field=data_name,
+                 where=" on the uniform clock")  # fmt: skip
     return NoiseSeries(
         values=clock.resample(values),
         dt=1.0 / clock.provenance["rate"],
@@ -246,6 +233,21 @@ def read_noise_series(
             "time_base": clock.provenance,
             "repairs": [*repairs, *clock.repairs],
         },
+    )
+
+
+def _is_bag(path: Path, source: str) -> bool:
+    """Whether ``path`` is a bag; a directory without :data:`ROS2_METADATA` is an error."""
+    if not path.is_dir():
+        return bag_format(path) is not None
+    if (path / ROS2_METADATA).is_file():
+        return True
+    files = sorted(p.name for p in path.iterdir())
+    raise DataError(
+        f"a folder is read only as a ROS2 bag, which has a {ROS2_METADATA}; this one has none "
+        f"(it holds {len(files)} files: {files[:5]}{' ...' if len(files) > 5 else ''}). Give the "
+        "series files themselves (e.g. folder/*.csv), or the bag's folder",
+        source=source,
     )
 
 
@@ -270,24 +272,17 @@ def _table_columns(
     """A CSV or MATLAB file's column names, their reader, the row namer and the format."""
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        header, body = _csv_table(path, source)
+        header, body = read_csv_table(path, source)
 
         def column(name: str) -> np.ndarray:
-            return _numeric_column(body, header.index(name), name, source)
+            return numeric_column(body, header.index(name), name, source)
 
         return header, column, lambda i: f"line {i + 2}", "csv"
     if suffix == ".mat":
         variables = mat_arrays(path, source)
 
         def vector(name: str) -> np.ndarray:
-            values = np.squeeze(variables[name])
-            if values.ndim != 1:
-                raise DataError(
-                    f"variable {name!r} has shape {variables[name].shape}; a vector is needed",
-                    source=source,
-                    field=name,
-                )
-            return values.astype(float)
+            return mat_vector(variables, name, source)
 
         return sorted(variables), vector, lambda i: f"index {i + 1}", "mat"
     raise DataError(
@@ -319,9 +314,10 @@ def _choose(
     if column is None:
         data = [n for n in names if n != time]
         if len(data) != 1:
+            stamps = "" if time else "; the stamps' with --time-column NAME (time_column=)"
             raise DataError(
                 f"{len(data)} data columns {data}: name the one to read (--column NAME; "
-                "column= in Python)",
+                f"column= in Python){stamps}",
                 source=source,
                 field="column",
             )
@@ -335,7 +331,8 @@ def _choose(
     if time is None and rate is None:
         raise DataError(
             f"no stamps: no column named {' or '.join(TIME_NAMES)} in {names}; name it "
-            "(time_column=) or declare the rate (--rate HZ; rate= in Python)",
+            "(--time-column NAME; time_column= in Python) or declare the rate (--rate HZ; "
+            "rate= in Python)",
             source=source,
             field="t",
         )
@@ -346,46 +343,33 @@ def _bag_channel(
     path: Path, source: str, topic: str, field: str
 ) -> tuple[np.ndarray, np.ndarray, dict, list[str]]:
     """Stamps [s from the first], values, provenance and repairs of one field of a topic."""
-    format_name = "ros1" if path.suffix == ".bag" else "ros2"
     label = f"{topic}.{field}"
-    try:
-        with AnyReader([path], default_typestore=typestore(format_name)) as reader:
-            if topic not in reader.topics or reader.topics[topic].msgcount == 0:
-                have = {t: info.msgcount for t, info in reader.topics.items()}
-                raise DataError(
-                    f"topic {topic!r} is not in the bag or has no messages; it has (topic: "
-                    f"messages) {have}",
-                    source=source,
-                    field=topic,
-                )
-            msgtype = reader.topics[topic].msgtype
-            connections = [c for c in reader.connections if c.topic == topic]
-            rows = [  # one row per message: deserialising is a loop in rosbags
-                _message_row(reader.deserialize(raw, msgtype), time, field, msgtype, source, label)
-                for _, time, raw in reader.messages(connections=connections)
-            ]
-    except DataError:
-        raise
-    except _READ_ERRORS as exc:
-        raise DataError(f"cannot read bag ({type(exc).__name__}: {exc})", source=source) from None
+    with open_bag(path, source) as reader:
+        if topic not in reader.topics or reader.topics[topic].msgcount == 0:
+            have = {t: info.msgcount for t, info in reader.topics.items()}
+            raise DataError(
+                f"topic {topic!r} is not in the bag or has no messages; it has (topic: "
+                f"messages) {have}",
+                source=source,
+                field=topic,
+            )
+        msgtype = reader.topics[topic].msgtype
+        connections = [c for c in reader.connections if c.topic == topic]
+        rows = [  # one row per message: deserialising is a loop in rosbags
+            _message_row(reader.deserialize(raw, msgtype), time, field, msgtype, source, label)
+            for _, time, raw in reader.messages(connections=connections)
+        ]
     stamp, recv, values = (np.array(part) for part in zip(*rows, strict=True))
-    zero = stamp == 0
-    repairs = []
-    if zero.all():
-        stamps_from = "receive time"
+    if (stamp == 0).all():  # no header (or none set): the receive time is the clock, no repair
+        stamps_from, stamp, repairs = "receive time", recv, []
     else:
         stamps_from = "header"
-        if zero.any():
-            repairs.append(
-                f"{topic}: {zero.sum()} of {len(stamp)} messages have a zero header stamp; "
-                "used their receive time"
-            )
-    stamp = np.where(zero, recv, stamp)
+        stamp, repairs = receive_time_for_zero(stamp, recv, topic)
     origin = int(stamp.min())
     provenance = {
         "source": source,
-        "format": format_name,
-        "sha256": _sha256(path),
+        "format": bag_format(path),
+        "sha256": file_sha256(path),
         "topic": topic,
         "field": field,
         "msgtype": msgtype,
@@ -430,5 +414,5 @@ def _message_row(
             source=source,
             field=label,
         )
-    stamp = _stamp(message) if hasattr(message, "header") else 0
+    stamp = header_stamp(message) if hasattr(message, "header") else 0
     return stamp, time, float(value)

@@ -36,6 +36,7 @@ __all__ = [
     "ParameterLayout",
     "prior_overrides",
     "prior_range",
+    "width_keys",
 ]
 
 #: The damping parameters, first in every parameter vector [N s/m].
@@ -280,12 +281,26 @@ def prior_range(key: str, value: Sequence[float]) -> tuple[float, float]:
     return low, high
 
 
-def _width_keys() -> tuple[str, ...]:
+def width_keys() -> tuple[str, ...]:
     """The names of the one width prior, :data:`WIDTH_PRIOR` first.
 
     Then :data:`WIDTH_ALIAS` and each registered family's width name, read
     from ``FAMILIES`` at each call so that a family registered later
-    (docs/families.md) adds its own.
+    (docs/families.md) adds its own. The robot's prior overrides
+    (:func:`prior_overrides`) and a noise series'
+    (:func:`bayes_jackal.noise_characterisation.series_prior_overrides`)
+    accept each of them for :data:`WIDTH_PRIOR`.
+
+    Returns
+    -------
+    tuple of str
+        Without repeats.
+
+    Examples
+    --------
+    >>> from bayes_jackal.parameters import width_keys
+    >>> width_keys()
+    ('sigma_h', 'width')
     """
     names = (WIDTH_PRIOR, WIDTH_ALIAS, *(f.width_name for f in FAMILIES.values() if f.has_width))
     return tuple(dict.fromkeys(names))
@@ -337,7 +352,7 @@ def prior_overrides(
     ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'width']
     (width is sigma_h: every family's width)
     """
-    widths = _width_keys()
+    widths = width_keys()
     aliases = widths[1:]
     allowed = list(dict.fromkeys([*PRIOR_KEYS, *aliases]))
     given = dict(overrides or {})

@@ -8,6 +8,9 @@ circulant embedding of the replicated series several times that. So the
 draws are made and reduced in chunks of at most :data:`CHUNK_SAMPLES`
 draws x samples, and only the small per-draw
 statistics (autocorrelation at a few lags, spectra, percentiles) are kept.
+:func:`stationary_series` and :func:`stationary_statistics` do the same
+for any stationary Gaussian series given its autocovariance (a bare noise
+series' replicates, :mod:`bayes_jackal.noise_plots`).
 """
 
 from __future__ import annotations
@@ -35,12 +38,21 @@ __all__ = [
     "model_percentiles",
     "predictive_series",
     "predictive_statistics",
+    "stationary_series",
+    "stationary_statistics",
 ]
 
 #: Samples held at once where each posterior draw carries a series of a
 #: whole run (replicated residuals, model states): a chunk of draws holds at
 #: most this many draws x samples, ~3 MB per array.
 CHUNK_SAMPLES = 400_000
+
+
+def _model(
+    metadata: PosteriorMetadata, index: int, channel: str, theta: np.ndarray, n: int
+) -> Callable[[slice], np.ndarray]:
+    """``autocovariance`` of :func:`stationary_series`: the residuals of draws of ``theta``."""
+    return lambda part: model_autocovariance(metadata, index, channel, theta[part], n)
 
 
 def predictive_series(
@@ -95,15 +107,9 @@ def predictive_series(
     >>> [(part, series.shape) for part, series in chunks]
     [(slice(0, 4, None), (4, 100))]
     """
-    generators = as_rng(rng).spawn(len(theta))
-    for part in chunks(len(theta), n, budget=CHUNK_SAMPLES):
-        acov = model_autocovariance(metadata, index, channel, theta[part], n)
-        yield (
-            part,
-            np.concatenate(
-                [sample_stationary(row, g) for row, g in zip(acov, generators[part], strict=True)]
-            ),
-        )
+    yield from stationary_series(
+        _model(metadata, index, channel, theta, n), len(theta), n, rng=rng
+    )
 
 
 def predictive_statistics(
@@ -159,11 +165,110 @@ def predictive_statistics(
     metadata = posterior_metadata(idata)
     theta = thinned_draws(idata, count)
     n = observed_residuals(idata, index, channel).size
-    chunks = [
+    return stationary_statistics(
+        _model(metadata, index, channel, theta, n),
+        len(theta),
+        n,
+        statistics,
+        rng=rng,
+    )
+
+
+def stationary_series(
+    autocovariance: Callable[[slice], np.ndarray],
+    count: int,
+    n: int,
+    *,
+    rng: np.random.Generator | int | None = None,
+) -> Iterator[tuple[slice, np.ndarray]]:
+    """Stationary Gaussian series of given autocovariances, chunk by chunk.
+
+    Series i of ``count`` is drawn exactly from its autocovariance
+    (:func:`bayes_jackal.likelihood.sample_stationary`) with the i-th of
+    ``count`` generators spawned from ``rng``, so every series is the same
+    whatever the chunks; a chunk holds at most :data:`CHUNK_SAMPLES`
+    series x samples.
+
+    Parameters
+    ----------
+    autocovariance : callable
+        ``autocovariance(part)``: the autocovariances at lags 0..n-1 of the
+        series in the slice ``part`` of 0..count-1, shape (len(part), n).
+    count : int
+        Number of series.
+    n : int
+        Samples per series.
+    rng : numpy.random.Generator, int or None
+
+    Yields
+    ------
+    part : slice
+    series : ndarray, shape (len(part), n)
+
+    Examples
+    --------
+    Three AR(1) series (phi = 0.5, unit variance) of 2000 samples:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.predictive import stationary_series
+    >>> acov = np.tile(0.5 ** np.arange(2000), (3, 1))
+    >>> chunks = stationary_series(lambda part: acov[part], 3, 2000, rng=1)
+    >>> [(part, series.shape) for part, series in chunks]
+    [(slice(0, 3, None), (3, 2000))]
+    """
+    generators = as_rng(rng).spawn(count)
+    for part in chunks(count, n, budget=CHUNK_SAMPLES):
+        acov = autocovariance(part)
+        yield (
+            part,
+            np.concatenate(
+                [sample_stationary(row, g) for row, g in zip(acov, generators[part], strict=True)]
+            ),
+        )
+
+
+def stationary_statistics(
+    autocovariance: Callable[[slice], np.ndarray],
+    count: int,
+    n: int,
+    statistics: Mapping[str, Callable[[np.ndarray], np.ndarray]],
+    *,
+    rng: np.random.Generator | int | None = None,
+) -> dict[str, np.ndarray]:
+    """Statistics of the series of :func:`stationary_series`, reduced chunk by chunk.
+
+    Only the statistics of all series are held at once, never the series.
+
+    Parameters
+    ----------
+    autocovariance, count, n, rng
+        As :func:`stationary_series`.
+    statistics : mapping of str to callable
+        Each maps series of shape (B, n) to statistics of shape (B, ...).
+
+    Returns
+    -------
+    dict of str to ndarray
+        Each statistic of every series, shape (count, ...), under its key.
+
+    Examples
+    --------
+    The mean square of 400 AR(1) series (phi = 0.5, unit variance) of 500
+    samples, against the variance 1:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.predictive import stationary_statistics
+    >>> acov = np.tile(0.5 ** np.arange(500), (400, 1))
+    >>> square = {"square": lambda series: np.mean(series**2, axis=1)}
+    >>> result = stationary_statistics(lambda p: acov[p], 400, 500, square, rng=1)
+    >>> result["square"].shape, round(float(result["square"].mean()), 2)
+    ((400,), 1.0)
+    """
+    reduced = [
         {name: function(series) for name, function in statistics.items()}
-        for _, series in predictive_series(metadata, index, channel, theta, n, rng)
+        for _, series in stationary_series(autocovariance, count, n, rng=rng)
     ]
-    return {name: np.concatenate([chunk[name] for chunk in chunks]) for name in statistics}
+    return {name: np.concatenate([chunk[name] for chunk in reduced]) for name in statistics}
 
 
 def model_percentiles(

@@ -9,17 +9,19 @@ residual series (:func:`predictive_bands`, which both can share). Built on
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from ._plot_layout import BAND, DATA_COLOUR, MODEL_COLOUR, UNITS, new_axes
+from ._plot_layout import DATA_COLOUR, MODEL_COLOUR, UNITS, draw_band, new_axes
 from .errors import InputError
 from .posterior import ExperimentRecord, observed_residuals, posterior_metadata
 from .predictive import predictive_statistics
 from .series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
 
-__all__ = ["plot_autocorrelation", "plot_spectrum", "predictive_bands"]
+__all__ = ["band_statistics", "plot_autocorrelation", "plot_spectrum", "predictive_bands"]
 
 
 def predictive_bands(
@@ -65,13 +67,45 @@ def predictive_bands(
     True
     """
     dt = _experiment(idata, index).dt
-    return predictive_statistics(
-        idata,
-        index,
-        channel,
-        {"acf": lambda x: sample_autocorrelation(x, lags), "psd": lambda x: spectrum(x, dt)[1]},
-        rng=rng,
-    )
+    return predictive_statistics(idata, index, channel, band_statistics(dt, lags), rng=rng)
+
+
+def band_statistics(dt: float, lags: int) -> dict[str, Callable[[np.ndarray], np.ndarray]]:
+    """What a predictive band is made of: each series' ``acf`` at lags 0..lags and Welch ``psd``.
+
+    Shared by :func:`predictive_bands` and :mod:`bayes_jackal.noise_plots`:
+    the replicates are estimated exactly as the data are
+    (:func:`~bayes_jackal.series_statistics.sample_autocorrelation`,
+    :func:`~bayes_jackal.series_statistics.spectrum`).
+
+    Parameters
+    ----------
+    dt : float
+        Sample time of the series [s].
+    lags : int
+        Largest lag of the autocorrelation [samples].
+
+    Returns
+    -------
+    dict of str to callable
+        ``acf`` and ``psd``: each maps series of shape (B, n) [unit] to the
+        autocorrelation, shape (B, lags + 1), or the PSD, shape (B, F)
+        [unit^2 / Hz].
+
+    Examples
+    --------
+    Two white-noise series of 1000 samples at 100 Hz: the autocorrelation
+    is 1 at lag 0, and the PSD of unit variance is about 2 dt = 0.02 /Hz.
+
+    >>> import numpy as np
+    >>> from bayes_jackal.predictive_plots import band_statistics
+    >>> series = np.random.default_rng(1).standard_normal((2, 1000))
+    >>> statistics = band_statistics(0.01, 5)
+    >>> acf, psd = statistics["acf"](series), statistics["psd"](series)
+    >>> acf.shape, acf[:, 0].tolist(), psd.shape, round(float(psd[:, 1:-1].mean()), 2)
+    ((2, 6), [1.0, 1.0], (2, 129), 0.02)
+    """
+    return {"acf": lambda x: sample_autocorrelation(x, lags), "psd": lambda x: spectrum(x, dt)[1]}
 
 
 def plot_autocorrelation(
@@ -127,9 +161,7 @@ def plot_autocorrelation(
             field="predictive",
         )
     lag = np.arange(lags + 1)
-    low, median, high = np.percentile(predicted, [BAND[0], 50.0, BAND[1]], axis=0)
-    ax.fill_between(lag, low, high, color=MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %")
-    ax.plot(lag, median, color=MODEL_COLOUR, lw=1)
+    draw_band(ax, lag, predicted, color=MODEL_COLOUR, label="fitted filter, 94 %")
     ax.plot(
         lag,
         sample_autocorrelation(residuals, lags),
@@ -186,11 +218,7 @@ def plot_spectrum(
     residuals = observed_residuals(idata, index, channel)
     frequency, observed = spectrum(residuals, dt)
     predicted = (predictive or predictive_bands(idata, index, channel, rng=rng))["psd"]
-    low, median, high = np.percentile(predicted[:, 1:], [BAND[0], 50.0, BAND[1]], axis=0)
-    ax.fill_between(
-        frequency[1:], low, high, color=MODEL_COLOUR, alpha=0.3, label="fitted filter, 94 %"
-    )
-    ax.loglog(frequency[1:], median, color=MODEL_COLOUR, lw=1)
+    draw_band(ax, frequency[1:], predicted[:, 1:], color=MODEL_COLOUR, label="fitted filter, 94 %")
     ax.loglog(frequency[1:], observed[1:], color=DATA_COLOUR, lw=0.8, label="residuals")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"PSD [({UNITS[channel]})²/Hz]")

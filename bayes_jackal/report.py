@@ -28,7 +28,9 @@ __all__ = [
     "LAGS",
     "read_posteriors",
     "render_report",
+    "report_page",
     "save_report",
+    "write_page",
     "write_report",
 ]
 
@@ -179,13 +181,7 @@ def render_report(
     >>> "NOT CONVERGED: white.nc" in text
     True
     """
-    created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    body = [
-        "<h1>bayes_jackal report</h1>",
-        f"<p>bayes_jackal {__version__}, {created}; posteriors: "
-        f"{html.escape(', '.join(str(p) for p, _ in posteriors))}. Figures as PNG and SVG in "
-        f"<code>{html.escape(figures.folder.name)}/</code>.</p>",
-    ]
+    body = []
     stale = [p.name for p, i in posteriors if not posterior_metadata(i).convergence.converged]
     if stale:
         body.append(
@@ -195,12 +191,114 @@ def render_report(
     body.append(evidence_section(posteriors))
     body += [section(figures) for section in sections]
     body += [posterior_section(path, idata, figures, lags) for path, idata in posteriors]
+    what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
+    return report_page("bayes_jackal report", what, figures, body)
+
+
+def report_page(title: str, what: str, figures: ReportFigures, body: Sequence[str]) -> str:
+    """A self-contained page: the report's style and self-check, a heading, provenance, ``body``.
+
+    Every report of the package is one (:func:`render_report`,
+    :func:`bayes_jackal.noise_report.render_noise_report`): the same style,
+    and the same script that records for a browser test whether every image
+    decoded.
+
+    Parameters
+    ----------
+    title : str
+        The page's title and heading (plain text, escaped).
+    what : str
+        What the page reports on (plain text, escaped); the provenance line
+        adds the package's version, the time [UTC] and the figures' folder.
+    figures : ReportFigures
+        The page's figures (only their folder's name is used here).
+    body : sequence of str
+        The page's HTML after the provenance line, joined as it is.
+
+    Returns
+    -------
+    str
+        The HTML page.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from bayes_jackal.report import report_page
+    >>> from bayes_jackal.report_figures import ReportFigures
+    >>> figures = ReportFigures(Path("drift_figures"), ())
+    >>> page = report_page("drift <test>", "series: gyro", figures, ["<p>body</p>"])
+    >>> page.startswith("<!DOCTYPE html>"), "<title>drift &lt;test&gt;</title>" in page
+    (True, True)
+    >>> "series: gyro. Figures as PNG and SVG in <code>drift_figures/</code>" in page
+    True
+    """
+    created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    head = (
+        f"<h1>{html.escape(title)}</h1><p>bayes_jackal {__version__}, {created}; "
+        f"{html.escape(what)}. Figures as PNG and SVG in "
+        f"<code>{html.escape(figures.folder.name)}/</code>.</p>"
+    )
     return (
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
-        "<title>bayes_jackal report</title>"
+        f"<title>{html.escape(title)}</title>"
         f"<style>{_STYLE}</style><script>{_SELF_CHECK}</script></head>"
-        f"<body>{''.join(body)}</body></html>"
+        f"<body>{head}{''.join(body)}</body></html>"
     )
+
+
+def write_page(
+    out: str | Path,
+    render: Callable[[ReportFigures], str],
+    *,
+    formats: tuple[str, ...] = FIGURE_FORMATS,
+) -> Path:
+    """Write the page ``render(figures)`` to ``out``, its figures to ``<out stem>_figures/``.
+
+    The folder is made first (with its parents); the page is written
+    atomically once rendered, so a failed rendering leaves no page behind.
+
+    Parameters
+    ----------
+    out : str or Path
+        The HTML file.
+    render : callable
+        ``render(figures)``: the page's text (e.g. of :func:`report_page`),
+        given the :class:`~bayes_jackal.report_figures.ReportFigures` that
+        write its figures into the folder.
+    formats : tuple of str
+        Figure files to write, from ``("png", "svg")``.
+
+    Returns
+    -------
+    Path
+        ``out``.
+
+    Raises
+    ------
+    InputError
+        For an unknown format.
+    OSError
+        When the folder or the page cannot be written (e.g. a file stands
+        where the folder should be).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.report import report_page, write_page
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_page(Path(folder) / "drift.html",
+    ...                       lambda figures: report_page("drift", "nothing", figures, []))
+    ...     print(path.name, sorted(file.name for file in Path(folder).iterdir()))
+    drift.html ['drift.html', 'drift_figures']
+    """
+    out = Path(out)
+    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
+    figures.folder.mkdir(parents=True, exist_ok=True)
+    text = render(figures)
+    with atomic_path(out) as temporary:
+        temporary.write_text(text, encoding="utf-8")
+    return out
 
 
 #: The posteriors :func:`write_report` takes (see there).
@@ -333,10 +431,8 @@ def save_report(
     """
     if not posteriors:
         raise InputError("no posterior files given", field="POSTERIOR")
-    out = Path(out)
-    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
-    figures.folder.mkdir(parents=True, exist_ok=True)
-    text = render_report(posteriors, figures, lags, sections=sections)
-    with atomic_path(out) as temporary:
-        temporary.write_text(text, encoding="utf-8")
-    return out
+    return write_page(
+        out,
+        lambda figures: render_report(posteriors, figures, lags, sections=sections),
+        formats=formats,
+    )

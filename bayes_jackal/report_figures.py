@@ -22,14 +22,34 @@ from .errors import InputError
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["DPI", "FIGURE_FORMATS", "ReportFigures"]
+__all__ = ["DPI", "FIGURE_FORMATS", "ReportFigures", "slug"]
 
 #: Resolution of the embedded and saved PNGs [dots per inch].
 DPI = 130
 
 
-def _slug(text: str) -> str:
-    """``text`` as a file name: runs of other characters than [A-Za-z0-9_.-] become "-"."""
+def slug(text: str) -> str:
+    """``text`` as a file name: runs of other characters than [A-Za-z0-9_.-] become "-".
+
+    The name of a figure's files (:meth:`ReportFigures.html`); leading and
+    trailing "-" are dropped, and nothing left gives ``figure``. Distinct
+    names can give one slug (:mod:`bayes_jackal.noise_report` refuses such
+    series before drawing).
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from bayes_jackal.report_figures import slug
+    >>> slug("v1: a line"), slug("a b") == slug("a-b"), slug("//")
+    ('v1-a-line', True, 'figure')
+    """
     return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-") or "figure"
 
 
@@ -105,7 +125,7 @@ class ReportFigures:
                 fig.savefig(buffer, format=suffix, dpi=DPI)
                 rendered[suffix] = buffer.getvalue()
         for suffix in self.formats:
-            path = self.folder / f"{_slug(name)}.{suffix}"
+            path = self.folder / f"{slug(name)}.{suffix}"
             with atomic_path(path) as temporary:
                 temporary.write_bytes(rendered[suffix])
         data = base64.b64encode(rendered["png"]).decode("ascii")

@@ -33,8 +33,8 @@ from .state_estimation import score_rows
 if TYPE_CHECKING:
     from .leave_one_out import LeaveOneOut
 
-# The page's parts, for :mod:`bayes_jackal.report` only.
-__all__: list[str] = []
+# The page's parts are for :mod:`bayes_jackal.report` only; its table serves every report.
+__all__ = ["html_table"]
 
 
 def _number(value) -> str:
@@ -43,7 +43,32 @@ def _number(value) -> str:
     return f"{value:.4g}" if isinstance(value, float) else html.escape(str(value))
 
 
-def _table(header: list[str], rows: list[list]) -> str:
+def html_table(header: list[str], rows: list[list]) -> str:
+    """An HTML table of a report: a header row, then one row per ``rows`` entry.
+
+    Parameters
+    ----------
+    header : list of str
+        The column names (plain text, escaped).
+    rows : list of list
+        Each row's cells: a float is written with 4 significant digits, a
+        missing or non-finite one as ``-``, anything else as its text, escaped.
+
+    Returns
+    -------
+    str
+        ``<table>`` with ``<thead>`` and ``<tbody>``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.report_sections import html_table
+    >>> table = html_table(["family", "ln Z"], [["white", -851.23456], ["a<b", None]])
+    >>> print(table.replace("<tr>", "\\n<tr>"))
+    <table><thead>
+    <tr><th>family</th><th>ln Z</th></tr></thead><tbody>
+    <tr><td>white</td><td>-851.2</td></tr>
+    <tr><td>a&lt;b</td><td>-</td></tr></tbody></table>
+    """
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join(
         "<tr>" + "".join(f"<td>{_number(v)}</td>" for v in row) + "</tr>" for row in rows
@@ -102,7 +127,7 @@ def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:
         for label, row in summary.items()
         if isinstance(row, dict) and "mean" in row
     ]
-    table = _table(
+    table = html_table(
         [
             "parameter",
             "mean",
@@ -155,7 +180,7 @@ def evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
         ]
         parts.append(
             f"<h3>{html.escape(', '.join(names))}</h3>"
-            + _table(["family", "log Z", "error", "ln B vs best", "ln B vs white"], rows)
+            + html_table(["family", "log Z", "error", "ln B vs best", "ln B vs white"], rows)
         )
     if not parts:
         return ""
@@ -178,7 +203,7 @@ def _criticism_section(idata: az.InferenceData, figures: ReportFigures, prefix: 
         if found
         else "<p>No warnings: every check passed.</p>"
     )
-    steady = _table(
+    steady = html_table(
         ["experiment", "window [s]", "wheel speeds off median", "yaw-rate drift"],
         [
             [name, row["duration"], _percent(row["input_deviation"]), _percent(row["yaw_drift"])]
@@ -222,7 +247,7 @@ def _criticism_table(criticism: dict) -> str:
         for channel, row in rows.items()
     }
     statistics = list(dict.fromkeys(s for values in p_values.values() for s in values))
-    return _table(
+    return html_table(
         ["experiment", "channel", "max |z| residual-input", "99 % level", *statistics],
         [
             [
@@ -389,7 +414,7 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
     rows = [row for run, record in result.runs.items() for row in _filter_rows(run, record)]
     header = ["left out", "prior from", "filter", "channel", "innovation RMSE", "NIS",
               "95 % band", "verdict", "state RMSE"]  # fmt: skip
-    parts.append(_table(header, rows))
+    parts.append(html_table(header, rows))
     if result.shown is not None:
         experiment, estimates = result.shown
         start, stop = estimate_plots.shown_window(experiment)

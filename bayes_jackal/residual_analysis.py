@@ -35,12 +35,12 @@ from .physics import CHANNELS
 from .residuals import channel_residuals, check_residual_window
 from .robot import RobotProfile
 from .series_statistics import (
-    _check_dt,
-    _check_lags,
-    _ljung_box,
     autocorrelation_bounds,
+    check_lags,
+    ljung_box,
     sample_autocorrelation,
 )
+from .stamps import positive_number
 
 __all__ = [
     "FIRST_LAGS",
@@ -134,7 +134,7 @@ def fit_sigma_h(
     >>> print(float(sigma_h), mse.shape)
     0.047 (1000,)
     """
-    dt = _check_dt(dt)
+    dt = positive_number(dt, name="dt", unit="s", required=True, what="the sample time")
     grid = _check_grid(grid)
     r = sample_autocorrelation(x, lags)
     return _fit(r, dt, lags, grid)
@@ -267,7 +267,7 @@ def sigma_h_table(
     >>> table["experiments"], table["all"]
     ({'v1_01': 0.032, 'v2_01': 0.038}, 0.035)
     """
-    lags = _check_lags(lags)
+    lags = check_lags(lags)
     _check_experiments(experiments)
     values = {}
     for experiment in experiments:
@@ -281,7 +281,7 @@ def _summary(residuals: np.ndarray, dt: float, lags: int) -> dict:
     """JSON-ready statistics of one residual series."""
     n = residuals.shape[-1]
     r = sample_autocorrelation(residuals, lags)
-    statistic, p_value = _ljung_box(r, n, lags)
+    statistic, p_value = ljung_box(residuals, lags)
     sigma_h, _ = _fit(r, dt, lags, SIGMA_H_GRID)
     return {
         "n": int(n),
@@ -367,7 +367,7 @@ def analyse(
     >>> result["sigma_h"]
     {'v1': 0.04, 'all': 0.04}
     """
-    lags = _check_lags(lags)
+    lags = check_lags(lags)
     channels = _check_channels(channels)
     _check_experiments(experiments)
     rows = {

@@ -33,19 +33,22 @@ added to the series, and centring keeps a large mean from cancelling
 digits in y'T^-1 y - (1'T^-1 y)^2 / (1'T^-1 1). Two engines give them:
 
 - ``exact``: the Durbin-Levinson recursion over all n orders, O(n^2)
-  (:func:`bayes_jackal.likelihood.toeplitz_loglike` on x = 0, y, 1, y + 1:
+  (:func:`bayes_jackal.toeplitz.toeplitz_loglike` on x = 0, y, 1, y + 1:
   the density of x = 0 is -1/2 (log det T + n log 2 pi)). The reference.
 - ``fast`` (default): the spectral engine (:mod:`bayes_jackal.spectral`)
   with the regressors Z = [y, 1, 0, 0] and the forms' coefficient vectors
   e1, e2 and e1 + e2, from one spectral factorisation per parameter set
   (:func:`~bayes_jackal.spectral.spectral_forms`) at a cost flat in n. Sets
-  no grid certifies (long memory) fall back to the recursion stopped at
-  converged partial autocorrelations, as
-  :class:`~bayes_jackal.likelihood.ResidualLikelihood` does.
+  no grid certifies fall back to the time domain
+  (:func:`~bayes_jackal.toeplitz.fallback_loglike`: the banded Cholesky
+  factor, or the recursion stopped at converged partial
+  autocorrelations), as :class:`~bayes_jackal.likelihood.ResidualLikelihood`
+  does.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -54,11 +57,21 @@ import numpy as np
 from ._chunks import chunks
 from .defaults import FAMILY, SERIES_ENGINES
 from .errors import DataError, InputError
+from .experiment import check_finite, numeric_array
 from .kernels import Family, get_family
-from .likelihood import FAST_TOLERANCE, residual_autocovariance, toeplitz_loglike
+from .likelihood import residual_autocovariance
 from .spectral import CHUNK_ELEMENTS, ResidualBlock, evaluate_on_grids, spectral_forms
+from .stamps import positive_number
+from .toeplitz import fallback_loglike, toeplitz_loglike
 
-__all__ = ["MIN_SAMPLES", "SERIES_ENGINES", "WHITE_SD", "SeriesLikelihood"]
+__all__ = [
+    "MIN_SAMPLES",
+    "SERIES_ENGINES",
+    "WHITE_SD",
+    "SeriesLikelihood",
+    "check_length",
+    "check_series",
+]
 
 #: Fewest samples of a series: four parameters (the mean, the width, two
 #: sds) and a dozen degrees of freedom beyond them.
@@ -88,8 +101,9 @@ class SeriesLikelihood:
         recursion, the reference).
     fallback : bool
         ``fast`` only: sets no spectral grid certifies (widths comparable
-        with the record: long memory) take the exact recursion; without, they
-        are -inf (a scan over a wide prior, where such a set costs ~0.5 s).
+        with the record: long memory) take the time-domain fallback
+        (:func:`~bayes_jackal.toeplitz.fallback_loglike`); without, they are
+        -inf (a scan over a wide prior, where a long-memory set costs ~0.5 s).
 
     Raises
     ------
@@ -135,13 +149,8 @@ class SeriesLikelihood:
     fallback: bool = True
 
     def __post_init__(self) -> None:
-        values = np.array(self.values, dtype=float)
-        _check_values(values)
-        values.setflags(write=False)
+        values, dt = check_series(self.values, self.dt)
         object.__setattr__(self, "values", values)
-        dt = float(self.dt)
-        if not (np.isfinite(dt) and dt > 0):
-            raise InputError(f"sample time must be positive and finite, got {dt!r} s", field="dt")
         object.__setattr__(self, "dt", dt)
         get_family(self.family)  # an InputError naming the known families
         if self.engine not in SERIES_ENGINES:
@@ -221,6 +230,25 @@ class SeriesLikelihood:
         _, _, ones, cross = self._forms(theta)
         return self.centre + cross / ones
 
+    def autocovariance(self, theta: np.ndarray, lags: int) -> np.ndarray:
+        """The noise's autocovariance at lags 0..lags-1 [(series units)^2].
+
+        sigma_c^2 rho(l; width) + sigma_n^2 [l = 0], rho the family's
+        autocorrelation (:meth:`bayes_jackal.kernels.Family.autocorrelation`);
+        white noise: sigma^2 [l = 0]. The covariance this likelihood scores.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (B, k) or (k,)
+            As :meth:`__call__`.
+        lags : int
+
+        Returns
+        -------
+        ndarray, shape (B, lags)
+        """
+        return self._autocovariance(self._noise(theta), lags)
+
     def _forms(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """log det T, y'T^-1 y, 1'T^-1 1 and 1'T^-1 y of the centred series, each (B,)."""
         noise = self._noise(theta)
@@ -237,7 +265,7 @@ class SeriesLikelihood:
                 self.block, autocovariance, coefficients, spectral_forms, forms
             )
             if len(pending) and self.fallback:
-                forms[pending] = self._recursion(noise[:, pending], FAST_TOLERANCE)
+                forms[pending] = self._recursion(noise[:, pending], fallback_loglike)
         log_det, yy, ones, both = forms.T
         return log_det, yy, ones, 0.5 * (both - yy - ones)
 
@@ -260,11 +288,16 @@ class SeriesLikelihood:
         alpha = np.zeros(noise.shape[1])
         return residual_autocovariance(self._family, *noise, alpha, self.dt, lags, "diagonal")
 
-    def _recursion(self, noise: np.ndarray, tol: float | None = None) -> np.ndarray:
-        """log det T and x'T^-1 x of x = y, 1, y + 1 by Durbin-Levinson, shape (B, 4).
+    def _recursion(
+        self,
+        noise: np.ndarray,
+        density: Callable[[np.ndarray, np.ndarray], np.ndarray] = toeplitz_loglike,
+    ) -> np.ndarray:
+        """log det T and x'T^-1 x of x = y, 1, y + 1 from a time-domain density, shape (B, 4).
 
-        ``tol`` as :func:`~bayes_jackal.likelihood.toeplitz_loglike`'s;
-        None runs the full recursion (the ``exact`` engine).
+        ``density``: :func:`~bayes_jackal.toeplitz.toeplitz_loglike`, the
+        full recursion (the ``exact`` engine), or the ``fast`` engine's
+        :func:`~bayes_jackal.toeplitz.fallback_loglike`.
         """
         n = self.n
         y = self.block.regressors[0, :, 0]
@@ -272,31 +305,116 @@ class SeriesLikelihood:
         forms = np.empty((noise.shape[1], 4))
         for rows in chunks(noise.shape[1], 7 * n, budget=CHUNK_ELEMENTS):
             acov = self._autocovariance(noise[:, rows], n)
-            loglike = toeplitz_loglike(acov, np.broadcast_to(series, (len(acov), 4, n)), tol)
+            loglike = density(acov, np.broadcast_to(series, (len(acov), 4, n)))
             with np.errstate(invalid="ignore"):
                 forms[rows, 0] = -2.0 * loglike[:, 0] - n * _LOG_2PI
                 forms[rows, 1:] = -2.0 * (loglike[:, 1:] - loglike[:, :1])
         return forms
 
 
-def _check_values(values: np.ndarray) -> None:
-    """Refuse a series that is not 1-D, finite, long enough and varying."""
-    if values.ndim != 1:
+def check_length(
+    samples: int, *, minimum: int, source: str | None, field: str, where: str = ""
+) -> None:
+    """Refuse a series of fewer than ``minimum`` samples (``where``: e.g. on the clock).
+
+    Parameters
+    ----------
+    samples : int
+        The series' length [samples].
+    minimum : int
+        Fewest samples accepted.
+    source : str or None
+        The file named in the error (None: a series built in memory).
+    field : str
+        The column or field named in the error.
+    where : str
+        Appended to the count in the error, e.g. ``" on the uniform clock"``.
+
+    Raises
+    ------
+    DataError
+        Naming ``source``, ``field``, the count and the minimum.
+
+    Examples
+    --------
+    >>> from bayes_jackal.series_likelihood import check_length
+    >>> try:
+    ...     check_length(10, minimum=16, source="gyro.csv", field="z")
+    ... except ValueError as exc:
+    ...     print(exc)
+    gyro.csv: z: only 10 samples; a noise series needs at least 16
+    """
+    if samples < minimum:
         raise DataError(
-            f"must be one series (a 1-D array), got shape {values.shape}", field="values"
+            f"only {samples} samples{where}; a noise series needs at least {minimum}",
+            source=source,
+            field=field,
         )
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
+
+
+def check_series(
+    values: object,
+    dt: float | None,
+    *,
+    source: str | None = None,
+    field: str = "values",
+    minimum: int = MIN_SAMPLES,
+) -> tuple[np.ndarray, float]:
+    """A noise series as a read-only float vector and its sample time [s], or an error.
+
+    The one check of :class:`SeriesLikelihood` and
+    :class:`bayes_jackal.noise_series.NoiseSeries`.
+
+    Parameters
+    ----------
+    values : array_like, shape (n,)
+        Numbers [series units]: finite, not all equal, n >= ``minimum``.
+    dt : float
+        Sample time [s], > 0.
+    source, field : str, optional
+        Named in errors: the file and the column.
+    minimum : int
+        Fewest samples.
+
+    Returns
+    -------
+    values : ndarray, shape (n,)
+        A read-only float copy.
+    dt : float
+
+    Raises
+    ------
+    DataError
+        For values that are not a 1-D series of numbers, non-finite values
+        (naming the first), too few samples or a constant series.
+    InputError
+        For a ``dt`` that is not a positive number (field ``dt``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.series_likelihood import check_series
+    >>> values, dt = check_series([1, 2, 1] * 6, 0.01)
+    >>> values.dtype, values.flags.writeable, dt
+    (dtype('float64'), False, 0.01)
+    >>> try:
+    ...     check_series(np.full(20, 0.5), 0.01, source="still.csv", field="gyro_z")
+    ... except ValueError as exc:
+    ...     print(exc)
+    still.csv: gyro_z: the series is constant (every sample 0.5): a constant series has no
+    noise to characterise
+    """
+    array = numeric_array(values, source, field)
+    if array.ndim != 1:
+        raise DataError(f"a series is 1-D, got shape {array.shape}", source=source, field=field)
+    check_finite(array, source, field, lambda i: f"sample {i}")
+    check_length(len(array), minimum=minimum, source=source, field=field)
+    if np.ptp(array) == 0:
         raise DataError(
-            f"non-finite value {float(values[bad[0]])!r} at sample {bad[0]} ({bad.size} in all)",
-            field="values",
+            f"the series is constant (every sample {array[0]:g}): a constant series has no noise "
+            "to characterise",
+            source=source,
+            field=field,
         )
-    if len(values) < MIN_SAMPLES:
-        raise DataError(
-            f"only {len(values)} samples; a series needs at least {MIN_SAMPLES}", field="values"
-        )
-    if np.ptp(values) == 0:
-        raise DataError(
-            f"constant series (every sample is {float(values[0])!r}): no noise to characterise",
-            field="values",
-        )
+    array.setflags(write=False)
+    return array, positive_number(dt, name="dt", unit="s", required=True)

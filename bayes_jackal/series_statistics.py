@@ -17,11 +17,13 @@ import scipy.special
 import scipy.stats
 
 from .errors import InputError
+from .stamps import positive_number
 
 __all__ = [
     "MATLAB_LEVEL",
     "WELCH_SEGMENT",
     "autocorrelation_bounds",
+    "check_lags",
     "ljung_box",
     "magnitude_spectrum",
     "sample_autocorrelation",
@@ -35,7 +37,35 @@ MATLAB_LEVEL = float(scipy.special.erf(np.sqrt(2.0)))
 WELCH_SEGMENT = 256
 
 
-def _check_lags(lags) -> int:
+def check_lags(lags: int) -> int:
+    """A number of autocorrelation lags: an integer >= 1 (a bool is refused).
+
+    Parameters
+    ----------
+    lags : int
+        Lags of an autocorrelation [samples].
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputError
+        Naming ``lags`` and the value.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.series_statistics import check_lags
+    >>> check_lags(np.int64(10))
+    10
+    >>> try:
+    ...     check_lags(2.5)
+    ... except ValueError as exc:
+    ...     print(exc)
+    lags: number of lags must be an integer >= 1, got 2.5
+    """
     if isinstance(lags, bool) or not isinstance(lags, (int, np.integer)) or lags < 1:
         raise InputError(f"number of lags must be an integer >= 1, got {lags!r}", field="lags")
     return int(lags)
@@ -55,13 +85,6 @@ def _check_series(x, lags: int) -> np.ndarray:
     if (np.ptp(x, axis=-1) == 0).any():
         raise InputError("series is constant: its autocorrelation is undefined", field="x")
     return x
-
-
-def _check_dt(dt) -> float:
-    dt = float(dt)
-    if not (np.isfinite(dt) and dt > 0):
-        raise InputError(f"sample time must be positive, got {dt!r} s", field="dt")
-    return dt
 
 
 def sample_autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
@@ -99,7 +122,7 @@ def sample_autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
     >>> np.allclose(r, [1.0, 0.25, -0.3])
     True
     """
-    lags = _check_lags(lags)
+    lags = check_lags(lags)
     x = _check_series(x, lags)
     centred = x - x.mean(axis=-1, keepdims=True)
     size = scipy.fft.next_fast_len(x.shape[-1] + lags, real=True)
@@ -186,7 +209,7 @@ def spectrum(
     >>> print(round(float(np.sum(psd) * frequency[1]), 4), round(float(np.var(x)), 4))
     0.0099 0.0099
     """
-    dt = _check_dt(dt)
+    dt = positive_number(dt, name="dt", unit="s", required=True, what="the sample time")
     x = np.asarray(x, float)
     if isinstance(segment, bool) or not isinstance(segment, (int, np.integer)) or segment < 2:
         raise InputError(f"segment must be an integer >= 2, got {segment!r}", field="segment")
@@ -239,7 +262,7 @@ def magnitude_spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     >>> print(float(frequency[peak]), *(round(float(magnitude[k]), 4) for k in (peak, 0)))
     3.6 2.0 0.5
     """
-    dt = _check_dt(dt)
+    dt = positive_number(dt, name="dt", unit="s", required=True, what="the sample time")
     x = np.asarray(x, float)
     if x.ndim < 1 or x.shape[-1] < 2:
         raise InputError(f"spectrum needs at least 2 samples, got shape {x.shape}", field="x")

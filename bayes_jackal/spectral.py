@@ -29,8 +29,9 @@ Each parameter set is evaluated on the first grid of :data:`SHORT_GRIDS`
 where its spectral factor converged (cepstrum below 1e-10 and autocovariance
 below 1e-13 of its variance over the grid's last half); otherwise on a grid
 of at least 2n points, where the autocovariance is represented exactly; the
-caller falls back to the Durbin-Levinson recursion where even that has not
-converged (long memory): :func:`evaluate_on_grids` is that loop, shared by
+caller falls back to the time domain
+(:func:`bayes_jackal.toeplitz.fallback_loglike`) where even that has not
+converged (long memory, spectral nulls): :func:`evaluate_on_grids` is that loop, shared by
 the engines. The factor depends on the autocovariance only, so
 :func:`spectral_forms` gives the quadratic forms of several coefficient
 vectors from one factorisation (the bare series of

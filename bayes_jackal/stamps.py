@@ -38,6 +38,7 @@ __all__ = [
     "UNIFORM_TOLERANCE",
     "UniformClock",
     "longest_run",
+    "positive_number",
     "sort_stamps",
     "uniform_clock",
 ]
@@ -317,9 +318,9 @@ def uniform_clock(
     ('grid', 1, 1)
     """
     t = np.asarray(t, float)
-    declared = _positive(rate, "rate", "Hz")
+    declared = positive_number(rate, name="rate", unit="Hz")
     declared = None if declared is None else 1.0 / declared
-    max_gap = _positive(max_gap, "max_gap", "s")
+    max_gap = positive_number(max_gap, name="max_gap", unit="s")
     steps = np.diff(t)
     increasing = bool((steps > 0).all())
     one, one_fits = _one_per_tick(t, declared)
@@ -364,15 +365,47 @@ def uniform_clock(
     )
 
 
-def _positive(value: float | None, name: str, unit: str) -> float | None:
-    if value is None:
+def positive_number(
+    value: float | None, *, name: str, unit: str, required: bool = False, what: str = ""
+) -> float | None:
+    """An option that must be a finite number > 0, as a float; None when not given.
+
+    Parameters
+    ----------
+    value : float or None
+        The option's value [``unit``]; None: not given (refused if ``required``);
+        a bool is refused (True is not 1).
+    name, unit : str
+        The option and its unit, named in the InputError that refuses a value.
+    what : str
+        What the option is, said first in the error (``"the sample time"``).
+
+    Returns
+    -------
+    float or None
+
+    Examples
+    --------
+    >>> from bayes_jackal.stamps import positive_number
+    >>> positive_number("100", name="rate", unit="Hz")
+    100.0
+    >>> for bad in (0.0, True):
+    ...     try:
+    ...         positive_number(bad, name="dt", unit="s")
+    ...     except ValueError as exc:
+    ...         print(exc)
+    dt: must be a positive number of s, got 0.0
+    dt: must be a positive number of s, got True
+    """
+    if value is None and not required:
         return None
     try:
-        number = float(value)
+        number = np.nan if isinstance(value, bool | np.bool_) else float(value)
     except (TypeError, ValueError):
         number = np.nan
     if not (np.isfinite(number) and number > 0):
-        raise InputError(f"must be a positive number of {unit}, got {value!r}", field=name)
+        said = f"{what} must" if what else "must"
+        raise InputError(f"{said} be a positive number of {unit}, got {value!r}", field=name)
     return number
 
 

@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from ._files import atomic_path
-from ._matlab import mat_arrays
+from ._matlab import mat_arrays, mat_vector
 from .defaults import ROLES
 from .errors import DataError, InputError
-from .experiment import OPTIONAL, REQUIRED, Experiment, _check_values, read_netcdf
+from .experiment import OPTIONAL, REQUIRED, Experiment, check_values, read_netcdf
 from .robot import RobotProfile
 from .stamps import UNIFORM_TOLERANCE, uniform_clock
 
@@ -39,7 +39,9 @@ __all__ = [
     "check_sample_time",
     "check_unique_names",
     "load_experiment",
+    "numeric_column",
     "read_csv",
+    "read_csv_table",
     "read_mat",
     "write_csv",
 ]
@@ -142,7 +144,7 @@ def _from_columns(
     max_gap: float | None,
 ) -> Experiment:
     """An experiment from a file's columns (by role), on the uniform clock of its stamps."""
-    _check_values(columns, source, row_name)
+    check_values(columns, source, row_name)
     clock = uniform_clock(
         columns["t"], rate=rate, max_gap=max_gap, source=source, row_name=row_name
     )
@@ -216,10 +218,10 @@ def read_csv(
     """
     path = Path(path)
     source = str(path)
-    header, body = _csv_table(path, source)
+    header, body = read_csv_table(path, source)
     names = _mapped(header, columns, source)
     values = {
-        role: _numeric_column(body, header.index(column), column, source)
+        role: numeric_column(body, header.index(column), column, source)
         for role, column in names.items()
     }
     return _from_columns(
@@ -277,15 +279,7 @@ def read_mat(
     names = _mapped(sorted(variables), columns, source)
     values = {}
     for role, variable in names.items():
-        vector = np.squeeze(variables[variable])
-        if vector.ndim != 1:
-            raise DataError(
-                f"variable {variable!r} ({role}) has shape {variables[variable].shape}; a vector "
-                "is needed",
-                source=source,
-                field=variable,
-            )
-        values[role] = vector.astype(float)
+        values[role] = mat_vector(variables, variable, source, role=role)
     return _from_columns(
         values,
         names,
@@ -299,16 +293,29 @@ def read_mat(
     )
 
 
-def _csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]:
+def read_csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]:
     """A CSV file's header (stripped, unique names) and its rows of text cells.
 
-    Shared by :func:`read_csv` and :func:`bayes_jackal.noise_series.read_noise_series`.
+    Shared by :func:`read_csv` and :func:`bayes_jackal.noise_series.read_noise_series`;
+    :func:`numeric_column` reads a column of the rows as numbers.
 
     Raises
     ------
     DataError
         For an unreadable or empty file, a column named twice, or a line
         with more or fewer fields than the header (naming the line).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.tables import numeric_column, read_csv_table
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "gyro.csv"
+    ...     _ = path.write_text("t, gyro\\n0,0.5\\n0.01,x\\n")
+    ...     header, rows = read_csv_table(path, "gyro.csv")
+    >>> header, rows
+    (['t', 'gyro'], [['0', '0.5'], ['0.01', 'x']])
     """
     try:  # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is not part of the header
         with open(path, newline="", encoding="utf-8-sig") as stream:
@@ -338,7 +345,26 @@ def _csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]:
     return header, body
 
 
-def _numeric_column(rows: list[list[str]], index: int, key: str, source: str) -> np.ndarray:
+def numeric_column(rows: list[list[str]], index: int, key: str, source: str) -> np.ndarray:
+    """Column ``index`` of :func:`read_csv_table`'s rows as floats, named ``key`` in errors.
+
+    Raises
+    ------
+    DataError
+        For a cell that is not a number, naming ``source``, ``key`` and its line.
+
+    Examples
+    --------
+    >>> from bayes_jackal.tables import numeric_column
+    >>> rows = [["0", "0.5"], ["0.01", "x"]]
+    >>> numeric_column(rows, 0, "t", "gyro.csv")
+    array([0.  , 0.01])
+    >>> try:
+    ...     numeric_column(rows, 1, "gyro", "gyro.csv")
+    ... except ValueError as exc:
+    ...     print(exc)
+    gyro.csv: gyro: non-numeric value 'x' at line 3
+    """
     cells = [row[index] for row in rows]
     try:
         return np.array(cells, dtype=float)

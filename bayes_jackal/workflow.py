@@ -42,6 +42,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ._files import write_json
+from .bag_reading import BAG_SUFFIXES, bag_format
 from .bags import read_bag
 from .comparison import compare_families
 from .criticism import criticise
@@ -63,8 +64,6 @@ from .tables import load_experiment
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_FAMILIES", "analyse_logs", "ingest_logs", "read_log"]
 
-#: File suffixes read as ROS bags (folders are ROS2 bags too).
-BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 #: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
 GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
 
@@ -115,7 +114,7 @@ def read_log(
     short 577 None (2.0, 6.0)
     """
     path = Path(path)
-    if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
+    if bag_format(path) is not None:
         gap = {} if max_gap is None else {"max_gap": max_gap}
         return read_bag(path, robot, window=window, progress=progress, **gap)
     options = {"robot": robot, **(read_options or {})}

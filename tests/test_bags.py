@@ -32,8 +32,9 @@ import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+from bayes_jackal.bag_reading import typestore
 from bayes_jackal.bag_writer import BagMessage, bag_messages, write_bag, write_messages
-from bayes_jackal.bags import read_bag, typestore
+from bayes_jackal.bags import read_bag
 from bayes_jackal.errors import DataError, InputError
 from bayes_jackal.experiment import read_netcdf, write_netcdf
 from bayes_jackal.robot import load_profile

@@ -570,3 +570,38 @@ def test_exported_precision_in_bins_is_spm_dem_r(yaw_vx_posterior, order):
     # Two closed forms, inverted apart: they agree to rounding, amplified by
     # V's condition (in bins: 23, 270, 2100 at orders 1, 2, 3 for s = 3.4 bins).
     np.testing.assert_allclose(in_bins, expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
+
+
+def orders_below(s: float, dt: float, bound: float) -> list[int]:
+    """The orders whose Gaussian precision R = spm_DEM_R(P + 1, s / dt) has a condition
+    number below ``bound`` in bins and in seconds, where derivative i is 1 / dt^i times
+    the one in bins: Pi = S R S, S = diag(dt^i), counted up to the first that fails."""
+    orders = []
+    for order in range(40):
+        R = spm_dem_r(order + 1, s / dt)
+        S = np.diag(dt ** np.arange(order + 1.0))
+        if not max(np.linalg.cond(R), np.linalg.cond(S @ R @ S)) < bound:
+            break
+        orders.append(order)
+    return orders
+
+
+@pytest.mark.parametrize(
+    ("width", "dt", "top"),
+    [
+        (0.047, 1 / 72, 4),  # the thesis' sigma_h: seconds bind (5e11 at 4, 1e15 at 5)
+        (0.001, 0.001, 1),  # 1 ms at 1 kHz: seconds bind (1.13e12 at 2; in bins 3.9)
+        (0.5, 0.01, 3),  # 50 bins: bins bind (2e10 at 3, 3e13 at 4; seconds 2e9 at 8)
+    ],
+)
+def test_orders_are_allowed_in_seconds_and_in_bins(width, dt, top):
+    # The prior holds Pi in seconds and in bins, and a consumer's eigenvalues
+    # lose log10(condition) digits in the unit it works in: an order is allowed
+    # only where both are below MAX_CONDITION (SPM's closed form, written above).
+    draws = np.full((6, 1), width)
+    sd = np.random.default_rng(2).uniform(0.5, 2.0, (6, 1))  # a scalar per channel: no effect
+    expected = orders_below(width, dt, MAX_CONDITION)
+    assert expected[-1] == top and allowed_orders("gaussian", draws, sd, dt=dt) == expected
+    seconds_only = allowed_orders("gaussian", draws, sd)
+    assert seconds_only == orders_below(width, 1.0, MAX_CONDITION)  # dt = 1 s: bins are seconds
+    assert (seconds_only == expected) == (width < 0.1)  # only the wide noise is bins-limited

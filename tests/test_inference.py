@@ -10,6 +10,9 @@ import pytest
 import scipy.stats
 
 from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal.chains import _burn_in_and_thinning, run_chain
+from bayes_jackal.defaults import BRIDGE_MIN_DRAWS, MIN_EVIDENCE_STEPS
+from bayes_jackal.evidence import bridge_sampling
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.map_search import find_map
@@ -157,6 +160,37 @@ def test_a_run_that_hits_the_step_cap_warns_and_says_so(v2_run, tmp_path):
             "r_hat",
         }
     assert {"corr_d_lat_d_long", "autocorr_time", "n_steps"} <= set(summary)
+
+
+def test_the_thinning_leaves_bridge_sampling_its_draws_whatever_tau():
+    # emcee's window bounds its tau estimate by (steps - 1) / 5: thinned by
+    # tau / 2 alone, a 1,000-step chain with tau 199.8 kept 6 draws (discard
+    # 400, thin 99) and bridge sampling, which needs 8, failed after sampling.
+    for steps in range(MIN_EVIDENCE_STEPS, 3000, 37):
+        for tau in [*np.linspace(0.5, (steps - 1) / 5, 30), steps, np.nan]:
+            discard, thin = _burn_in_and_thinning(steps, np.array([tau, 1.5 * tau]))
+            kept = range(discard + thin - 1, steps, thin)  # emcee's get_chain(discard, thin)
+            assert len(kept) >= BRIDGE_MIN_DRAWS, (steps, tau)
+    # Where the cap does not bind (a converged chain, steps > 50 tau), the
+    # rule is 2 tau_max of burn-in and tau_min / 2 of thinning, as before.
+    assert _burn_in_and_thinning(5000, np.array([40.0, 60.0])) == (120, 20)
+    assert _burn_in_and_thinning(30, np.array([np.nan, 1.0])) == (15, 1)
+    # The shortest chain allowed gives bridge sampling a chain it takes.
+    prior = Prior(("a", "b"), np.full(2, 1e-3), np.full(2, 1e3), np.array([True, True]))
+
+    def log_posterior(z):
+        return -0.5 * np.sum(np.atleast_2d(z) ** 2, axis=-1)
+
+    log_posterior.prior = prior
+    with pytest.warns(ConvergenceWarning):
+        chain = run_chain(
+            log_posterior,
+            lambda rng, walkers: 0.1 * rng.standard_normal((walkers, 2)),
+            settings=SamplerSettings(max_steps=MIN_EVIDENCE_STEPS, progress=False),
+            seed=1,
+        )
+    assert chain.samples.shape[0] >= BRIDGE_MIN_DRAWS
+    assert np.isfinite(bridge_sampling(log_posterior, chain.samples, chain.log_prob, rng=1).error)
 
 
 def test_loading_something_that_is_not_a_posterior_fails_clearly(tmp_path, v2_run):

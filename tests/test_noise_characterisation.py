@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,17 @@ from cli_helpers import strict_json
 import bayes_jackal as bj
 from bayes_jackal.chains import SamplerSettings
 from bayes_jackal.cli import main
+from bayes_jackal.defaults import MIN_EVIDENCE_STEPS
 from bayes_jackal.executors import ProcessExecutor
-from bayes_jackal.noise_characterisation import series_prior
+from bayes_jackal.noise_characterisation import (
+    FamilyFit,
+    NoiseCharacterisation,
+    fit_family,
+    series_prior,
+)
+from bayes_jackal.robot import load_profile
 from bayes_jackal.series_likelihood import SeriesLikelihood
+from bayes_jackal.simulate import simulate_experiment
 
 SETTINGS = SamplerSettings(progress=False)
 DT = 0.01
@@ -60,8 +69,9 @@ def test_white_noise_is_not_called_coloured():
     # verdict is "not coloured" or "inconclusive", never "coloured".
     # On white noise the Gaussian family's width is not identified (below half
     # a sample it is white noise too), so its chain mixes slowly and runs to
-    # its cap (measured: the default cap, 8 minutes here); 3000 steps keep the
-    # test short, and the chain's warning is kept in the fit's warnings.
+    # its cap (measured: 8 minutes at the robot's 20,000 steps, ~1 minute at
+    # NOISE_MAX_STEPS = 5,000); 3000 steps keep the test short, and the
+    # chain's warning is kept in the fit's warnings.
     values = np.random.default_rng(5).standard_normal(1000)
     capped = SamplerSettings(progress=False, max_steps=3000)
     result = bj.characterise_noise(values, dt=DT, families=["white", "gaussian"], seed=1,
@@ -131,3 +141,116 @@ def test_noise_command_reads_series_and_names_the_bad_ones(tmp_path, capsys):
     captured = capsys.readouterr()
     assert code == 2 and list(strict_json(captured.out)["failed"]) == [str(twin)]
     assert "named 'gyro' was read already" in captured.err
+
+
+def test_the_result_classes_take_keywords_only():
+    series = bj.NoiseSeries(values=gaussian_series(0.02, 100, 0.3, seed=1), dt=DT)
+    with pytest.raises(TypeError):
+        bj.NoiseSeries(series.values, DT)
+    with pytest.raises(TypeError):
+        FamilyFit("white", ("sigma",), np.ones((4, 1)), None, {}, [], DT)
+    with pytest.raises(TypeError):
+        NoiseCharacterisation(series, {}, {}, 0.0)
+
+
+def test_prior_overrides_replace_the_scaled_ranges():
+    values = gaussian_series(0.02, 400, 0.3, seed=4)
+    gaussian = SeriesLikelihood(values=values, dt=DT, family="gaussian")
+    scaled = series_prior(gaussian)
+    prior = series_prior(gaussian, overrides={"width": (0.001, 2.0), "sigma_n": (0.01, 1.0)})
+    np.testing.assert_array_equal(prior.low, [0.001, scaled.low[1], 0.01])
+    np.testing.assert_array_equal(prior.high, [2.0, scaled.high[1], 1.0])
+    white = series_prior(SeriesLikelihood(values=values, dt=DT, family="white"),
+                         overrides={"sigma": (0.5, 3.0), "sigma_h": (0.001, 2.0)})  # fmt: skip
+    assert white.names == ("sigma",) and (white.low[0], white.high[0]) == (0.5, 3.0)
+    for bad, shown in [
+        ({"d_lat": (50, 500)}, "unknown prior 'd_lat' of a series"),
+        ({"width": (0.01, 1), "sigma_h": (0.01, 1)}, "the same prior"),
+        ({"sigma_c": (1.0, 0.5)}, "0 < low < high"),
+    ]:
+        with pytest.raises(bj.InputError, match=shown):
+            series_prior(gaussian, overrides=bad)
+    # A sampled width stays inside a narrowed prior (every draw).
+    series = bj.NoiseSeries(values=values, dt=DT)
+    fit = fit_family(series, "exponential", settings=SamplerSettings(max_steps=40), seed=1,
+                     prior_overrides={"width": (0.05, 0.06)})  # fmt: skip
+    widths = fit.draws[:, fit.names.index("width")]
+    assert widths.min() >= 0.05 and widths.max() <= 0.06
+
+
+def test_a_step_cap_too_short_for_bridge_sampling_is_refused_before_sampling(tmp_path, capsys):
+    # Bridge sampling needs 8 draws from the chain's kept second half: 16 steps.
+    short = SamplerSettings(max_steps=MIN_EVIDENCE_STEPS - 1)
+    values = gaussian_series(0.02, 100, 0.3, seed=1)
+    with pytest.raises(bj.InputError, match=r"max_steps: must be at least 16 .* got 15"):
+        bj.characterise_noise(values, dt=DT, families=["white"], settings=short)
+    run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=1)
+    with pytest.raises(bj.InputError, match=r"max_steps: must be at least 16"):  # compare's rule
+        bj.compare(run, families=["white"], channels=["yaw"], max_steps=MIN_EVIDENCE_STEPS - 1)
+    # The command refuses it before reading any series (this one does not exist).
+    code = main(["noise", str(tmp_path / "none.csv"), "--max-steps", "15"])
+    err = capsys.readouterr().err
+    assert code == 2 and "max_steps: must be at least 16" in err and "none.csv" not in err
+
+
+def test_noise_command_time_column_prior_and_progress_labels(tmp_path, capsys):
+    path = tmp_path / "gyro.csv"
+    np.savetxt(path, np.column_stack([np.arange(300) * DT, gaussian_series(0.02, 300, 0.3, 2)]),
+               delimiter=",", header="stamp,rate", comments="")  # fmt: skip
+    flags = ["--families", "white,exponential", "--seed", "1", "--max-steps", "40",
+             "--processes", "1", "--json"]  # fmt: skip
+    code = main(["noise", str(path), *flags, "--time-column", "stamp",
+                 "--prior", "width", "0.05", "0.06"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    result = strict_json(captured.out)["series"]["gyro"]
+    assert result["dt"] == DT and result["samples"] == 300
+    assert 0.05 <= result["families"]["exponential"]["width"]["seconds"]["mean"] <= 0.06
+    # Each family's chain has its own progress line, named by series and family
+    # (plain lines here: stderr is not a terminal).
+    for family in ("white", "exponential"):
+        assert re.search(rf"^gyro +{family}: \d+/40 steps", captured.err, re.MULTILINE)
+    code = main(["noise", str(path), *flags, "--prior", "d_lat", "1", "2"])
+    assert code == 2 and "--prior: unknown prior 'd_lat'" in capsys.readouterr().err
+    code = main(["noise", str(path), *flags])  # without --time-column: stamp is data
+    err = capsys.readouterr().err
+    assert code == 2 and "2 data columns ['stamp', 'rate']" in err and "--time-column" in err
+
+
+def test_a_series_and_a_robot_take_the_same_names_of_the_width(monkeypatch):
+    # parameters.width_keys is the one list of the width's names: a family
+    # registered with a width name of its own (docs/families.md) adds it to
+    # the overrides of a series and of a robot alike.
+    from bayes_jackal.kernels import FAMILIES
+    from bayes_jackal.noise_characterisation import series_prior_overrides
+    from bayes_jackal.parameters import prior_overrides, width_keys
+
+    class Duration(type(FAMILIES["moving-average"])):
+        name = "boxcar"
+        width_name = "duration"
+
+    monkeypatch.setitem(FAMILIES, "boxcar", Duration())
+    assert width_keys() == ("sigma_h", "width", "duration")
+    for name in width_keys():
+        assert series_prior_overrides({name: (0.01, 1.0)}) == {"sigma_h": (0.01, 1.0)}
+        assert prior_overrides({name: (0.01, 1.0)}) == {"sigma_h": (0.01, 1.0)}
+    with pytest.raises(bj.InputError, match=r"also named \['duration', 'width'\]"):
+        series_prior_overrides({"span": (0.01, 1.0)})
+    with pytest.raises(bj.InputError, match="width and duration are the same prior"):
+        series_prior_overrides({"width": (0.01, 1.0), "duration": (0.02, 2.0)})
+
+
+def test_a_prior_given_twice_is_refused_by_noise_and_sample(tmp_path, capsys):
+    # argparse keeps every --prior item; the last of a name would silently win.
+    # One rule (cli.parser_types.prior_ranges) refuses it for every command,
+    # before any input is read (these do not exist).
+    twice = ["--prior", "width", "0.1", "1", "--prior", "width", "0.2", "2"]
+    for argv in (
+        ["noise", str(tmp_path / "none.csv"), *twice],
+        ["sample", str(tmp_path / "none.nc"), "--out", str(tmp_path / "p.nc"), *twice],
+    ):
+        code = main(argv)
+        err = capsys.readouterr().err
+        assert code == 2, err
+        assert "--prior: width is given twice (0.1 1 and 0.2 2): give it once" in err
+        assert "none." not in err

@@ -11,16 +11,20 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.io
 
-from bayes_jackal.bag_writer import BagMessage, _header, write_messages
-from bayes_jackal.bags import typestore
+from bayes_jackal.bag_reading import typestore
+from bayes_jackal.bag_writer import BagMessage, stamped_header, write_messages
+from bayes_jackal.bags import read_bag
 from bayes_jackal.errors import DataError, InputError
 from bayes_jackal.noise_series import MIN_SERIES_SAMPLES, NoiseSeries, read_noise_series
+from bayes_jackal.robot import load_profile
+from bayes_jackal.workflow import read_log
 
 NS = 1_000_000_000
 EPOCH = 1_700_000_000 * NS
@@ -121,7 +125,7 @@ def _imu(store, stamp: int, seq: int, z: float):
     types = store.types
     vector = types["geometry_msgs/msg/Vector3"]
     return types["sensor_msgs/msg/Imu"](
-        header=_header(store, stamp, "imu_link", seq),
+        header=stamped_header(store, stamp, "imu_link", seq),
         orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
         orientation_covariance=np.zeros(9),
         angular_velocity=vector(x=0.0, y=0.0, z=float(z)),
@@ -285,3 +289,86 @@ def test_a_series_built_in_memory_is_checked():
         NoiseSeries(values=_noise(40), dt=0.0)
     series = NoiseSeries(values=list(_noise(40)), dt=0.01)
     assert not series.values.flags.writeable
+
+
+def test_a_named_time_column_gives_the_stamps(tmp_path):
+    t = np.arange(200) / 50
+    path = _csv(tmp_path / "mocap.csv", ["stamp_s", "roll"], t, _noise(200))
+    with pytest.raises(DataError, match="column: 2 data columns"):  # no column named t or time
+        _read(path)
+    series = _read(path, time_column="stamp_s")
+    assert series.dt == 0.02 and series.field == "roll"
+    assert series.provenance["time_column"] == "stamp_s"
+
+
+def test_a_bag_suffix_in_capitals_is_one_rule_for_every_reader(bag, tmp_path):
+    # bag_reading.bag_format says what is a bag, its suffix in any case, for the
+    # noise series and the robot's logs alike; rosbags tells the formats apart
+    # by the suffix as written (RUN.BAG went to its ROS2 reader), so it is
+    # refused with the fix named.
+    shouting = tmp_path / bag[0].name.upper()
+    shutil.copyfile(bag[0], shouting)
+    fix = rf"{shouting.stem}\{shouting.suffix.lower()}"
+    for read in (
+        lambda: _read(shouting, topic="/imu/data", field="angular_velocity.z"),
+        lambda: read_log(shouting, load_profile()),
+    ):
+        with pytest.raises(DataError, match=rf"suffix in lower case: .* as {fix}$"):
+            read()
+    table = _csv(tmp_path / "still.csv", ["t", "gyro"], np.arange(40) / 100, _noise(40))
+    with pytest.raises(DataError, match=r"still\.csv: not a bag: expected a \.bag, \.mcap"):
+        read_bag(table, load_profile())
+
+
+def test_a_folder_of_csv_files_is_not_taken_for_a_bag(tmp_path):
+    # A folder is a ROS2 bag only with its metadata.yaml (rosbags reads the bag from it).
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    for name in ("a.csv", "b.csv"):
+        _csv(folder / name, ["t", "gyro"], np.arange(100) / 100, _noise(100))
+    with pytest.raises(DataError) as error:
+        _read(folder, column="gyro")
+    message = str(error.value)
+    assert message.startswith(f"{folder}: a folder is read only as a ROS2 bag")
+    assert "metadata.yaml" in message and "['a.csv', 'b.csv']" in message
+
+
+def test_the_series_checks_are_those_of_the_likelihood():
+    # One check serves NoiseSeries and SeriesLikelihood: the same words, each
+    # with its own minimum length.
+    from bayes_jackal.series_likelihood import MIN_SAMPLES, SeriesLikelihood
+
+    for values, dt in [(np.full(40, 0.5), 0.01), (np.r_[_noise(39), np.inf], 0.01),
+                       (_noise(40), -1.0)]:  # fmt: skip
+        with pytest.raises(ValueError) as from_series:
+            NoiseSeries(values=values, dt=dt)
+        with pytest.raises(ValueError) as from_likelihood:
+            SeriesLikelihood(values=values, dt=dt)
+        assert type(from_series.value) is type(from_likelihood.value)
+        assert str(from_series.value).removeprefix("<memory>: ") == str(from_likelihood.value)
+    assert len(SeriesLikelihood(values=_noise(MIN_SAMPLES), dt=0.01).values) == MIN_SAMPLES
+    with pytest.raises(DataError, match=f"only {MIN_SAMPLES} samples; .* at least 32"):
+        NoiseSeries(values=_noise(MIN_SAMPLES), dt=0.01)
+
+
+def test_zero_header_stamps_take_the_receive_time(tmp_path):
+    store = typestore("ros2")
+    stamps = EPOCH + np.arange(60) * NS // 100
+    z = _noise(60, seed=6)
+    messages = [
+        BagMessage(
+            "/imu/data",
+            "sensor_msgs/msg/Imu",
+            int(s) + 1_000_000,
+            _imu(store, 0 if k in (10, 11) else s, k, z[k]),
+        )
+        for k, s in enumerate(stamps)
+    ]
+    series = _read(write_messages(messages, tmp_path / "zero.mcap", "ros2"),
+                   topic="/imu/data", field="angular_velocity.z")  # fmt: skip
+    np.testing.assert_array_equal(series.values, z)  # 1 ms late: on the same ticks
+    assert series.provenance["stamps"] == "header"
+    assert (
+        "/imu/data: 2 of 60 messages have a zero header stamp; used their receive time"
+        in series.provenance["repairs"]
+    )

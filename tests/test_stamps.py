@@ -415,3 +415,26 @@ def test_time_in_milliseconds_or_nanoseconds_is_refused(tmp_path, capsys, unit, 
     assert main(["residuals", str(path)]) == 2
     err = capsys.readouterr().err
     assert "disagrees with the profile's rate 72 Hz" in err and unit in err, err
+
+
+def test_a_bool_is_not_a_sample_time_or_a_rate(tmp_path):
+    # float(True) is 1.0: dt=True read as 1 s would pass silently. Each user of
+    # positive_number refuses it (numpy's bool too), naming the option.
+    from bayes_jackal.acf_fit import thesis_fit
+    from bayes_jackal.noise_series import read_noise_series
+    from bayes_jackal.series_likelihood import SeriesLikelihood
+    from bayes_jackal.series_statistics import spectrum
+
+    values = np.random.default_rng(1).standard_normal(64)
+    for check in (
+        lambda dt: spectrum(values, dt),
+        lambda dt: thesis_fit(values, dt),
+        lambda dt: SeriesLikelihood(values=values, dt=dt, family="white"),
+    ):
+        for bad in (True, np.True_):
+            with pytest.raises(InputError, match=r"dt: .*must be a positive number of s, got"):
+                check(bad)
+    path = tmp_path / "gyro.csv"
+    np.savetxt(path, values, header="gyro", comments="")
+    with pytest.raises(InputError, match=r"rate: must be a positive number of Hz, got True"):
+        read_noise_series(path, rate=True)

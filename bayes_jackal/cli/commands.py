@@ -59,7 +59,9 @@ from .output import (
     posterior_table,
     print_criticism,
     residual_table,
+    warn_not_converged,
 )
+from .parser_types import prior_ranges
 from .paths import check_named_outputs, family_files, group_name, summary_file
 from .reading import (
     each_experiment,
@@ -447,10 +449,7 @@ def cmd_export_prior(args: argparse.Namespace) -> int:
         f"{prior['draws']['count']} posterior draws"
     )
     if not prior["converged"]:
-        print(
-            f"bayes-jackal: WARNING: {args.posterior} is NOT CONVERGED; the prior inherits that",
-            file=sys.stderr,
-        )
+        warn_not_converged(args.posterior)
     return EXIT_OK
 
 
@@ -500,7 +499,7 @@ def cmd_filter(args: argparse.Namespace) -> int:
 
 def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
     """``--prior NAME LOW HIGH`` items as {name: (low, high)}, validated by the library."""
-    return prior_overrides({name: (low, high) for name, low, high in items}, field="--prior")
+    return prior_overrides(prior_ranges(items), field="--prior")
 
 
 def cmd_analyse(args: argparse.Namespace) -> int:

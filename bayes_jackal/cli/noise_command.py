@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -10,20 +11,31 @@ from .._files import write_json
 from ..chains import SamplerSettings
 from ..errors import InputError, each_input
 from ..executors import ProcessExecutor
-from ..noise_characterisation import NoiseCharacterisation, characterise_noise
+from ..export import write_prior
+from ..noise_characterisation import (
+    NoiseCharacterisation,
+    characterise_noise,
+    series_prior_overrides,
+)
+from ..noise_prior import export_noise_prior
+from ..noise_report import NOISE_HEADER, NOISE_REPORT, noise_rows, write_noise_report
 from ..noise_series import read_noise_series
-from .output import Failures, Reporter
+from .output import Failures, Reporter, warn_not_converged
+from .parser_types import prior_ranges
 
 
 def cmd_noise(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     failures = Failures(args.debug)
     settings = SamplerSettings(max_steps=args.max_steps, progress=not args.no_progress)
+    settings.check_evidence_steps()  # refused before any series is read
+    priors = series_prior_overrides(prior_ranges(args.prior), field="--prior")
     results: dict[str, dict] = {}
 
     def characterise(path: str) -> NoiseCharacterisation:
-        series = read_noise_series(path, column=args.column, rate=args.rate, topic=args.topic,
-                                   field=args.field, max_gap=args.max_gap)  # fmt: skip
+        series = read_noise_series(path, column=args.column, time_column=args.time_column,
+                                   rate=args.rate, topic=args.topic, field=args.field,
+                                   max_gap=args.max_gap)  # fmt: skip
         if series.name in results:  # its results and file would replace the other's
             raise InputError(
                 f"a series named {series.name!r} was read already: rename one file",
@@ -34,43 +46,91 @@ def cmd_noise(args: argparse.Namespace) -> int:
         with ProcessExecutor(args.processes) as executor:
             result = characterise_noise(series, families=args.families, settings=settings,
                                         seed=args.seed, engine=args.engine,
-                                        executor=executor)  # fmt: skip
+                                        executor=executor, prior_overrides=priors)  # fmt: skip
         noise_table(result, out.say)
         summary = result.to_dict()
         if args.out:
             path_out = Path(args.out) / f"{series.name}.noise.json"
             out.say(f"wrote {write_json(path_out, summary)}")
+            _write_prior(result, args.order, Path(args.out), path, out.say)
         results[series.name] = summary
         return result
 
-    _, failed = each_input(args.series, characterise, catch=Exception, on_failure=failures)
-    out.result({"series": results, "failed": failed})
+    found, failed = each_input(args.series, characterise, catch=Exception, on_failure=failures)
+    out.result({"series": results, "failed": failed})  # out before the report, whatever it does
+    if args.out and found:
+        _write_report(list(found.values()), Path(args.out) / NOISE_REPORT, args.seed, out.say,
+                      failures)  # fmt: skip
     return failures.code
+
+
+def _write_report(
+    found: list[NoiseCharacterisation],
+    path: Path,
+    seed: int | None,
+    say: Callable[[str], None],
+    failures: Failures,
+) -> None:
+    """``noise_report.html``; a failure is one line naming it and a non-zero exit code.
+
+    The series' results are printed and written already: a report that
+    cannot be drawn or written loses none of them.
+    """
+    try:
+        report = write_noise_report(found, path, seed=seed or 0)
+    except Exception as failed:  # an interrupt (not an Exception) still stops the run
+        failures(str(path), failed)
+        return
+    say(f"wrote {report} and its figures in {report.parent / (report.stem + '_figures')}/")
+
+
+def _write_prior(
+    result: NoiseCharacterisation,
+    order: int | None,
+    folder: Path,
+    source: str,
+    say: Callable[[str], None],
+) -> None:
+    """``<series>.prior.json``, the DEM prior of the best family at ``order``.
+
+    An order the family cannot give is a warning, not a failure: the
+    series' characterisation stands (written already), only its prior is
+    missing. A prior from a chain that did not converge is written with a warning.
+    """
+    try:
+        prior = export_noise_prior(result, order=order, source=source)
+    except InputError as refused:
+        print(f"bayes-jackal: WARNING: no prior for {result.series.name}: {refused}",
+              file=sys.stderr)  # fmt: skip
+        return
+    path = write_prior(prior, folder / f"{result.series.name}.prior.json")
+    size = prior["generalised_coordinates"]["order"] + 1
+    say(f"wrote {path}: {prior['family']} noise, embedding order {size - 1} "
+        f"({size} x {size} precision)")  # fmt: skip
+    if not prior["converged"]:
+        warn_not_converged(f"{result.series.name}'s {prior['family']} fit")
 
 
 def noise_table(result: NoiseCharacterisation, say: Callable[[str], None]) -> None:
     """Each family's evidence and width, the verdict, and the classical widths beside them."""
     summary = result.to_dict()
-    say(f"{'family':15s} {'ln Z':>11s} {'+-':>6s} {'ln B vs white':>13s} "
-        f"{'width [s]':>10s} {'94 % HDI':>21s} {'[bins]':>8s}")  # fmt: skip
-    for name, entry in summary["families"].items():
-        width = entry["width"]
-        bayes = entry["log_bayes_factor_vs_white"]
-        seconds = width["seconds"] if width else None
-        say(
-            f"{name:15s} {entry['log_evidence']:11.2f} {entry['log_evidence_err']:6.2f} "
-            f"{'-' if bayes is None else format(bayes, '.2f'):>13s} "
-            f"{'-' if width is None else format(seconds['mean'], '.4g'):>10s} "
-            + (
-                f"{'-':>21s} {'-':>8s}"
-                if width is None
-                else f"[{seconds['hdi_3%']:.4g}, {seconds['hdi_97%']:.4g}]".rjust(21)
-                + f" {width['bins']['mean']:8.3g}"
-            )
-        )
+    say(_text_row(NOISE_HEADER))
+    for row, (name, entry) in zip(noise_rows(summary), summary["families"].items(), strict=True):
+        say(_text_row(row))
         for warning in entry["warnings"]:
             say(f"  WARNING: {name}: {warning['message']}")
     say(f"verdict: {summary['verdict_text']}")
     classical = ", ".join(f"{k}: {v:.4g}" for k, v in summary["acf_least_squares"].items())
     say(f"ACF least-squares width [s] by lag count: {classical}")
     say(f"the thesis' fit (30 lags): {summary['thesis_fit']:.4g} s")
+
+
+#: Characters of each column of :func:`noise_table` (``NOISE_HEADER``'s).
+_COLUMNS = (15, 11, 6, 13, 10, 21, 8)
+
+
+def _text_row(cells) -> str:
+    """The first cell left-aligned, the others right-aligned, in :data:`_COLUMNS`."""
+    first, *rest = cells
+    aligned = [cell.rjust(width) for cell, width in zip(rest, _COLUMNS[1:], strict=True)]
+    return " ".join([first.ljust(_COLUMNS[0]), *aligned])

@@ -9,7 +9,13 @@ from __future__ import annotations
 import argparse
 import os
 
-from ..defaults import MAX_GAP_STEPS, MAX_STEPS, SERIES_ENGINES
+from ..defaults import (
+    AUTO_ORDER,
+    MAX_GAP_STEPS,
+    MIN_EVIDENCE_STEPS,
+    NOISE_MAX_STEPS,
+    SERIES_ENGINES,
+)
 from .parser_types import count, family_list, natural, positive
 
 
@@ -22,6 +28,11 @@ def add_noise_parser(commands: argparse._SubParsersAction) -> None:
         "series", nargs="+", metavar="SERIES", help="CSV, MATLAB (.mat) or bag (.bag, .mcap, .db3)"
     )
     noise.add_argument("--column", metavar="NAME", help="the series' column (CSV, .mat)")
+    noise.add_argument(
+        "--time-column",
+        metavar="NAME",
+        help="the time stamps' column [s] (CSV, .mat; default the one named t or time)",
+    )
     noise.add_argument(
         "--rate",
         type=positive,
@@ -44,10 +55,34 @@ def add_noise_parser(commands: argparse._SubParsersAction) -> None:
         metavar="white,gaussian,...",
         help="comma-separated families (every registered family)",
     )
-    noise.add_argument("--out", metavar="DIR", help="write <series>.noise.json here")
+    noise.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write <series>.noise.json, <series>.prior.json and noise_report.html here",
+    )
+    noise.add_argument(
+        "--order",
+        type=natural,
+        default=None,
+        help="embedding order P of <series>.prior.json, the best family's DEM prior "
+        f"(default {AUTO_ORDER}, or the highest the family allows)",
+    )
     noise.add_argument("--seed", type=natural, default=None, help="seed: same seed, same answer")
     noise.add_argument(
-        "--max-steps", type=count, default=MAX_STEPS, help=f"step cap per family ({MAX_STEPS})"
+        "--max-steps",
+        type=count,
+        default=NOISE_MAX_STEPS,
+        help=f"step cap per family ({NOISE_MAX_STEPS}; bridge sampling needs "
+        f"{MIN_EVIDENCE_STEPS})",
+    )
+    noise.add_argument(
+        "--prior",
+        nargs=3,
+        action="append",
+        default=[],
+        metavar=("NAME", "LOW", "HIGH"),
+        help="replace a prior range: sigma_h (or width, the width [s]), sigma_c, sigma_n, sigma "
+        "(white noise's sd), e.g. --prior width 0.001 2",
     )
     noise.add_argument(
         "--engine",

@@ -117,6 +117,12 @@ def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
     )
 
 
+def warn_not_converged(what: str) -> None:
+    """Warn on stderr that a prior comes from ``what``, a chain that did not converge."""
+    print(f"bayes-jackal: WARNING: {what} is NOT CONVERGED; the prior inherits that",
+          file=sys.stderr)  # fmt: skip
+
+
 def print_criticism(findings: list[dict]) -> None:
     """Model-criticism warnings on stderr, as ConvergenceWarning (compare: with the family)."""
     for finding in findings:

@@ -1,4 +1,4 @@
-"""argparse types of the command line's flags: names, families, bounded numbers.
+"""argparse types of the command line's flags: names, families, bounded numbers, priors.
 
 They load no numpy (the family registry is read only when a family flag is
 given), so ``--help`` answers at once.
@@ -11,6 +11,7 @@ import math
 from collections.abc import Callable
 
 from ..defaults import CHANNELS
+from ..errors import InputError
 
 __all__ = [
     "bounded",
@@ -23,6 +24,7 @@ __all__ = [
     "natural",
     "non_negative",
     "positive",
+    "prior_ranges",
     "registered_families",
 ]
 
@@ -97,3 +99,25 @@ count = bounded(int, "an integer >= 1", minimum=1)
 positive = bounded(float, "a finite number > 0", minimum=0.0, strict=True)
 non_negative = bounded(float, "a finite number >= 0", minimum=0.0)
 finite = bounded(float, "a finite number", minimum=-math.inf)
+
+
+def prior_ranges(items: list[list[str]]) -> dict[str, tuple[str, str]]:
+    """``--prior NAME LOW HIGH`` items (sample, compare, analyse, noise) as {name: (low, high)}.
+
+    A name given twice is refused (the last would silently win); the command
+    validates the ranges and names (:func:`bayes_jackal.parameters.prior_overrides`).
+
+    Raises
+    ------
+    InputError
+        Naming ``--prior`` and the repeated name.
+    """
+    ranges: dict[str, tuple[str, str]] = {}
+    for name, low, high in items:
+        if name in ranges:
+            raise InputError(
+                f"{name} is given twice ({' '.join(ranges[name])} and {low} {high}): give it once",
+                field="--prior",
+            )
+        ranges[name] = (low, high)
+    return ranges

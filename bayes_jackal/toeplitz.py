@@ -1,0 +1,256 @@
+"""Exact Gaussian log-densities of series under a Toeplitz covariance, in the time domain.
+
+:func:`toeplitz_loglike` is the Durbin-Levinson recursion, O(n^2): the
+``exact`` engines' reference. :func:`banded_toeplitz_loglike` is the
+banded Cholesky factorisation, O(n p^2), and :func:`fallback_loglike`
+chooses between them for the ``fast`` engines' fallback.
+
+Every noise family but the exponential has a kernel of finite length, so
+the autocovariance of the one-step residual (:mod:`bayes_jackal.likelihood`)
+and of a bare noise series (:mod:`bayes_jackal.series_likelihood`) vanishes
+beyond some lag p: its Toeplitz covariance T (n x n, first row
+r_0, ..., r_p, 0, ..., 0) is banded, and so is its Cholesky factor,
+
+    T = L L',   L lower triangular, L[i, j] = 0 for i - j > p,
+
+computed by LAPACK's banded Cholesky (dpbtrf, O(n p^2), backward stable;
+T is positive definite iff it succeeds). With z = L^-1 x (the banded
+triangular solve dtbtrs, O(n p) per series),
+
+    log N(x; 0, T) = -1/2 (2 sum_k log L[k, k] + |z|^2 + n log 2 pi),
+
+exact: no truncation, every row of the factor is computed. The
+Durbin-Levinson recursion costs O(n^2) instead, as the predictor of a
+moving-average process does not end. This is the ``fast`` engines'
+fallback for the parameter sets no spectral grid certifies
+(:func:`fallback_loglike`): a moving-average kernel's spectral nulls,
+barely lifted by a white floor, make its spectral factor converge slowly,
+but its band stays p + 1 lags wide.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft
+import scipy.linalg
+
+__all__ = [
+    "FAST_TOLERANCE",
+    "banded_toeplitz_loglike",
+    "bandwidth",
+    "fallback_loglike",
+    "toeplitz_loglike",
+]
+
+_LOG_2PI = np.log(2.0 * np.pi)
+#: Consecutive negligible partial autocorrelations that end the recursion.
+_QUIET_STEPS = 16
+#: Threshold of a negligible partial autocorrelation in the fallback recursion:
+#: the error grows with tol and n (measured on 2 x 5,000 moving-average
+#: residuals: 2.3e-6 nats at 1e-10, 1e-8 at 1e-12, 8e-10 at 1e-13).
+FAST_TOLERANCE = 1e-13
+
+
+def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) -> np.ndarray:
+    """Gaussian log-density of series with Toeplitz covariance (Durbin-Levinson).
+
+    The log-determinant is the sum of the log prediction-error variances,
+    the quadratic form the sum of the squared standardised innovations of
+    the order-k predictors. The recursion over the order k is sequential;
+    every step is vectorised over the batch.
+
+    With ``tol`` the recursion stops once 16 consecutive partial
+    autocorrelations of every batch member are below ``tol``; the rest of
+    each series is then predicted by that converged predictor (an FFT
+    convolution). The error grows with tol and n (the innovations' errors
+    are of order tol times the predictor's size); ``tol = 1e-13`` is exact
+    to ~1e-9 nats on 10,000 residuals while the recursion runs a few
+    hundred steps instead of n. A process whose partial autocorrelations do
+    not die out runs the full recursion.
+
+    Parameters
+    ----------
+    acov : ndarray, shape (B, n)
+        Autocovariance at lags 0..n-1 of each batch member.
+    x : ndarray, shape (B, E, n)
+        E series per batch member, all with that member's covariance.
+    tol : float, optional
+        Convergence threshold of the partial autocorrelations; None runs
+        the full O(n^2) recursion.
+
+    Returns
+    -------
+    ndarray, shape (B, E)
+        log N(x; 0, T(acov)); -inf where T(acov) is not positive definite.
+
+    Examples
+    --------
+    Against the dense Gaussian density with covariance toeplitz(acov):
+
+    >>> import numpy as np
+    >>> import scipy.linalg
+    >>> import scipy.stats
+    >>> from bayes_jackal.toeplitz import toeplitz_loglike
+    >>> acov = 0.5 ** np.arange(8)[None]  # one batch member
+    >>> x = np.random.default_rng(1).standard_normal((1, 3, 8))  # three series
+    >>> dense = scipy.stats.multivariate_normal(cov=scipy.linalg.toeplitz(acov[0]))
+    >>> bool(np.allclose(toeplitz_loglike(acov, x), dense.logpdf(x[0])))
+    True
+    """
+    batch, n = acov.shape
+    phi = np.zeros((batch, n))
+    variances = np.empty((batch, n))
+    innovations = np.empty(x.shape)
+    variances[:, 0] = acov[:, 0]
+    innovations[..., 0] = x[..., 0]
+    variance = acov[:, 0].copy()
+    order, quiet = n, 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for k in range(1, n):
+            previous = phi[:, : k - 1]
+            kappa = acov[:, k] - np.einsum("bj,bj->b", previous, acov[:, k - 1 : 0 : -1])
+            kappa /= variance
+            phi[:, : k - 1] = previous - kappa[:, None] * previous[:, ::-1]
+            phi[:, k - 1] = kappa
+            variance = variance * (1.0 - kappa**2)
+            variances[:, k] = variance
+            prediction = np.einsum("bj,bej->be", phi[:, :k], x[..., k - 1 :: -1])
+            innovations[..., k] = x[..., k] - prediction
+            if tol is not None:
+                quiet = quiet + 1 if np.max(np.abs(kappa)) < tol else 0
+                if quiet == _QUIET_STEPS:
+                    order = k + 1
+                    break
+        if order < n:
+            filter_ = np.concatenate([np.ones((batch, 1)), -phi[:, : order - 1]], axis=1)
+            size = scipy.fft.next_fast_len(n + order, real=True)
+            spectrum = scipy.fft.rfft(x, size) * scipy.fft.rfft(filter_, size)[:, None, :]
+            innovations[..., order:] = scipy.fft.irfft(spectrum, size)[..., order:n]
+            variances[:, order:] = variance[:, None]
+        quadratic = np.sum(innovations**2 / variances[:, None, :], axis=-1)
+        log_det = np.sum(np.log(variances), axis=-1)
+    loglike = -0.5 * (log_det[:, None] + quadratic + n * _LOG_2PI)
+    return np.where(np.isfinite(loglike), loglike, -np.inf)
+
+
+def bandwidth(acov: np.ndarray) -> int:
+    """Number of leading lags holding every nonzero autocovariance of a batch, p + 1.
+
+    Parameters
+    ----------
+    acov : ndarray, shape (B, n)
+        Autocovariance at lags 0..n-1 of each batch member.
+
+    Returns
+    -------
+    int
+        1 + the last lag at which any member's autocovariance is nonzero
+        (at least 1).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.toeplitz import bandwidth
+    >>> bandwidth(np.array([[2.0, 0.5, 0.0, 0.0], [1.0, 0.0, 0.1, 0.0]]))
+    3
+    """
+    nonzero = np.flatnonzero(np.any(acov != 0, axis=0))
+    return int(nonzero[-1]) + 1 if len(nonzero) else 1
+
+
+def banded_toeplitz_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Gaussian log-density of series under a banded Toeplitz covariance (banded Cholesky).
+
+    The module docstring gives the equations: LAPACK's dpbtrf and dtbtrs
+    for each batch member, O(n p^2) each.
+
+    Parameters
+    ----------
+    acov : ndarray, shape (B, p + 1)
+        Autocovariance at lags 0..p of each batch member; zero beyond lag
+        p (:func:`bandwidth` gives p + 1). p + 1 may exceed n: the lags
+        past n - 1 are then unused.
+    x : ndarray, shape (B, E, n)
+        E series per batch member, all with that member's covariance.
+
+    Returns
+    -------
+    ndarray, shape (B, E)
+        log N(x; 0, T) [nats]; -inf where T is not positive definite.
+
+    Examples
+    --------
+    A moving-average autocovariance over 30 samples against the dense
+    density of the Toeplitz matrix:
+
+    >>> import numpy as np
+    >>> import scipy.linalg
+    >>> import scipy.stats
+    >>> from bayes_jackal.toeplitz import banded_toeplitz_loglike
+    >>> acov = np.array([[3.0, 2.0, 1.0]])  # a 3-tap boxcar's
+    >>> x = np.random.default_rng(1).standard_normal((1, 2, 30))
+    >>> row = np.zeros(30)
+    >>> row[:3] = acov[0]
+    >>> dense = scipy.stats.multivariate_normal(cov=scipy.linalg.toeplitz(row))
+    >>> bool(np.allclose(banded_toeplitz_loglike(acov, x), dense.logpdf(x[0])))
+    True
+    """
+    n = x.shape[-1]
+    width = min(acov.shape[1], n)
+    loglike = np.full(x.shape[:2], -np.inf)
+    for member, (row, series) in enumerate(zip(acov[:, :width], x, strict=True)):
+        # Lower band storage: band[j, i] = T[i + j, i] = r_j (entries past n unused).
+        band = np.repeat(row[:, None], n, axis=1)
+        factor, info = scipy.linalg.lapack.dpbtrf(band, lower=1, overwrite_ab=1)
+        if info != 0:  # not positive definite (info > 0)
+            continue
+        z, _ = scipy.linalg.lapack.dtbtrs(factor, series.T, uplo="L")
+        log_det = 2.0 * np.sum(np.log(factor[0]))
+        loglike[member] = -0.5 * (log_det + np.sum(z**2, axis=0) + n * _LOG_2PI)
+    return loglike
+
+
+def fallback_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The ``fast`` engines' time-domain fallback: the banded Cholesky, else a stopped recursion.
+
+    Where the batch's autocovariance ends within p + 1 <= 4 sqrt(n) lags
+    (:func:`bandwidth`; every family but the exponential, at widths short
+    against the record) :func:`banded_toeplitz_loglike`, exact in
+    O(n p^2); otherwise :func:`toeplitz_loglike` stopped at
+    :data:`FAST_TOLERANCE`, whose sets here (those no spectral grid
+    certifies) run to order ~n: O(n^2). Measured on 2,376 residuals (one
+    thread, 11 sets): the banded factor 0.3 ms a set for a band of 11 lags,
+    3.7 ms for 131 and 9.2 ms for 305 (p + 1 = 6.3 sqrt(n)), the recursion
+    12 ms; 4 sqrt(n) keeps a margin.
+
+    Parameters
+    ----------
+    acov : ndarray, shape (B, n)
+        Autocovariance at lags 0..n-1 of each batch member.
+    x : ndarray, shape (B, E, n)
+        E series per batch member.
+
+    Returns
+    -------
+    ndarray, shape (B, E)
+        log N(x; 0, T(acov)) [nats]; -inf where T(acov) is not positive
+        definite.
+
+    Examples
+    --------
+    Both branches against the full recursion, for a banded and an AR(1)
+    autocovariance:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.toeplitz import fallback_loglike, toeplitz_loglike
+    >>> x = np.random.default_rng(1).standard_normal((1, 1, 64))
+    >>> for acov in ([2.0, 0.5, 0.25] + [0.0] * 61, 0.5 ** np.arange(64)):
+    ...     acov = np.array([acov])
+    ...     print(bool(np.allclose(fallback_loglike(acov, x), toeplitz_loglike(acov, x))))
+    True
+    True
+    """
+    width = bandwidth(acov)
+    if width**2 <= 16 * acov.shape[-1]:
+        return banded_toeplitz_loglike(acov[:, :width], x)
+    return toeplitz_loglike(acov, x, FAST_TOLERANCE)
