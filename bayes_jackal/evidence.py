@@ -23,8 +23,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import emcee
 import numpy as np
+import scipy.fft
 import scipy.special
 import scipy.stats
 
@@ -33,7 +33,13 @@ from .errors import InputError
 from .kernels import as_rng
 from .priors import Prior
 
-__all__ = ["Evidence", "bridge_sampling", "evidence_strength", "nested_sampling"]
+__all__ = [
+    "Evidence",
+    "bridge_sampling",
+    "evidence_strength",
+    "integrated_time",
+    "nested_sampling",
+]
 
 
 @dataclass(frozen=True)
@@ -170,15 +176,61 @@ def bridge_sampling(
     # Fruehwirth-Schnatter's f1 (proposal draws, independent) and f2 (chain).
     f1 = np.exp(l2 - shift - log_r - np.logaddexp(np.log(s1) + l2 - shift - log_r, np.log(s2)))
     f2 = np.exp(-np.logaddexp(np.log(s1) + l1 - shift - log_r, np.log(s2)))
-    # A walker stuck through the kept chain has a constant f2, whose
-    # autocorrelation is undefined (emcee divides by its zero variance).
-    per_walker = f2.reshape(-1, walkers)
-    moving = per_walker[:, np.ptp(per_walker, axis=0) > 0]
-    tau = emcee.autocorr.integrated_time(moving, tol=0)[0] if moving.size else 1.0
+    tau = integrated_time(f2.reshape(-1, walkers))
     relative_mse = (
         np.var(f1) / np.mean(f1) ** 2 / n2 + max(tau, 1.0) * np.var(f2) / np.mean(f2) ** 2 / n1
     )
     return Evidence(shift + log_r, float(np.sqrt(relative_mse)), "bridge sampling")
+
+
+def integrated_time(series: np.ndarray) -> float:
+    """emcee's integrated autocorrelation time of walkers' series, a stuck walker counted.
+
+    The walkers' normalised autocorrelations are averaged and summed up to
+    Sokal's window (the first lag beyond 5 tau), as
+    :func:`emcee.autocorr.integrated_time` does. A walker that never moves
+    through the series (seen in moving-average chains) has no defined
+    autocorrelation (emcee divides by its zero variance); it is counted as
+    fully correlated, 1 at every lag, the limit of a walker that moves
+    ever less: its draws are one draw, so the time grows with the share of
+    stuck walkers (all stuck: 2 m - 1 for m draws).
+
+    Parameters
+    ----------
+    series : ndarray, shape (m, walkers)
+        A function of the draws (bridge sampling's f2), one column per walker.
+
+    Returns
+    -------
+    float
+        tau [draws].
+
+    Examples
+    --------
+    Independent draws have tau near 1; one stuck walker among 8 adds 1/8 at
+    every lag, and the window never closes (tau ~ 1 + (m - 1) / 4 = 100.75):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.evidence import integrated_time
+    >>> draws = np.random.default_rng(1).normal(size=(400, 8))
+    >>> round(integrated_time(draws), 1)
+    1.0
+    >>> draws[:, 0] = 3.0
+    >>> round(integrated_time(draws))
+    100
+    """
+    m = len(series)
+    size = 2 * scipy.fft.next_fast_len(m)  # >= 2m: the linear, not circular, correlation
+    spectrum = scipy.fft.rfft(series - series.mean(axis=0), n=size, axis=0)
+    autocovariance = scipy.fft.irfft(spectrum * spectrum.conj(), n=size, axis=0)[:m]
+    stuck = np.ptp(series, axis=0) == 0
+    scale = np.where(stuck, 1.0, autocovariance[0])
+    autocorrelation = np.where(stuck, 1.0, autocovariance / scale)
+    taus = 2.0 * np.cumsum(autocorrelation.mean(axis=1)) - 1.0
+    # Sokal's window: the first lag beyond 5 tau; where none is (emcee's
+    # auto_window then answers lag 0), the whole series.
+    closed = np.arange(m) >= 5.0 * taus
+    return float(taus[np.argmax(closed) if closed.any() else m - 1])
 
 
 def nested_sampling(

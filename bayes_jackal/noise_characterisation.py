@@ -285,7 +285,8 @@ def fit_family(
     family : str
         A registered family (:data:`bayes_jackal.kernels.FAMILIES`).
     settings : SamplerSettings, optional
-        By default with a step cap of :data:`~bayes_jackal.defaults.NOISE_MAX_STEPS`.
+        By default with a step cap of :data:`~bayes_jackal.defaults.NOISE_MAX_STEPS`;
+        settings given replace it (``max_steps=NOISE_MAX_STEPS`` keeps it).
     seed : int, optional
         Same seed, same chain and evidence.
     engine : {"fast", "exact"}
@@ -318,16 +319,16 @@ def fit_family(
     Examples
     --------
     >>> import numpy as np
-    >>> from bayes_jackal.chains import SamplerSettings
     >>> from bayes_jackal.noise_characterisation import fit_family
     >>> from bayes_jackal.noise_series import NoiseSeries
     >>> values = np.random.default_rng(1).standard_normal(500)
     >>> series = NoiseSeries(values=values, dt=0.01, name="white")
-    >>> fit = fit_family(series, "white", settings=SamplerSettings(progress=False), seed=1)
+    >>> fit = fit_family(series, "white", seed=1)
     >>> fit.names, bool(abs(fit.draws[:, 0].mean() - values.std()) < 0.01)
     (('sigma',), True)
     """
     settings = settings or SamplerSettings(max_steps=NOISE_MAX_STEPS)
+    settings.check_evidence_steps()
     likelihood = SeriesLikelihood(values=series.values, dt=series.dt, family=family,
                                   engine=engine)  # fmt: skip
     prior = series_prior(likelihood, overrides=prior_overrides)
@@ -399,8 +400,7 @@ class NoiseCharacterisation:
     >>> import numpy as np
     >>> import bayes_jackal as bj
     >>> values = np.random.default_rng(1).standard_normal(300)
-    >>> result = bj.characterise_noise(values, dt=0.01, families=["white"], seed=1,
-    ...                                settings=bj.SamplerSettings(progress=False))
+    >>> result = bj.characterise_noise(values, dt=0.01, families=["white"], seed=1)
     >>> result.best, result.verdict()[0], result.to_dict()["samples"]
     ('white', 'inconclusive', 300)
     """
@@ -466,7 +466,8 @@ def characterise_noise(
     families : sequence of str, optional
         By default every registered family (:data:`bayes_jackal.FAMILIES`).
     settings : SamplerSettings, optional
-        By default with a step cap of :data:`~bayes_jackal.defaults.NOISE_MAX_STEPS`.
+        By default with a step cap of :data:`~bayes_jackal.defaults.NOISE_MAX_STEPS`;
+        settings given replace it (``max_steps=NOISE_MAX_STEPS`` keeps it).
     seed : int, optional
         Same seed, same answer, whichever executor ran the families.
     engine : {"fast", "exact"}
@@ -499,8 +500,7 @@ def characterise_noise(
     >>> taps = get_family("gaussian").taps(0.03, 0.01)
     >>> coloured = np.convolve(rng.standard_normal(2000), taps, "same")
     >>> values = coloured + 0.3 * rng.standard_normal(2000)
-    >>> result = bj.characterise_noise(values, dt=0.01, families=["white", "gaussian"], seed=1,
-    ...                                settings=bj.SamplerSettings(progress=False))
+    >>> result = bj.characterise_noise(values, dt=0.01, families=["white", "gaussian"], seed=1)
     >>> result.best, result.verdict()[0]
     ('gaussian', 'coloured')
     """

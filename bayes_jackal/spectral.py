@@ -310,7 +310,7 @@ def spectral_loglike(
     Examples
     --------
     On the full grid the value is the exact Toeplitz density of
-    :func:`bayes_jackal.likelihood.toeplitz_loglike`:
+    :func:`bayes_jackal.toeplitz.toeplitz_loglike`:
 
     >>> import numpy as np
     >>> import bayes_jackal as bj

@@ -176,7 +176,8 @@ def banded_toeplitz_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (B, E)
-        log N(x; 0, T) [nats]; -inf where T is not positive definite.
+        log N(x; 0, T) [nats]; -inf where T is not positive definite or
+        not finite.
 
     Examples
     --------
@@ -207,7 +208,7 @@ def banded_toeplitz_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
         z, _ = scipy.linalg.lapack.dtbtrs(factor, series.T, uplo="L")
         log_det = 2.0 * np.sum(np.log(factor[0]))
         loglike[member] = -0.5 * (log_det + np.sum(z**2, axis=0) + n * _LOG_2PI)
-    return loglike
+    return np.where(np.isnan(loglike), -np.inf, loglike)  # dpbtrf lets NaN through
 
 
 def fallback_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -422,6 +422,7 @@ def analyse_logs(
     folder = Path(out)
     robot = robot or load_profile()
     settings = settings or SamplerSettings()
+    settings.check_evidence_steps()  # before the logs are read and the grids written
     experiments, failed = ingest_logs(
         paths,
         robot,

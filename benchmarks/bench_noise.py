@@ -41,7 +41,7 @@ def main() -> None:
     parser.add_argument("--processes", type=int, default=2)
     args = parser.parse_args()
     values = series(args.samples, np.random.default_rng(0))
-    settings = bj.SamplerSettings(progress=False)
+    settings = None  # the command's defaults: NOISE_MAX_STEPS per chain
     start = time.perf_counter()
     bj.characterise_noise(values, dt=DT, families=["white"], settings=settings, seed=1)
     baseline = time.perf_counter() - start

@@ -11,7 +11,13 @@ import scipy.special
 
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.comparison import Comparison, compare_families
-from bayes_jackal.evidence import Evidence, bridge_sampling, evidence_strength, nested_sampling
+from bayes_jackal.evidence import (
+    Evidence,
+    bridge_sampling,
+    evidence_strength,
+    integrated_time,
+    nested_sampling,
+)
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.priors import LogPosterior, Prior
@@ -160,11 +166,30 @@ def test_bridge_sampling_survives_a_walker_stuck_through_the_chain():
     # A walker that never moves, far in the tail (seen in a moving-average
     # chain), has a bridge function constant to the last bit, whose
     # autocorrelation is undefined (emcee divided by zero: a RuntimeWarning,
-    # an error here): it is left out of the autocorrelation time.
+    # an error here): it counts as fully correlated, so the error grows.
     chain = np.random.default_rng(1).normal(size=(200, 8, 2))
+    log_density = lambda x: -0.5 * np.sum(x**2, axis=-1)  # noqa: E731
+    mixed = bridge_sampling(log_density, chain, rng=1)
     chain[:, 0] = 30.0
-    evidence = bridge_sampling(lambda x: -0.5 * np.sum(x**2, axis=-1), chain, rng=1)
-    assert np.isfinite(evidence.log_evidence) and np.isfinite(evidence.error)
+    stuck = bridge_sampling(log_density, chain, rng=1)
+    assert np.isfinite(stuck.log_evidence) and stuck.error > 3 * mixed.error
+
+
+def test_integrated_time_is_emcee_s_and_counts_a_stuck_walker_as_one_draw():
+    rng = np.random.default_rng(4)
+    walks = np.cumsum(rng.normal(size=(300, 6)), axis=0)  # tau ~ 40
+    assert integrated_time(walks) == pytest.approx(
+        emcee.autocorr.integrated_time(walks, tol=0)[0], rel=1e-12
+    )
+    # Reference, walker by walker: emcee's normalised autocorrelation of each
+    # moving walker, 1 at every lag for the stuck one; averaged, summed to
+    # the first lag beyond 5 tau (the whole series where there is none).
+    walks[:, 2] = 7.0
+    curves = [np.ones(300) if np.ptp(w) == 0 else emcee.autocorr.function_1d(w) for w in walks.T]
+    taus = 2 * np.cumsum(np.mean(curves, axis=0)) - 1
+    window = next((m for m in range(300) if m >= 5 * taus[m]), 299)
+    assert integrated_time(walks) == pytest.approx(taus[window], rel=1e-12)
+    assert integrated_time(np.full((50, 4), 2.0)) == 99.0  # all stuck: 2 m - 1
 
 
 def test_kass_raftery_words():

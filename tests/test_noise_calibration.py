@@ -27,6 +27,7 @@ import scipy.stats
 
 import bayes_jackal as bj
 from bayes_jackal.chains import SamplerSettings
+from bayes_jackal.defaults import NOISE_MAX_STEPS
 
 DT = 0.01  # [s]; the widths below are in samples
 SAMPLES = 4000
@@ -34,7 +35,7 @@ FLOOR = 0.3  # the white floor's sd; the coloured part has unit sd
 WIDTHS = (0.6, 2.0, 6.0, 20.0)  # [samples]
 COLOURED = ("gaussian", "exponential", "triangular", "moving-average")
 FAMILIES = ("white", *COLOURED)
-SETTINGS = SamplerSettings(progress=False, design_points=256, max_steps=3000)
+SETTINGS = SamplerSettings(design_points=256, max_steps=NOISE_MAX_STEPS)  # the command's cap
 HDI_PROB = 0.94
 #: ln B - 3 se above this against every other family: the true family wins.
 WIN_LOG_BF = 3.0
@@ -97,14 +98,31 @@ ALIKE = {
     ("triangular", 2.0): "taps 0.5, 1, 0.5: ln Z - ln Z_white 1174.1, moving-average 1173.2, "
     "gaussian 1172.2",
 }
+#: Cases whose simulated noise is not in the model, so their HDI is not
+#: counted (the evidence checks still apply).
+OUTSIDE_THE_MODEL = {
+    ("gaussian", 0.6): "the thesis' hard truncation at 3 w = 1.8 samples drops the taps at "
+    "+-2 that the package's continuous truncation keeps (0.8 exp(-4 / 0.72) = 0.0031): "
+    "the HDI 0.56-0.60 sits just below the truth",
+}
 CASES = [(family, width) for family in COLOURED for width in WIDTHS]
-#: The reduced form's cases (CI: 79 s of one core, measured at load 1.2).
-CI_CASES = [("exponential", 2.0), ("exponential", 6.0)]
+#: The reduced form's cases: the AR(1) path of the fast engine and the
+#: banded fallback's family (CI: ~75 s of one core; 39 s and 36 s measured alone).
+CI_CASES = [("exponential", 6.0), ("moving-average", 6.0)]
 
 
 def seeds() -> range:
     """``BAYES_JACKAL_CALIBRATION_SEEDS`` seeds per case (5)."""
-    return range(int(os.environ.get("BAYES_JACKAL_CALIBRATION_SEEDS", "5")))
+    count = int(os.environ.get("BAYES_JACKAL_CALIBRATION_SEEDS", "5"))
+    if count < 1:
+        raise ValueError(f"BAYES_JACKAL_CALIBRATION_SEEDS must be >= 1, got {count}")
+    return range(count)
+
+
+def least_inside(cases: int) -> float:
+    """The 0.1 % quantile of Binomial(cases, 0.94): a calibrated 94 % HDI holds
+    the truth in fewer of ``cases`` independent cases once in a thousand."""
+    return scipy.stats.binom.ppf(0.001, cases, HDI_PROB)
 
 
 def characterise(values: np.ndarray, seed: int) -> bj.NoiseCharacterisation:
@@ -149,10 +167,15 @@ def test_true_family_wins_and_its_width_is_calibrated():
     samples (the wide kernels cost 50 ms to 3 s per step of 32 walkers)
     and the white cases of 0.6 samples (every coloured chain runs to its
     cap on white noise). The moving-average chain of 2 samples did not
-    converge in 3000 steps (its HDI misses the truth).
+    converge in the 3000 steps of that measurement (its HDI missed the
+    truth); the test now runs at the command's cap, NOISE_MAX_STEPS.
+
+    The HDIs are checked per case over its seeds and pooled, each against
+    the 0.1 % quantile of Binomial(N, 0.94); with one seed that quantile
+    is 0, so the reduced form asserts each case's (fixed-seed) hit instead.
     """
     cases = CI_CASES if len(seeds()) == 1 else CASES
-    rows, inside = [], []
+    rows, inside, failures = [], {}, []
     for family, width in cases:
         for seed in seeds():
             start = time.perf_counter()
@@ -164,21 +187,27 @@ def test_true_family_wins_and_its_width_is_calibrated():
             verdict = result.verdict()[0]
             rows.append((family, width, seed, closest, result.best, hit, verdict,
                          time.perf_counter() - start))  # fmt: skip
+            print("{:15} {:5.1f} {} {:8.1f} {:15} {!s:5} {:13} {:5.1f} s".format(*rows[-1]))
             if (family, width) in WHITE_AT_THIS_RATE:
-                assert verdict != "coloured", (family, width, seed)
+                if verdict == "coloured":
+                    failures.append(("white at this rate, called coloured", family, width, seed))
                 continue
-            inside.append(hit)
+            if (family, width) not in OUTSIDE_THE_MODEL:
+                inside.setdefault((family, width), []).append(hit)
             if (family, width) in ALIKE:
                 beaten = max(margin(result, rival, family) for rival in rivals)
-                assert beaten <= WIN_LOG_BF, (family, width, seed, beaten, result.best)
-            else:
-                assert closest > WIN_LOG_BF, (family, width, seed, closest, result.best)
-    for row in rows:
-        print("{:15} {:5.1f} {} {:8.1f} {:15} {!s:5} {:13} {:5.1f} s".format(*row))
-    # A calibrated 94 % HDI holds the truth in Binomial(N, 0.94) of N
-    # independent cases: fewer than its 0.1 % quantile fails (N = 10: 6; N = 14: 10).
-    least = scipy.stats.binom.ppf(0.001, len(inside), HDI_PROB)
-    assert sum(inside) >= least, (sum(inside), len(inside), least)
+                if beaten > WIN_LOG_BF:
+                    failures.append(("beaten", family, width, seed, beaten, result.best))
+            elif closest <= WIN_LOG_BF:
+                failures.append(("did not win", family, width, seed, closest, result.best))
+    for case, hits in inside.items():
+        least = len(hits) if len(hits) == 1 else least_inside(len(hits))
+        if sum(hits) < least:
+            failures.append(("HDI misses the truth", case, sum(hits), len(hits)))
+    pooled = [hit for hits in inside.values() for hit in hits]
+    if sum(pooled) < least_inside(len(pooled)):
+        failures.append(("HDIs pooled", sum(pooled), len(pooled)))
+    assert not failures, failures
 
 
 @pytest.mark.slow

@@ -187,6 +187,12 @@ def test_a_step_cap_too_short_for_bridge_sampling_is_refused_before_sampling(tmp
     run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=1)
     with pytest.raises(bj.InputError, match=r"max_steps: must be at least 16"):  # compare's rule
         bj.compare(run, families=["white"], channels=["yaw"], max_steps=MIN_EVIDENCE_STEPS - 1)
+    series = bj.NoiseSeries(values=values, dt=DT, name="gyro")
+    with pytest.raises(bj.InputError, match=r"max_steps: must be at least 16"):
+        fit_family(series, "white", settings=short)
+    with pytest.raises(bj.InputError, match=r"max_steps: must be at least 16"):  # analyse's
+        bj.analyse_logs([tmp_path / "none.csv"], tmp_path / "out", settings=short)
+    assert not (tmp_path / "out").exists()  # refused before any log is read or file written
     # The command refuses it before reading any series (this one does not exist).
     code = main(["noise", str(tmp_path / "none.csv"), "--max-steps", "15"])
     err = capsys.readouterr().err
