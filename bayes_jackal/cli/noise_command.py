@@ -47,8 +47,8 @@ def cmd_noise(args: argparse.Namespace) -> int:
             result = characterise_noise(series, families=args.families, settings=settings,
                                         seed=args.seed, engine=args.engine,
                                         executor=executor, prior_overrides=priors)  # fmt: skip
-        noise_table(result, out.say)
         summary = result.to_dict()
+        noise_table(summary, out.say)
         if args.out:
             path_out = Path(args.out) / f"{series.name}.noise.json"
             out.say(f"wrote {write_json(path_out, summary)}")
@@ -111,9 +111,11 @@ def _write_prior(
         warn_not_converged(f"{result.series.name}'s {prior['family']} fit")
 
 
-def noise_table(result: NoiseCharacterisation, say: Callable[[str], None]) -> None:
-    """Each family's evidence and width, the verdict, and the classical widths beside them."""
-    summary = result.to_dict()
+def noise_table(summary: dict, say: Callable[[str], None]) -> None:
+    """Each family's evidence and width, the verdict, and the classical widths beside them.
+
+    ``summary``: the series' ``NoiseCharacterisation.to_dict()``.
+    """
     say(_text_row(NOISE_HEADER))
     for row, (name, entry) in zip(noise_rows(summary), summary["families"].items(), strict=True):
         say(_text_row(row))

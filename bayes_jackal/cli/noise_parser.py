@@ -16,7 +16,7 @@ from ..defaults import (
     NOISE_MAX_STEPS,
     SERIES_ENGINES,
 )
-from .parser_types import count, family_list, natural, positive
+from .parser_types import add_prior_flag, count, family_list, natural, positive
 
 
 def add_noise_parser(commands: argparse._SubParsersAction) -> None:
@@ -75,13 +75,9 @@ def add_noise_parser(commands: argparse._SubParsersAction) -> None:
         help=f"step cap per family ({NOISE_MAX_STEPS}; bridge sampling needs "
         f"{MIN_EVIDENCE_STEPS})",
     )
-    noise.add_argument(
-        "--prior",
-        nargs=3,
-        action="append",
-        default=[],
-        metavar=("NAME", "LOW", "HIGH"),
-        help="replace a prior range: sigma_h (or width, the width [s]), sigma_c, sigma_n, sigma "
+    add_prior_flag(
+        noise,
+        "replace a prior range: sigma_h (or width, the width [s]), sigma_c, sigma_n, sigma "
         "(white noise's sd), e.g. --prior width 0.001 2",
     )
     noise.add_argument(

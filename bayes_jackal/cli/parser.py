@@ -54,6 +54,7 @@ from ..defaults import (
 )
 from ..errors import InputError
 from .noise_parser import add_noise_parser
+from .parser_types import add_prior_flag
 from .parser_types import (
     channel_list as _channel_list,
 )
@@ -224,14 +225,7 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
     parser.add_argument(
         "--max-steps", type=_count, default=MAX_STEPS, help=f"step cap ({MAX_STEPS})"
     )
-    parser.add_argument(
-        "--prior",
-        nargs=3,
-        action="append",
-        default=[],
-        metavar=("NAME", "LOW", "HIGH"),
-        help="override a prior range, e.g. --prior d_lat 10 2000",
-    )
+    add_prior_flag(parser, "override a prior range, e.g. --prior d_lat 10 2000")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument(
         "--scheduler",

@@ -101,6 +101,21 @@ non_negative = bounded(float, "a finite number >= 0", minimum=0.0)
 finite = bounded(float, "a finite number", minimum=-math.inf)
 
 
+def add_prior_flag(parser: argparse.ArgumentParser, help: str) -> None:
+    """``--prior NAME LOW HIGH``, repeatable: the flag of sample, compare, analyse and noise.
+
+    :func:`prior_ranges` reads what it collects.
+    """
+    parser.add_argument(
+        "--prior",
+        nargs=3,
+        action="append",
+        default=[],
+        metavar=("NAME", "LOW", "HIGH"),
+        help=help,
+    )
+
+
 def prior_ranges(items: list[list[str]]) -> dict[str, tuple[str, str]]:
     """``--prior NAME LOW HIGH`` items (sample, compare, analyse, noise) as {name: (low, high)}.
 
