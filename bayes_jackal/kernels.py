@@ -2,10 +2,10 @@
 
 Each family is an impulse response h with one width parameter, sampled at
 the data's sample time dt and normalised to unit energy, sum(h^2) = 1. White
-noise of variance s^2 filtered by it keeps variance s^2 and has the
-autocorrelation of the kernel's discrete self-correlation,
-rho[l] = sum_j h[j] h[j + l]. That discrete form, not its continuous limit,
-is what the simulator and the likelihood share (docs/design.md §4).
+noise of variance s^2 filtered by it keeps variance s^2 and has the kernel's
+discrete self-correlation rho[l] = sum_j h[j] h[j + l] as autocorrelation:
+the simulator's and the likelihood's, not its continuous limit
+(docs/design.md §4).
 
 Each family is a subclass of :class:`Family` holding all the package knows
 about it, registered in :data:`FAMILIES`, the one list that everything else
@@ -23,8 +23,7 @@ reads (docs/families.md: adding a family). The families (thesis 7-4-1):
   rho[l] = phi^l with phi = exp(-dt / tau); width tau [s].
 - ``triangular``: h(t) ~ 1 - |t| / w for |t| < w; width w [s] (half-base).
 - ``moving-average``: boxcar of duration w [s]: floor(w / dt) unit taps and
-  a last tap of the fractional remainder, so that h varies continuously
-  with w.
+  a last tap of the fractional remainder (h continuous in w).
 """
 
 from __future__ import annotations
@@ -38,6 +37,7 @@ import scipy.signal
 import scipy.special
 
 from .errors import InputError
+from .toeplitz import bandwidth
 
 __all__ = [
     "FAMILIES",
@@ -179,8 +179,8 @@ class Family(abc.ABC):
     def autocorrelation(self, width: float | np.ndarray, dt: float, lags: int) -> np.ndarray:
         """Autocorrelation rho[0..lags-1] of white noise filtered by the kernel.
 
-        Exact for the sampled kernel: its discrete self-correlation.
-        Vectorised over ``width``.
+        Exact for the sampled kernel: its discrete self-correlation, exactly
+        zero from each kernel's length on (for the banded factor). Vectorised.
 
         Parameters
         ----------
@@ -201,7 +201,9 @@ class Family(abc.ABC):
         out = np.zeros((*taps.shape[:-1], lags))
         kept = min(lags, taps.shape[-1])
         out[..., :kept] = full[..., :kept]
-        return out
+        # Each kernel's length, from its first nonzero tap to its last.
+        length = bandwidth(taps) + bandwidth(taps[..., ::-1]) - taps.shape[-1]
+        return np.where(np.arange(lags) < length[..., None], out, 0.0)
 
     def psd(self, width: float | np.ndarray, dt: float, frequency: np.ndarray) -> np.ndarray:
         """Two-sided power spectral density of unit-variance filtered noise [1/Hz].

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.fft
@@ -286,7 +287,9 @@ class ResidualLikelihood:
         With the ``fast`` engine, evaluate parameter sets the spectral
         method cannot certify (long memory, spectral nulls) in the time
         domain (True: :func:`~bayes_jackal.toeplitz.fallback_loglike`), or
-        give them -inf (False: a quick, exact-where-defined scan of the prior).
+        only those with a short band and -inf for the rest (False: the
+        fallback's ``recursion=False``, a quick, exact-where-defined scan of
+        the prior).
     shared_width : bool
         One width for every channel and experiment (True), or the family's
         width in every noise group (False; ``--noise one-width`` is True
@@ -462,7 +465,7 @@ class ResidualLikelihood:
 
         Sets no grid certifies (long memory, or a moving-average kernel's
         spectral nulls) go to :func:`~bayes_jackal.toeplitz.fallback_loglike`,
-        or get -inf without ``fallback``.
+        without ``fallback`` to its scans' cheap bands only.
         """
         loglike = np.full(len(c), -np.inf)
 
@@ -470,6 +473,7 @@ class ResidualLikelihood:
             return self._autocovariance(block, noise[rows], lags)
 
         pending = spectral.evaluate_on_grids(block, autocovariance, c, spectral_loglike, loglike)
-        if len(pending) and self.fallback:
-            loglike[pending] = self._recursion(block, noise[pending], c[pending], fallback_loglike)
+        if len(pending):
+            density = partial(fallback_loglike, recursion=self.fallback)
+            loglike[pending] = self._recursion(block, noise[pending], c[pending], density)
         return loglike

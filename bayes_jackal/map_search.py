@@ -9,6 +9,7 @@ in :mod:`bayes_jackal.priors`, the sampler in :mod:`bayes_jackal.inference`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -18,7 +19,7 @@ from .errors import InputError
 from .noise_profile import profile_starts
 from .priors import LogPosterior, Prior
 
-__all__ = ["find_map", "laplace_walkers", "local_maximum"]
+__all__ = ["climb", "find_map", "laplace_walkers", "scan_posterior"]
 
 
 #: Local searches of :func:`find_map`, from the best points of the profile.
@@ -35,13 +36,8 @@ def find_map(
     design over the damping (:func:`bayes_jackal.noise_profile.profile_starts`,
     ``design_points / 16`` damping points) finds the basin where every
     channel's noise is right at once, which a design over the whole prior
-    box does not. Its best points start bounded quasi-Newton (L-BFGS-B)
-    searches on a scan of the posterior that uses the exact spectral engine
-    without its slow fallback (long-memory corners of the prior, e.g. a 1 s
-    kernel over 1e-4 sensor noise, count as -inf there); line scans of the
-    kernel widths move the best end point out of a local optimum's basin
-    (:func:`_sweep_widths`) and a search starts again from there, and the
-    result is polished on ``log_posterior`` itself.
+    box does not. Its best points start the local searches and width
+    sweeps of :func:`climb`.
 
     Parameters
     ----------
@@ -80,8 +76,6 @@ def find_map(
     ['d_lat 112', 'd_long 30.1', 'sigma_h[yaw] 0.0469']
     """
     prior = log_posterior.prior
-    scan = replace(log_posterior.likelihood, engine="fast", fallback=False)
-    scan_posterior = LogPosterior(scan, prior)
     # Noise far below the data's overflows the likelihood's terms: -inf, checked below.
     with np.errstate(over="ignore", divide="ignore"):
         theta, _ = profile_starts(
@@ -101,14 +95,9 @@ def find_map(
             "data allow",
             field="priors",
         )
-    best = _best_local(scan_posterior, starts)
-    for _ in range(3):
-        swept = _sweep_widths(scan_posterior, best.x, prior)
-        if np.array_equal(swept, best.x):
-            break
-        best = _best_local(scan_posterior, swept[None])
-    polished = _best_local(log_posterior, best.x[None])
-    return polished.x if np.isfinite(polished.fun) else best.x
+    layout = log_posterior.likelihood.layout
+    widths = layout.names_of(layout.width_name) if layout.width_name else ()
+    return climb(log_posterior, starts, widths=widths)
 
 
 def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimize.OptimizeResult:
@@ -128,36 +117,105 @@ def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimi
     return max((maximise(start) for start in starts), key=lambda result: -result.fun)
 
 
-def local_maximum(log_posterior: LogPosterior, starts: np.ndarray) -> np.ndarray:
-    """The highest local maximum of a log-posterior reached from ``starts`` (in z = log theta).
+def scan_posterior(log_posterior: LogPosterior) -> LogPosterior:
+    """The MAP search's quick scan of a log-posterior: the spectral engine, the scans' fallback.
 
-    L-BFGS-B within the prior's box, with finite-difference gradients, from
-    each start; the best end point. :func:`find_map` runs it from the best
-    points of the profile likelihood; a noise series' fit from a design.
+    The likelihood's ``fast`` engine with ``fallback=False``: of the sets no
+    spectral grid certifies, only those whose banded factor is cheap are
+    evaluated (:data:`bayes_jackal.toeplitz.SCAN_WORK`); the rest (long
+    memory, e.g. a 1 s kernel over 1e-4 sensor noise, each the O(n^2)
+    recursion) are -inf. Exact wherever it is finite.
 
     Parameters
     ----------
     log_posterior : LogPosterior
-        Or any callable over rows of z with a ``prior``.
-    starts : ndarray, shape (S, k)
+        Over a likelihood with ``engine`` and ``fallback`` fields.
 
     Returns
     -------
-    ndarray, shape (k,)
+    LogPosterior
 
     Examples
     --------
     >>> import numpy as np
-    >>> from bayes_jackal.map_search import local_maximum
-    >>> from bayes_jackal.priors import Prior
-    >>> def log_posterior(z):
-    ...     return -np.sum((np.atleast_2d(z) - np.log(2.0)) ** 2, axis=-1)
-    >>> log_posterior.prior = Prior(("a",), np.array([0.1]), np.array([10.0]), np.array([True]))
-    >>> z = local_maximum(log_posterior, np.array([[0.0], [1.5]]))
-    >>> round(float(np.exp(z[0])), 6)
-    2.0
+    >>> from bayes_jackal.map_search import scan_posterior
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> from bayes_jackal.series_likelihood import SeriesLikelihood
+    >>> values = np.random.default_rng(1).standard_normal(200)
+    >>> likelihood = SeriesLikelihood(values=values, dt=0.01, family="exponential",
+    ...                               engine="exact")
+    >>> prior = Prior(likelihood.names, np.full(3, 0.001), np.full(3, 10.0), np.ones(3, bool))
+    >>> scan = scan_posterior(LogPosterior(likelihood, prior)).likelihood
+    >>> scan.engine, scan.fallback
+    ('fast', False)
     """
-    return _best_local(log_posterior, np.atleast_2d(starts)).x
+    scan = replace(log_posterior.likelihood, engine="fast", fallback=False)
+    return LogPosterior(scan, log_posterior.prior)
+
+
+def climb(
+    log_posterior: LogPosterior, starts: np.ndarray, *, widths: Sequence[str] = ()
+) -> np.ndarray:
+    """The best maximum reached from ``starts``, its kernel widths swept out of local optima.
+
+    Bounded quasi-Newton (L-BFGS-B) searches within the prior's box from
+    each start, on the quick scan of the posterior (:func:`scan_posterior`).
+    Line scans of the kernel widths then move the best end point out of a
+    local optimum's basin (:func:`_sweep_widths`) and a search starts again
+    from there, at most three times; the result is polished on
+    ``log_posterior`` itself. :func:`find_map` climbs from the best points
+    of the profile likelihood, a noise series' fit from the best of a
+    design over its prior.
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+        Over a likelihood with ``engine`` and ``fallback`` fields.
+    starts : ndarray, shape (S, k)
+        Starts in z = log theta.
+    widths : sequence of str
+        The names of the kernel widths among the prior's parameters.
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        z of the maximum.
+
+    Examples
+    --------
+    A moving-average series of 8 samples: its likelihood in the width has
+    a local maximum near 5 samples. A search started there stays; the
+    sweep finds the best basin (0.2 s).
+
+    >>> import numpy as np
+    >>> from bayes_jackal.kernels import get_family
+    >>> from bayes_jackal.map_search import climb
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> from bayes_jackal.series_likelihood import SeriesLikelihood
+    >>> rng = np.random.default_rng(1)
+    >>> values = get_family("moving-average").noise(0.08, 0.01, 400, rng=rng)
+    >>> values += 0.3 * rng.standard_normal(400)
+    >>> likelihood = SeriesLikelihood(values=values, dt=0.01, family="moving-average")
+    >>> prior = Prior(likelihood.names, np.array([0.005, 0.01, 0.01]),
+    ...               np.array([0.4, 10.0, 10.0]), np.ones(3, bool))
+    >>> log_posterior = LogPosterior(likelihood, prior)
+    >>> start = np.log([[0.04, 1.0, 0.3]])
+    >>> stays = climb(log_posterior, start)  # no width to sweep
+    >>> swept = climb(log_posterior, start, widths=[likelihood.width_name])
+    >>> [round(float(np.exp(z[0]) / 0.01), 1) for z in (stays, swept)]
+    [5.2, 8.0]
+    """
+    prior = log_posterior.prior
+    scan = scan_posterior(log_posterior)
+    columns = [column for column, name in enumerate(prior.names) if name in widths]
+    best = _best_local(scan, np.atleast_2d(starts))
+    for _ in range(3):
+        swept = _sweep_widths(scan, best.x, prior, columns)
+        if np.array_equal(swept, best.x):
+            break
+        best = _best_local(scan, swept[None])
+    polished = _best_local(log_posterior, best.x[None])
+    return polished.x if np.isfinite(polished.fun) else best.x
 
 
 def _with_gradient(function: LogPosterior, prior: Prior):
@@ -178,7 +236,11 @@ def _with_gradient(function: LogPosterior, prior: Prior):
 
 
 def _sweep_widths(
-    function: LogPosterior, z: np.ndarray, prior: Prior, points: int = 256
+    function: LogPosterior,
+    z: np.ndarray,
+    prior: Prior,
+    width_columns: Sequence[int],
+    points: int = 256,
 ) -> np.ndarray:
     """Move each kernel width to the best of a grid over its prior range, the rest held.
 
@@ -187,11 +249,7 @@ def _sweep_widths(
     the best width, hundreds of nats lower, and a local search started in
     their basins stays there. A line scan of each width finds the best basin.
     """
-    layout = function.likelihood.layout
-    widths = layout.names_of(layout.width_name) if layout.width_name else ()
-    for column, name in enumerate(prior.names):
-        if name not in widths:
-            continue
+    for column in width_columns:
         candidates = np.repeat(z[None], points + 1, axis=0)
         candidates[1:, column] = np.linspace(prior.z_low[column], prior.z_high[column], points)
         z = candidates[np.argmax(function(candidates))]

@@ -41,7 +41,7 @@ from .errors import InputError
 from .evidence import Evidence, bridge_sampling
 from .executors import Executor, SerialExecutor
 from .kernels import FAMILIES
-from .map_search import laplace_walkers, local_maximum
+from .map_search import climb, laplace_walkers, scan_posterior
 from .noise_series import NoiseSeries
 from .parameters import WIDTH_PRIOR, prior_overrides, prior_range, width_keys
 from .posterior import HDI_PROB, az
@@ -183,18 +183,22 @@ def series_prior_overrides(
 def _start(
     log_posterior: LogPosterior, design_points: int
 ) -> Callable[[np.random.Generator, int], np.ndarray]:
-    """The walkers' start: the best of a design over the prior, polished, then its Laplace ball.
+    """The walkers' start: the best of a design over the prior, climbed, then its Laplace ball.
 
-    The design and the polish skip the long-memory sets the spectral grids
-    cannot certify (``fallback=False``: -inf), which would each cost the
-    O(n^2) recursion; the walkers' ball is checked with the full likelihood.
+    The design and the climb (:func:`~bayes_jackal.map_search.climb`: local
+    searches and sweeps of the width out of its local optima, such as the
+    moving-average family's at half the true width) use the quick scan
+    (:func:`~bayes_jackal.map_search.scan_posterior`: long-memory sets are
+    -inf there); the polish and the walkers' ball use the full likelihood.
     """
-    scan = LogPosterior(replace(log_posterior.likelihood, fallback=False), log_posterior.prior)
+    scan = scan_posterior(log_posterior)
+    widths = [log_posterior.likelihood.width_name] if log_posterior.likelihood.width_name else []
 
     def initial(rng: np.random.Generator, walkers: int) -> np.ndarray:
         design = log_posterior.prior.draw(design_points, rng)
         best = design[np.argsort(scan(design))[::-1][:MAP_STARTS]]
-        return laplace_walkers(log_posterior, local_maximum(scan, best), walkers, rng)
+        centre = climb(log_posterior, best, widths=widths)
+        return laplace_walkers(log_posterior, centre, walkers, rng)
 
     return initial
 

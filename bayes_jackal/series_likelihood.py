@@ -50,7 +50,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -102,8 +102,9 @@ class SeriesLikelihood:
     fallback : bool
         ``fast`` only: sets no spectral grid certifies (widths comparable
         with the record: long memory) take the time-domain fallback
-        (:func:`~bayes_jackal.toeplitz.fallback_loglike`); without, they are
-        -inf (a scan over a wide prior, where a long-memory set costs ~0.5 s).
+        (:func:`~bayes_jackal.toeplitz.fallback_loglike`); without, only
+        those with a short band do and the rest are -inf (a scan over a
+        wide prior, where a long-memory set costs ~0.5 s).
 
     Raises
     ------
@@ -264,8 +265,9 @@ class SeriesLikelihood:
             pending = evaluate_on_grids(
                 self.block, autocovariance, coefficients, spectral_forms, forms
             )
-            if len(pending) and self.fallback:
-                forms[pending] = self._recursion(noise[:, pending], fallback_loglike)
+            if len(pending):
+                density = partial(fallback_loglike, recursion=self.fallback)
+                forms[pending] = self._recursion(noise[:, pending], density)
         log_det, yy, ones, both = forms.T
         return log_det, yy, ones, 0.5 * (both - yy - ones)
 

@@ -35,7 +35,9 @@ import scipy.fft
 import scipy.linalg
 
 __all__ = [
+    "FALLBACK_BAND",
     "FAST_TOLERANCE",
+    "SCAN_WORK",
     "banded_toeplitz_loglike",
     "bandwidth",
     "fallback_loglike",
@@ -49,6 +51,14 @@ _QUIET_STEPS = 16
 #: the error grows with tol and n (measured on 2 x 5,000 moving-average
 #: residuals: 2.3e-6 nats at 1e-10, 1e-8 at 1e-12, 8e-10 at 1e-13).
 FAST_TOLERANCE = 1e-13
+#: The fallback (:func:`fallback_loglike`) takes the banded factor for bands
+#: of p + 1 <= FALLBACK_BAND sqrt(n) lags (n samples), the recursion beyond.
+FALLBACK_BAND = 4
+#: A scan's fallback takes the banded factor only where it costs little as
+#: well: n (p + 1)^2 <= SCAN_WORK (measured, one thread: 15 ms a set at
+#: n = 10,000 and p + 1 = 100, 1.3 ms at n = 1,000 and 31, 2.4 ms at 126);
+#: a set cost flat in the record's length.
+SCAN_WORK = 1e8
 
 
 def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) -> np.ndarray:
@@ -133,36 +143,37 @@ def toeplitz_loglike(acov: np.ndarray, x: np.ndarray, tol: float | None = None) 
     return np.where(np.isfinite(loglike), loglike, -np.inf)
 
 
-def bandwidth(acov: np.ndarray) -> int:
-    """Number of leading lags holding every nonzero autocovariance of a batch, p + 1.
+def bandwidth(acov: np.ndarray) -> np.ndarray:
+    """Number of leading lags holding every nonzero autocovariance of each set, p + 1.
 
     Parameters
     ----------
-    acov : ndarray, shape (B, n)
+    acov : ndarray, shape (..., n)
         Autocovariance at lags 0..n-1 of each batch member.
 
     Returns
     -------
-    int
-        1 + the last lag at which any member's autocovariance is nonzero
+    ndarray of int, shape (...)
+        1 + the last lag at which each member's autocovariance is nonzero
         (at least 1).
 
     Examples
     --------
     >>> import numpy as np
     >>> from bayes_jackal.toeplitz import bandwidth
-    >>> bandwidth(np.array([[2.0, 0.5, 0.0, 0.0], [1.0, 0.0, 0.1, 0.0]]))
-    3
+    >>> bandwidth(np.array([[2.0, 0.5, 0.0, 0.0], [1.0, 0.0, 0.1, 0.0], [1.0, 0.0, 0.0, 0.0]]))
+    array([2, 3, 1])
     """
-    nonzero = np.flatnonzero(np.any(acov != 0, axis=0))
-    return int(nonzero[-1]) + 1 if len(nonzero) else 1
+    nonzero = acov != 0
+    last = acov.shape[-1] - np.argmax(nonzero[..., ::-1], axis=-1)
+    return np.where(nonzero.any(axis=-1), last, 1)
 
 
 def banded_toeplitz_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Gaussian log-density of series under a banded Toeplitz covariance (banded Cholesky).
 
     The module docstring gives the equations: LAPACK's dpbtrf and dtbtrs
-    for each batch member, O(n p^2) each.
+    for each batch member, O(n p^2) each, p + 1 its own :func:`bandwidth`.
 
     Parameters
     ----------
@@ -197,11 +208,11 @@ def banded_toeplitz_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
     True
     """
     n = x.shape[-1]
-    width = min(acov.shape[1], n)
+    widths = np.minimum(bandwidth(acov), n)
     loglike = np.full(x.shape[:2], -np.inf)
-    for member, (row, series) in enumerate(zip(acov[:, :width], x, strict=True)):
+    for member, (row, width, series) in enumerate(zip(acov, widths, x, strict=True)):
         # Lower band storage: band[j, i] = T[i + j, i] = r_j (entries past n unused).
-        band = np.repeat(row[:, None], n, axis=1)
+        band = np.repeat(row[:width, None], n, axis=1)
         factor, info = scipy.linalg.lapack.dpbtrf(band, lower=1, overwrite_ab=1)
         if info != 0:  # not positive definite (info > 0)
             continue
@@ -211,18 +222,18 @@ def banded_toeplitz_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(loglike), -np.inf, loglike)  # dpbtrf lets NaN through
 
 
-def fallback_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
+def fallback_loglike(acov: np.ndarray, x: np.ndarray, *, recursion: bool = True) -> np.ndarray:
     """The ``fast`` engines' time-domain fallback: the banded Cholesky, else a stopped recursion.
 
-    Where the batch's autocovariance ends within p + 1 <= 4 sqrt(n) lags
-    (:func:`bandwidth`; every family but the exponential, at widths short
-    against the record) :func:`banded_toeplitz_loglike`, exact in
-    O(n p^2); otherwise :func:`toeplitz_loglike` stopped at
-    :data:`FAST_TOLERANCE`, whose sets here (those no spectral grid
-    certifies) run to order ~n: O(n^2). Measured on 2,376 residuals (one
-    thread, 11 sets): the banded factor 0.3 ms a set for a band of 11 lags,
-    3.7 ms for 131 and 9.2 ms for 305 (p + 1 = 6.3 sqrt(n)), the recursion
-    12 ms; 4 sqrt(n) keeps a margin.
+    Each set whose autocovariance ends within p + 1 <= 4 sqrt(n) lags
+    (:func:`bandwidth`, :data:`FALLBACK_BAND`; every family but the
+    exponential, at widths short against the record) takes
+    :func:`banded_toeplitz_loglike`, exact in O(n p^2); the others
+    :func:`toeplitz_loglike` stopped at :data:`FAST_TOLERANCE`, whose sets
+    here (those no spectral grid certifies) run to order ~n: O(n^2).
+    Measured on 2,376 residuals (one thread, 11 sets): the banded factor
+    0.3 ms a set for a band of 11 lags, 3.7 ms for 131 and 9.2 ms for 305
+    (p + 1 = 6.3 sqrt(n)), the recursion 12 ms; 4 sqrt(n) keeps a margin.
 
     Parameters
     ----------
@@ -230,6 +241,13 @@ def fallback_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
         Autocovariance at lags 0..n-1 of each batch member.
     x : ndarray, shape (B, E, n)
         E series per batch member.
+    recursion : bool
+        True: as above, every set evaluated. False: the cheap fallback of
+        the MAP search's scans, which evaluate many sets over the whole
+        prior: only the bands whose factor also costs little
+        (:data:`SCAN_WORK`: n (p + 1)^2 <= 1e8, ~15 ms a set) are
+        evaluated, the other sets are -inf (the recursion would cost 67 ms
+        a set at n = 4,000, 320 ms at 10,000).
 
     Returns
     -------
@@ -240,18 +258,26 @@ def fallback_loglike(acov: np.ndarray, x: np.ndarray) -> np.ndarray:
     Examples
     --------
     Both branches against the full recursion, for a banded and an AR(1)
-    autocovariance:
+    autocovariance; a scan takes the band only:
 
     >>> import numpy as np
     >>> from bayes_jackal.toeplitz import fallback_loglike, toeplitz_loglike
-    >>> x = np.random.default_rng(1).standard_normal((1, 1, 64))
-    >>> for acov in ([2.0, 0.5, 0.25] + [0.0] * 61, 0.5 ** np.arange(64)):
-    ...     acov = np.array([acov])
-    ...     print(bool(np.allclose(fallback_loglike(acov, x), toeplitz_loglike(acov, x))))
+    >>> x = np.random.default_rng(1).standard_normal((2, 1, 64))
+    >>> acov = np.array([[2.0, 0.5, 0.25] + [0.0] * 61, 0.5 ** np.arange(64)])
+    >>> bool(np.allclose(fallback_loglike(acov, x), toeplitz_loglike(acov, x)))
     True
-    True
+    >>> scan = fallback_loglike(acov, x, recursion=False)[:, 0]
+    >>> bool(np.isclose(scan[0], toeplitz_loglike(acov, x)[0, 0])), bool(np.isneginf(scan[1]))
+    (True, True)
     """
-    width = bandwidth(acov)
-    if width**2 <= 16 * acov.shape[-1]:
-        return banded_toeplitz_loglike(acov[:, :width], x)
-    return toeplitz_loglike(acov, x, FAST_TOLERANCE)
+    n = acov.shape[-1]
+    squared = bandwidth(acov) ** 2
+    banded = squared <= FALLBACK_BAND**2 * n
+    if not recursion:
+        banded &= n * squared <= SCAN_WORK
+    loglike = np.full(x.shape[:2], -np.inf)
+    if banded.any():
+        loglike[banded] = banded_toeplitz_loglike(acov[banded], x[banded])
+    if recursion and not banded.all():
+        loglike[~banded] = toeplitz_loglike(acov[~banded], x[~banded], FAST_TOLERANCE)
+    return loglike
