@@ -23,7 +23,7 @@ import h5py
 import numpy as np
 
 from . import interrupt
-from ._files import check_space
+from ._files import atomic_path, check_space
 from .defaults import BRIDGE_MIN_DRAWS, MAX_STEPS, MIN_EVIDENCE_STEPS, WALKERS
 from .errors import InputError, OutputError
 from .outputs import OutputLock
@@ -297,10 +297,16 @@ def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush
                 "seed); remove it or choose another output",
                 source=str(path),
             )
-    with backend.writing():
-        backend.reset(walkers, ndim)
-        with h5py.File(path, "a") as stored:
-            stored.attrs["fingerprint"] = fingerprint
+    # Built beside it and moved into place whole: a run killed while creating
+    # it (SIGKILL, a full disk) leaves no half-written file that its rerun
+    # could neither read nor, not knowing it for its own, replace.
+    with atomic_path(path) as fresh:
+        h5py.File(fresh, "w").close()
+        created = BufferedHDFBackend(str(fresh), flush_every)
+        with created.writing():
+            created.reset(walkers, ndim)
+            with h5py.File(fresh, "a") as stored:
+                stored.attrs["fingerprint"] = fingerprint
     return backend
 
 

@@ -8,6 +8,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -276,6 +277,36 @@ def _assert_clean_stop(code, latency, out, err, signum):
     assert out == ""  # stdout may carry --json
     assert "Traceback" not in err and "emcee:" not in err, err
     assert err.strip().splitlines()[-1].startswith("bayes-jackal: interrupted")
+
+
+_KILLED_WHILE_CREATING = """
+import os, signal, sys
+from pathlib import Path
+import h5py
+from bayes_jackal.chains import _backend
+create_dataset = h5py.Group.create_dataset
+def dying(self, *args, **kwargs):  # the first dataset written, then a hard kill
+    create_dataset(self, *args, **kwargs)
+    self.file.flush()
+    os.kill(os.getpid(), signal.SIGKILL)
+h5py.Group.create_dataset = dying
+_backend(Path(sys.argv[1]), "run", 8, 2, 10)
+"""
+
+
+def test_a_chain_file_appears_only_whole(tmp_path):
+    # CI once SIGKILLed `sample` while HDF5 was writing the new chain file's
+    # header: the rerun refused the file as unreadable (exit 2), and could
+    # not know it for its own. The file is now built beside its name and
+    # moved into place whole, so a kill while creating it leaves none (only
+    # the temporary, ".p.chain.h5.*.part"), and the rerun starts afresh.
+    path = tmp_path / "p.chain.h5"
+    killed = subprocess.run(
+        [sys.executable, "-c", _KILLED_WHILE_CREATING, str(path)], capture_output=True
+    )
+    assert killed.returncode == -signal.SIGKILL, killed.stderr
+    assert not path.exists()
+    assert [p.name.endswith(".part") for p in tmp_path.iterdir()] == [True]
 
 
 def test_sample_stops_cleanly_inside_emcee_and_says_it_resumes(experiment, tmp_path):

@@ -13,6 +13,7 @@ from bayes_jackal.kernels import FAMILIES, Family, gaussian_kernel, get_family
 from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.priors import Prior
 from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.toeplitz import bandwidth
 
 DT = 1.0 / 72.0
 #: Widths [s] below one sample, at a whole Gaussian tap count (3 w / dt = 10) and between.
@@ -96,6 +97,20 @@ def test_vectorised_autocorrelation_matches_a_per_width_self_correlation(name):
         taps = np.trim_zeros(family.taps(width, DT))
         assert np.sum(taps**2) == pytest.approx(1.0, rel=1e-13)
         np.testing.assert_allclose(row, autocorrelation(taps, 200), rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("name", FINITE[1:])
+def test_autocorrelation_ends_at_each_kernels_length_whatever_the_batch(name):
+    # A narrow kernel batched with a wide one (padded to its taps): the
+    # transform's rounding past the narrow kernel's length is dropped, so
+    # its band (what the banded factor takes) is its own, not the batch's
+    # (before: the wide one's). Within it, the FFT's rounding (1e-15).
+    family = FAMILIES[name]
+    narrow = len(np.trim_zeros(family.taps(0.05, DT)))
+    batched = family.autocorrelation(np.array([0.05, 0.5]), DT, 200)
+    alone = family.autocorrelation(0.05, DT, 200)
+    assert bandwidth(batched[0]) == bandwidth(alone) == narrow < bandwidth(batched[1])
+    np.testing.assert_allclose(batched[0], alone, rtol=0, atol=1e-15)
 
 
 def test_closed_forms_of_the_exponential_moving_average_and_triangular_families():
