@@ -300,13 +300,13 @@ def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush
     # Built beside it and moved into place whole: a run killed while creating
     # it (SIGKILL, a full disk) leaves no half-written file that its rerun
     # could neither read nor, not knowing it for its own, replace.
-    with atomic_path(path) as fresh:
+    # Errors name the chain file (backend.writing), never the temporary.
+    with backend.writing(), atomic_path(path) as fresh:
         h5py.File(fresh, "w").close()
         created = BufferedHDFBackend(str(fresh), flush_every)
-        with created.writing():
-            created.reset(walkers, ndim)
-            with h5py.File(fresh, "a") as stored:
-                stored.attrs["fingerprint"] = fingerprint
+        created.reset(walkers, ndim)
+        with h5py.File(fresh, "a") as stored:
+            stored.attrs["fingerprint"] = fingerprint
     return backend
 
 

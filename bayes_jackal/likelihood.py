@@ -287,9 +287,9 @@ class ResidualLikelihood:
         With the ``fast`` engine, evaluate parameter sets the spectral
         method cannot certify (long memory, spectral nulls) in the time
         domain (True: :func:`~bayes_jackal.toeplitz.fallback_loglike`), or
-        only those with a short band and -inf for the rest (False: the
-        fallback's ``recursion=False``, a quick, exact-where-defined scan of
-        the prior).
+        only those whose banded factor is cheap and -inf for the rest
+        (False: the fallback's ``recursion=False``, the MAP search's quick,
+        exact-where-defined scan of the prior).
     shared_width : bool
         One width for every channel and experiment (True), or the family's
         width in every noise group (False; ``--noise one-width`` is True

@@ -103,8 +103,9 @@ class SeriesLikelihood:
         ``fast`` only: sets no spectral grid certifies (widths comparable
         with the record: long memory) take the time-domain fallback
         (:func:`~bayes_jackal.toeplitz.fallback_loglike`); without, only
-        those with a short band do and the rest are -inf (a scan over a
-        wide prior, where a long-memory set costs ~0.5 s).
+        those whose banded factor is cheap do and the rest are -inf (the
+        MAP search's scan over a wide prior, where a long-memory set costs
+        ~0.5 s).
 
     Raises
     ------
