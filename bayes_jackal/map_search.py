@@ -158,11 +158,14 @@ def climb(
 ) -> np.ndarray:
     """The best maximum reached from ``starts``, its kernel widths swept out of local optima.
 
-    Bounded quasi-Newton (L-BFGS-B) searches within the prior's box from
-    each start, on the quick scan of the posterior (:func:`scan_posterior`).
-    Line scans of the kernel widths then move the best end point out of a
-    local optimum's basin (:func:`_sweep_widths`) and a search starts again
-    from there, at most three times; the result is polished on
+    Bounded quasi-Newton (L-BFGS-B) searches within the prior's box on the
+    quick scan of the posterior (:func:`scan_posterior`), from each start
+    and from each start with its kernel widths swept (:func:`_sweep_widths`:
+    a start's width can lie where its likelihood is far from the profile's,
+    e.g. the Whittle profile's widest width for a triangular kernel, from
+    which a local search ends in a corner of the prior). Sweeps then move
+    the best end point out of a local optimum's basin and a search starts
+    again from there, at most three times; the result is polished on
     ``log_posterior`` itself. :func:`find_map` climbs from the best points
     of the profile likelihood, a noise series' fit from the best of a
     design over its prior.
@@ -208,7 +211,10 @@ def climb(
     prior = log_posterior.prior
     scan = scan_posterior(log_posterior)
     columns = [column for column, name in enumerate(prior.names) if name in widths]
-    best = _best_local(scan, np.atleast_2d(starts))
+    starts = np.atleast_2d(starts)
+    swept = np.array([_sweep_widths(scan, start, prior, columns) for start in starts])
+    moved = np.any(swept != starts, axis=1)
+    best = _best_local(scan, np.vstack([starts, swept[moved]]))
     for _ in range(3):
         swept = _sweep_widths(scan, best.x, prior, columns)
         if np.array_equal(swept, best.x):

@@ -242,7 +242,7 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
     >>> ax.get_xlabel(), ax.get_ylabel()
     ('d_long [N s/m]', 'd_lat [N s/m]')
     >>> [text.get_text() for text in ax.get_legend().get_texts()][1:]
-    ['ridge d_lat = 3.650 d_long', 'thesis 11/3', 'truth (simulated)']
+    ['ridge d_lat = 3.6... d_long', 'thesis 11/3', 'truth (simulated)']
     """
     fig, ax = new_axes(ax, figsize=(5.5, 4.5))
     d_lat = idata.posterior["d_lat"].values.ravel()

@@ -66,7 +66,13 @@ def test_every_group_equals_its_comparison_alone(runs):
     assert together.keys() == alone.keys()
     for key, comparison in together.items():
         assert comparison.experiments == alone[key].experiments == [runs[key][0].name]
-        assert comparison.evidence == alone[key].evidence
+        for family, evidence in alone[key].evidence.items():
+            # The same chain (below, exactly); the workers run one BLAS thread
+            # (executors.single_threaded_children), this process the machine's, and
+            # BLAS rounds differently with the thread count: the error
+            # differed by 2e-17 (equal with OMP/OPENBLAS_NUM_THREADS=1 here).
+            assert comparison.evidence[family].log_evidence == evidence.log_evidence
+            assert comparison.evidence[family].error == pytest.approx(evidence.error, rel=1e-12)
         assert list(comparison.evidence) == list(FAMILIES)
         assert comparison.convergence_messages() == alone[key].convergence_messages()
         for family in FAMILIES:

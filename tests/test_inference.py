@@ -7,15 +7,16 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.optimize
 import scipy.stats
 
-from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal import DataError, InputError, inference, load_profile
 from bayes_jackal.chains import _burn_in_and_thinning, run_chain
 from bayes_jackal.defaults import BRIDGE_MIN_DRAWS, MIN_EVIDENCE_STEPS
 from bayes_jackal.evidence import bridge_sampling
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
 from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.map_search import find_map
+from bayes_jackal.map_search import find_map, laplace_walkers
 from bayes_jackal.noise_profile import profile_starts
 from bayes_jackal.posterior import load_posterior, save_posterior, summarize
 from bayes_jackal.priors import LogPosterior, Prior
@@ -96,7 +97,7 @@ def test_same_seed_same_chain_and_another_seed_another(v2_run):
     assert not np.array_equal(first.posterior["d_lat"], other.posterior["d_lat"])
 
 
-def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path):
+def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path, monkeypatch):
     likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     reference = _short_run(likelihood, seed=5, chain_file=tmp_path / "reference.h5")
 
@@ -106,11 +107,21 @@ def test_an_interrupted_run_resumes_without_losing_steps(v2_run, tmp_path):
         calls = 0
 
         def __call__(self, theta):
-            type(self).calls += 1 < len(theta) <= 16  # emcee half-ensembles
+            # emcee's half-ensembles (16 walkers, fewer inside the prior),
+            # counted once the walkers are drawn: after the MAP search.
+            type(self).calls += started and 1 < len(theta) <= 16
             if type(self).calls > 100:
                 raise KeyboardInterrupt
             return super().__call__(theta)
 
+    started = False
+
+    def walkers_drawn(*args):
+        nonlocal started
+        started = True
+        return laplace_walkers(*args)
+
+    monkeypatch.setattr(inference, "laplace_walkers", walkers_drawn)
     chain = tmp_path / "chain.h5"
     with pytest.raises(KeyboardInterrupt):
         _short_run(Interrupted([v2_run], ROBOT, channels=YAW), seed=5, chain_file=chain)
@@ -395,6 +406,39 @@ def test_map_search_finds_the_moving_average_width_past_its_local_optima():
     # The width's posterior sd here is ~1 ms; the neighbouring optima lie 50 ms away.
     assert found[2] == pytest.approx(0.15, abs=0.01)
     assert likelihood(found[None])[0] >= likelihood(truth[None])[0]
+
+
+def test_map_search_is_not_led_into_a_corner_by_the_profiles_widest_width():
+    # tests/test_evidence.py's family test, seed 5, fitted with the
+    # triangular family: the Whittle profile's best starts all have the
+    # widest width (1 s), where the Whittle likelihood is ~11,600 nats above
+    # the exact one. A local search from there ended in the corner of the
+    # smallest width and sensor noise (log-posterior 167 nats below the
+    # best), and two walkers of the chain stayed in that mode. The widths
+    # are now swept before the local search too. The reference: local
+    # searches on the full log-posterior from 12 widths over the prior.
+    noise = NoiseSettings(
+        family="exponential",
+        width=0.15,
+        sigma_c=(0.005, 0.005, 0.02),
+        sigma_n=(0.003, 0.003, 0.004),
+    )
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=5)
+    likelihood = ResidualLikelihood([run], ROBOT, family="triangular", channels=YAW)
+    log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, ROBOT))
+    prior = log_posterior.prior
+    starts = np.repeat(np.log([[110.0, 30.0, 0.1, 0.02, 0.003]]), 12, axis=0)
+    starts[:, 2] = np.linspace(prior.z_low[2], prior.z_high[2], 14)[1:-1]
+    bounds = list(zip(prior.z_low, prior.z_high, strict=True))
+    reference = max(
+        -scipy.optimize.minimize(
+            lambda z: -log_posterior(z)[0], start, method="L-BFGS-B", bounds=bounds
+        ).fun
+        for start in starts
+    )
+    found = find_map(log_posterior, np.random.default_rng(5), 512)
+    # 1 nat: L-BFGS-B's stopping tolerance, as below.
+    assert log_posterior(found)[0] >= reference - 1.0
 
 
 #: Noise of tests/test_recovery_real.py's thesis-like runs: process-noise sd
