@@ -33,9 +33,9 @@ the exact one by tens of nats for the Gaussian family, which does not move
 a basin hundreds of nats better; the local searches that follow use the
 exact engine. Where a kernel's spectrum has nulls (triangular, boxcar) and
 the width is long, it can be off by thousands (measured: 11,600 nats at a
-1 s triangle over 5 ms of sensor noise), and its best width there is
-spurious; the MAP search sweeps each start's widths on the exact engine
-(:func:`bayes_jackal.map_search.climb`).
+1 s triangle on a simulated yaw-rate run), and its best width there is
+spurious; the MAP search sweeps each start's widths on the quick scan of
+the exact likelihood (:func:`bayes_jackal.map_search.climb`).
 """
 
 from __future__ import annotations
