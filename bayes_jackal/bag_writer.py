@@ -1,9 +1,9 @@
 """Simulated experiments as realistic ROS bags, to test the reader against the known truth.
 
 :func:`write_bag` writes a simulated experiment as a realistic bag (72 Hz
-IMU, 360 Hz motion capture with occasional duplicated messages, four-wheel
-joint states, cmd_vel), so that the whole chain can be tested against the
-known truth; :func:`bag_messages` makes its messages and
+IMU, 360 Hz motion capture with realistic pose noise and occasional
+duplicated messages, four-wheel joint states, cmd_vel), so that the whole
+chain can be tested against the known truth; :func:`bag_messages` makes its messages and
 :func:`write_messages` writes any list of them (ROS1 ``.bag``, ROS2
 ``.mcap`` or ``.db3``) with rosbags' writers. The reader is
 :func:`bayes_jackal.bags.read_bag`.
@@ -20,29 +20,43 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.special
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from scipy.integrate import cumulative_trapezoid
-from scipy.interpolate import CubicSpline
 
 from ._files import atomic_path
 from .bag_reading import typestore
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import as_rng
+from .physics import CHANNELS, continuous_matrices
 from .robot import RobotProfile
 from .simulate import Series, command_profile
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BagMessage", "bag_messages", "stamped_header", "write_bag", "write_messages"]
+__all__ = [
+    "POSE_NOISE",
+    "BagMessage",
+    "bag_messages",
+    "pose_path",
+    "stamped_header",
+    "write_bag",
+    "write_messages",
+]
 
-#: :func:`write_bag`: motion-capture rate [Hz], fraction of pose messages
-#: published twice, receive latency [ns], epoch of time zero [s], and the
-#: difference of front and rear wheel speeds [rad/s] (averages out per side).
+#: :func:`write_bag`: motion-capture rate [Hz], its noise (position sd per
+#: axis [m], heading sd [rad]: a lab system's, OptiTrack's 0.1-0.5 mm),
+#: fraction of pose messages published twice, receive latency [ns], epoch of
+#: time zero [s], and the difference of front and rear wheel speeds [rad/s]
+#: (averages out per side).
 POSE_RATE = 360.0
+POSE_NOISE = (0.5e-3, 0.002)
+#: Sub-steps per sample of the path between samples (:func:`pose_path`).
+SUBSTEPS = 20
 DUPLICATE_FRACTION = 0.005
 LATENCY_NS = 2_000_000
 EPOCH = 1_700_000_000
@@ -98,6 +112,8 @@ def bag_messages(
     robot: RobotProfile,
     format: str = "ros2",
     rng: np.random.Generator | int | None = None,
+    *,
+    pose_noise: tuple[float, float] = POSE_NOISE,
 ) -> list[BagMessage]:
     """The messages of a simulated experiment as they would be recorded.
 
@@ -105,10 +121,9 @@ def bag_messages(
     four wheels on the same stamps (front and rear differ by
     ±:data:`WHEEL_SPREAD`, averaging to the experiment's wheel speeds);
     cmd_vel from the series' command profile at a quarter of the rate; and a
-    motion-capture pose at :data:`POSE_RATE` from integrating the noise-free
-    states (``truth_arrays`` ``vx_state``, ``vy_state``, ``yaw_state``):
-    heading and world position by the trapezoid rule on the experiment's
-    clock, then a cubic spline to the pose stamps. About
+    motion-capture pose at :data:`POSE_RATE`: the true path between samples
+    (:func:`pose_path`) at the pose stamps, plus white noise of
+    ``pose_noise`` (position per axis, heading). About
     :data:`DUPLICATE_FRACTION` of the pose messages are published twice with
     the same stamp. Stamps start at :data:`EPOCH`; receive times lag by
     :data:`LATENCY_NS`.
@@ -118,11 +133,14 @@ def bag_messages(
     experiment : Experiment
         A simulated experiment (:func:`bayes_jackal.simulate.simulate_experiment`).
     robot : RobotProfile
-        Topic and wheel joint names.
+        Constants, topic and wheel joint names.
     format : {"ros1", "ros2"}
         Typestore of the messages.
     rng : numpy.random.Generator, int or None
-        Chooses the duplicated pose messages.
+        Draws the pose noise and chooses the duplicated pose messages.
+    pose_noise : (float, float)
+        Motion-capture noise: position sd per axis [m] and heading sd
+        [rad] (default :data:`POSE_NOISE`; (0, 0) for exact poses).
 
     Returns
     -------
@@ -161,18 +179,26 @@ def bag_messages(
     right, left = robot.wheels.get("right", []), robot.wheels.get("left", [])
     if not (right and left):
         raise InputError("the robot profile names no wheel joints", field="wheels")
+    noise = np.asarray(pose_noise, float)
+    if noise.shape != (2,) or not (np.isfinite(noise).all() and (noise >= 0).all()):
+        raise InputError(
+            f"expected two non-negative sds (position [m], heading [rad]), got {pose_noise!r}",
+            field="pose_noise",
+        )
     store = typestore(format)
     rng = as_rng(rng)
     t = experiment.t
     stamps = EPOCH * 1_000_000_000 + np.round(t * 1e9).astype(np.int64)
-    heading = cumulative_trapezoid(experiment.truth_arrays["yaw_state"], t, initial=0.0)
-    vx, vy = experiment.truth_arrays["vx_state"], experiment.truth_arrays["vy_state"]
-    world_x = cumulative_trapezoid(np.cos(heading) * vx - np.sin(heading) * vy, t, initial=0.0)
-    world_y = cumulative_trapezoid(np.sin(heading) * vx + np.cos(heading) * vy, t, initial=0.0)
+    fine_t, path = pose_path(experiment, robot)
+    heading = np.interp(t, fine_t, path[:, 2])
     pose_t = np.arange(int(np.floor(t[-1] * POSE_RATE)) + 1) / POSE_RATE
-    x, y, psi = CubicSpline(t, np.column_stack([world_x, world_y, heading]))(pose_t).T
     pose_stamps = EPOCH * 1_000_000_000 + np.round(pose_t * 1e9).astype(np.int64)
     repeat = 1 + (rng.random(len(pose_t)) < DUPLICATE_FRACTION)
+    x, y, psi = (np.interp(pose_t, fine_t, column) for column in path.T)
+    x, y, psi = (
+        values + sd * rng.standard_normal(len(pose_t))
+        for values, sd in zip((x, y, psi), noise[[0, 0, 1]], strict=True)
+    )
 
     types = store.types
     messages = []
@@ -251,6 +277,77 @@ def bag_messages(
         )
     messages.sort(key=lambda m: m.time)
     return messages
+
+
+def pose_path(experiment: Experiment, robot: RobotProfile) -> tuple[np.ndarray, np.ndarray]:
+    """The true world pose of a simulated run between its samples.
+
+    The simulator's model holds each step's input and process noise
+    (:mod:`bayes_jackal.measurements`): over the step from t_k, with the
+    channel's continuous pole a, input row b and discrete noise w_k,
+
+        x(t_k + s) = e^(a s) x_k + (e^(a s) - 1) / a (b . u_k + w_k / g),
+        g = (e^(a dt) - 1) / a,
+
+    which meets x_{k+1} at s = dt. The body velocity is evaluated so at
+    :data:`SUBSTEPS` points per step, and the heading and world position
+    integrated by the trapezoid rule on that grid (error ~ dt^2 / (12
+    SUBSTEPS^2) times the acceleration's rate: below 1e-7 m here).
+
+    Parameters
+    ----------
+    experiment : Experiment
+        A simulated experiment: its truth has the damping, and its truth
+        arrays the states and process noise.
+    robot : RobotProfile
+        The constants it was simulated with.
+
+    Returns
+    -------
+    t : ndarray, shape (F,)
+        The fine grid [s] (F = SUBSTEPS (N - 1) + 1).
+    path : ndarray, shape (F, 3)
+        World x, y [m] and heading [rad], starting at the origin.
+
+    Examples
+    --------
+    The path meets the states at the samples: the heading's rate there is
+    the simulated yaw rate:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.bag_writer import SUBSTEPS, pose_path
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import Series, simulate_experiment
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> t, path = pose_path(run, robot)
+    >>> len(t) == SUBSTEPS * (len(run.t) - 1) + 1
+    True
+    >>> rate = np.gradient(path[:, 2], t)[::SUBSTEPS]
+    >>> bool(np.allclose(rate[1:-1], run.truth_arrays["yaw_state"][1:-1], atol=2e-3))
+    True
+    """
+    truth, arrays = experiment.truth or {}, experiment.truth_arrays
+    A, B = continuous_matrices(robot, truth["d_lat"], truth["d_long"])
+    a = np.diagonal(A)  # (3,)
+    dt = experiment.dt
+    states = np.column_stack([arrays[f"{c}_state"] for c in CHANNELS])  # (N, 3)
+    noise = np.column_stack([arrays[f"{c}_process_noise"] for c in CHANNELS])[:-1]
+    g = dt * scipy.special.exprel(a * dt)
+    force = experiment.inputs[:-1] @ B.T + noise / g  # b . u_k + w_k / g, (N - 1, 3)
+    s = dt * np.arange(SUBSTEPS) / SUBSTEPS
+    decay = np.exp(np.multiply.outer(s, a))  # (S, 3)
+    gain = s[:, None] * scipy.special.exprel(np.multiply.outer(s, a))
+    steps = decay[None] * states[:-1, None] + gain[None] * force[:, None]  # (N - 1, S, 3)
+    velocity = np.concatenate([steps.reshape(-1, 3), states[-1:]])
+    fine_t = experiment.t[0] + np.arange(len(velocity)) * (dt / SUBSTEPS)
+    heading = cumulative_trapezoid(velocity[:, 2], fine_t, initial=0.0)
+    cos, sin = np.cos(heading), np.sin(heading)
+    world = [
+        cumulative_trapezoid(cos * velocity[:, 0] - sin * velocity[:, 1], fine_t, initial=0.0),
+        cumulative_trapezoid(sin * velocity[:, 0] + cos * velocity[:, 1], fine_t, initial=0.0),
+    ]
+    return fine_t, np.column_stack([*world, heading])
 
 
 def stamped_header(store: Typestore, stamp: int, frame: str, seq: int) -> object:
@@ -388,6 +485,8 @@ def write_bag(
     format: str = "ros2",
     rng: np.random.Generator | int | None = None,
     compression: str | None = None,
+    *,
+    pose_noise: tuple[float, float] = POSE_NOISE,
 ) -> Path:
     """Write a simulated experiment as a realistic bag (:func:`bag_messages`).
 
@@ -401,9 +500,12 @@ def write_bag(
         Topic and wheel joint names.
     format : {"ros1", "ros2"}
     rng : numpy.random.Generator, int or None
-        Chooses the duplicated pose messages.
+        Draws the pose noise and chooses the duplicated pose messages.
     compression : {"bz2", "lz4"}, optional
         Chunk compression of a ROS1 bag.
+    pose_noise : (float, float)
+        Motion-capture noise: position sd per axis [m] and heading sd
+        [rad] (:data:`POSE_NOISE`).
 
     Returns
     -------
@@ -431,5 +533,5 @@ def write_bag(
     >>> np.allclose(back.yaw_rate, run.yaw_rate, atol=1e-6)
     True
     """
-    messages = bag_messages(experiment, robot, format, rng)
+    messages = bag_messages(experiment, robot, format, rng, pose_noise=pose_noise)
     return write_messages(messages, path, format, compression)

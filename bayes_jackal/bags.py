@@ -32,12 +32,17 @@ Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
    cover (no overlap is an error). Time zero is the first IMU stamp.
 4. A gap longer than ``max_gap`` in any of those topics splits the run; the
    longest gap-free piece is kept (shorter than :data:`MIN_DURATION`: error).
-5. The pose is resampled to a uniform grid at its median rate, the heading
-   unwrapped, the world position differentiated with a Savitzky-Golay filter
-   (:data:`SMOOTHING_WINDOW`, :data:`SMOOTHING_ORDER`) and rotated into the
-   body frame: vx = cos(psi) x' + sin(psi) y', vy = -sin(psi) x' + cos(psi) y'.
-6. Everything is linearly interpolated onto the IMU clock: a uniform grid at
-   the IMU's median rate through the IMU stamps.
+5. The poses are kept as recorded (:class:`~bayes_jackal.pose_track.PoseTrack`:
+   world x, y and the heading, unwrapped, at their own stamps): the
+   likelihood and the filters model them (:mod:`bayes_jackal.pose_increments`).
+   For plots, body-frame vx, vy are also derived: the pose resampled to a
+   uniform grid at its median rate, the world position differentiated with
+   a Savitzky-Golay filter (:data:`SMOOTHING_WINDOW`, :data:`SMOOTHING_ORDER`)
+   and rotated into the body frame: vx = cos(psi) x' + sin(psi) y',
+   vy = -sin(psi) x' + cos(psi) y'.
+6. The IMU, the wheel speeds and the derived vx, vy are linearly
+   interpolated onto the IMU clock: a uniform grid at the IMU's median rate
+   through the IMU stamps.
 7. The steady window is detected (:func:`bayes_jackal.experiment.detect_steady`)
    unless given.
 
@@ -52,13 +57,13 @@ from pathlib import Path
 
 import numpy as np
 from rosbags.highlevel import AnyReader
-from scipy.signal import savgol_filter
 
 from ._files import file_sha256
 from .bag_reading import READ_ERRORS, bag_format, header_stamp, open_bag, receive_time_for_zero
 from .defaults import MAX_GAP
 from .errors import DataError, InputError
 from .experiment import Experiment, detect_steady
+from .pose_track import SMOOTHING_ORDER, SMOOTHING_WINDOW, PoseTrack
 from .progress import Progress
 from .robot import RobotProfile
 from .stamps import MIN_SAMPLES, longest_run, sort_stamps
@@ -74,12 +79,6 @@ MESSAGE_TYPES = {
 }
 #: Roles that must be in the bag; cmd_vel is optional.
 REQUIRED_ROLES = ("imu", "pose", "joint_states")
-#: Savitzky-Golay differentiating smoother of the pose: window [s] and order.
-#: A local quadratic fit over 0.1 s; for deriv=1 it equals the least-squares
-#: slope, which passes velocities varying slower than ~5 Hz and damps
-#: motion-capture noise (0.1 mm noise -> ~0.5 mm/s at 360 Hz).
-SMOOTHING_WINDOW = 0.1
-SMOOTHING_ORDER = 2
 #: Largest tolerated deviation of a pose quaternion's norm from 1.
 QUATERNION_TOLERANCE = 0.01
 #: Shortest usable run after cutting at dropouts [s].
@@ -205,7 +204,8 @@ def read_bag(
     wheels = streams["joint_states"].values
     omega_r = np.interp(grid, seconds["joint_states"], wheels[:, 0])
     omega_l = np.interp(grid, seconds["joint_states"], wheels[:, 1])
-    vx, vy, pose_rate = _body_velocity(seconds["pose"], streams["pose"].values, source)
+    pose = _pose_track(seconds["pose"], streams["pose"].values, grid, step, source)
+    vx, vy, pose_rate = _body_velocity(pose)
     vx = np.interp(grid, vx[0], vx[1])
     vy = np.interp(grid, vy[0], vy[1])
 
@@ -246,6 +246,7 @@ def read_bag(
         omega_l=omega_l,
         vx=vx,
         vy=vy,
+        pose=pose,
         name=path.stem,
         steady_window=steady,
         provenance=provenance,
@@ -458,35 +459,36 @@ def _cut_dropouts(
     return grid[start:stop]
 
 
-def _body_velocity(
-    t: np.ndarray, pose: np.ndarray, source: str
-) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], float]:
-    """Body-frame vx, vy [m/s] from world poses (x, y, quaternion) at times t [s].
+def _pose_track(
+    t: np.ndarray, pose: np.ndarray, grid: np.ndarray, step: float, source: str
+) -> PoseTrack:
+    """The poses (x, y, quaternion) at times t [s] as a track over the run's grid [s].
 
-    Returns (times, vx), (times, vy) on a uniform grid at the pose's median
-    rate, and that rate [Hz].
+    The heading is the quaternion's yaw, unwrapped; the poses kept reach one
+    IMU ``step`` beyond the grid's ends, so that every sample has the poses
+    around it (:mod:`bayes_jackal.pose_increments`).
     """
     x, y, qx, qy, qz, qw = pose.T
     heading = np.unwrap(np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2)))
-    step = float(np.median(np.diff(t)))
-    uniform = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-6)) + 1) * step
-    length = round(SMOOTHING_WINDOW / step) // 2 * 2 + 1
-    if length <= SMOOTHING_ORDER or len(uniform) < length:
-        raise DataError(
-            f"pose too short or too slow for the {SMOOTHING_WINDOW} s smoother "
-            f"({len(uniform)} samples at {1 / step:.1f} Hz)",
-            source=source,
-            field="pose",
-        )
-    world = [
-        savgol_filter(np.interp(uniform, t, c), length, SMOOTHING_ORDER, deriv=1, delta=step)
-        for c in (x, y)
-    ]
-    psi = np.interp(uniform, t, heading)
+    keep = (t >= grid[0] - step) & (t <= grid[-1] + step)
+    return PoseTrack(t[keep], x[keep], y[keep], heading[keep], source=source)
+
+
+def _body_velocity(
+    pose: PoseTrack,
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], float]:
+    """Body-frame vx, vy [m/s] derived from the poses, for plots.
+
+    Returns (times, vx), (times, vy) on a uniform grid at the pose's median
+    rate (:meth:`~bayes_jackal.pose_track.PoseTrack.smoothed_rates`), and
+    that rate [Hz].
+    """
+    uniform, rates = pose.smoothed_rates()
+    psi = np.interp(uniform, pose.t, pose.heading)
     cos, sin = np.cos(psi), np.sin(psi)
-    vx = cos * world[0] + sin * world[1]
-    vy = -sin * world[0] + cos * world[1]
-    return (uniform, vx), (uniform, vy), 1.0 / step
+    vx = cos * rates[:, 0] + sin * rates[:, 1]
+    vy = -sin * rates[:, 0] + cos * rates[:, 1]
+    return (uniform, vx), (uniform, vy), 1.0 / (uniform[1] - uniform[0])
 
 
 def _check_window(

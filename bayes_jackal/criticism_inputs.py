@@ -22,6 +22,7 @@ from .criticism_statistics import (
     steadiness,
 )
 from .experiment import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, Experiment
+from .measurements import measurement_of
 from .posterior import (
     az,
     model_autocovariance,
@@ -52,8 +53,12 @@ INPUTS = ("sum", "difference")
 
 
 def _input_series(experiment: Experiment) -> dict[str, np.ndarray]:
-    """Wheel-speed sum and difference at the residuals' times k = 0..N-2 [rad/s]."""
-    u = experiment.inputs[:-1]
+    """Wheel-speed sum and difference at the samples' times [rad/s].
+
+    The residual k of every channel begins at sample k: the first of them
+    line up with the residuals.
+    """
+    u = experiment.inputs
     return dict(zip(INPUTS, (u[:, 0] + u[:, 1], u[:, 0] - u[:, 1]), strict=True))
 
 
@@ -106,13 +111,15 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
                 experiment, metadata.robot, theta[0, 0], theta[0, 1], channel, steady=False
             )
             n = len(residual)
-            acov = model_autocovariance(metadata, index, channel, theta, n)[0]
+            samples = measurement_of(experiment, channel).series(experiment, channel).samples
+            acov = model_autocovariance(metadata, index, channel, theta, n, samples=samples)[0]
             length = min(lags, n - 1)
             sd = {
-                name: float(cross_correlation_sd(acov / acov[0], u)) for name, u in inputs.items()
+                name: float(cross_correlation_sd(acov / acov[0], u[:n]))
+                for name, u in inputs.items()
             }
             z = {
-                name: cross_correlation(residual, u, length) / sd[name]
+                name: cross_correlation(residual, u[:n], length) / sd[name]
                 for name, u in inputs.items()
             }
             threshold = simultaneous_threshold(

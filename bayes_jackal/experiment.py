@@ -2,7 +2,9 @@
 
 An :class:`Experiment` is what every analysis consumes: time [s], the
 measured yaw rate [rad/s], the wheel speeds (omega_r, omega_l) [rad/s] and,
-when known, body-frame vx, vy [m/s]. It comes from a CSV file (docs/design.md §2), a
+when known, body-frame vx, vy [m/s] and the motion-capture poses they were
+derived from (:class:`~bayes_jackal.pose_track.PoseTrack`, at their own
+stamps). It comes from a CSV file (docs/design.md §2), a
 MATLAB ``.mat`` file (v5/v7 via scipy.io, v7.3 via h5py), the package's own
 NetCDF experiment file (written by ``simulate`` and ``ingest``), or is built
 in memory. The CSV and MATLAB readers, their column mapping and stamp repair,
@@ -35,9 +37,11 @@ from ._files import write_hdf5
 from .defaults import OPTIONAL, REQUIRED
 from .errors import DataError
 from .physics import CHANNELS
+from .pose_track import POSE_FIELDS, PoseTrack
 from .stamps import MIN_SAMPLES, UNIFORM_TOLERANCE, longest_run
 
 __all__ = [
+    "MEASUREMENTS",
     "STEADY_INPUT_TOLERANCE",
     "STEADY_MIN_DURATION",
     "STEADY_SMOOTHING",
@@ -79,6 +83,12 @@ MAGNITUDE_LIMITS = {
 UNLABELLED = "unlabelled"
 #: Measured-state field of each model channel.
 CHANNEL_FIELDS = {"vx": "vx", "vy": "vy", "yaw": "yaw_rate"}
+#: How a channel can be recorded (:meth:`Experiment.measurement`): its state
+#: by a sensor (``rate``: the IMU's yaw rate, or a velocity sensor), or
+#: through the world poses of motion capture (``pose``: vx and vy).
+MEASUREMENTS = ("rate", "pose")
+#: The channels motion-capture poses record.
+POSE_CHANNELS = ("vx", "vy")
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,7 +104,12 @@ class Experiment:
     omega_r, omega_l : ndarray, shape (N,)
         Right and left wheel speeds [rad/s], the model input.
     vx, vy : ndarray, shape (N,), optional
-        Body-frame longitudinal and lateral velocity [m/s].
+        Body-frame longitudinal and lateral velocity [m/s]: measured, or
+        derived from ``pose`` (then for plots; the likelihood models the
+        poses).
+    pose : PoseTrack, optional
+        The motion-capture poses at their own stamps [s on this time axis];
+        needs ``vx`` and ``vy`` (a reader derives them).
     name : str
         Short name (the file stem for files).
     series : str, optional
@@ -139,6 +154,7 @@ class Experiment:
     omega_l: np.ndarray
     vx: np.ndarray | None = None
     vy: np.ndarray | None = None
+    pose: PoseTrack | None = None
     name: str = "experiment"
     series: str | None = None
     steady_window: tuple[float, float] | None = None
@@ -158,6 +174,8 @@ class Experiment:
         _check_uniform(columns["t"], self.source, lambda i: f"sample {i}")
         if self.steady_window is not None:
             object.__setattr__(self, "steady_window", _window(self.steady_window, self.source))
+        if self.pose is not None:
+            _check_pose(self.pose, columns, self.source)
         for key, value in columns.items():
             value.setflags(write=False)
             object.__setattr__(self, key, value)
@@ -176,6 +194,19 @@ class Experiment:
     def channels(self) -> tuple[str, ...]:
         """Model channels (``vx``, ``vy``, ``yaw``) this experiment measures."""
         return tuple(c for c in CHANNELS if getattr(self, CHANNEL_FIELDS[c]) is not None)
+
+    def measurement(self, channel: str) -> str:
+        """How ``channel`` was recorded: ``"pose"`` (vx, vy with poses) or ``"rate"``.
+
+        Examples
+        --------
+        >>> import bayes_jackal as bj
+        >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+        >>> run.measurement("vx"), run.measurement("yaw")
+        ('rate', 'rate')
+        """
+        self.channel(channel)  # a DataError when it is not in the experiment
+        return "pose" if self.pose is not None and channel in POSE_CHANNELS else "rate"
 
     def channel(self, name: str) -> np.ndarray:
         """Measured state of one model channel (``"vx"``, ``"vy"`` or ``"yaw"``)."""
@@ -213,7 +244,11 @@ class Experiment:
             if getattr(self, key) is not None
         }
         arrays = {key: value[keep] for key, value in self.truth_arrays.items()}
-        return dataclasses.replace(self, **cut, truth_arrays=arrays, steady_window=None)
+        # The poses around each kept sample too: the pose channels read the
+        # poses within half a step of each sample (bayes_jackal.pose_increments).
+        dt = self.dt
+        pose = None if self.pose is None else self.pose.window(start - dt, stop + dt)
+        return dataclasses.replace(self, **cut, pose=pose, truth_arrays=arrays, steady_window=None)
 
     def steady(self) -> Experiment:
         """The steady-state window, or the whole experiment when none is set."""
@@ -243,6 +278,29 @@ def numeric_array(values: object, source: str | None, field: str) -> np.ndarray:
             field=field,
         )
     return array.astype(float)
+
+
+def _check_pose(pose: object, columns: dict[str, np.ndarray], source: str) -> None:
+    """Poses come with the velocities derived from them, and overlap the samples."""
+    if not isinstance(pose, PoseTrack):
+        raise DataError(
+            f"expected a PoseTrack, got {type(pose).__name__}", source=source, field="pose"
+        )
+    missing = [key for key in POSE_CHANNELS if key not in columns]
+    if missing:
+        raise DataError(
+            f"poses need the velocities derived from them; {missing} missing",
+            source=source,
+            field="pose",
+        )
+    t = columns["t"]
+    if pose.t[0] >= t[-1] or pose.t[-1] <= t[0]:
+        raise DataError(
+            f"the poses ({pose.t[0]:.6g}..{pose.t[-1]:.6g} s) do not overlap the samples "
+            f"({t[0]:.6g}..{t[-1]:.6g} s)",
+            source=source,
+            field="pose.t",
+        )
 
 
 def _window(window: object, source: str) -> tuple[float, float]:
@@ -497,6 +555,14 @@ def write_netcdf(experiment: Experiment, path: str | Path) -> Path:
         if getattr(experiment, key) is not None
     }
     data |= {f"truth_{key}": ("time", value) for key, value in experiment.truth_arrays.items()}
+    coords = {"time": ("time", experiment.t, {"units": "s"})}
+    if experiment.pose is not None:
+        coords["pose_time"] = ("pose_time", experiment.pose.t, {"units": "s"})
+        data |= {
+            f"pose_{key}": ("pose_time", getattr(experiment.pose, key), {"units": unit})
+            for key, unit in POSE_FIELDS.items()
+            if key != "t"
+        }
     attrs = {
         "format": FORMAT,
         "name": experiment.name,
@@ -506,9 +572,7 @@ def write_netcdf(experiment: Experiment, path: str | Path) -> Path:
     }
     if experiment.steady_window is not None:
         attrs["steady_window"] = list(experiment.steady_window)
-    dataset = xr.Dataset(
-        data, coords={"time": ("time", experiment.t, {"units": "s"})}, attrs=attrs
-    )
+    dataset = xr.Dataset(data, coords=coords, attrs=attrs)
     return write_hdf5(dataset, path)
 
 
@@ -558,6 +622,7 @@ def read_netcdf(path: str | Path) -> Experiment:
     return Experiment(
         t=dataset["time"].values,
         **{key: dataset[key].values for key in (*REQUIRED[1:], *OPTIONAL) if key in dataset},
+        pose=_pose(dataset, source),
         name=str(dataset.attrs.get("name") or path.stem),
         series=str(dataset.attrs.get("series", "")) or None,
         steady_window=dataset.attrs.get("steady_window"),
@@ -570,6 +635,18 @@ def read_netcdf(path: str | Path) -> Experiment:
         provenance=_json_attribute(dataset.attrs, "provenance", source),
         source=source,
     )
+
+
+def _pose(dataset: xr.Dataset, source: str) -> PoseTrack | None:
+    """The pose track of an experiment file; None for a file without poses (older ones)."""
+    if "pose_time" not in dataset.coords:
+        return None
+    keys = [f"pose_{key}" for key in POSE_FIELDS if key != "t"]
+    missing = [key for key in keys if key not in dataset]
+    if missing:
+        raise DataError(f"missing variable(s) {missing}", source=source, field=missing[0])
+    arrays = [numeric_array(dataset[key].values, source, key) for key in keys]
+    return PoseTrack(dataset["pose_time"].values, *arrays, source=source)
 
 
 def _json_attribute(attrs: dict, key: str, source: str, *, null: bool = False) -> dict | None:

@@ -26,6 +26,7 @@ from . import interrupt
 from .chains import BufferedHDFBackend, SamplerSettings, run_chain
 from .likelihood import ResidualLikelihood
 from .map_search import find_map, laplace_walkers
+from .pose_track import POSE_FIELDS
 from .posterior import az, build_inference_data
 from .priors import LogPosterior, Prior
 from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
@@ -88,6 +89,9 @@ def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, see
         for values in (experiment.vx, experiment.vy):
             if values is not None:
                 data.update(np.ascontiguousarray(values).tobytes())
+        if experiment.pose is not None:  # the pose channels' data
+            for field in POSE_FIELDS:
+                data.update(np.ascontiguousarray(getattr(experiment.pose, field)).tobytes())
         # The window the likelihood reads (``steady``): another window is other data.
         data.update(json.dumps(experiment.steady_window).encode())
     robot = {

@@ -18,6 +18,14 @@ the total sd and sigma_n is not a parameter. The residual is linear
 in c = (1, -alpha, -beta_r, -beta_l): r = Z c with the regressors
 Z = [y[k+1], y[k], u_r[k], u_l[k]].
 
+That is a channel a sensor measures (the IMU's yaw rate). A channel that
+motion capture records through the poses (vx, vy of a bag) has the
+residual of its pose increments instead: the process noise through a
+two-tap filter plus the pose noise's MA(2) footprint, of sd sigma_p [m]
+per recorded pose (:mod:`bayes_jackal.measurements`, which holds both
+forms). Either is a Toeplitz Gaussian, and the engines below evaluate
+either.
+
 Three engines evaluate log N(r; 0, Sigma), vectorised over parameter sets:
 
 - ``exact``: the Durbin-Levinson recursion over all N orders, O(N^2): the
@@ -65,10 +73,10 @@ from .defaults import (
 )
 from .errors import DataError, InputError
 from .experiment import Experiment
-from .kernels import Family, as_rng, get_family
+from .kernels import as_rng, get_family
+from .measurements import MEASUREMENT_MODELS, measurement_of, residual_autocovariance
 from .parameters import ParameterLayout
-from .physics import channel_coefficients
-from .residuals import check_residual_window, residual_regressors
+from .residuals import check_residual_window
 from .robot import RobotProfile
 from .spectral import ResidualBlock, spectral_loglike
 from .toeplitz import FAST_TOLERANCE, fallback_loglike, toeplitz_loglike
@@ -80,6 +88,7 @@ __all__ = [
     "FAST_TOLERANCE",
     "SENSOR_MODELS",
     "ResidualLikelihood",
+    "pose_channels",
     "residual_autocovariance",
     "resolve_channels",
     "sample_stationary",
@@ -88,59 +97,6 @@ __all__ = [
 
 #: Fewest residuals a channel must have to enter the likelihood.
 MIN_RESIDUALS = 32
-
-
-def residual_autocovariance(
-    family: Family,
-    width: np.ndarray,
-    sigma_c: np.ndarray,
-    sigma_n: np.ndarray,
-    alpha: np.ndarray,
-    dt: float,
-    n: int,
-    sensor: str = "ma1",
-) -> np.ndarray:
-    """Autocovariance of the one-step residual at lags 0..n-1.
-
-    Parameters
-    ----------
-    family : Family
-        Process-noise filter family.
-    width, sigma_c, sigma_n, alpha : ndarray, shape (B,)
-        Kernel width [s], process-noise sd, sensor-noise sd [channel units],
-        and the channel's discrete pole Ad[c, c].
-    dt : float
-        Sample time [s].
-    n : int
-        Number of lags.
-    sensor : {"ma1", "diagonal"}
-
-    Returns
-    -------
-    ndarray, shape (B, n)
-
-    Examples
-    --------
-    White process noise and the MA(1) footprint of sensor noise:
-    sigma_c^2 + sigma_n^2 (1 + alpha^2) at lag 0, -sigma_n^2 alpha at lag 1:
-
-    >>> import numpy as np
-    >>> from bayes_jackal.kernels import get_family
-    >>> from bayes_jackal.likelihood import residual_autocovariance
-    >>> one = np.ones(1)
-    >>> acov = residual_autocovariance(
-    ...     get_family("white"), one, 0.01 * one, 0.005 * one, 0.9 * one, dt=0.01, n=4
-    ... )
-    >>> bool(np.allclose(acov, [[1e-4 + 2.5e-5 * 1.81, -2.5e-5 * 0.9, 0.0, 0.0]]))
-    True
-    """
-    acov = sigma_c[:, None] ** 2 * family.autocorrelation(width, dt, n)
-    if sensor == "ma1":
-        acov[:, 0] += sigma_n**2 * (1.0 + alpha**2)
-        acov[:, 1] -= sigma_n**2 * alpha
-    else:
-        acov[:, 0] += sigma_n**2
-    return acov
 
 
 def sample_stationary(
@@ -191,6 +147,46 @@ def sample_stationary(
     rng = as_rng(rng)
     white = rng.standard_normal(circulant.shape) + 1j * rng.standard_normal(circulant.shape)
     return scipy.fft.fft(np.sqrt(eigenvalues / m) * white, axis=1).real[:, :n]
+
+
+def pose_channels(experiments: Sequence[Experiment], channels: Sequence[str]) -> tuple[str, ...]:
+    """The channels the experiments record as poses (:meth:`Experiment.measurement`).
+
+    A channel must be recorded one way in every experiment: a pose
+    channel's sensor parameter is the pose noise sigma_p [m], a rate
+    channel's the sensor noise sigma_n [its unit], and one likelihood gives
+    a channel one of them.
+
+    Raises
+    ------
+    DataError
+        Naming two experiments that record a channel in different ways.
+
+    Examples
+    --------
+    A simulated run measures its velocities with a sensor:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import pose_channels
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> pose_channels([run], ("yaw", "vx", "vy"))
+    ()
+    """
+    chosen = []
+    for channel in channels:
+        kinds = {e.measurement(channel): e for e in experiments}
+        if len(kinds) > 1:
+            pose, rate = kinds["pose"], kinds["rate"]
+            raise DataError(
+                f"{pose.source} records {channel} as motion-capture poses and {rate.source} "
+                f"as a measured {channel}: one model cannot give the channel both noise models; "
+                "analyse them apart",
+                source=rate.source,
+                field=channel,
+            )
+        if "pose" in kinds:
+            chosen.append(channel)
+    return tuple(chosen)
 
 
 def resolve_channels(
@@ -341,6 +337,7 @@ class ResidualLikelihood:
     shared_width: bool = False
     layout: ParameterLayout = field(init=False)
     blocks: list[ResidualBlock] = field(init=False, repr=False)
+    pose_samples: dict[str, int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._family = get_family(self.family)
@@ -360,21 +357,35 @@ class ResidualLikelihood:
             tuple(e.name for e in self.experiments),
             self.shared_noise,
             shared_width=self.shared_width,
+            pose_channels=pose_channels(self.experiments, self.channels),
         )
         self.blocks = self._build_blocks()
 
     def _build_blocks(self) -> list[ResidualBlock]:
-        series: dict[tuple[str, int, float, int], list[np.ndarray]] = {}
+        series: dict[tuple, list[np.ndarray]] = {}
+        self.pose_samples = {}
         for experiment in self.experiments:
+            window = experiment.steady() if self.steady else experiment
             for channel in self.channels:
                 group = self.layout.group(channel, experiment.name)
                 check_residual_window(experiment, channel, MIN_RESIDUALS, self.steady)
-                regressors = residual_regressors(experiment, channel, self.steady)
-                dt = round(experiment.dt, 12)
-                series.setdefault((channel, group, dt, len(regressors)), []).append(regressors)
+                measurement = measurement_of(window, channel)
+                channel_series = measurement.series(window, channel)
+                regressors = channel_series.regressors
+                if measurement.name == "pose":
+                    self.pose_samples[experiment.name] = channel_series.samples
+                key = (
+                    channel,
+                    group,
+                    round(experiment.dt, 12),
+                    measurement.name,
+                    channel_series.samples,
+                    len(regressors),
+                )
+                series.setdefault(key, []).append(regressors)
         return [
-            ResidualBlock(channel, group, dt, np.stack(members))
-            for (channel, group, dt, _), members in series.items()
+            ResidualBlock(channel, group, dt, np.stack(members), measurement, samples)
+            for (channel, group, dt, measurement, samples, _), members in series.items()
         ]
 
     @property
@@ -384,7 +395,7 @@ class ResidualLikelihood:
 
     @property
     def noise_parameter_names(self) -> list[str]:
-        """Base names of one group's noise parameters (:attr:`ParameterLayout.noise_bases`)."""
+        """Base names of the groups' noise parameters (:attr:`ParameterLayout.noise_bases`)."""
         return list(self.layout.noise_bases)
 
     @property
@@ -398,7 +409,7 @@ class ResidualLikelihood:
         return sum(block.regressors.shape[0] * block.regressors.shape[1] for block in self.blocks)
 
     def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:
-        """(width, sigma_c, sigma_n) of one group: :meth:`ParameterLayout.noise_parameters`."""
+        """(width, sigma_c, sensor sd) of one group: :meth:`ParameterLayout.noise_parameters`."""
         return self.layout.noise_parameters(theta, group)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
@@ -416,23 +427,24 @@ class ResidualLikelihood:
         """
         theta = np.atleast_2d(np.asarray(theta, float))
         total = np.zeros(len(theta))
-        coefficients: dict[tuple[str, float], np.ndarray] = {}
+        coefficients: dict[tuple[str, float, str], tuple[np.ndarray, np.ndarray]] = {}
         for block in self.blocks:
-            key = (block.channel, block.dt)
+            key = (block.channel, block.dt, block.measurement)
             if key not in coefficients:
-                alpha, input_row = channel_coefficients(
+                coefficients[key] = MEASUREMENT_MODELS[block.measurement].coefficients(
                     self.robot, theta[:, 0], theta[:, 1], block.channel, block.dt
                 )
-                coefficients[key] = np.column_stack([np.ones(len(theta)), -alpha, -input_row])
-            c = coefficients[key]
-            noise = np.column_stack([*self.noise_parameters(theta, block.noise_group), -c[:, 1]])
+            c, alpha = coefficients[key]
+            noise = np.column_stack([*self.noise_parameters(theta, block.noise_group), alpha])
             engine = self._fast if self.engine == "fast" else self._reference
             total += engine(block, noise, c)
         return total
 
     def _autocovariance(self, block: ResidualBlock, noise: np.ndarray, lags: int) -> np.ndarray:
-        """Residual autocovariance at lags 0..lags-1 of (width, sigma_c, sigma_n, alpha) rows."""
-        return residual_autocovariance(self._family, *noise.T, block.dt, lags, self.sensor)
+        """Residual autocovariance at lags 0..lags-1 of (width, sigma_c, sensor sd, alpha) rows."""
+        return MEASUREMENT_MODELS[block.measurement].autocovariance(
+            self._family, *noise.T, block.dt, lags, sensor=self.sensor, samples=block.samples
+        )
 
     def _reference(self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray) -> np.ndarray:
         """The ``exact`` or ``whittle`` engine, in chunks of parameter sets."""
@@ -442,7 +454,7 @@ class ResidualLikelihood:
         for rows in chunks(len(c), block.count * block.n, budget=spectral.CHUNK_ELEMENTS):
             acov = self._autocovariance(block, noise[rows], block.n)
             cc = c[rows, :, None] * c[rows, None, :]
-            periodogram = cc.reshape(len(cc), 16) @ block.periodogram.T
+            periodogram = cc.reshape(len(cc), -1) @ block.periodogram.T
             loglike[rows] = debiased_whittle_loglike(acov, periodogram, block.count)
         return loglike
 

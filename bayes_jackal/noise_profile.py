@@ -12,14 +12,16 @@ point at which every channel's noise is right at once.
 
 The profile uses the debiased Whittle likelihood
 (:func:`bayes_jackal.whittle.debiased_whittle_loglike`), whose expected
-periodogram is linear in the autocovariance. With rho = sigma_n / sigma_c,
+periodogram is linear in the autocovariance. With rho = sigma_n / sigma_c
+(sigma_p / sigma_c for a channel recorded as poses),
 
     E[I] = sigma_c^2 S,    S = E_R(width) + rho^2 E_M(alpha),
 
 E_R the expected periodogram of the kernel's autocorrelation (one FFT per
-width) and E_M that of the sensor term (``ma1``: lags 0 and 1 only). A
-damping point changes the periodogram I = c^T P c of the block's
-cross-periodograms P and the pole alpha in E_M. Past 4,096 residuals the
+width; for a pose channel through its two-tap filter, which depends on
+alpha too) and E_M that of the sensor term (``ma1``: lags 0 and 1 only;
+a pose channel's MA(2)). A damping point changes the periodogram
+I = c^T P c of the block's cross-periodograms P and the pole alpha in E_M. Past 4,096 residuals the
 periodogram is averaged onto 4,096 frequencies (the spectra of the model
 are smooth on that scale), so the work does not grow with the run. For a fixed
 shape S the group's Whittle log-likelihood
@@ -44,8 +46,8 @@ import numpy as np
 import scipy.stats
 
 from .kernels import get_family
-from .likelihood import ResidualLikelihood, residual_autocovariance
-from .physics import channel_coefficients
+from .likelihood import ResidualLikelihood
+from .measurements import MEASUREMENT_MODELS
 from .spectral import ResidualBlock
 from .whittle import expected_periodogram, frequency_weights
 
@@ -159,32 +161,34 @@ def _group_profile(
 
     The coarse grid of (log width, log rho) is shared by all damping points;
     each zoom evaluates a 5 x 5 grid around every point's best so far with
-    half the spacing (one value where the family has no width or the model
-    no sigma_n).
+    half the spacing (one value where the family has no width or the group
+    no sensor parameter).
 
     Parameters
     ----------
     damping : ndarray, shape (D, 2)
         (d_lat, d_long) [N s/m].
     low, high : ndarray, shape (K,)
-        The group's prior box, in ``noise_parameter_names`` order.
+        The group's prior box, in ``layout.noise_bases_of(group)`` order.
 
     Returns
     -------
     loglike : ndarray, shape (D,)
     noise : ndarray, shape (D, K)
-        The best (width,) sigma_c(, sigma_n), in that order.
+        The best (width,) sigma_c(, sensor sd), in that order.
     """
-    names = likelihood.noise_parameter_names
+    layout = likelihood.layout
+    names = layout.noise_bases_of(group)
     bounds = dict(zip(names, zip(low, high, strict=True), strict=True))
     family = get_family(likelihood.family)
+    sensor_name = layout.sensor_parameter(group)
     # Log-width and log-ratio ranges; a single value where not a parameter.
     ranges = np.zeros((2, 2))
     if family.has_width:
         ranges[0] = np.log(bounds[family.width_name])
-    if "sigma_n" in bounds:
-        ranges[1] = np.log(bounds["sigma_n"]) - np.log(bounds["sigma_c"])[::-1]
-    sensor = 1.0 if "sigma_n" in bounds else 0.0  # rho = 0 without sigma_n
+    if sensor_name is not None:
+        ranges[1] = np.log(bounds[sensor_name]) - np.log(bounds["sigma_c"])[::-1]
+    sensor = 0.0 if sensor_name is None else 1.0  # rho = 0 without a sensor parameter
     sizes = np.where(ranges[:, 1] > ranges[:, 0], (WIDTHS, RATIOS), 1)
     axes = [np.linspace(*r, s)[None] for r, s in zip(ranges, sizes, strict=True)]
     steps = np.ptp(ranges, axis=1) / np.maximum(sizes - 1, 1)
@@ -198,7 +202,13 @@ def _group_profile(
                 for centre, o, r in zip(best, offsets, ranges, strict=True)
             ]
         loglike, variance = _grid_loglike(
-            likelihood, group, damping, np.exp(axes[0]), sensor * np.exp(axes[1]), bounds
+            likelihood,
+            group,
+            damping,
+            np.exp(axes[0]),
+            sensor * np.exp(axes[1]),
+            bounds,
+            sensor_name,
         )
         flat = loglike.reshape(len(damping), -1)
         index = np.unravel_index(np.argmax(flat, axis=1), loglike.shape[1:])
@@ -206,7 +216,7 @@ def _group_profile(
         sigma_c = np.sqrt(variance[(rows, *index)])
         top = loglike[(rows, *index)]
     width, ratio = np.exp(best) * [[1.0], [sensor]]
-    values = {"sigma_c": sigma_c, "sigma_n": ratio * sigma_c, family.width_name: width}
+    values = {"sigma_c": sigma_c, sensor_name: ratio * sigma_c, family.width_name: width}
     return top, np.column_stack([values[name] for name in names])
 
 
@@ -217,6 +227,7 @@ def _grid_loglike(
     widths: np.ndarray,
     ratios: np.ndarray,
     bounds: dict[str, tuple[float, float]],
+    sensor_name: str | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Whittle log-likelihood of one group, maximised over sigma_c, on a grid.
 
@@ -226,9 +237,11 @@ def _grid_loglike(
     widths : ndarray, shape (1 or D, W)
         Kernel widths [s], shared by all damping points or one row each.
     ratios : ndarray, shape (1 or D, R)
-        rho = sigma_n / sigma_c (0 where sigma_n is not a parameter).
+        rho = sensor sd / sigma_c (0 where the group has no sensor parameter).
     bounds : dict
         The group's prior box by base name.
+    sensor_name : str or None
+        The group's sensor parameter (``sigma_n``, ``sigma_p``).
 
     Returns
     -------
@@ -255,10 +268,10 @@ def _grid_loglike(
     )
     ratios = ratios[:, None, :]
     c_low, c_high = bounds["sigma_c"]
-    if "sigma_n" in bounds:
-        # sigma_n = rho sigma_c must be inside its box too.
-        c_low = np.maximum(c_low, bounds["sigma_n"][0] / ratios)
-        c_high = np.minimum(c_high, bounds["sigma_n"][1] / ratios)
+    if sensor_name is not None:
+        # The sensor sd rho sigma_c must be inside its box too.
+        c_low = np.maximum(c_low, bounds[sensor_name][0] / ratios)
+        c_high = np.minimum(c_high, bounds[sensor_name][1] / ratios)
     variance = np.clip(quadratic / count, c_low**2, c_high**2)
     with np.errstate(invalid="ignore", divide="ignore"):
         loglike = -0.5 * (count * (np.log(variance) + _LOG_2PI) + log_det + quadratic / variance)
@@ -280,30 +293,51 @@ def _chunk_terms(
 ) -> tuple[np.ndarray, np.ndarray]:
     """sum E log S and Q = sum I / S over a group's blocks, each (D, W, R)."""
     log_det, quadratic = 0.0, 0.0
-    family = get_family(likelihood.family)
     for block in blocks:
         count, n = block.regressors.shape[:2]
         lags = min(n, PROFILE_FREQUENCIES)
         binned, weights = _binned_periodogram(block, lags)
-        alpha, input_row = channel_coefficients(
+        c, alpha = MEASUREMENT_MODELS[block.measurement].coefficients(
             likelihood.robot, damping[:, 0], damping[:, 1], block.channel, block.dt
         )
-        c = np.column_stack([np.ones(len(damping)), -alpha, -input_row])
-        periodogram = (c[:, :, None] * c[:, None, :]).reshape(len(c), 16) @ binned.T
-        kernel = expected_periodogram(family.autocorrelation(widths, block.dt, lags), n)
-        ones, zeros = np.ones(len(alpha)), np.zeros(len(alpha))
-        sensor = expected_periodogram(
-            residual_autocovariance(
-                family, ones, zeros, ones, alpha, block.dt, lags, likelihood.sensor
-            ),
-            n,
-        )
+        periodogram = (c[:, :, None] * c[:, None, :]).reshape(len(c), -1) @ binned.T
+
+        # E_R: the kernel through the channel's filter, for each width, and
+        # for each damping point where that filter depends on alpha (poses).
+        if block.measurement == "pose":
+            grid = np.broadcast_to(widths, (len(alpha), widths.shape[1]))
+            poles = np.broadcast_to(alpha[:, None], grid.shape)
+        else:  # alpha enters the sensor term only
+            grid, poles = widths, np.ones(widths.shape)
+        unit = np.ones(grid.size)
+        kernel = _expected(likelihood, block, lags, grid.ravel(), unit, 0 * unit, poles.ravel())
+        kernel = kernel.reshape(*grid.shape, -1)
+        unit = np.ones(len(alpha))
+        sensor = _expected(likelihood, block, lags, unit, 0 * unit, unit, alpha)
         # S (D, W, R, F) = E_R(width) + rho^2 E_M(alpha).
         shape = kernel[:, :, None, :] + ratios[:, None, :, None] ** 2 * sensor[:, None, None, :]
         with np.errstate(invalid="ignore", divide="ignore"):
             log_det = log_det + count * (np.log(shape) @ weights)
             quadratic = quadratic + (periodogram[:, None, None, :] / shape) @ weights
     return log_det, quadratic
+
+
+def _expected(
+    likelihood: ResidualLikelihood, block: ResidualBlock, lags: int, *noise: np.ndarray
+) -> np.ndarray:
+    """Expected periodogram of a block's residual at rows (width, sigma_c, sensor sd, alpha).
+
+    On the rfft frequencies of ``lags`` points, each (B, lags // 2 + 1).
+    """
+    acov = MEASUREMENT_MODELS[block.measurement].autocovariance(
+        get_family(likelihood.family),
+        *noise,
+        block.dt,
+        lags,
+        sensor=likelihood.sensor,
+        samples=block.samples,
+    )
+    return expected_periodogram(acov, block.n)
 
 
 def _binned_periodogram(block: ResidualBlock, points: int) -> tuple[np.ndarray, np.ndarray]:
@@ -315,7 +349,7 @@ def _binned_periodogram(block: ResidualBlock, points: int) -> tuple[np.ndarray, 
 
     Returns
     -------
-    periodogram : ndarray, shape (points // 2 + 1, 16)
+    periodogram : ndarray, shape (points // 2 + 1, K^2)
         Weighted mean over each coarse frequency's bin.
     weights : ndarray, shape (points // 2 + 1,)
         Multiplicity of each bin among the n Fourier frequencies.

@@ -4,8 +4,11 @@ A parameter vector is (d_lat, d_long, then each noise group's noise
 parameters). A noise group is one channel's noise, shared by every
 experiment (``shared_noise``, group key :data:`SHARED_GROUP`) or one per
 experiment and channel. Each group has the family's width (none for white
-noise), ``sigma_c`` and ``sigma_n`` (none for white noise with the diagonal
-sensor term, where ``sigma_c`` is the total sd); with ``shared_width`` the
+noise), ``sigma_c`` and its sensor's noise: ``sigma_n`` for a channel a
+sensor measures (none for white noise with the diagonal sensor term, where
+``sigma_c`` is the total sd), ``sigma_p`` for a channel recorded as
+motion-capture poses (``pose_channels``, the pose's position noise [m],
+:mod:`bayes_jackal.measurements`); with ``shared_width`` the
 width is one parameter, after the damping, that every group shares (the one
 smoothness of SPM's ``spm_DEM_R`` and dempy). :class:`ParameterLayout`
 is the one place that knows this: the likelihood, the priors, the posterior
@@ -29,6 +32,7 @@ from .robot import DEFAULT_PRIORS
 
 __all__ = [
     "DAMPING",
+    "POSE_SENSOR",
     "PRIOR_KEYS",
     "SHARED_GROUP",
     "WIDTH_ALIAS",
@@ -50,6 +54,11 @@ WIDTH_PRIOR = "sigma_h"
 #: Accepted for :data:`WIDTH_PRIOR` in prior overrides: the width's name in
 #: every family but the Gaussian.
 WIDTH_ALIAS = "width"
+#: The sensor parameter of a channel recorded as poses: the motion-capture
+#: position noise sd per recorded pose [m].
+POSE_SENSOR = "sigma_p"
+#: The sensor parameter of a channel a sensor measures [channel unit].
+RATE_SENSOR = "sigma_n"
 
 
 @dataclass(frozen=True)
@@ -72,6 +81,9 @@ class ParameterLayout:
         One width parameter for every group (True; column 2, named without
         a group), or one per group (False, the default). Families without a
         width (white) have the same layout either way.
+    pose_channels : tuple of str
+        The channels recorded as motion-capture poses: their groups' sensor
+        parameter is :data:`POSE_SENSOR` instead of ``sigma_n``.
 
     The derived names and groups are computed once per layout.
 
@@ -91,6 +103,14 @@ class ParameterLayout:
     ('d_lat', 'd_long', 'sigma_h', 'sigma_c[yaw]', 'sigma_n[yaw]', 'sigma_c[vx]', 'sigma_n[vx]')
     >>> one.noise_columns(1)
     [2, 5, 6]
+
+    vx recorded as motion-capture poses: its sensor parameter is the pose noise.
+
+    >>> pose = ParameterLayout("white", "ma1", ("yaw", "vx"), ("v1",), True, pose_channels=("vx",))
+    >>> pose.names
+    ('d_lat', 'd_long', 'sigma_c[yaw]', 'sigma_n[yaw]', 'sigma_c[vx]', 'sigma_p[vx]')
+    >>> pose.noise_bases
+    ('sigma_c', 'sigma_n', 'sigma_p')
     """
 
     family: str
@@ -99,11 +119,19 @@ class ParameterLayout:
     experiments: tuple[str, ...]
     shared_noise: bool
     shared_width: bool = False
+    pose_channels: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(self.channels))
         object.__setattr__(self, "experiments", tuple(self.experiments))
+        object.__setattr__(self, "pose_channels", tuple(self.pose_channels))
         get_family(self.family)  # an InputError naming the known families
+        unknown = [c for c in self.pose_channels if c not in self.channels]
+        if unknown:
+            raise InputError(
+                f"pose channels {unknown} are not among the channels {list(self.channels)}",
+                field="pose_channels",
+            )
 
     @property
     def _family(self) -> Family:
@@ -131,19 +159,30 @@ class ParameterLayout:
             raise InputError(f"no noise group {key}; the groups are {list(self.groups)}")
         return self.groups.index(key)
 
-    @cached_property
-    def noise_bases(self) -> tuple[str, ...]:
-        """Base names of one group's noise parameters: (width,) sigma_c(, sigma_n).
+    def noise_bases_of(self, group: int) -> tuple[str, ...]:
+        """Base names of one group's noise parameters: (width,) sigma_c(, sensor).
 
-        White noise with the diagonal sensor term has the covariance
-        (sigma_c^2 + sigma_n^2) I: one variance, which two parameters would
-        split along a flat ridge that the data cannot inform. That model
-        has one sd, ``sigma_c``: the total sd of the residual.
+        The sensor's is ``sigma_p`` for a channel recorded as poses, else
+        ``sigma_n``, except for white noise with the diagonal sensor term:
+        its covariance (sigma_c^2 + sigma_n^2) I has one variance, which two
+        parameters would split along a flat ridge that the data cannot
+        inform, so that model has one sd, ``sigma_c``: the residual's total.
         """
         family = self._family
         width = (family.width_name,) if family.has_width else ()
-        one_sd = not family.has_width and self.sensor == "diagonal"
-        return (*width, "sigma_c", *(() if one_sd else ("sigma_n",)))
+        channel, _ = self.groups[group]
+        if channel in self.pose_channels:
+            sensor: tuple[str, ...] = (POSE_SENSOR,)
+        else:
+            one_sd = not family.has_width and self.sensor == "diagonal"
+            sensor = () if one_sd else (RATE_SENSOR,)
+        return (*width, "sigma_c", *sensor)
+
+    @cached_property
+    def noise_bases(self) -> tuple[str, ...]:
+        """Every group's noise parameter bases, each once, in group order."""
+        bases = (self.noise_bases_of(g) for g in range(len(self.groups)))
+        return tuple(dict.fromkeys(base for group in bases for base in group))
 
     @cached_property
     def shared_bases(self) -> tuple[str, ...]:
@@ -151,10 +190,14 @@ class ParameterLayout:
         width = self.width_name
         return (width,) if self.shared_width and width is not None else ()
 
-    @cached_property
-    def group_bases(self) -> tuple[str, ...]:
-        """Noise parameters with a column per group: :attr:`noise_bases` less the shared ones."""
-        return tuple(base for base in self.noise_bases if base not in self.shared_bases)
+    def group_bases_of(self, group: int) -> tuple[str, ...]:
+        """A group's noise parameters with a column of its own: the others are shared."""
+        return tuple(b for b in self.noise_bases_of(group) if b not in self.shared_bases)
+
+    def sensor_parameter(self, group: int) -> str | None:
+        """The group's sensor parameter (``sigma_n`` or ``sigma_p``); None where it has none."""
+        sensors = [b for b in self.noise_bases_of(group) if b in (RATE_SENSOR, POSE_SENSOR)]
+        return sensors[0] if sensors else None
 
     def label(self, group: int) -> str:
         """Coordinate label of a noise group: its channel, experiment, or both."""
@@ -178,25 +221,29 @@ class ParameterLayout:
             + tuple(
                 base if single else f"{base}[{self.label(g)}]"
                 for g in range(len(self.groups))
-                for base in self.group_bases
+                for base in self.group_bases_of(g)
             )
         )
 
     @cached_property
     def bases(self) -> tuple[str, ...]:
         """Base name of each column (``sigma_h`` for ``sigma_h[yaw]``)."""
-        return DAMPING + self.shared_bases + self.group_bases * len(self.groups)
+        per_group = (self.group_bases_of(g) for g in range(len(self.groups)))
+        return DAMPING + self.shared_bases + tuple(b for bases in per_group for b in bases)
 
     def names_of(self, base: str) -> tuple[str, ...]:
         """The names of parameter ``base`` in every group (``sigma_h[yaw]``, ``sigma_h[vx]``)."""
         return tuple(n for n, b in zip(self.names, self.bases, strict=True) if b == base)
 
+    def groups_of(self, base: str) -> tuple[int, ...]:
+        """The noise groups that have parameter ``base`` (every group for a shared one)."""
+        return tuple(g for g in range(len(self.groups)) if base in self.noise_bases_of(g))
+
     @cached_property
     def column_groups(self) -> tuple[int | None, ...]:
         """Noise group of each column; None for the damping and the shared parameters."""
-        per_group = len(self.group_bases)
         return (None,) * (len(DAMPING) + len(self.shared_bases)) + tuple(
-            g for g in range(len(self.groups)) for _ in range(per_group)
+            g for g in range(len(self.groups)) for _ in self.group_bases_of(g)
         )
 
     def column(self, base: str, group: int | None = None) -> int:
@@ -208,23 +255,27 @@ class ParameterLayout:
         shared = DAMPING + self.shared_bases
         if base in shared:
             return shared.index(base)
-        if base not in self.group_bases or group is None or not 0 <= group < len(self.groups):
+        if (
+            group is None
+            or not 0 <= group < len(self.groups)
+            or base not in self.group_bases_of(group)
+        ):
             raise InputError(
                 f"no parameter {base!r} of group {group}; this model has {list(self.names)}"
             )
-        per_group = len(self.group_bases)
-        return len(shared) + group * per_group + self.group_bases.index(base)
+        return self.column_groups.index(group) + self.group_bases_of(group).index(base)
 
     def noise_columns(self, group: int) -> list[int]:
-        """Columns of a group's noise parameters (shared ones too), in ``noise_bases`` order."""
-        return [self.column(base, group) for base in self.noise_bases]
+        """Columns of a group's noise parameters (shared ones too), in ``noise_bases_of`` order."""
+        return [self.column(base, group) for base in self.noise_bases_of(group)]
 
     def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:
-        """(width [s], sigma_c, sigma_n) of one noise group, each shape (B,).
+        """(width [s], sigma_c, sensor sd) of one noise group, each shape (B,).
 
-        White noise has unit width (ignored); where sigma_n is not a
-        parameter (white noise with the diagonal term) it is zero, and
-        sigma_c is the total sd.
+        The sensor sd is ``sigma_n`` [channel unit] or, for a channel
+        recorded as poses, ``sigma_p`` [m]. White noise has unit width
+        (ignored); where the group has no sensor parameter (white noise with
+        the diagonal term) it is zero, and sigma_c is the total sd.
 
         Parameters
         ----------
@@ -232,9 +283,12 @@ class ParameterLayout:
             Parameter vectors in natural units, in :attr:`names` order.
         group : int
         """
-        values = dict(zip(self.noise_bases, theta[:, self.noise_columns(group)].T, strict=True))
+        bases = self.noise_bases_of(group)
+        values = dict(zip(bases, theta[:, self.noise_columns(group)].T, strict=True))
         width = values.get(self.width_name, np.ones(len(theta)))
-        return width, values["sigma_c"], values.get("sigma_n", np.zeros(len(theta)))
+        sensor = self.sensor_parameter(group)
+        zeros = np.zeros(len(theta))
+        return width, values["sigma_c"], zeros if sensor is None else values[sensor]
 
     def prior_key(self, base: str) -> str:
         """The prior range a parameter takes: its base, or :data:`WIDTH_PRIOR` for a width."""
@@ -349,7 +403,7 @@ def prior_overrides(
     ... except ValueError as error:
     ...     print(error)
     prior_overrides: unknown prior 'd_latt'; use one of
-    ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'width']
+    ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'width']
     (width is sigma_h: every family's width)
     """
     widths = width_keys()

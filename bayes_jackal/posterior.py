@@ -23,9 +23,10 @@ from ._files import write_hdf5
 from .errors import DataError
 from .experiment import Experiment
 from .kernels import get_family
-from .likelihood import ResidualLikelihood, residual_autocovariance
+from .likelihood import ResidualLikelihood
+from .measurements import MEASUREMENT_MODELS
 from .parameters import ParameterLayout
-from .physics import CHANNELS, channel_coefficients, discrete_matrices
+from .physics import CHANNELS, discrete_matrices
 from .posterior_format import (
     FORMAT,
     READABLE_FORMATS,
@@ -65,6 +66,7 @@ __all__ = [
     "interval",
     "load_posterior",
     "model_autocovariance",
+    "noise_dimension",
     "observed_residuals",
     "parameter_draws",
     "parameter_variables",
@@ -91,18 +93,52 @@ _SUMMARY_FIELDS = ("mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r
 INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
 
 
-def _noise_variables(layout: ParameterLayout, draws: np.ndarray) -> tuple[dict, dict]:
-    """Noise parameters as variables: scalars where one column serves all, else by noise_group."""
-    groups = range(len(layout.groups))
-    variables, dims = {}, {}
+def _noise_variables(layout: ParameterLayout, draws: np.ndarray) -> tuple[dict, dict, dict]:
+    """Noise parameters as variables, with their dims and coordinates.
+
+    A parameter one column serves (one group, or a shared width) is a
+    scalar; one that every group has is indexed by ``noise_group``; one that
+    some groups have (``sigma_n`` of the rate channels, ``sigma_p`` of the
+    pose channels) by a dimension of its own, ``<base>_group``
+    (:func:`noise_dimension`).
+    """
+    variables, dims, coords = {}, {}, {}
     for base in layout.noise_bases:
-        columns = draws[..., list(dict.fromkeys(layout.column(base, g) for g in groups))]
-        if columns.shape[-1] == 1:
-            variables[base] = columns[..., 0]
-        else:
-            variables[base] = columns
-            dims[base] = ["noise_group"]
-    return variables, dims
+        dimension, groups = noise_dimension(layout, base)
+        columns = list(dict.fromkeys(layout.column(base, g) for g in groups))
+        if dimension is None:
+            variables[base] = draws[..., columns[0]]
+            continue
+        variables[base] = draws[..., columns]
+        dims[base] = [dimension]
+        coords[dimension] = [layout.labels[g] for g in groups]
+    return variables, dims, coords
+
+
+def noise_dimension(layout: ParameterLayout, base: str) -> tuple[str | None, tuple[int, ...]]:
+    """The posterior file's dimension of noise parameter ``base``, and the groups along it.
+
+    None for a scalar (one column serves every group that has it: a single
+    group, or a shared width); ``noise_group`` where every group has it;
+    ``<base>_group`` where only some do (``sigma_p_group`` for the pose
+    channels' ``sigma_p``).
+
+    Examples
+    --------
+    >>> from bayes_jackal.parameters import ParameterLayout
+    >>> from bayes_jackal.posterior import noise_dimension
+    >>> layout = ParameterLayout(
+    ...     "gaussian", "ma1", ("yaw", "vx", "vy"), ("v1",), True, pose_channels=("vx", "vy")
+    ... )
+    >>> noise_dimension(layout, "sigma_h"), noise_dimension(layout, "sigma_p")
+    (('noise_group', (0, 1, 2)), ('sigma_p_group', (1, 2)))
+    """
+    groups = layout.groups_of(base)
+    names = layout.names_of(base)
+    if names == (base,):
+        return None, groups
+    every = len(groups) == len(layout.groups)
+    return ("noise_group" if every else f"{base}_group"), groups
 
 
 def build_inference_data(
@@ -153,7 +189,7 @@ def build_inference_data(
     """
     draws = np.swapaxes(prior.to_natural(chain), 0, 1)  # (walkers, draws, P)
     d_lat, d_long = draws[..., 0], draws[..., 1]
-    noise, dims = _noise_variables(likelihood.layout, draws)
+    noise, dims, noise_coords = _noise_variables(likelihood.layout, draws)
     dt = likelihood.experiments[0].dt
     Ad, Bd = discrete_matrices(likelihood.robot, d_lat, d_long, dt)
     posterior = {
@@ -165,11 +201,7 @@ def build_inference_data(
         "Bd": Bd,
     }
     dims |= {"Ad": ["state"], "Bd": ["state", "wheel"]}
-    coords = {
-        "noise_group": list(likelihood.layout.labels),
-        "state": list(CHANNELS),
-        "wheel": ["right", "left"],
-    }
+    coords = noise_coords | {"state": list(CHANNELS), "wheel": ["right", "left"]}
     observed, observed_dims = observed_data(
         likelihood, float(np.median(d_lat)), float(np.median(d_long))
     )
@@ -245,8 +277,9 @@ def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
     columns = []
     for base, group in zip(layout.bases, layout.column_groups, strict=True):
         variable = posterior[base]
-        if "noise_group" in variable.dims:
-            variable = variable.isel(noise_group=group)
+        dimension, groups = noise_dimension(layout, base)
+        if dimension is not None:
+            variable = variable.isel({dimension: groups.index(group)})
         columns.append(variable.transpose("draw", "chain").values)
     return np.stack(columns, axis=-1), idata.sample_stats["lp"].transpose("draw", "chain").values
 
@@ -415,7 +448,13 @@ def thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
 
 
 def model_autocovariance(
-    metadata: PosteriorMetadata, index: int, channel: str, theta: np.ndarray, n: int
+    metadata: PosteriorMetadata,
+    index: int,
+    channel: str,
+    theta: np.ndarray,
+    n: int,
+    *,
+    samples: int | None = None,
 ) -> np.ndarray:
     """The model's autocovariance of one experiment's one-step residuals in one channel.
 
@@ -430,6 +469,10 @@ def model_autocovariance(
         Parameter vectors in natural units (the layout's order).
     n : int
         Number of lags.
+    samples : int, optional
+        For a channel recorded as poses: the poses averaged per sample
+        (:func:`bayes_jackal.pose_increments.tick_poses`); by default the
+        likelihood's window's (:attr:`ExperimentRecord.pose_samples`).
 
     Returns
     -------
@@ -454,10 +497,20 @@ def model_autocovariance(
     """
     record = metadata.experiments[index]
     layout = metadata.layout
-    width, sigma_c, sigma_n = layout.noise_parameters(theta, layout.group(channel, record.name))
-    alpha, _ = channel_coefficients(metadata.robot, theta[:, 0], theta[:, 1], channel, record.dt)
-    return residual_autocovariance(
-        get_family(layout.family), width, sigma_c, sigma_n, alpha, record.dt, n, layout.sensor
+    noise = layout.noise_parameters(theta, layout.group(channel, record.name))
+    pose = channel in layout.pose_channels
+    measurement = MEASUREMENT_MODELS["pose" if pose else "rate"]
+    _, alpha = measurement.coefficients(
+        metadata.robot, theta[:, 0], theta[:, 1], channel, record.dt
+    )
+    return measurement.autocovariance(
+        get_family(layout.family),
+        *noise,
+        alpha,
+        record.dt,
+        n,
+        sensor=layout.sensor,
+        samples=record.pose_samples if samples is None else samples,
     )
 
 

@@ -29,6 +29,7 @@ from .experiment import CHANNEL_FIELDS, OPTIONAL, REQUIRED, Experiment
 from .likelihood import ResidualLikelihood
 from .parameters import ParameterLayout
 from .physics import CHANNELS
+from .pose_track import POSE_FIELDS, PoseTrack
 from .posterior_records import Convergence, ExperimentRecord, PosteriorMetadata
 from .priors import Prior
 from .residuals import channel_residuals
@@ -111,6 +112,7 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
             "dt": e.dt,
             "truth": e.truth,
             "provenance": e.provenance,
+            "pose_samples": likelihood.pose_samples.get(e.name, 1),
         }
         for e in likelihood.experiments
     ]
@@ -122,6 +124,7 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
         "channels": list(layout.channels),
         "shared_noise": layout.shared_noise,
         "shared_width": layout.shared_width,
+        "pose_channels": list(layout.pose_channels),
         "sensor": layout.sensor,
         "engine": likelihood.engine,
         "steady": likelihood.steady,
@@ -227,10 +230,18 @@ def posterior_layout(idata: az.InferenceData) -> ParameterLayout:
     shared_noise = _attribute(attrs, "shared_noise")
     # Files written before one width could be shared have one per group.
     shared_width = _attribute(attrs, "shared_width", False)
+    # Files written before poses were modelled have none.
+    poses = _attribute(attrs, "pose_channels", [])
     try:
         names = tuple(e["name"] for e in experiments)
         layout = ParameterLayout(
-            family, sensor, tuple(channels), names, bool(shared_noise), bool(shared_width)
+            family,
+            sensor,
+            tuple(channels),
+            names,
+            bool(shared_noise),
+            bool(shared_width),
+            tuple(poses),
         )
     except (InputError, TypeError, KeyError) as exc:
         raise DataError(f"attributes do not describe a model ({exc})") from None
@@ -288,7 +299,9 @@ def experiment_data(experiments: Sequence[Experiment]) -> tuple[dict, dict]:
     -------
     arrays : dict of str to ndarray
         Every measured field (``t``, ``yaw_rate``, ``omega_r``, ``omega_l``,
-        and ``vx``, ``vy`` when measured) of every experiment [its unit].
+        and ``vx``, ``vy`` when measured) of every experiment [its unit],
+        and its poses where it has them (``pose_t``, ``pose_x``, ``pose_y``,
+        ``pose_heading`` along ``pose_time_<i>``).
     dims : dict of str to list of str
         Each array's dimension.
 
@@ -312,6 +325,11 @@ def experiment_data(experiments: Sequence[Experiment]) -> tuple[dict, dict]:
             if values is not None:
                 arrays[_array_key(field, i)] = np.asarray(values)
                 dims[_array_key(field, i)] = [f"time_{i}"]
+        if experiment.pose is not None:
+            for field in POSE_FIELDS:
+                key = _array_key(f"pose_{field}", i)
+                arrays[key] = np.asarray(getattr(experiment.pose, field))
+                dims[key] = [f"pose_time_{i}"]
     return arrays, dims
 
 
@@ -319,8 +337,10 @@ def experiment_arrays(idata: az.InferenceData, index: int) -> dict[str, np.ndarr
     """The measured arrays of experiment ``index`` that a posterior stores, by field name.
 
     The fields of :class:`~bayes_jackal.experiment.Experiment`: ``t`` [s],
-    ``yaw_rate``, ``omega_r``, ``omega_l`` [rad/s], and ``vx``, ``vy``
-    [m/s] when measured (written by :func:`experiment_data`).
+    ``yaw_rate``, ``omega_r``, ``omega_l`` [rad/s], ``vx``, ``vy`` [m/s]
+    when measured, and ``pose`` (a
+    :class:`~bayes_jackal.pose_track.PoseTrack`) where the experiment had
+    poses (written by :func:`experiment_data`).
 
     Examples
     --------
@@ -339,11 +359,15 @@ def experiment_arrays(idata: az.InferenceData, index: int) -> dict[str, np.ndarr
     True
     """
     data = idata.constant_data
-    return {
+    arrays = {
         field: data[_array_key(field, index)].values
         for field in (*REQUIRED, *OPTIONAL)
         if _array_key(field, index) in data
     }
+    if _array_key("pose_t", index) in data:
+        values = [data[_array_key(f"pose_{field}", index)].values for field in POSE_FIELDS]
+        arrays["pose"] = PoseTrack(*values)
+    return arrays
 
 
 def _residual_key(index: int, channel: str) -> str:
@@ -428,6 +452,7 @@ def _experiment_record(stored: dict, data: Mapping, index: int) -> ExperimentRec
         truth=stored.get("truth"),
         provenance=stored.get("provenance") or {},
         channels=tuple(c for c in CHANNELS if _array_key(CHANNEL_FIELDS[c], index) in data),
+        pose_samples=int(stored.get("pose_samples", 1)),
     )
 
 

@@ -40,6 +40,10 @@ class ExperimentRecord:
     channels : tuple of str
         The model channels (``vx``, ``vy``, ``yaw``) it measured: those
         whose arrays the file stores.
+    pose_samples : int
+        The recorded poses averaged into each sample of its pose channels in
+        the likelihood's window (1 where it has none;
+        :func:`bayes_jackal.pose_increments.tick_poses`).
 
     Examples
     --------
@@ -65,6 +69,7 @@ class ExperimentRecord:
     truth: dict | None
     provenance: dict
     channels: tuple[str, ...] = ()
+    pose_samples: int = 1
 
 
 @dataclass(frozen=True)

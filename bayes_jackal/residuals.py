@@ -1,11 +1,16 @@
 """One-step residuals and their regressors (thesis eq. 7-3).
 
-The one-step residual of a measured channel y is w[k] = y[k+1] - Ad y[k]
-- Bd u[k]: what the linear model leaves unexplained. It is linear in the
-regressors Z = [y[k+1], y[k], u_r[k], u_l[k]], w = Z (1, -Ad[c, c],
--Bd[c, :]); the likelihood works on Z, the residual analysis
-(:mod:`bayes_jackal.residual_analysis`, thesis ch. 7), the posterior files and the
-model criticism on w.
+The one-step residual of a channel measured by a sensor (the yaw rate) is
+w[k] = y[k+1] - Ad y[k] - Bd u[k]: what the linear model leaves
+unexplained. It is linear in the regressors Z = [y[k+1], y[k], u_r[k],
+u_l[k]], w = Z (1, -Ad[c, c], -Bd[c, :]). A channel recorded through
+motion-capture poses (vx, vy of a bag) has the residual of its pose
+increments instead, linear in its own regressors
+(:class:`bayes_jackal.measurements.PoseMeasurement`): the same
+functions here give either, by how the experiment recorded the channel
+(:meth:`~bayes_jackal.experiment.Experiment.measurement`). The likelihood
+works on Z, the residual analysis (:mod:`bayes_jackal.residual_analysis`,
+thesis ch. 7), the posterior files and the model criticism on w.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import numpy as np
 
 from .errors import DataError
 from .experiment import CHANNEL_FIELDS, Experiment
-from .physics import channel_coefficients
+from .measurements import measurement_of
 from .robot import RobotProfile
 
 __all__ = ["channel_residuals", "check_residual_window", "residual_regressors"]
@@ -33,8 +38,11 @@ def channel_residuals(
 
     w[k] = y[k+1] - Ad y[k] - Bd u[k] for k = 0..N-2, with the channel's
     exact (ZOH) pole Ad[c, c] and input row Bd[c, :] at the experiment's
-    sample time (eq. 6-6). The thesis evaluates the steady-state window only
-    (ch. 7-1: acceleration and deceleration left out).
+    sample time (eq. 6-6); for a channel recorded as poses, the residual of
+    its pose increments (k = 0..N-3,
+    :class:`~bayes_jackal.measurements.PoseMeasurement`), in the same unit.
+    The thesis evaluates the steady-state window only (ch. 7-1:
+    acceleration and deceleration left out).
 
     Parameters
     ----------
@@ -85,18 +93,18 @@ def channel_residuals(
     >>> channel_residuals(run, robot, [100.0, 110.0, 120.0], 30.0).shape
     (3, 2376)
     """
-    dt = (experiment.steady() if steady else experiment).dt
-    alpha, input_row = channel_coefficients(robot, d_lat, d_long, channel, dt)
-    # eq. 7-3 for one channel of the diagonal model: Z (1, -alpha, -Bd[c, :])
-    coefficients = np.concatenate([np.ones((*alpha.shape, 1)), -alpha[..., None], -input_row], -1)
-    return coefficients @ residual_regressors(experiment, channel, steady)[samples].T
+    window = experiment.steady() if steady else experiment
+    measurement = measurement_of(window, channel)
+    coefficients, _ = measurement.coefficients(robot, d_lat, d_long, channel, window.dt)
+    return coefficients @ measurement.series(window, channel).regressors[samples].T
 
 
 def residual_regressors(experiment: Experiment, channel: str, steady: bool = True) -> np.ndarray:
     """Regressors Z = [y[k+1], y[k], u_r[k], u_l[k]] of one channel, shape (N - 1, 4).
 
     The one-step residual (eq. 7-3) is linear in them: w = Z (1, -Ad[c, c],
-    -Bd[c, 0], -Bd[c, 1]).
+    -Bd[c, 0], -Bd[c, 1]). A channel recorded as poses has the regressors of
+    :class:`~bayes_jackal.measurements.PoseMeasurement`, shape (N - 2, 6).
 
     Parameters
     ----------
@@ -125,8 +133,7 @@ def residual_regressors(experiment: Experiment, channel: str, steady: bool = Tru
     True
     """
     window = experiment.steady() if steady else experiment
-    y = window.channel(channel)
-    return np.column_stack([y[1:], y[:-1], window.inputs[:-1]])
+    return measurement_of(window, channel).series(window, channel).regressors
 
 
 def check_residual_window(

@@ -35,17 +35,22 @@ _BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radi
 _DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
 #: The profile schema this version reads (``schema_version``, optional).
 SCHEMA_VERSION = 1
-_PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
+_PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "sigma_p")
 _WHEEL_SIDES = ("right", "left")
 #: Prior ranges: uniform for the damping [N s/m], log-uniform for the kernel
 #: width [s] and the noise standard deviations [channel units]. sigma_n is
-#: kept away from zero (docs/design.md §4).
+#: kept away from zero (docs/design.md §4). sigma_p, the motion-capture
+#: position noise per recorded pose [m], spans 1 um to 1 cm: its log-centre,
+#: 0.1 mm, is the specification of lab systems (OptiTrack, Vicon: 0.1-0.5 mm),
+#: and its floor keeps the pose channels' covariance away from singular as
+#: sigma_n's does (docs/design.md §2.2).
 DEFAULT_PRIORS = {
     "d_lat": (10.0, 1000.0),
     "d_long": (10.0, 1000.0),
     "sigma_h": (0.001, 1.0),
     "sigma_c": (1e-5, 1.0),
     "sigma_n": (1e-4, 1.0),
+    "sigma_p": (1e-6, 1e-2),
 }
 _DEFAULT_TOPICS = {
     "imu": "/imu/data",

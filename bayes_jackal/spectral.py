@@ -2,7 +2,9 @@
 
 The ``fast`` engine of :class:`bayes_jackal.likelihood.ResidualLikelihood`
 (docs/design.md §4). The residual series of one channel is x = Z c, linear
-in c = (1, -alpha, -beta_r, -beta_l) with the regressors Z (n, 4). Its
+in c with the regressors Z (n, K) (K = 4 for a rate channel, c = (1,
+-alpha, -beta_r, -beta_l); 6 for a pose channel,
+:mod:`bayes_jackal.measurements`). Its
 Gaussian log-density under the Toeplitz covariance T_n of an autocovariance
 needs
 
@@ -84,7 +86,10 @@ _LOG_2PI = np.log(2.0 * np.pi)
 class ResidualBlock:
     """Residual series of one channel with one noise setting and one length.
 
-    Holds the regressors Z of E series, each (n, 4), and what the engines
+    Holds the regressors Z of E series, each (n, K), how they were recorded
+    (:attr:`measurement`, a key of
+    :data:`bayes_jackal.measurements.MEASUREMENT_MODELS`, and the poses
+    averaged per sample, :attr:`samples`), and what the engines
     derive from them once: the Whittle cross-periodogram and, for the
     ``fast`` engine, the series' means and the lagged Gram tensor of their
     deviations. Splitting off the means keeps the lagged sums accurate:
@@ -115,6 +120,8 @@ class ResidualBlock:
     noise_group: int
     dt: float
     regressors: np.ndarray = field(repr=False)
+    measurement: str = "rate"
+    samples: int = 1
 
     @property
     def count(self) -> int:
@@ -125,6 +132,11 @@ class ResidualBlock:
     def n(self) -> int:
         """Length of each series."""
         return self.regressors.shape[1]
+
+    @property
+    def width(self) -> int:
+        """K, the regressors of each sample."""
+        return self.regressors.shape[2]
 
     @property
     def size(self) -> int:
@@ -141,36 +153,38 @@ class ResidualBlock:
 
     @cached_property
     def periodogram(self) -> np.ndarray:
-        """Cross-periodogram on the n Fourier frequencies / n, summed over the series, (F, 16)."""
-        return (sum(cross_periodogram(z) for z in self.regressors) / self.n).reshape(-1, 16)
+        """Cross-periodogram on the n Fourier frequencies / n, summed over the series, (F, K^2)."""
+        spectra = sum(cross_periodogram(z) for z in self.regressors) / self.n
+        return spectra.reshape(-1, self.width**2)
 
     @cached_property
     def means(self) -> np.ndarray:
-        """Each series' regressor means mu_e, shape (E, 4)."""
+        """Each series' regressor means mu_e, shape (E, K)."""
         return self.regressors.mean(axis=1)
 
     def _deviations(self) -> np.ndarray:
-        """D_e = Z_e - mu_e, shape (E, n, 4) (not kept: each use is once)."""
+        """D_e = Z_e - mu_e, shape (E, n, K) (not kept: each use is once)."""
         return self.regressors - self.means[:, None, :]
 
     @cached_property
     def deviation_gram(self) -> np.ndarray:
-        """sum_e sum_i D_e[i] D_e[i+l]' (symmetrised) for l = 0..n-1, shape (n, 16).
+        """sum_e sum_i D_e[i] D_e[i+l]' (symmetrised) for l = 0..n-1, shape (n, K^2).
 
         D_e = Z_e - mu_e; from the deviations' cross-periodogram on >= 2n
         points, so the lags are not circular.
         """
-        spectra = sum(cross_periodogram(d, self.size) for d in self._deviations()).reshape(-1, 16)
+        spectra = sum(cross_periodogram(d, self.size) for d in self._deviations())
+        spectra = spectra.reshape(-1, self.width**2)
         return np.ascontiguousarray(scipy.fft.irfft(spectra, self.size, axis=0)[: self.n])
 
     @cached_property
     def edge_sums(self) -> np.ndarray:
-        """sum_{i<n-l} D_e[i] + sum_{i>=l} D_e[i] for l = 0..n-1, shape (n, E, 4).
+        """sum_{i<n-l} D_e[i] + sum_{i>=l} D_e[i] for l = 0..n-1, shape (n, E, K).
 
         As the deviations sum to zero: -(sum of the first l) - (sum of the last l).
         """
         deviations = self._deviations()
-        zero = np.zeros((self.count, 1, 4))
+        zero = np.zeros((self.count, 1, self.width))
         head = np.concatenate([zero, np.cumsum(deviations[:, :-1], axis=1)], axis=1)
         tail = np.concatenate([zero, np.cumsum(deviations[:, :0:-1], axis=1)], axis=1)
         return np.ascontiguousarray(-(head + tail).transpose(1, 0, 2))
@@ -184,7 +198,7 @@ class ResidualBlock:
         """
         batch = len(coefficients)
         mean = coefficients @ self.means.T  # (B, E)
-        outer = (coefficients[:, :, None] * coefficients[:, None, :]).reshape(batch, 16)
+        outer = (coefficients[:, :, None] * coefficients[:, None, :]).reshape(batch, -1)
         edges = np.einsum("lek,bk->ble", self.edge_sums[:lags], coefficients)
         return (
             (self.n - np.arange(lags)) * np.sum(mean**2, axis=-1, keepdims=True)
@@ -199,8 +213,8 @@ def spectral_forms(
     """log det T_n and the quadratic forms of several coefficient vectors, from one factorisation.
 
     The spectral factor (the log-determinant and the predictor) depends on
-    the autocovariance only, so K coefficient vectors per parameter set
-    share it: x' T_n^-1 x of x = Z c_k for each k at the cost of one extra
+    the autocovariance only, so J coefficient vectors per parameter set
+    share it: x' T_n^-1 x of x = Z c_j for each j at the cost of one extra
     lagged-sum contraction and boundary correlation each.
 
     Parameters
@@ -209,16 +223,16 @@ def spectral_forms(
         Autocovariance at lags 0, 1, ... (as :func:`spectral_loglike`).
     block : ResidualBlock
         E series of length n.
-    coefficients : ndarray, shape (B, K, 4)
-        K coefficient vectors c_k of each parameter set.
+    coefficients : ndarray, shape (B, J, K)
+        J coefficient vectors c_j of each parameter set.
     size : int
         Spectral grid: one of ``block.grids()``.
 
     Returns
     -------
-    forms : ndarray, shape (B, 1 + K)
-        Column 0: log det T_n of one series [nats]; column 1 + k: x' T_n^-1 x
-        of x = Z c_k, summed over the block's series. Meaningful where
+    forms : ndarray, shape (B, 1 + J)
+        Column 0: log det T_n of one series [nats]; column 1 + j: x' T_n^-1 x
+        of x = Z c_j, summed over the block's series. Meaningful where
         ``converged``.
     converged : ndarray of bool, shape (B,)
         As :func:`spectral_loglike`.
@@ -274,7 +288,7 @@ def spectral_forms(
     weights = np.full(m, 2.0)
     weights[0] = 1.0
     forms = coefficients.shape[1]
-    sums = block.lagged_sums(coefficients.reshape(-1, 4), m).reshape(batch, forms, m)
+    sums = block.lagged_sums(coefficients.reshape(-1, block.width), m).reshape(batch, forms, m)
     full = np.sum(predictor_acf[:, None, :] * sums * weights, axis=-1)
     boundary = _boundary_energy(taps_spectrum, m, block, coefficients)
     quadratic = (full - boundary) / np.exp(log_v)[:, None]
@@ -293,7 +307,7 @@ def spectral_loglike(
         lag size / 2, on the full grid (size >= 2n) every lag of the series.
     block : ResidualBlock
         E series of length n.
-    coefficients : ndarray, shape (B, 4)
+    coefficients : ndarray, shape (B, K)
         c of each parameter set: the residuals are Z c.
     size : int
         Spectral grid: one of ``block.grids()``.
@@ -356,7 +370,7 @@ def evaluate_on_grids(
         ``autocovariance(rows, lags)``: the autocovariance at lags
         0..lags-1 of the sets indexed by the integer array ``rows``, shape
         (len(rows), lags).
-    coefficients : ndarray, shape (B, 4) or (B, K, 4)
+    coefficients : ndarray, shape (B, K) or (B, J, K)
         The sets' coefficient vectors, as ``evaluate`` takes them.
     evaluate : callable
         :func:`spectral_loglike` or :func:`spectral_forms`:
@@ -396,7 +410,7 @@ def evaluate_on_grids(
             break
         lags = min(block.n, size // 2 + 1)
         certified = []
-        # Per set: the grid's arrays, and the boundary's (K x 2E, ~2m <= size).
+        # Per set: the grid's arrays, and the boundary's (J x 2E, ~2m <= size).
         per_set = size * (1 + 2 * block.count * forms)
         for rows in chunks(len(pending), per_set, budget=CHUNK_ELEMENTS):
             chunk = pending[rows]
@@ -411,19 +425,19 @@ def evaluate_on_grids(
 def _boundary_energy(
     taps_spectrum: np.ndarray, m: int, block: ResidualBlock, coefficients: np.ndarray
 ) -> np.ndarray:
-    """The convolution's tail plus |L(a~)' x|^2, summed over the block's series, shape (B, K).
+    """The convolution's tail plus |L(a~)' x|^2, summed over the block's series, shape (B, J).
 
     The tail sum_{k>=r} a_k x_{k-r} and the rows of L(a~)' x are both lag-r
     correlations of the m taps a (r = 1..m-1, from their spectrum on
     >= 2m points) with the first m samples and with the reversed last m
-    samples of each series, for each of the K coefficient vectors (B, K, 4).
+    samples of each series, for each of the J coefficient vectors (B, J, K).
     """
     n = block.n
     length = 2 * (taps_spectrum.shape[1] - 1)  # even
     segments = np.concatenate(
         [block.regressors[:, :m], block.regressors[:, n - m :][:, ::-1]], axis=0
     )
-    edges = np.einsum("smk,bjk->bjsm", segments, coefficients)  # (B, K, 2E, m)
+    edges = np.einsum("smk,bjk->bjsm", segments, coefficients)  # (B, J, 2E, m)
     correlation = scipy.fft.irfft(
         taps_spectrum[:, None, None, :] * scipy.fft.rfft(edges, length).conj(), length
     )

@@ -78,7 +78,7 @@ def expected_periodogram(acov: np.ndarray, length: int | None = None) -> np.ndar
 
 
 def cross_periodogram(regressors: np.ndarray, size: int | None = None) -> np.ndarray:
-    """Re(Z_j^* Z_j^T) of the regressors' DFT on ``size`` points, shape (size // 2 + 1, 4, 4).
+    """Re(Z_j^* Z_j^T) of the regressors' DFT on ``size`` points, shape (size // 2 + 1, K, K).
 
     For any real coefficient vector c, |DFT(Z c)_j|^2 = c^T P_j c. The
     transform is zero-padded to ``size`` (default: the series' length n).

@@ -232,3 +232,33 @@ def test_a_posterior_with_broken_attributes_is_refused_naming_the_attribute(
         load_posterior(path)
     with pytest.raises(DataError, match=pattern):
         posterior_metadata(idata)
+
+
+def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
+    # vx, vy recorded as motion-capture poses: sigma_p is indexed by the pose
+    # channels alone, sigma_n by yaw alone, and the file rebuilds the poses.
+    from bayes_jackal import sample
+    from bayes_jackal.bag_writer import write_bag
+    from bayes_jackal.bags import read_bag
+    from bayes_jackal.posterior import model_autocovariance
+
+    run = simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 10.0), rng=1, name="short")
+    experiment = read_bag(write_bag(run, tmp_path / "short.bag", ROBOT, "ros1", rng=1), ROBOT)
+    with pytest.warns(UserWarning, match="NOT CONVERGED"):  # kept short on purpose
+        posterior = sample([experiment], family="white", max_steps=100, seed=1)
+    assert posterior.posterior["sigma_p"].dims[-1] == "sigma_p_group"
+    assert list(posterior.posterior["sigma_p_group"].values) == ["vx", "vy"]
+    assert list(posterior.posterior["sigma_n_group"].values) == ["yaw"]
+    back = load_posterior(save_posterior(posterior, tmp_path / "short.nc"))
+    draws, _ = parameter_draws(back)
+    original, _ = parameter_draws(posterior)
+    np.testing.assert_array_equal(draws, original)
+    metadata = posterior_metadata(back)
+    assert metadata.layout.pose_channels == ("vx", "vy")
+    assert metadata.experiments[0].pose_samples == 5
+    summary = summarize(back)
+    assert {"sigma_p[vx]", "sigma_p[vy]", "sigma_n[yaw]"} <= set(summary)
+    [rebuilt] = posterior_experiments(back)
+    np.testing.assert_array_equal(rebuilt.pose.x, experiment.pose.x)
+    acov = model_autocovariance(metadata, 0, "vx", draws[0], 4)
+    assert acov.shape == (draws.shape[1], 4) and np.all(acov[:, 3] == 0)  # white + MA(2)
