@@ -39,6 +39,15 @@ well (:mod:`bayes_jackal.export_consumers`, docs/active_inference.md): the
 same quantities in time bins, the sensor-noise precision Pi_z, the
 smoothness per channel, log-precision hyperpriors, the operating point and
 the damping prior on the entries of A and B.
+
+A channel recorded as motion-capture poses (``noise.pose_channels``) is
+measured through its travel, the integral of its velocity, with the pose
+noise sigma_p per recorded pose: its Pi_z row in ``sensor_noise`` is that
+of the travel, in m, at the sd sigma_p / sqrt(n) of a sample averaging n
+poses (``noise.pose_samples``, the identification's), and
+``sensor_noise.measured`` says which channels these are. Its process noise
+is the velocity's, as any channel's: Pi holds the robot's smoothness, not
+a smoother's.
 """
 
 from __future__ import annotations
@@ -383,9 +392,12 @@ def export_prior(
     draws = draws.reshape(-1, len(names))
     d = draws[:, :2]
     # Shared noise: group c is channel c; white noise has unit widths.
-    width, sigma_c, sigma_n = np.stack(
+    width, sigma_c, sensor = np.stack(
         [layout.noise_parameters(draws, group) for group in range(len(channels))], axis=-1
     )
+    poses = _pose_samples(metadata)
+    sensor_sd = sensor / np.sqrt([poses if c in layout.pose_channels else 1 for c in channels])
+    every_sensor = all(layout.sensor_parameter(g) for g in range(len(channels)))
     process_sd = continuous_sd(robot, d, dt, channels, sigma_c)
     order, V, S = checked_precision(family, width, process_sd, order, dt=dt, source=source)
     mean_d = d.mean(axis=0)
@@ -427,9 +439,11 @@ def export_prior(
             "shared_width": bool(layout.shared_bases),
             "channels": channels,
             "parameters": noise_stats,
-            "sigma_c_is": "process" if "sigma_n" in layout.noise_bases else "total",
+            "sigma_c_is": "process" if every_sensor else "total",
             "process_sd_continuous": channel_moments(process_sd, channels),
             "sensor": layout.sensor,
+            "pose_channels": list(layout.pose_channels),
+            "pose_samples": poses,
         },
         "generalised_coordinates": {
             "order": order,
@@ -451,7 +465,7 @@ def export_prior(
         channels=channels,
         width=width,
         sigma_c=sigma_c,
-        sigma_n=sigma_n if "sigma_n" in layout.noise_bases else None,
+        sigma_n=sensor_sd if every_sensor else None,
         continuous_sd=process_sd,
         temporal_bins=temporal_covariance(family, width / dt, order),
         sensor_temporal_bins=temporal_covariance("gaussian", np.array(sensor_smoothness), order),
@@ -469,7 +483,23 @@ def export_prior(
             prior[key].update(value)
         else:
             prior[key] = value
+    if prior["sensor_noise"] is not None:
+        prior["sensor_noise"]["measured"] = {
+            c: "pose" if c in layout.pose_channels else "rate" for c in channels
+        }
     return prior
+
+
+def _pose_samples(metadata) -> float:
+    """The recorded poses per sample of a posterior's pose channels: 1 / mean(1 / n_e).
+
+    A sample's pose noise has the variance sigma_p^2 / n_e in experiment e;
+    this n gives their mean. 1 without pose channels.
+    """
+    counts = [e.pose_samples for e in metadata.experiments]
+    if not metadata.layout.pose_channels:
+        return 1.0
+    return float(1.0 / np.mean(1.0 / np.asarray(counts, float)))
 
 
 def write_prior(prior: dict, path: str | Path) -> Path:

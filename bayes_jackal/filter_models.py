@@ -41,6 +41,21 @@ The run is taken to start at rest: x[-1] = 0 (variance
 ``initial_variance``), u[-1] = 0, with the shaping filter's state in its
 stationary distribution, as :func:`bayes_jackal.simulate.simulate_experiment`
 starts its runs. So x[0] = w[-1] (+ sigma_n v[-1]) a priori.
+
+A channel recorded as motion-capture poses (vx, vy of a bag;
+:mod:`bayes_jackal.measurements`) is measured through its travel q, the
+sum of the body-frame increments, not its velocity. Its state gains q,
+which the step's integral of the held model moves (g, h as there):
+
+    q[k+1] = q[k] + g x[k] + (h / g) (b . u[k] + w[k]),   y[k] = q[k] + e[k],
+
+with R = sigma_p^2 / n, the pose noise of a sample that averages n
+recorded poses. The measured travel Q_k = M_0 + .. + M_(k-1) is q_k + e_k
+- e_0 (:func:`bayes_jackal.pose_increments.body_displacement`): the state
+q' = q - e_0 starts at 0 with the variance R, and is measured with white
+noise from the second sample on; the first, Q_0 = 0, says nothing and is
+not a measurement (:attr:`ChannelModel.first_measured`). The estimate is x,
+the velocity.
 """
 
 from __future__ import annotations
@@ -51,13 +66,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.special
 
 from .defaults import FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import FAMILIES, Family, get_family
+from .measurements import pose_weights
 from .parameters import DAMPING, ParameterLayout
 from .physics import CHANNELS
+from .pose_increments import body_displacement, tick_poses
 from .posterior_format import ROBOT_CONSTANTS
 from .robot import RobotProfile, load_profile
 
@@ -69,6 +87,7 @@ __all__ = [
     "channel_model",
     "check_prior",
     "filter_models",
+    "measured_series",
     "noise_parameters",
     "parameter_values",
     "prior_field",
@@ -93,8 +112,10 @@ _FORMAT_PREFIX = "bayes_jackal.prior/"
 class ChannelModel:
     """The linear Gaussian state-space model of one channel (module docstring).
 
-    s[k+1] = F s[k] + G u[k] + Gamma eps[k] with eps ~ N(0, I); the measured
-    state is s[k][0] (x_c), y[k] = s[k][0] + n[k] with var(n) = R.
+    s[k+1] = F s[k] + G u[k] + Gamma eps[k] with eps ~ N(0, I); the
+    measurement is y[k] = H s[k] + n[k] with var(n) = R: the state x_c
+    (H = e_0') for a rate channel, its travel q for a pose channel. The
+    estimated state is s[k][0], x_c.
 
     Attributes
     ----------
@@ -107,9 +128,14 @@ class ChannelModel:
     noise_matrix : ndarray, shape (n, q)
         Gamma [channel units].
     sensor_variance : float
-        R [channel units^2].
+        R [channel units^2; m^2 for a pose channel].
     initial_mean, initial_covariance : ndarray, shapes (n,), (n, n)
         The state's prior at k = 0.
+    observation : ndarray, shape (n,)
+        H: e_0 for a rate channel, the travel's unit vector for a pose channel.
+    first_measured : int
+        The first sample that is a measurement: 0, or 1 for a pose channel
+        (its travel is 0 at the first sample by definition).
 
     Examples
     --------
@@ -130,6 +156,8 @@ class ChannelModel:
     sensor_variance: float
     initial_mean: np.ndarray
     initial_covariance: np.ndarray
+    observation: np.ndarray
+    first_measured: int = 0
 
     @property
     def size(self) -> int:
@@ -154,6 +182,8 @@ def channel_model(
     dt: float,
     sensor: str = SENSOR,
     initial_variance: float = 0.0,
+    measurement: str = "rate",
+    samples: int = 1,
 ) -> ChannelModel:
     """The augmented model of one channel with the noise of ``family``.
 
@@ -179,13 +209,18 @@ def channel_model(
     width : float or ndarray, shape (D,)
         The family's width [s] (ignored for white noise); D draws.
     sigma_c, sigma_n : float or ndarray, shape (D,)
-        Process-noise sd per step and sensor-noise sd [channel units].
+        Process-noise sd per step and sensor-noise sd [channel units]; for
+        a pose channel the pose noise sigma_p per recorded pose [m].
     dt : float
         Sample time [s].
     sensor : {"ma1", "diagonal"}
-        How sensor noise enters (module docstring).
+        How a rate channel's sensor noise enters (module docstring).
     initial_variance : float
         Variance of x[-1] about 0 [channel units^2]; 0: the run starts at rest.
+    measurement : {"rate", "pose"}
+        How the channel was recorded (:data:`bayes_jackal.experiment.MEASUREMENTS`).
+    samples : int
+        A pose channel's recorded poses per sample, n: R = sigma_p^2 / n.
 
     Returns
     -------
@@ -209,6 +244,15 @@ def channel_model(
     >>> stationary = scipy.linalg.solve_discrete_lyapunov(F[1:, 1:], Q[1:, 1:])
     >>> round(float(F[0, 1:] @ stationary @ F[0, 1:] + Q[0, 0]), 12)
     0.0001
+
+    The vx channel recorded as poses at 5 poses per sample gains its travel,
+    measured with the pose noise's variance sigma_p^2 / 5:
+
+    >>> pose = channel_model("vx", 0.9, [0.005, 0.005], family="white", width=1.0,
+    ...                      sigma_c=0.005, sigma_n=5e-4, dt=1 / 72, measurement="pose",
+    ...                      samples=5)
+    >>> pose.size, pose.observation.tolist(), pose.sensor_variance
+    (2, [0.0, 1.0], 5e-08)
     """
     if sensor not in SENSOR_MODELS:
         raise InputError(
@@ -223,7 +267,8 @@ def channel_model(
     F = np.block([[np.array([[alpha]]), c[None, :]], [np.zeros((m, 1)), T]])
     G = np.zeros((m + 1, 2))
     G[0] = input_row
-    nugget, R = (sigma_n, 0.0) if sensor == "diagonal" else (0.0 * sigma_n, np.mean(sigma_n**2))
+    diagonal = sensor == "diagonal" and measurement == "rate"
+    nugget, R = (sigma_n, 0.0) if diagonal else (0.0 * sigma_n, np.mean(sigma_n**2))
     Gamma = np.zeros((draws, m + 1, 2))  # per draw: (e, v) -> (x, z)
     Gamma[:, 0, 0], Gamma[:, 0, 1] = sigma_c * d, nugget
     Gamma[:, 1:, 0] = sigma_c[:, None] * g
@@ -232,7 +277,7 @@ def channel_model(
     before = scipy.linalg.block_diag(
         [[initial_variance]], scipy.linalg.solve_discrete_lyapunov(T, Q[1:, 1:])
     )
-    return ChannelModel(
+    model = ChannelModel(
         channel=channel,
         transition=F,
         input_matrix=G,
@@ -240,6 +285,41 @@ def channel_model(
         sensor_variance=float(R),
         initial_mean=np.zeros(m + 1),
         initial_covariance=F @ before @ F.T + Q,
+        observation=np.eye(m + 1)[0],
+    )
+    if measurement == "pose":
+        return _with_travel(model, alpha, dt, np.mean(sigma_n**2) / samples)
+    return model
+
+
+def _with_travel(model: ChannelModel, alpha: float, dt: float, variance: float) -> ChannelModel:
+    """A pose channel's model: the state gains the travel q, which y measures (module docstring).
+
+    q[k+1] = q[k] + g x[k] + (h / g) (b . u[k] + w[k]): the travel's row is
+    g times x's unit vector plus h / g times x's own row (its noise and
+    input too), with R the pose noise's ``variance``.
+    """
+    n = model.size
+    g = dt * scipy.special.exprel(np.log(alpha))
+    kappa_0, _ = pose_weights(np.asarray(alpha))
+    h_over_g = float(kappa_0) * dt  # kappa_0 = h / (g dt)
+    F = np.zeros((n + 1, n + 1))
+    F[:n, :n] = model.transition
+    F[n, :n] = h_over_g * model.transition[0]
+    F[n, 0] = g
+    F[n, n] = 1.0
+    G = np.vstack([model.input_matrix, h_over_g * model.input_matrix[0]])
+    Gamma = np.vstack([model.noise_matrix, h_over_g * model.noise_matrix[0]])
+    return ChannelModel(
+        channel=model.channel,
+        transition=F,
+        input_matrix=G,
+        noise_matrix=Gamma,
+        sensor_variance=float(variance),
+        initial_mean=np.zeros(n + 1),
+        initial_covariance=scipy.linalg.block_diag(model.initial_covariance, [[variance]]),
+        observation=np.eye(n + 1)[n],
+        first_measured=1,
     )
 
 
@@ -291,9 +371,13 @@ def _layout(prior: Mapping) -> ParameterLayout:
         )
     channels = tuple(prior_field(prior, "noise.channels"))
     shared_width = bool(noise.get("shared_width", False))  # absent before one-width
-    return ParameterLayout(
-        family, noise.get("sensor", SENSOR), channels, ("prior",), True, shared_width
-    )
+    poses = tuple(noise.get("pose_channels", ()))  # absent before poses were modelled
+    try:
+        return ParameterLayout(
+            family, noise.get("sensor", SENSOR), channels, ("prior",), True, shared_width, poses
+        )
+    except InputError as exc:
+        raise InputError(str(exc).split(": ", 1)[-1], field="noise.pose_channels") from None
 
 
 def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str, ...]:
@@ -380,9 +464,43 @@ def check_prior(
             field="dt",
         )
     channels = _prior_channels(prior, channels)
+    poses = _layout(prior).pose_channels
     for channel in channels:
-        experiment.channel(channel)  # a DataError when it is not measured
+        recorded = experiment.measurement(channel)  # a DataError when it is not measured
+        modelled = "pose" if channel in poses else "rate"
+        if recorded != modelled:
+            raise InputError(
+                f"the prior models {channel} as {_RECORDED[modelled]}, the experiment "
+                f"({experiment.source}) records it as {_RECORDED[recorded]}",
+                field="noise.pose_channels",
+            )
     return channels
+
+
+#: How a prior or an experiment has a channel recorded, in words.
+_RECORDED = {"pose": "motion-capture poses", "rate": "a measured state"}
+
+
+def measured_series(experiment: Experiment, channel: str) -> tuple[np.ndarray, int]:
+    """What the filters take as a channel's measurement, and the poses averaged per sample.
+
+    A rate channel's measured state [its unit] (n = 1); a pose channel's
+    travel along its body axis [m]
+    (:func:`bayes_jackal.pose_increments.body_displacement`) and its n.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.filter_models import measured_series
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> y, samples = measured_series(run, "yaw")
+    >>> y.shape, samples
+    ((1873,), 1)
+    """
+    if experiment.measurement(channel) == "rate":
+        return experiment.channel(channel), 1
+    ticks = tick_poses(experiment)
+    return body_displacement(ticks, channel), ticks.samples
 
 
 def filter_models(
@@ -392,6 +510,7 @@ def filter_models(
     channels: Sequence[str] | None = None,
     parameters: str = "plug-in",
     initial_variance: float = 0.0,
+    pose_samples: int = 1,
 ) -> dict[str, ChannelModel]:
     """The state-space model of each channel, from an exported prior (module docstring).
 
@@ -409,6 +528,9 @@ def filter_models(
         over the prior's draws.
     initial_variance : float
         Variance of x[-1] about rest [channel units^2] (:func:`channel_model`).
+    pose_samples : int
+        Recorded poses per sample of the run filtered (:func:`measured_series`),
+        for the prior's pose channels.
 
     Returns
     -------
@@ -472,6 +594,8 @@ def filter_models(
             dt=dt,
             sensor=layout.sensor,
             initial_variance=initial_variance,
+            measurement="pose" if channel in layout.pose_channels else "rate",
+            samples=pose_samples,
         )
     return models
 
@@ -532,7 +656,8 @@ def noise_parameters(
     -------
     width, sigma_c, sigma_n : ndarray, shape (1,) or (draws,)
         The family's width [s] (1 for white noise), the per-step process sd
-        and the sensor sd [channel units] (0 where the fit has one total sd).
+        and the sensor sd [channel units] (0 where the fit has one total sd;
+        for a pose channel the pose noise sigma_p per recorded pose [m]).
 
     Raises
     ------

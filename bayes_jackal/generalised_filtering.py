@@ -38,6 +38,15 @@ the sensor precision is by default that of embedded white noise, T' T /
 sigma_n^2 (:func:`~bayes_jackal.generalised_coordinates.white_sensor_precision`),
 or SPM's Gaussian smoothness s_z exported with the prior.
 
+A channel recorded as motion-capture poses (vx, vy of a bag) is measured
+through its travel q (dq/dt = x; :mod:`bayes_jackal.filter_models`), so its
+generalised state is the travel's, of one order more: mu~ = (q, q', ..,
+q^(p+1)), whose derivatives q^(i+1) = x^(i) are the velocity's. The
+sensor error is e_z = y~ - mu~ with y~ the embedded travel and Pi_z the
+precision of the pose noise (sd sigma_p / sqrt(n) per sample), and the
+process error reads the velocity's part, e_w = M S mu~ - b . u~ with
+S = [0 | I]. The estimate is x = mu~[1].
+
 Because the update is linear time-invariant, the filter is the convolution
 of its impulse response expm(J dt)^m Gamma with the data (FFT), not a loop.
 With the identified model's precisions the flow is stiff (every eigenvalue
@@ -62,6 +71,7 @@ from .export import temporal_covariance
 from .export_consumers import continuous_sd, mean_covariance_precision
 from .filter_models import (
     check_prior,
+    measured_series,
     noise_parameters,
     parameter_values,
     prior_field,
@@ -113,18 +123,29 @@ def _check_precision(matrix: np.ndarray, size: int, name: str) -> np.ndarray:
     return matrix
 
 
+def _motion(a: float, order: int, size: int) -> np.ndarray:
+    """M S: the process error's map from a generalised state of ``size`` (module docstring).
+
+    M = D - a I on the velocity's p + 1 coordinates, which are the state's
+    last p + 1: the whole state for a measured velocity (S = I), all but
+    the travel for a pose channel (S = [0 | I]).
+    """
+    select = np.eye(order + 1, size, k=size - order - 1)
+    return (shift_operator(order) - a * np.eye(order + 1)) @ select
+
+
 def _flow(
     a: float, dt: float, process_precision: np.ndarray, sensor_precision: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """J and the input matrix G of d mu~/dt = J mu~ + G (y~, b . u~) (module docstring).
 
-    With the free energy F above, dF/dmu~ = -Pi_z (y~ - mu~) + M' Pi_w
-    (M mu~ - b . u~); the flow D mu~ - K dF/dmu~ collects into J mu~ + G c.
+    With the free energy F above, dF/dmu~ = -Pi_z (y~ - mu~) + (M S)' Pi_w
+    (M S mu~ - b . u~); the flow D mu~ - K dF/dmu~ collects into J mu~ + G c.
     """
-    order = len(process_precision) - 1
-    D = shift_operator(order)
-    M = D - a * np.eye(order + 1)
-    K = np.diag(dt ** (-2.0 * np.arange(order + 1))) / dt  # spm_DEM's unit gain in bins
+    size = len(sensor_precision)
+    M = _motion(a, len(process_precision) - 1, size)
+    D = shift_operator(size - 1)
+    K = np.diag(dt ** (-2.0 * np.arange(size))) / dt  # spm_DEM's unit gain in bins
     J = D - K @ (sensor_precision + M.T @ process_precision @ M)
     G = K @ np.hstack([sensor_precision, M.T @ process_precision])
     return J, G
@@ -143,6 +164,10 @@ def d_step(
     initial: np.ndarray | None = None,
 ) -> np.ndarray:
     """The D-step estimate of one channel's state in generalised coordinates.
+
+    For a channel recorded as poses, ``y`` is its travel and
+    ``sensor_precision`` one order larger than ``process_precision``: the
+    state is then the travel's generalised coordinates (module docstring).
 
     Integrates d mu~/dt = D mu~ - K dF/dmu~ (module docstring: the model, F,
     the gain K of ``spm_DEM``) with the local linearisation, sample by
@@ -167,12 +192,14 @@ def d_step(
         Pi_w of the continuous process noise in generalised coordinates
         (the export's inv(V) / s_c^2); its size sets the order p.
     y : array_like, shape (N,)
-        Measurements [units], N >= p + 1.
+        Measurements [units], N >= p + 1: the state, or a pose channel's
+        travel [m].
     u : array_like, shape (N, m)
         Inputs at the samples.
-    sensor_precision : array_like, shape (p + 1, p + 1)
+    sensor_precision : array_like, shape (p + 1, p + 1) or (p + 2, p + 2)
         Pi_z, e.g.
-        :func:`~bayes_jackal.generalised_coordinates.white_sensor_precision`.
+        :func:`~bayes_jackal.generalised_coordinates.white_sensor_precision`;
+        of order p + 1 for a pose channel's travel.
     lookahead : int, optional
         Samples after t_k in the embedding window
         (:func:`~bayes_jackal.generalised_coordinates.embedding_operator`;
@@ -182,8 +209,9 @@ def d_step(
 
     Returns
     -------
-    ndarray, shape (N, p + 1)
-        mu~[k] = (x, x', .., x^(p)) estimated at t_k [units / s^j].
+    ndarray, shape (N, p + 1) or (N, p + 2)
+        mu~[k] = (x, x', .., x^(p)) estimated at t_k [units / s^j]; for a
+        pose channel (q, x, .., x^(p)).
 
     Raises
     ------
@@ -209,8 +237,11 @@ def d_step(
     True
     """
     process_precision = np.asarray(process_precision, float)
-    size = len(process_precision)
-    process_precision = _check_precision(process_precision, size, "process_precision")
+    order = len(process_precision) - 1
+    process_precision = _check_precision(process_precision, order + 1, "process_precision")
+    size = len(np.atleast_2d(sensor_precision))
+    if size not in (order + 1, order + 2):
+        size = order + 1  # refused below, naming the shape expected
     sensor_precision = _check_precision(sensor_precision, size, "sensor_precision")
     y, u, b = np.asarray(y, float), np.asarray(u, float), np.atleast_1d(np.asarray(b, float))
     if y.ndim != 1 or u.shape != (len(y), len(b)):
@@ -220,7 +251,6 @@ def d_step(
         )
     if not (np.isfinite(y).all() and np.isfinite(u).all()):
         raise InputError("measurements and inputs must be finite", field="y")
-    order = size - 1
     J, G = _flow(float(a), dt, process_precision, sensor_precision)
     if not np.linalg.eigvals(J).real.max() < 0:
         raise InputError(
@@ -234,7 +264,10 @@ def d_step(
     Phi = scipy.linalg.expm(J * dt)
     forcing_matrix = np.linalg.solve(J, (Phi - np.eye(size)) @ G)
     data = np.hstack(
-        [embed(y, order, dt, lookahead=lookahead), embed(u @ b, order, dt, lookahead=lookahead)]
+        [
+            embed(y, size - 1, dt, lookahead=lookahead),
+            embed(u @ b, order, dt, lookahead=lookahead),
+        ]
     )
     start = data[0, :size] if initial is None else np.asarray(initial, float)
     if start.shape != (size,):
@@ -245,7 +278,7 @@ def d_step(
 def conditional_covariance(
     a: float, process_precision: np.ndarray, sensor_precision: np.ndarray
 ) -> np.ndarray:
-    """The D-step's conditional covariance of mu~: inv(Pi_z + M' Pi_w M), M = D - a I.
+    """The D-step's conditional covariance of mu~: inv(Pi_z + (M S)' Pi_w M S), M = D - a I.
 
     Under the Laplace assumption of DEM the conditional precision of the
     generalised state is the curvature of the free energy F (module
@@ -255,12 +288,13 @@ def conditional_covariance(
     ----------
     a : float
         The channel's pole A[c, c] [1/s].
-    process_precision, sensor_precision : array_like, shape (p + 1, p + 1)
-        Pi_w and Pi_z, as :func:`d_step`.
+    process_precision, sensor_precision : array_like
+        Pi_w (p + 1, p + 1) and Pi_z, as :func:`d_step` (one order more for a
+        pose channel's travel).
 
     Returns
     -------
-    ndarray, shape (p + 1, p + 1)
+    ndarray, shape of ``sensor_precision``
         [units / s^i x units / s^j].
 
     Examples
@@ -272,9 +306,12 @@ def conditional_covariance(
     [[0.23529411764705882]]
     """
     process_precision = np.atleast_2d(np.asarray(process_precision, float))
-    size = len(process_precision)
-    sensor_precision = _check_precision(sensor_precision, size, "sensor_precision")
-    M = shift_operator(size - 1) - a * np.eye(size)
+    order = len(process_precision) - 1
+    size = len(np.atleast_2d(sensor_precision))
+    sensor_precision = _check_precision(
+        sensor_precision, size if size in (order + 1, order + 2) else order + 1, "sensor_precision"
+    )
+    M = _motion(a, order, size)
     return np.linalg.inv(sensor_precision + M.T @ process_precision @ M)
 
 
@@ -441,25 +478,27 @@ def generalised_filter(
     estimates = {}
     for channel in channels:
         row = CHANNELS.index(channel)
+        y, samples = measured_series(experiment, channel)
+        travel = int(experiment.measurement(channel) == "pose")  # the travel's extra order
         Pw = process_precision(prior, channel, order, parameters=parameters)
-        Pz = _sensor_precision(prior, channel, order, dt, parameters, sensor_precision, lookahead)
-        y = experiment.channel(channel)
+        Pz, variance = _sensor_precision(
+            prior, channel, order + travel, dt, parameters, sensor_precision, lookahead, samples
+        )
         mu = d_step(A[row, row], B[row], dt, Pw, y, experiment.inputs, sensor_precision=Pz,
                     lookahead=lookahead)  # fmt: skip
         Sigma = conditional_covariance(A[row, row], Pw, Pz)
-        step = taylor_step(order, dt)
-        _, _, sigma_n = noise_parameters(prior, channel, parameters=parameters)
+        step = taylor_step(order + travel, dt)
         predicted = np.full(len(y), np.nan)
         if lookahead == 0:  # with a look-ahead the estimate at t_(k-1) has seen y_k
             predicted[1:] = mu[:-1] @ step
-        spread = step @ Sigma @ step + np.mean(sigma_n**2)
+        spread = step @ Sigma @ step + variance
         estimates[channel] = StateEstimate(
-            mean=mu[:, 0],
-            variance=np.full(len(y), Sigma[0, 0]),
+            mean=mu[:, travel],
+            variance=np.full(len(y), Sigma[travel, travel]),
             innovation=y - predicted,
             innovation_variance=np.concatenate([[np.nan], np.full(len(y) - 1, spread)]),
             steady_from=0,
-            derivatives=mu,
+            derivatives=mu[:, travel:],
         )
     return estimates
 
@@ -472,12 +511,18 @@ def _sensor_precision(
     parameters: str,
     choice: str,
     lookahead: int,
-) -> np.ndarray:
-    """Pi_z of one channel: embedded white noise, or the prior's Gaussian s_z, per E[sigma_n^2]."""
-    _, _, sigma_n = noise_parameters(prior, channel, parameters=parameters)
+    samples: int,
+) -> tuple[np.ndarray, float]:
+    """Pi_z of one channel's measurement at ``order``, and the sensor variance E[sd^2].
+
+    Embedded white noise, or the prior's Gaussian s_z, per E[sigma_n^2]; for
+    a pose channel per E[sigma_p^2] / n, n the poses averaged per sample.
+    """
+    _, _, sd = noise_parameters(prior, channel, parameters=parameters)
+    variance = float(np.mean(sd**2)) / samples
     if choice == "white":
         shape = white_sensor_precision(order, dt, 1.0, lookahead=lookahead)
     else:
         seconds = float(prior_field(prior, "sensor_noise.smoothness_seconds"))
         shape = np.linalg.inv(temporal_covariance("gaussian", np.array(seconds), order))
-    return shape / np.mean(sigma_n**2)
+    return shape / variance, variance

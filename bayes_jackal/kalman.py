@@ -1,9 +1,12 @@
 """Kalman filters on the identified model, driven by an exported prior.
 
 On a channel's state-space model (:class:`bayes_jackal.filter_models.ChannelModel`:
-s[k+1] = F s[k] + G u[k] + Gamma eps[k], y[k] = H s[k] + n[k], H = e_0',
-Q = Gamma Gamma', R = var(n)) the filter gives the filtered mean
-E[x_k | y_0..y_k, u] and its variance:
+s[k+1] = F s[k] + G u[k] + Gamma eps[k], y[k] = H s[k] + n[k], H = e_0' for
+a measured state and the travel's unit vector for a channel recorded as
+poses, Q = Gamma Gamma', R = var(n)) the filter gives the filtered mean
+E[x_k | y_0..y_k, u] of the state x = s[0] and its variance, and its
+Rauch-Tung-Striebel smoother E[x_k | y_0..y_N-1, u] (which the Savitzky-Golay
+velocities of a bag, centred on each sample, are to be compared with):
 
     S_k = H P_k|k-1 H' + R,        K_k = P_k|k-1 H' / S_k,
     nu_k = y_k - H m_k|k-1,        m_k|k = m_k|k-1 + K_k nu_k,
@@ -36,7 +39,7 @@ import numpy as np
 
 from .errors import DataError
 from .experiment import Experiment
-from .filter_models import ChannelModel, check_prior, filter_models
+from .filter_models import ChannelModel, check_prior, filter_models, measured_series
 from .lti import lti_outputs
 from .robot import RobotProfile
 
@@ -75,14 +78,20 @@ class StateEstimate:
     variance : ndarray
         Its variance [channel units^2].
     innovation : ndarray
-        nu_k = y_k - E[y_k | y_0..y_k-1, u] [channel units].
+        nu_k = y_k - E[y_k | y_0..y_k-1, u] [the measurement's units: the
+        channel's, or m for a channel recorded as poses]; NaN where y_k is
+        no measurement (a pose channel's first sample).
     innovation_variance : ndarray
-        S_k [channel units^2]: nu_k^2 / S_k is chi-square(1) under the model.
+        S_k [their square]: nu_k^2 / S_k is chi-square(1) under the model.
     steady_from : int
         First step run with the converged gain (N: none).
     derivatives : ndarray or None
         The generalised filter's mu~, shape (N, p + 1) [units / s^j]; None
         for the Kalman filters.
+    smoothed, smoothed_variance : ndarray or None
+        E[x_k | y_0..y_N-1, u] and its variance: the Kalman filters'
+        Rauch-Tung-Striebel smoother, which also uses the samples after
+        t_k (None for the generalised filter).
 
     Examples
     --------
@@ -99,6 +108,8 @@ class StateEstimate:
     innovation_variance: np.ndarray
     steady_from: int
     derivatives: np.ndarray | None = None
+    smoothed: np.ndarray | None = None
+    smoothed_variance: np.ndarray | None = None
 
 
 def kalman(
@@ -110,7 +121,8 @@ def kalman(
     ----------
     model : ChannelModel
     y : ndarray, shape (N,)
-        Measured state [channel units].
+        The measurement: the measured state [channel units], or a pose
+        channel's travel [m] (:func:`bayes_jackal.filter_models.measured_series`).
     inputs : ndarray, shape (N, 2)
         Wheel speeds (omega_r, omega_l) [rad/s].
     fast : bool
@@ -148,66 +160,136 @@ def kalman(
             f"expected y of shape (N,) and inputs (N, 2), got {y.shape} and {inputs.shape}",
             field=model.channel,
         )
-    F, G = model.transition, model.input_matrix
+    F, G, H = model.transition, model.input_matrix, model.observation
     Q, R = model.process_covariance, model.sensor_variance
     out = np.empty((4, len(y)))  # mean, variance, innovation, innovation variance
+    states = np.empty((len(y), model.size))  # the filtered means m_k|k
+    predictions = []  # P_k|k-1 of each step the recursion runs
     m, P = model.initial_mean, model.initial_covariance
+    steady_from = len(y)
     for k in range(len(y)):
-        m, filtered, _, out[2:, k] = _update(m, P, y[k], R)
-        out[:2, k] = m[0], filtered[0, 0]
+        predictions.append(P)
+        if k < model.first_measured:  # not a measurement: the prediction stands
+            filtered, out[2:, k] = P, np.nan
+        else:
+            m, filtered, _, out[2:, k] = _update(m, P, y[k], R, H)
+        states[k], out[1, k] = m, filtered[0, 0]
         following = F @ filtered @ F.T + Q
         converged = np.abs(following - P).max() <= CONVERGED * np.abs(P).max()
         if fast and converged and k + 1 < len(y):
-            _steady(F, G, following, R, m, y[k + 1 :], inputs[k:-1], out[:, k + 1 :])
-            return StateEstimate(*out, steady_from=k + 1)
+            steady_from = k + 1
+            predictions.append(following)
+            _steady(model, following, y[k + 1 :], inputs[k:-1], out[:, k + 1 :], states[k:])
+            break
         m, P = F @ m + G @ inputs[k], following
-    return StateEstimate(*out, steady_from=len(y))
+    smoothed = _smoothed(model, states, predictions, out[2:], inputs, steady_from)
+    return StateEstimate(
+        states[:, 0], *out[1:], steady_from=steady_from, smoothed=smoothed[0],
+        smoothed_variance=smoothed[1],
+    )  # fmt: skip
 
 
 def _update(
-    m: np.ndarray, P: np.ndarray, y: float, R: float
+    m: np.ndarray, P: np.ndarray, y: float, R: float, H: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float]]:
     """Measurement update of the predicted (m, P): filtered mean and covariance, gain, (nu, S)."""
-    S = P[0, 0] + R
-    gain = P[:, 0] / S
-    innovation = y - m[0]
-    reduce = _reduction(gain)
+    S = H @ P @ H + R
+    gain = P @ H / S
+    innovation = y - H @ m
+    reduce = np.eye(len(m)) - np.outer(gain, H)
     filtered = reduce @ P @ reduce.T + R * np.outer(gain, gain)
     return m + gain * innovation, filtered, gain, (innovation, S)
 
 
-def _reduction(gain: np.ndarray) -> np.ndarray:
-    """I - K H, with H = e_0'."""
-    reduce = np.eye(len(gain))
-    reduce[:, 0] -= gain
-    return reduce
-
-
 def _steady(
-    F: np.ndarray,
-    G: np.ndarray,
+    model: ChannelModel,
     P: np.ndarray,
-    R: float,
-    m: np.ndarray,
     y: np.ndarray,
     inputs: np.ndarray,
     out: np.ndarray,
+    states: np.ndarray,
 ) -> None:
-    """Fill ``out`` (4, L) for the steps after the filtered mean ``m``, at the converged P_k+1|k.
+    """The steps after the filtered mean ``states[0]``, at the converged P_k+1|k ``P``.
 
     m_i = A^(i+1) m + sum_j A^j C p_(i-j) with p_i = (y_i, u_(i-1)) and
-    C = [K, (I - K H) G]; the outputs O m_i, O = [H; H F], give the filtered
-    mean and (plus H G u_i) the next prediction of y (:func:`~bayes_jackal.lti.lti_outputs`).
+    C = [K, (I - K H) G] (:func:`~bayes_jackal.lti.lti_outputs`); the
+    prediction of y_i is H (F m_(i-1) + G u_(i-1)). Fills ``states[1:]``
+    (the filtered means) and ``out`` (4, L) but for its row 0.
     """
-    _, filtered, gain, (_, S) = _update(np.zeros(len(P)), P, 0.0, R)
-    reduce = _reduction(gain)
+    F, G, H = model.transition, model.input_matrix, model.observation
+    _, filtered, gain, (_, S) = _update(np.zeros(len(P)), P, 0.0, model.sensor_variance, H)
+    reduce = np.eye(len(P)) - np.outer(gain, H)
     A, C = reduce @ F, np.column_stack([gain, reduce @ G])
-    outputs = np.vstack([np.eye(len(P))[0], F[0]])
     drive = np.column_stack([y, inputs])  # p_i = (y_i, u_(i-1)), (L, 3)
-    states = lti_outputs(A, C, drive, m, outputs=outputs, tolerance=TRUNCATION).T
-    predicted = np.concatenate([[F[0] @ m], states[1, :-1]]) + inputs @ G[0]
-    out[0], out[1] = states[0], filtered[0, 0]
-    out[2], out[3] = y - predicted, S
+    states[1:] = lti_outputs(A, C, drive, states[0], tolerance=TRUNCATION)
+    predicted = states[:-1] @ (H @ F) + inputs @ (H @ G)
+    out[1], out[2], out[3] = filtered[0, 0], y - predicted, S
+
+
+def _smoothed(
+    model: ChannelModel,
+    states: np.ndarray,
+    predictions: list[np.ndarray],
+    innovations: np.ndarray,
+    inputs: np.ndarray,
+    steady_from: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The Rauch-Tung-Striebel smoother's mean and variance of x, from the filter's pass.
+
+    In the modified Bryson-Frazier form (Bierman 1977), which inverts no
+    covariance (a shaping filter's states are nearly collinear, and the
+    RTS gain's inverse of P_k+1|k loses digits there):
+
+        s_k = m_k|k-1 + P_k|k-1 lam_k,   lam_k = H' nu_k / S_k + A_k' lam_k+1,
+        P^s_k = P_k|k-1 - P_k|k-1 Lam_k P_k|k-1,   Lam_k = H' H / S_k + A_k' Lam_k+1 A_k,
+
+    A_k = F (I - K_k H), lam_N = 0, Lam_N = 0; a sample that is no
+    measurement has K_k = 0 and no nu term. Where the filter ran with its
+    converged gain, A is constant and lam an LTI recursion in reversed time
+    (:func:`~bayes_jackal.lti.lti_outputs`); Lam is iterated back from the
+    end until it converges.
+
+    ``predictions`` holds P_k|k-1 of each step the filter's recursion ran
+    and, after a steady filter's, its converged P; ``innovations`` (2, N)
+    holds nu_k and S_k.
+    """
+    F, G, H, R = model.transition, model.input_matrix, model.observation, model.sensor_variance
+    count, size = states.shape
+    start = np.vstack([model.initial_mean, states[:-1] @ F.T + inputs[:-1] @ G.T])  # m_k|k-1
+    nu, S = innovations
+    weight = np.where(np.arange(count) < model.first_measured, 0.0, 1.0 / S)  # 1 / S_k or 0
+    nu = np.where(weight > 0, nu, 0.0)
+    mean, variance = np.empty(count), np.empty(count)
+    lam, Lam = np.zeros(size), np.zeros((size, size))
+    first = count
+    if steady_from < count:  # samples steady_from .. N - 1 have the converged gain
+        P = predictions[-1]
+        gain = P @ H / (H @ P @ H + R)
+        A = F @ (np.eye(size) - np.outer(gain, H))
+        back = np.arange(count - 1, steady_from - 1, -1)
+        drive = (nu * weight)[back, None]
+        path = lti_outputs(A.T, H[:, None], drive, lam, tolerance=TRUNCATION)
+        mean[back] = start[back, 0] + path @ P[0]
+        lam, first = path[-1], steady_from
+        spread = []
+        for k in back:  # until Lam converges; then it stays
+            following = np.outer(H, H) * weight[k] + A.T @ Lam @ A
+            converged = np.abs(following - Lam).max() <= CONVERGED * np.abs(following).max()
+            Lam = following
+            spread.append(P[0, 0] - P[0] @ Lam @ P[0])
+            if converged:
+                break
+        variance[back] = spread[-1]
+        variance[back[: len(spread)]] = spread
+    for k in range(first - 1, -1, -1):
+        P = predictions[k]
+        gain = P @ H * weight[k]
+        A = F @ (np.eye(size) - np.outer(gain, H))
+        lam = H * nu[k] * weight[k] + A.T @ lam
+        Lam = np.outer(H, H) * weight[k] + A.T @ Lam @ A
+        mean[k] = start[k, 0] + P[0] @ lam
+        variance[k] = P[0, 0] - P[0] @ Lam @ P[0]
+    return mean, variance
 
 
 def kalman_filter(
@@ -283,14 +365,16 @@ def kalman_filter(
     True
     """
     channels = check_prior(prior, experiment, channels, robot=robot)
-    models = filter_models(
-        prior,
-        noise=noise,
-        channels=channels,
-        parameters=parameters,
-        initial_variance=initial_variance,
-    )
-    return {
-        channel: kalman(model, experiment.channel(channel), experiment.inputs, fast=fast)
-        for channel, model in models.items()
-    }
+    estimates = {}
+    for channel in channels:
+        y, samples = measured_series(experiment, channel)
+        [model] = filter_models(
+            prior,
+            noise=noise,
+            channels=[channel],
+            parameters=parameters,
+            initial_variance=initial_variance,
+            pose_samples=samples,
+        ).values()
+        estimates[channel] = kalman(model, y, experiment.inputs, fast=fast)
+    return estimates

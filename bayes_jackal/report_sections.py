@@ -369,8 +369,9 @@ def _filter_rows(run: str, record: dict) -> list[list]:
     trained = ", ".join(record["trained_on"])
     return [
         [run, trained, name, channel, rmse, nis,
-         None if band is None else "{:.3f}-{:.3f}".format(*band), verdict, state]
-        for name, channel, rmse, nis, band, verdict, state in score_rows(record["scores"])
+         None if band is None else "{:.3f}-{:.3f}".format(*band), verdict, state, smoothed]
+        for name, channel, rmse, nis, band, verdict, state, smoothed
+        in score_rows(record["scores"])
     ]  # fmt: skip
 
 
@@ -396,7 +397,12 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
         "error divided by the variance the filter gave it: 1 on average when the filter's "
         "account of its uncertainty is right, above 1 when it is overconfident, below 1 "
         "when it is too cautious; it falls in the 95 % band when the model holds. The state "
-        "RMSE against the true state is known only for simulated runs. The estimates are in "
+        "RMSE against the true state is known only for simulated runs; the smoothed one is "
+        "that of the Kalman filters' smoother, which also uses the samples after each one. "
+        "Where vx and vy were recorded as motion-capture poses, <b>derived</b> scores the "
+        "velocities the reader derived from them (a Savitzky-Golay derivative centred on each "
+        "sample, itself a smoother): the baseline the smoothers have to beat. The estimates "
+        "are in "
         "<code>state_estimation/&lt;run&gt;.csv</code>, the scores in "
         "<code>state_estimation.json</code>.</p>"
     ]
@@ -413,7 +419,7 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
         parts.append(f'<ul class="warnings">{items}</ul>')
     rows = [row for run, record in result.runs.items() for row in _filter_rows(run, record)]
     header = ["left out", "prior from", "filter", "channel", "innovation RMSE", "NIS",
-              "95 % band", "verdict", "state RMSE"]  # fmt: skip
+              "95 % band", "verdict", "state RMSE", "smoothed state RMSE"]  # fmt: skip
     parts.append(html_table(header, rows))
     if result.shown is not None:
         experiment, estimates = result.shown

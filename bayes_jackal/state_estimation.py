@@ -27,7 +27,14 @@ prediction error nu_k and its variance S_k give
   test; with a look-ahead its estimate at t_(k-1) has seen y_k, so it
   predicts nothing and has no innovation scores (None);
 - the state RMSE against the truth, per channel where the experiment
-  carries a simulated one (``truth_arrays["<channel>_state"]``; else None).
+  carries a simulated one (``truth_arrays["<channel>_state"]``; else None),
+  and for the Kalman filters that of their Rauch-Tung-Striebel smoother
+  (``smoothed_state_rmse``), which uses the whole run. Where vx, vy were
+  recorded as motion-capture poses, the reader's Savitzky-Golay velocities
+  (a smoother centred on each sample, :data:`DERIVED`) are scored beside
+  them as the baseline a pose model has to beat: the smoothers are the
+  fair comparison, since a causal filter cannot see the samples after t_k
+  that the centred derivative uses.
 
 The scores start at the first sample every filter predicts from its own
 steady form: sample p + 1 when the generalised filter of order p runs (its
@@ -53,6 +60,7 @@ from .kalman import KALMAN_FILTERS, StateEstimate, kalman_filter
 from .robot import RobotProfile
 
 __all__ = [
+    "DERIVED",
     "FILTERS",
     "NIS_PROBABILITY",
     "estimate_columns",
@@ -68,6 +76,9 @@ __all__ = [
 FILTERS = defaults.FILTERS
 #: Probability of the NIS band (two-sided).
 NIS_PROBABILITY = 0.95
+#: The scores' name of the velocities a reader derived from motion-capture
+#: poses (module docstring).
+DERIVED = "derived"
 
 
 def _check_filters(filters: Sequence[str]) -> tuple[str, ...]:
@@ -246,8 +257,11 @@ def score_estimates(
     dict
         Per filter: ``innovation_rmse`` and ``nis`` (``mean``, ``band``,
         ``consistent``) per channel (None where the filter predicts
-        nothing), ``state_rmse`` per channel (None without a truth), and
-        ``first_sample``, the first sample scored (module docstring).
+        nothing), ``state_rmse`` and ``smoothed_state_rmse`` per channel
+        (None without a truth or a smoother), and ``first_sample``, the first
+        sample scored (module docstring); and :data:`DERIVED`, the derived
+        velocities of the channels recorded as poses, where the experiment
+        has a truth.
 
     Examples
     --------
@@ -266,9 +280,18 @@ def score_estimates(
     (True, True)
     """
     first = _first_scored(estimates)
+    truths = {
+        c: truth[first:]
+        for per_channel in estimates.values()
+        for c in per_channel
+        if (truth := experiment.truth_arrays.get(f"{c}_state")) is not None
+    }
+
+    def error(c: str, values: np.ndarray | None) -> float | None:
+        return None if values is None or c not in truths else _rmse(values[first:] - truths[c])
+
     scores = {}
     for name, per_channel in estimates.items():
-        truths = {c: experiment.truth_arrays.get(f"{c}_state") for c in per_channel}
         scores[name] = {
             "first_sample": first,
             "innovation_rmse": {c: _rmse(e.innovation[first:]) for c, e in per_channel.items()},
@@ -276,10 +299,18 @@ def score_estimates(
                 c: _nis(e.innovation[first:], e.innovation_variance[first:])
                 for c, e in per_channel.items()
             },
-            "state_rmse": {
-                c: None if truths[c] is None else _rmse(e.mean[first:] - truths[c][first:])
-                for c, e in per_channel.items()
-            },
+            "state_rmse": {c: error(c, e.mean) for c, e in per_channel.items()},
+            "smoothed_state_rmse": {c: error(c, e.smoothed) for c, e in per_channel.items()},
+        }
+    derived = [c for c in truths if experiment.measurement(c) == "pose"]
+    if derived:
+        nothing = dict.fromkeys(derived)
+        scores[DERIVED] = {
+            "first_sample": first,
+            "innovation_rmse": nothing,
+            "nis": nothing,
+            "state_rmse": nothing,
+            "smoothed_state_rmse": {c: error(c, experiment.channel(c)) for c in derived},
         }
     return scores
 
@@ -291,7 +322,8 @@ def score_rows(scores: Mapping[str, Mapping]) -> list[tuple]:
     -------
     list of tuple
         (filter, channel, innovation RMSE, NIS mean, (band low, band high),
-        verdict, state RMSE); None where a score does not exist, verdict
+        verdict, state RMSE, smoothed state RMSE); None where a score does
+        not exist (scores written before the smoother have none), verdict
         ``consistent``, ``INCONSISTENT`` or ``no prediction``.
 
     Examples
@@ -301,7 +333,7 @@ def score_rows(scores: Mapping[str, Mapping]) -> list[tuple]:
     >>> scores = {"kalman": {"innovation_rmse": {"yaw": 0.01}, "nis": {"yaw": nis},
     ...                      "state_rmse": {"yaw": None}}}
     >>> score_rows(scores)
-    [('kalman', 'yaw', 0.01, 1.3, (0.9, 1.1), 'INCONSISTENT', None)]
+    [('kalman', 'yaw', 0.01, 1.3, (0.9, 1.1), 'INCONSISTENT', None, None)]
     """
     rows = []
     for name, score in scores.items():
@@ -323,6 +355,7 @@ def score_rows(scores: Mapping[str, Mapping]) -> list[tuple]:
                     None if nis is None else tuple(nis["band"]),
                     verdict,
                     score["state_rmse"][channel],
+                    score.get("smoothed_state_rmse", {}).get(channel),
                 )
             )
     return rows
@@ -332,6 +365,9 @@ def estimate_columns(
     experiment: Experiment, estimates: Mapping[str, Mapping[str, StateEstimate]]
 ) -> dict[str, np.ndarray]:
     """The estimates as columns ``t`` and ``FILTER.STATE`` (``kalman.yaw_rate``, ..).
+
+    A Kalman filter's smoother is a filter of its own name plus
+    ``-smoothed`` (``kalman-coloured-smoothed.vx``), after the filters.
 
     Parameters
     ----------
@@ -360,6 +396,10 @@ def estimate_columns(
     for name, per_channel in estimates.items():
         for channel, estimate in per_channel.items():
             columns[f"{name}.{CHANNEL_FIELDS[channel]}"] = estimate.mean
+    for name, per_channel in estimates.items():
+        for channel, estimate in per_channel.items():
+            if estimate.smoothed is not None:
+                columns[f"{name}-smoothed.{CHANNEL_FIELDS[channel]}"] = estimate.smoothed
     return columns
 
 

@@ -18,7 +18,10 @@ from bayes_jackal.cli import main
 from bayes_jackal.experiment import write_netcdf
 
 ROBOT = bj.load_profile()
-HEADER = "t,kalman.yaw_rate,kalman-coloured.yaw_rate,generalised.yaw_rate"
+HEADER = (
+    "t,kalman.yaw_rate,kalman-coloured.yaw_rate,generalised.yaw_rate,"
+    "kalman-smoothed.yaw_rate,kalman-coloured-smoothed.yaw_rate"
+)
 
 
 @pytest.fixture(scope="module")
@@ -156,7 +159,10 @@ def test_a_filter_the_prior_cannot_drive_is_skipped_and_named(tmp_path, capsys, 
     assert list(result["experiments"][name]) == ["kalman", "kalman-coloured"]
     assert list(result["filters_failed"][name]) == ["generalised"]
     assert "generalised cannot run with this prior" in captured.err
-    assert out.read_text().splitlines()[0] == "t,kalman.yaw_rate,kalman-coloured.yaw_rate"
+    assert out.read_text().splitlines()[0] == (
+        "t,kalman.yaw_rate,kalman-coloured.yaw_rate,"
+        "kalman-smoothed.yaw_rate,kalman-coloured-smoothed.yaw_rate"
+    )
     code = main(["filter", files["nc"], "--prior", files["total_prior"], "--out",
                  str(tmp_path / "g.csv"), "--filters", "generalised"])  # fmt: skip
     assert_bad_input(code, capsys.readouterr(), "no filter can run", "sensor-noise sd")

@@ -184,3 +184,45 @@ def test_coloured_filter_beats_the_white_one_on_gaussian_coloured_runs():
             errors[name] += np.mean((estimate.mean - truth) ** 2)
     ratio = np.sqrt(errors["kalman-coloured"] / errors["kalman"])
     assert ratio < 0.9
+
+
+@pytest.mark.parametrize("family", ["white", "gaussian", "exponential"])
+def test_the_smoother_is_the_dense_conditional_mean_given_the_whole_run(family):
+    # E[x_k | y_0..y_N-1] of the same joint Gaussian (every y weighs in),
+    # to 1e-8 rad/s, as the filter's check; its variance to 1e-8 relative.
+    n = 60
+    acov = noise_autocovariance(family, WIDTHS[family], SIGMA_C)
+    inputs = np.tile([10.0, 5.0], (n, 1))
+    _, _, mean_y, cov_y = dense_conditional_mean(acov, 0.0, SIGMA_N**2, np.zeros(n), inputs)
+    y = mean_y + np.linalg.cholesky(cov_y) @ np.random.default_rng(6).standard_normal(n)
+    cov_x = cov_y - SIGMA_N**2 * np.eye(n)
+    weights = np.linalg.solve(cov_y, cov_x)  # cov(x, y) = cov(x)
+    smoothed = mean_y + weights.T @ (y - mean_y)
+    variance = np.diag(cov_x - cov_x @ weights)
+    model = channel_model(
+        "yaw", ALPHA, ROW, family=family, width=WIDTHS[family], sigma_c=SIGMA_C,
+        sigma_n=SIGMA_N, dt=DT,
+    )  # fmt: skip
+    for fast in (False, True):
+        estimate = kalman(model, y, inputs, fast=fast)
+        np.testing.assert_allclose(estimate.smoothed, smoothed, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(estimate.smoothed_variance, variance, rtol=1e-8)
+
+
+@pytest.mark.parametrize("family", ["gaussian", "exponential"])
+def test_the_steady_smoother_equals_its_recursion(family):
+    # As the filter's steady path: the backward LTI pass (FFT) against the
+    # step-by-step one, on 2,000 samples; 1e-12 on states ~0.1-1 rad/s.
+    noise = NoiseSettings(family=family, width=WIDTHS[family])
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=3)
+    y, inputs = run.yaw_rate[:2000], run.inputs[:2000]
+    model = channel_model(
+        "yaw", ALPHA, ROW, family=family, width=WIDTHS[family], sigma_c=SIGMA_C,
+        sigma_n=SIGMA_N, dt=DT,
+    )  # fmt: skip
+    fast, slow = kalman(model, y, inputs), kalman(model, y, inputs, fast=False)
+    assert fast.steady_from < 500
+    np.testing.assert_allclose(fast.smoothed, slow.smoothed, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.smoothed_variance, slow.smoothed_variance, rtol=1e-10)
+    truth = run.truth_arrays["yaw_state"][:2000]
+    assert np.std(fast.smoothed - truth) < np.std(fast.mean - truth)

@@ -24,7 +24,7 @@ from bayes_jackal.estimate_plots import SHOWN_SECONDS, plot_state_estimates, sho
 from bayes_jackal.executors import SerialExecutor
 from bayes_jackal.experiment import read_netcdf, write_netcdf
 from bayes_jackal.inference import SamplerSettings
-from bayes_jackal.kalman import StateEstimate
+from bayes_jackal.kalman import KALMAN_FILTERS, StateEstimate
 from bayes_jackal.leave_one_out import FOLDER, SUMMARY, leave_one_out
 from bayes_jackal.robot import load_profile
 from bayes_jackal.simulate import Series, simulate_experiment
@@ -79,7 +79,8 @@ def test_each_run_is_filtered_with_the_prior_of_exactly_the_others(analysis):
         for score in record["scores"].values():
             assert set(score["state_rmse"]) == {"yaw"}
         header = (out / FOLDER / f"{run}.csv").read_text().splitlines()[0]
-        assert header == "t," + ",".join(f"{name}.yaw_rate" for name in FILTERS)
+        smoothers = [f"{name}-smoothed" for name in KALMAN_FILTERS]
+        assert header == "t," + ",".join(f"{name}.yaw_rate" for name in (*FILTERS, *smoothers))
         assert (out / FOLDER / "posteriors" / f"{run}.nc").exists()
     assert json.loads((out / SUMMARY).read_text()) == state
     assert result["files"]["state_estimation"] == str(out / SUMMARY)

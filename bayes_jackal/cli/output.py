@@ -72,17 +72,17 @@ def residual_table(result: dict, say: Callable[[str], None]) -> None:
 
 
 def filter_table(name: str, scores: dict, say: Callable[[str], None]) -> None:
-    """One experiment's filter scores: innovation RMSE, NIS in its band, state RMSE."""
+    """One experiment's filter scores: innovation RMSE, NIS in its band, state RMSEs."""
     say(f"{name}: prediction errors from sample {next(iter(scores.values()))['first_sample']}")
     say(
         f"{'filter':16s} {'channel':7s} {'innov. RMSE':>11s} {'NIS':>6s} "
-        f"{'95% band':>13s} {'':13s} {'state RMSE':>10s}"
+        f"{'95% band':>13s} {'':13s} {'state RMSE':>10s} {'smoothed':>10s}"
     )
-    for filter_name, channel, rmse, nis, band, verdict, state in score_rows(scores):
+    for filter_name, channel, rmse, nis, band, verdict, state, smoothed in score_rows(scores):
         say(
             f"{filter_name:16s} {channel:7s} {_number(rmse, '11.4g')} {_number(nis, '6.3f')} "
             f"{'-' if band is None else '[{:5.3f},{:5.3f}]'.format(*band):>13s} {verdict:13s} "
-            f"{_number(state, '10.4g')}"
+            f"{_number(state, '10.4g')} {_number(smoothed, '10.4g')}"
         )
 
 
