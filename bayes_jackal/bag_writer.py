@@ -42,6 +42,7 @@ __all__ = [
     "POSE_NOISE",
     "BagMessage",
     "bag_messages",
+    "bag_truth",
     "pose_path",
     "stamped_header",
     "write_bag",
@@ -277,6 +278,32 @@ def bag_messages(
         )
     messages.sort(key=lambda m: m.time)
     return messages
+
+
+def bag_truth(experiment: Experiment, pose_noise: tuple[float, float] = POSE_NOISE) -> dict:
+    """The truth of a simulated experiment's bag: its vx, vy are seen through the poses.
+
+    A bag carries no velocity sensor: vx and vy are recorded as poses with
+    ``pose_noise``, so their sensor noise is the pose's, ``sigma_p`` [m] per
+    recorded pose (``heading_sd`` [rad] beside it), and only the yaw rate
+    keeps a ``sigma_n``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.bag_writer import bag_truth
+    >>> from bayes_jackal.robot import load_profile
+    >>> from bayes_jackal.simulate import simulate_experiment
+    >>> run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> truth = bag_truth(run)
+    >>> truth["sigma_p"], truth["sigma_n"], truth["heading_sd"]
+    ({'vx': 0.0005, 'vy': 0.0005}, {'yaw': 0.005}, 0.002)
+    """
+    truth = dict(experiment.truth or {})
+    position, heading = (float(v) for v in pose_noise)
+    truth["sigma_n"] = {"yaw": truth["sigma_n"]["yaw"]}
+    truth["sigma_p"] = {"vx": position, "vy": position}
+    truth["heading_sd"] = heading
+    return truth
 
 
 def pose_path(experiment: Experiment, robot: RobotProfile) -> tuple[np.ndarray, np.ndarray]:

@@ -3,11 +3,14 @@
 ``bayes_jackal/data/demo/`` holds two thesis-like runs (one per series, v1, v2)
 written as ROS1 bags (bz2 chunks) by :func:`make_demo_bags`, simulated with
 known truth d_lat = 110, d_long = 30 N s/m and Gaussian process noise of
-sigma_h = 0.047 s; ``manifest.json`` labels them as simulated and holds the
-truth. :func:`run_demo` runs :func:`bayes_jackal.workflow.analyse_logs` on
-them, as ``bayes-jackal analyse`` does on a user's logs: ingest, the thesis'
-grid searches, white against Gaussian noise by evidence on every channel
-(the posterior of the family of highest evidence is the main result), the
+sigma_h = 0.047 s, their motion-capture poses with a lab system's noise
+(0.5 mm, 0.002 rad: :data:`bayes_jackal.bag_writer.POSE_NOISE`);
+``manifest.json`` labels them as simulated and holds the truth
+(:func:`bayes_jackal.bag_writer.bag_truth`). :func:`run_demo` runs
+:func:`bayes_jackal.workflow.analyse_logs` on them, as ``bayes-jackal
+analyse`` does on a user's logs: ingest, the thesis' grid searches, white
+against Gaussian noise by evidence on every channel (the posterior of the
+family of highest evidence is the main result), the
 Active Inference prior and the report.
 """
 
@@ -20,7 +23,7 @@ from pathlib import Path
 
 from . import __version__
 from ._files import write_json
-from .bag_writer import write_bag
+from .bag_writer import bag_truth, write_bag
 from .defaults import STATE_ESTIMATION
 from .inference import SamplerSettings
 from .kernels import as_rng
@@ -89,7 +92,11 @@ def make_demo_bags(folder: str | Path, robot: RobotProfile | None = None) -> Pat
     }
     for run, child in zip(runs, rng.spawn(len(runs)), strict=True):
         path = write_bag(run, folder / f"{run.name}.bag", robot, "ros1", child, "bz2")
-        manifest["runs"][run.name] = {"bag": path.name, "series": run.series, "truth": run.truth}
+        manifest["runs"][run.name] = {
+            "bag": path.name,
+            "series": run.series,
+            "truth": bag_truth(run),
+        }
     return write_json(folder / MANIFEST, manifest)
 
 
@@ -114,7 +121,7 @@ def run_demo(
         Show the chains' progress on stderr.
     state_estimation : bool
         Score the filters on each run with the prior fitted to the other run
-        (two more posteriors, ~50 s; :func:`~bayes_jackal.workflow.analyse_logs`).
+        (two more posteriors, ~70 s; :func:`~bayes_jackal.workflow.analyse_logs`).
 
     Returns
     -------
@@ -123,7 +130,7 @@ def run_demo(
 
     Examples
     --------
-    The demo takes about 6 minutes on 2 cores, so its call is not run here
+    The demo takes about 3 minutes on 2 cores, so its call is not run here
     (``tests/test_workflow.py`` runs it and checks the truth is recovered):
 
     >>> import tempfile

@@ -415,7 +415,8 @@ def observed_data(
         steady window when the likelihood uses it [channel unit], named
         ``residual_<channel>_<i>``.
     dims : dict of str to list of str
-        Each one's dimension, ``step_<i>``.
+        Each one's dimension, ``step_<i>`` (``pose_step_<i>`` for a channel
+        recorded as poses, whose residuals are one fewer).
 
     Examples
     --------
@@ -430,13 +431,15 @@ def observed_data(
     (['residual_vx_0', 'residual_yaw_0'], ['step_0'], (2376,))
     """
     residuals, dims = {}, {}
+    poses = likelihood.layout.pose_channels
     for i, experiment in enumerate(likelihood.experiments):
         for channel in likelihood.channels:
             key = _residual_key(i, channel)
             residuals[key] = channel_residuals(
                 experiment, likelihood.robot, d_lat, d_long, channel, likelihood.steady
             )
-            dims[key] = [f"step_{i}"]
+            # A pose channel's residuals are one shorter (two increments each).
+            dims[key] = [f"pose_step_{i}" if channel in poses else f"step_{i}"]
     return residuals, dims
 
 

@@ -105,8 +105,9 @@ def _model_truth(idata: az.InferenceData, truth: dict | None) -> dict | None:
     total = {
         c: float(np.hypot(truth["sigma_c"][c], truth["sigma_n"][c] * np.hypot(1.0, Ad[i, i])))
         for i, c in enumerate(CHANNELS)
+        if c in truth["sigma_n"]  # a bag's pose channels have sigma_p (bag_writer.bag_truth)
     }
-    return truth | {"sigma_c": total}
+    return truth | {"sigma_c": truth["sigma_c"] | total}
 
 
 def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:

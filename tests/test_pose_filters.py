@@ -114,14 +114,14 @@ def _truth_prior():
             "Bd": Bd.tolist(),
             "A": A.tolist(),
             "B": (np.linalg.solve(Ad - np.eye(3), A) @ Bd).tolist(),
-        },  # fmt: skip
+        },
         "noise": {
             "family": "gaussian",
             "channels": ["yaw", "vx", "vy"],
             "sensor": "ma1",
             "pose_channels": ["vx", "vy"],
             "parameters": parameters,
-        },  # fmt: skip
+        },
         "sensor_noise": {"smoothness_seconds": 0.5 * DT},
         "generalised_coordinates": {"order": 2},
     }

@@ -240,7 +240,7 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     from bayes_jackal import sample
     from bayes_jackal.bag_writer import write_bag
     from bayes_jackal.bags import read_bag
-    from bayes_jackal.posterior import model_autocovariance
+    from bayes_jackal.posterior import model_autocovariance, observed_residuals
 
     run = simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 10.0), rng=1, name="short")
     experiment = read_bag(write_bag(run, tmp_path / "short.bag", ROBOT, "ros1", rng=1), ROBOT)
@@ -258,6 +258,9 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     assert metadata.experiments[0].pose_samples == 5
     summary = summarize(back)
     assert {"sigma_p[vx]", "sigma_p[vy]", "sigma_n[yaw]"} <= set(summary)
+    residuals = {c: observed_residuals(back, 0, c) for c in ("yaw", "vx")}
+    assert np.isfinite(residuals["vx"]).all()
+    assert len(residuals["vx"]) == len(residuals["yaw"]) - 1  # two increments each
     [rebuilt] = posterior_experiments(back)
     np.testing.assert_array_equal(rebuilt.pose.x, experiment.pose.x)
     acov = model_autocovariance(metadata, 0, "vx", draws[0], 4)

@@ -97,7 +97,8 @@ def test_estimates_are_written_as_columns(tmp_path, prior):
         name: bj.estimate_columns(run, bj.estimate_states(run, prior))
         for name, run in zip(names, runs, strict=True)
     }
-    header = ["t", "kalman.yaw_rate", "kalman-coloured.yaw_rate", "generalised.yaw_rate"]
+    header = ["t", "kalman.yaw_rate", "kalman-coloured.yaw_rate", "generalised.yaw_rate",
+              "kalman-smoothed.yaw_rate", "kalman-coloured-smoothed.yaw_rate"]  # fmt: skip
     one = bj.write_estimates(tmp_path / "one.csv", {"left": tables["left"]})
     assert one.read_text().splitlines()[0] == ",".join(header)
     back = np.loadtxt(one, delimiter=",", skiprows=1)

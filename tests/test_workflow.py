@@ -329,23 +329,21 @@ def test_the_mode_counter_finds_two_modes_where_there_are_two():
 
 
 def _demo_truth_by_label(truth: dict) -> dict[str, float]:
-    """The shipped truth of the rows whose data the bags carry as simulated.
+    """The shipped truth of every row the demo prints (bag_writer.bag_truth).
 
     The bags' yaw rate is the simulator's measured one (IMU), so the yaw
-    noise is the manifest's; vx and vy are derived from motion-capture poses
-    integrated from the noise-free states (bag_writer.bag_messages), so they carry
-    the process noise (sigma_c) but no sensor noise, smoothed by the
-    Savitzky-Golay derivative: their sigma_n and sigma_h are checked apart.
+    noise is the manifest's; vx and vy are recorded as motion-capture poses
+    of the true path with the pose noise sigma_p, which the likelihood models.
     """
+    channels = ("yaw", "vx", "vy")
     return {
         "d_lat": truth["d_lat"],
         "d_long": truth["d_long"],
         "ratio": truth["d_lat"] / truth["d_long"],
-        "sigma_h[yaw]": truth["sigma_h"],
-        "sigma_c[yaw]": truth["sigma_c"]["yaw"],
+        **{f"sigma_h[{c}]": truth["sigma_h"] for c in channels},
+        **{f"sigma_c[{c}]": truth["sigma_c"][c] for c in channels},
         "sigma_n[yaw]": truth["sigma_n"]["yaw"],
-        "sigma_c[vx]": truth["sigma_c"]["vx"],
-        "sigma_c[vy]": truth["sigma_c"]["vy"],
+        **{f"sigma_p[{c}]": truth["sigma_p"][c] for c in ("vx", "vy")},
     }
 
 
@@ -383,28 +381,18 @@ def test_demo_is_analyse_on_the_shipped_bags_and_holds_the_truth(tmp_path, capsy
     printed = {
         label for label, row in posterior.items() if isinstance(row, dict) and "mean" in row
     }
-    velocity = {f"{name}[{c}]" for name in ("sigma_h", "sigma_n") for c in ("vx", "vy")}
     expected = _demo_truth_by_label(truth)
-    assert printed == set(expected) | velocity
+    assert printed == set(expected)
     missed = {
         label: (posterior[label]["hdi_3%"], value, posterior[label]["hdi_97%"])
         for label, value in expected.items()
         if not posterior[label]["hdi_3%"] <= value <= posterior[label]["hdi_97%"]
     }
     assert not missed
-    low = ROBOT.priors["sigma_n"][0]
-    for channel in ("vx", "vy"):
-        # No sensor noise in pose-derived velocities: true sigma_n is 0, below the
-        # prior, so the posterior piles at the prior's lower bound and says so.
-        assert posterior[f"sigma_n[{channel}]"]["hdi_3%"] == pytest.approx(low, rel=1e-3)
-        assert any(
-            (w.get("family"), w["kind"], w.get("parameter"), w.get("side"))
-            == ("gaussian", "prior-boundary", f"sigma_n[{channel}]", "low")
-            for w in result["warnings"]
-        )
-        # Smoothing by the Savitzky-Golay derivative (non-negative weights) convolves
-        # the process-noise kernel with another: the variances add, the width grows.
-        assert posterior[f"sigma_h[{channel}]"]["hdi_3%"] > truth["sigma_h"]
+    # The reported posterior is criticised clean (the white family's, which
+    # lost by ln B ~ 850, piles at a bound: counted in one line, not listed).
+    assert not [w for w in result["warnings"] if w.get("family") == "gaussian"]
+    assert "prior-boundary" not in captured.err.split("note: white")[0]
 
     # Each width posterior is unimodal.
     widths = load_posterior(folder / "posterior.nc").posterior["sigma_h"]

@@ -14,7 +14,7 @@ from typing import Any
 
 from .._files import write_json
 from ..api import likelihood_options
-from ..bag_writer import write_bag
+from ..bag_writer import POSE_NOISE, write_bag
 from ..comparison import compare_groups
 from ..criticism import criticise
 from ..demo import DEMO_TRUTH, run_demo
@@ -532,11 +532,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     result = run_demo(
         args.out, out.say, progress=not args.no_progress, state_estimation=args.state_estimation
     )
+    noise = NoiseSettings()
+    (sigma_c_vx, sigma_c_vy, sigma_c_yaw), sigma_n_yaw = noise.sigma_c, noise.sigma_n[2]
     out.say(
         f"Truth (simulated): d_lat={DEMO_TRUTH['d_lat']:g}, d_long={DEMO_TRUTH['d_long']:g} "
-        f"N s/m, sigma_h={NoiseSettings().width} s. The bags' vx and vy are derived from "
-        "noise-free motion-capture poses by a smoothing derivative: they carry no sensor "
-        "noise (sigma_n at its prior bound) and a wider kernel (sigma_h) than the simulator's."
+        f"N s/m, sigma_h={noise.width} s on every channel, sigma_c={sigma_c_yaw:g} rad/s "
+        f"(yaw), {sigma_c_vx:g} and {sigma_c_vy:g} m/s (vx, vy), sigma_n[yaw]={sigma_n_yaw:g} "
+        f"rad/s; vx and vy are recorded as motion-capture poses, sigma_p={POSE_NOISE[0]:g} m "
+        f"(and {POSE_NOISE[1]:g} rad of heading noise)."
     )
     return analysis_text(result, out)
 

@@ -185,11 +185,35 @@ def analysis_text(result: dict, out: Reporter) -> int:
         f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "
         f"Inference prior), {files['posterior']}, posteriors/, experiments/, grid_*.png, *.json."
     )
-    print_criticism(result["warnings"])
+    analysis_warnings(result)
     for reason in result["failed"].values():
         print(f"bayes-jackal: error: {reason}", file=sys.stderr)
     out.result(result)
     return EXIT_BAD_INPUT if result["failed"] else EXIT_OK
+
+
+def analysis_warnings(result: dict) -> None:
+    """The reported posterior's warnings in full; another family's counted in one line each.
+
+    The families that lost by evidence are not the result: a wrong model's
+    posterior often piles at a bound, and its every warning would bury the
+    ones that matter. Their warnings stay in the JSON and the report.
+    """
+    best = result["best"]
+    print_criticism([w for w in result["warnings"] if w.get("family", best) == best])
+    others: dict[str, list[str]] = {}
+    for warning in result["warnings"]:
+        if warning.get("family", best) != best:
+            others.setdefault(warning["family"], []).append(warning["kind"])
+    for family, kinds in others.items():
+        versus = result["comparison"]["families"][family]["log_bayes_factor_vs_best"]
+        counts = ", ".join(f"{kind} {kinds.count(kind)}" for kind in dict.fromkeys(kinds))
+        print(
+            f"bayes-jackal: note: {family} (ln B = {versus:.1f} against {best}, not the "
+            f"posterior reported): {len(kinds)} criticism warnings ({counts}), listed in "
+            "compare.json and the report",
+            file=sys.stderr,
+        )
 
 
 def print_failure(exc: Exception, source: str | None = None, *, debug: bool = False) -> int:
