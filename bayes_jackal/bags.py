@@ -40,9 +40,15 @@ Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
    a Savitzky-Golay filter (:data:`SMOOTHING_WINDOW`, :data:`SMOOTHING_ORDER`)
    and rotated into the body frame: vx = cos(psi) x' + sin(psi) y',
    vy = -sin(psi) x' + cos(psi) y'.
-6. The IMU, the wheel speeds and the derived vx, vy are linearly
-   interpolated onto the IMU clock: a uniform grid at the IMU's median rate
-   through the IMU stamps.
+6. The IMU's clock is the uniform clock of its stamps
+   (:func:`bayes_jackal.stamps.uniform_clock`: the rate and origin fitted by
+   least squares, a whole number of Hz where the stamps allow it;
+   docs/design.md §2.1). Each IMU sample keeps its value on its tick (a
+   tick it missed within ``max_gap`` is interpolated); the wheel speeds and
+   the derived vx, vy are linearly interpolated onto the clock. (A clock at
+   the stamps' median step drifts by its error, ~3 us a step at 0.1 ms of
+   jitter, 8 ms over a 38 s run, and interpolating onto it smoothed the
+   gyro's white noise by up to 30 %.)
 7. The steady window is detected (:func:`bayes_jackal.experiment.detect_steady`)
    unless given.
 
@@ -66,7 +72,7 @@ from .experiment import Experiment, detect_steady
 from .pose_track import SMOOTHING_ORDER, SMOOTHING_WINDOW, PoseTrack
 from .progress import Progress
 from .robot import RobotProfile
-from .stamps import MIN_SAMPLES, longest_run, sort_stamps
+from .stamps import MIN_SAMPLES, longest_run, sort_stamps, uniform_clock
 
 __all__ = ["MESSAGE_TYPES", "read_bag"]
 
@@ -192,15 +198,24 @@ def read_bag(
     imu = streams["imu"]
     origin = int(imu.stamp[0])
     seconds = {role: (s.stamp - origin) * 1e-9 for role, s in streams.items()}
-    step = float(np.median(np.diff(seconds["imu"])))
+    clock = uniform_clock(
+        seconds["imu"],
+        max_gap=max_gap,
+        source=source,
+        row_name=lambda i: f"message {i}, {where(imu.stamp[i])}",
+        field=imu.topic,
+    )
+    repairs.extend(clock.repairs)
+    step = 1.0 / clock.provenance["rate"]
     first = max(seconds[role][0] for role in REQUIRED_ROLES)
     last = min(seconds[role][-1] for role in REQUIRED_ROLES)
-    # Snap to the grid within 1e-3 steps: the median step is a whole number of
-    # nanoseconds, so k * step drifts from the stamps by < 1 ns per step.
-    grid = np.arange(np.ceil(first / step - 1e-3), np.floor(last / step + 1e-3) + 1) * step
-    grid = _cut_dropouts(grid, seconds, streams, max_gap, source, repairs)
+    within = (clock.t >= first - 1e-3 * step) & (clock.t <= last + 1e-3 * step)
+    grid = _cut_dropouts(clock.t[within], seconds, streams, max_gap, source, repairs)
 
-    yaw_rate = np.interp(grid, seconds["imu"], imu.values[:, 0])
+    # The IMU's own samples, one per tick of its clock: a sample keeps its
+    # value (interpolating onto a clock that drifts from the samples would
+    # smooth the gyro's noise); a tick it missed within max_gap is filled.
+    yaw_rate = clock.resample(imu.values[:, 0])[within][np.isin(clock.t[within], grid)]
     wheels = streams["joint_states"].values
     omega_r = np.interp(grid, seconds["joint_states"], wheels[:, 0])
     omega_l = np.interp(grid, seconds["joint_states"], wheels[:, 1])
@@ -223,6 +238,7 @@ def read_bag(
         "robot": robot.name,
         "time_zero": origin * 1e-9,
         "rate": 1.0 / step,
+        "imu_clock": clock.provenance,
         "samples": len(grid),
         "topics": {
             role: {"topic": s.topic, "msgtype": s.msgtype, "messages": len(s.stamp)}

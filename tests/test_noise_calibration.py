@@ -18,17 +18,12 @@ stay within its time.
 
 from __future__ import annotations
 
-import concurrent.futures
-import multiprocessing
-import os
 import time
-import warnings
-from collections.abc import Callable
 
 import numpy as np
 import pytest
 import scipy.signal
-import scipy.stats
+from calibration import least_inside, map_rows, seeds
 
 import bayes_jackal as bj
 from bayes_jackal.chains import SamplerSettings
@@ -41,7 +36,8 @@ WIDTHS = (0.6, 2.0, 6.0, 20.0)  # [samples]
 COLOURED = ("gaussian", "exponential", "triangular", "moving-average")
 FAMILIES = ("white", *COLOURED)
 SETTINGS = SamplerSettings(design_points=256, max_steps=NOISE_MAX_STEPS)  # the command's cap
-HDI_PROB = 0.94
+#: Seeds per case of the full form (``BAYES_JACKAL_CALIBRATION_SEEDS``, tests/calibration.py).
+FULL_SEEDS = 5
 #: ln B - 3 se above this against every other family: the true family wins.
 WIN_LOG_BF = 3.0
 
@@ -130,45 +126,6 @@ CASES = [(family, width) for family in COLOURED for width in WIDTHS]
 #: The reduced form's cases: the AR(1) path of the fast engine and the
 #: banded fallback's family (CI: ~75 s of one core; 39 s and 36 s measured alone).
 CI_CASES = [("exponential", 6.0), ("moving-average", 6.0)]
-
-
-def seeds() -> range:
-    """``BAYES_JACKAL_CALIBRATION_SEEDS`` seeds per case (5)."""
-    count = int(os.environ.get("BAYES_JACKAL_CALIBRATION_SEEDS", "5"))
-    if count < 1:
-        raise ValueError(f"BAYES_JACKAL_CALIBRATION_SEEDS must be >= 1, got {count}")
-    return range(count)
-
-
-def processes() -> int:
-    """``BAYES_JACKAL_CALIBRATION_PROCESSES`` worker processes for the rows (1: in this one)."""
-    count = int(os.environ.get("BAYES_JACKAL_CALIBRATION_PROCESSES", "1"))
-    if count < 1:
-        raise ValueError(f"BAYES_JACKAL_CALIBRATION_PROCESSES must be >= 1, got {count}")
-    return count
-
-
-def map_rows(function: Callable, work: list) -> list:
-    """``function`` over ``work``, in :func:`processes` fresh worker processes if more than one.
-
-    The workers turn warnings into errors, as pytest's configuration does here.
-    """
-    count = processes()
-    if count == 1:
-        return [function(item) for item in work]
-    with concurrent.futures.ProcessPoolExecutor(
-        count,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=warnings.simplefilter,
-        initargs=("error",),
-    ) as pool:
-        return list(pool.map(function, work))
-
-
-def least_inside(cases: int) -> float:
-    """The 0.1 % quantile of Binomial(cases, 0.94): a calibrated 94 % HDI holds
-    the truth in fewer of ``cases`` independent cases once in a thousand."""
-    return scipy.stats.binom.ppf(0.001, cases, HDI_PROB)
 
 
 def characterise(values: np.ndarray, seed: int) -> bj.NoiseCharacterisation:
@@ -286,9 +243,10 @@ def test_true_family_wins_and_its_width_is_calibrated():
     Cases outside the model (:data:`OUTSIDE_THE_MODEL`) or whose width is
     not identified (:data:`NOT_IDENTIFIED`) are not counted.
     """
-    cases = CI_CASES if len(seeds()) == 1 else CASES
+    cases = CI_CASES if len(seeds(FULL_SEEDS)) == 1 else CASES
     rows = map_rows(
-        calibration_row, [(family, width, seed) for family, width in cases for seed in seeds()]
+        calibration_row,
+        [(family, width, seed) for family, width in cases for seed in seeds(FULL_SEEDS)],
     )
     failures = calibration_failures(rows)
     assert not failures, failures
@@ -302,9 +260,9 @@ def test_white_noise_is_never_called_coloured():
     Only in the full form (the fast suite's
     test_noise_characterisation.py::test_white_noise_is_not_called_coloured
     checks one seed against the Gaussian family)."""
-    if len(seeds()) == 1:
+    if len(seeds(FULL_SEEDS)) == 1:
         pytest.skip("the full form only (BAYES_JACKAL_CALIBRATION_SEEDS > 1)")
-    verdicts = map_rows(white_verdict, list(seeds()))
+    verdicts = map_rows(white_verdict, list(seeds(FULL_SEEDS)))
     assert all(verdict in ("not coloured", "inconclusive") for verdict in verdicts), verdicts
 
 
