@@ -33,6 +33,7 @@ from .defaults import (
     NOISE,
     NOISE_SHARING,
     SENSOR,
+    VELOCITIES,
     WALKERS,
 )
 from .errors import InputError, each_input, refuse
@@ -131,6 +132,7 @@ def load_experiments(
     max_gap: float | None = None,
     window: tuple[float, float] | None = None,
     progress: bool = False,
+    velocities: str = VELOCITIES[0],
 ) -> list[Experiment]:
     """Read logs as experiments: CSV, MATLAB ``.mat``, NetCDF ``.nc`` files and ROS bags.
 
@@ -154,6 +156,10 @@ def load_experiments(
     rate : float, optional
         CSV and MATLAB files: the declared sample rate [Hz]; detected from
         the stamps by default (``--rate``).
+    velocities : {"measured", "derived"}
+        CSV and MATLAB files without pose columns: whether their vx, vy
+        were measured or derived from poses (``--velocities``;
+        :func:`bayes_jackal.tables.read_csv`).
     max_gap : float, optional
         Longest tolerated dropout [s]; by default 0.25 s in bags and 5
         sample steps in files (``--max-gap``).
@@ -200,6 +206,7 @@ def load_experiments(
         max_gap=max_gap,
         window=window,
         progress=progress,
+        velocities=velocities,
     )
     refuse(failed, len(paths))
     return list(experiments.values())
@@ -215,6 +222,7 @@ def read_logs(
     window: tuple[float, float] | None = None,
     progress: bool = False,
     on_failure: Callable[[str, Exception], None] | None = None,
+    velocities: str = VELOCITIES[0],
 ) -> tuple[dict[str, Experiment], dict[str, str]]:
     """Read each log on its own, past the bad ones (:func:`load_experiments`: all or none).
 
@@ -224,7 +232,7 @@ def read_logs(
 
     Parameters
     ----------
-    paths, robot, columns, rate, max_gap, window, progress
+    paths, robot, columns, rate, max_gap, window, progress, velocities
         As in :func:`load_experiments`.
     on_failure : callable, optional
         ``on_failure(path, exception)``, called as each bad input is met.
@@ -259,7 +267,7 @@ def read_logs(
     (['v1_01'], ['missing.nc'])
     """
     robot = _profile(robot)
-    options = {"columns": check_column_roles(columns), "rate": rate}
+    options = {"columns": check_column_roles(columns), "rate": rate, "velocities": velocities}
     experiments, failed = each_input(
         _paths(paths),
         lambda path: read_log(

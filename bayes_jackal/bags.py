@@ -69,7 +69,7 @@ from .bag_reading import READ_ERRORS, bag_format, header_stamp, open_bag, receiv
 from .defaults import MAX_GAP
 from .errors import DataError, InputError
 from .experiment import Experiment, detect_steady
-from .pose_track import SMOOTHING_ORDER, SMOOTHING_WINDOW, PoseTrack
+from .pose_track import SMOOTHING_ORDER, SMOOTHING_WINDOW, PoseTrack, derived_velocities
 from .progress import Progress
 from .robot import RobotProfile
 from .stamps import MIN_SAMPLES, longest_run, sort_stamps, uniform_clock
@@ -220,9 +220,7 @@ def read_bag(
     omega_r = np.interp(grid, seconds["joint_states"], wheels[:, 0])
     omega_l = np.interp(grid, seconds["joint_states"], wheels[:, 1])
     pose = _pose_track(seconds["pose"], streams["pose"].values, grid, step, source)
-    vx, vy, pose_rate = _body_velocity(pose)
-    vx = np.interp(grid, vx[0], vx[1])
-    vy = np.interp(grid, vy[0], vy[1])
+    vx, vy = derived_velocities(pose, grid)
 
     if window is None:
         steady = detect_steady(grid, yaw_rate, np.column_stack([omega_r, omega_l]))
@@ -244,7 +242,7 @@ def read_bag(
             role: {"topic": s.topic, "msgtype": s.msgtype, "messages": len(s.stamp)}
             for role, s in streams.items()
         },
-        "pose_rate": pose_rate,
+        "pose_rate": pose.rate,
         "smoother": {
             "method": "scipy.signal.savgol_filter(deriv=1)",
             "window_s": SMOOTHING_WINDOW,
@@ -488,23 +486,6 @@ def _pose_track(
     heading = np.unwrap(np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2)))
     keep = (t >= grid[0] - step) & (t <= grid[-1] + step)
     return PoseTrack(t[keep], x[keep], y[keep], heading[keep], source=source)
-
-
-def _body_velocity(
-    pose: PoseTrack,
-) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], float]:
-    """Body-frame vx, vy [m/s] derived from the poses, for plots.
-
-    Returns (times, vx), (times, vy) on a uniform grid at the pose's median
-    rate (:meth:`~bayes_jackal.pose_track.PoseTrack.smoothed_rates`), and
-    that rate [Hz].
-    """
-    uniform, rates = pose.smoothed_rates()
-    psi = np.interp(uniform, pose.t, pose.heading)
-    cos, sin = np.cos(psi), np.sin(psi)
-    vx = cos * rates[:, 0] + sin * rates[:, 1]
-    vy = -sin * rates[:, 0] + cos * rates[:, 1]
-    return (uniform, vx), (uniform, vy), 1.0 / (uniform[1] - uniform[0])
 
 
 def _check_window(

@@ -6,7 +6,8 @@ InferenceData as written by :mod:`bayes_jackal.posterior` and returns a
 ``message`` and the fields that locate them. Kinds: ``prior-boundary``
 (:func:`prior_boundary`), ``residual-input`` (:func:`residual_input`, MATLAB
 ``resid``'s independence test), ``predictive-acf`` (:func:`predictive_acf`),
-``not-steady`` (:func:`steady_windows`) and ``damping-scale-not-identified``
+``not-steady`` (:func:`steady_windows`), ``derived-velocity``
+(:func:`derived_velocities`) and ``damping-scale-not-identified``
 (:func:`damping_scale`). :func:`criticise` runs them all;
 :func:`bayes_jackal.posterior.summarize` reports it under ``warnings`` and
 ``criticism``. The array-level statistics behind the checks, and
@@ -25,6 +26,7 @@ from .criticism_inputs import (
     INPUTS,
     RESIDUAL_INPUT_LAGS,
     RESIDUAL_INPUT_LEVEL,
+    derived_velocities,
     residual_input,
     steady_windows,
 )
@@ -67,6 +69,7 @@ __all__ = [
     "boundary_check",
     "criticise",
     "damping_scale",
+    "derived_velocities",
     "predictive_acf",
     "prior_boundary",
     "residual_input",
@@ -432,8 +435,8 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     """Every check of a posterior: ``{"warnings": [...], "criticism": {...}}``.
 
     ``criticism`` holds the numbers under ``prior_boundary``,
-    ``residual_input``, ``predictive_acf``, ``steadiness`` and
-    ``damping_scale``. The result is computed once per posterior and kept in
+    ``residual_input``, ``predictive_acf``, ``steadiness``,
+    ``derived_velocities`` and ``damping_scale``. The result is computed once per posterior and kept in
     its ``criticism`` attribute (a saved file carries it); ``rng`` seeds the
     replicated series (fixed by default, so the numbers are reproducible).
 
@@ -449,7 +452,8 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
     >>> result = criticise(posterior)
     >>> sorted(result["criticism"])
-    ['damping_scale', 'predictive_acf', 'prior_boundary', 'residual_input', 'steadiness']
+    ['damping_scale', 'derived_velocities', 'predictive_acf', 'prior_boundary',
+     'residual_input', 'steadiness']
     >>> sorted({warning["kind"] for warning in result["warnings"]})
     ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
@@ -462,6 +466,7 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
         "steadiness": steady_windows(idata),
         "residual_input": residual_input(idata),
         "predictive_acf": predictive_acf(idata, rng=rng),
+        "derived_velocities": derived_velocities(idata),
     }
     result = {
         "warnings": [w for check in checks.values() for w in check.warnings],

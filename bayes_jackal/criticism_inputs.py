@@ -1,12 +1,14 @@
-"""Model criticism of the inputs' path: the residual-input test, and steady windows.
+"""Model criticism of the inputs' path: the residual-input test, steady windows, derived data.
 
-Two checks of a posterior, run with the others by
+Three checks of a posterior, run with the others by
 :func:`bayes_jackal.criticism.criticise` (and importable from
 :mod:`bayes_jackal.criticism`). ``residual-input`` (:func:`residual_input`,
 MATLAB ``resid``'s independence test): do the one-step residuals correlate
 with the wheel speeds, which a wrong input path would make them do?
 ``not-steady`` (:func:`steady_windows`): are the analysed windows steady
-cornering, as the thesis' analysis (ch. 5) assumes?
+cornering, as the thesis' analysis (ch. 5) assumes? ``derived-velocity``
+(:func:`derived_velocities`): are vx, vy modelled as measured where they
+were derived from poses the data no longer hold?
 """
 
 from __future__ import annotations
@@ -36,8 +38,10 @@ __all__ = [
     "INPUTS",
     "RESIDUAL_INPUT_LAGS",
     "RESIDUAL_INPUT_LEVEL",
+    "derived_velocities",
     "residual_input",
     "steady_windows",
+    "velocities_derived",
 ]
 
 #: Lags -L..L of the residual-input cross-correlation (MATLAB ``resid``: 25).
@@ -239,3 +243,76 @@ def _steadiness_failures(deviation: float | None, drift: float) -> list[str]:
             f"(tolerance {100 * STEADY_YAW_TOLERANCE:.0f} %)"
         )
     return failures
+
+
+# --- derived velocities ------------------------------------------------------------------
+
+
+def velocities_derived(provenance: dict) -> bool:
+    """Whether an experiment's vx, vy were derived from poses (its provenance says so).
+
+    A table read with ``velocities="derived"`` records it, and so does an
+    experiment file written by ``ingest`` before the poses were kept (its
+    provenance names the ``smoother``).
+
+    Examples
+    --------
+    >>> from bayes_jackal.criticism_inputs import velocities_derived
+    >>> velocities_derived({"smoother": {"window_s": 0.1}}), velocities_derived({})
+    (True, False)
+    """
+    return provenance.get("velocities") == "derived" or "smoother" in provenance
+
+
+def derived_velocities(idata: az.InferenceData) -> Check:
+    """Warnings for vx, vy modelled as measured that were derived from poses (docs/design.md §2.2).
+
+    A smoothing derivative of the poses widens the process noise's kernel
+    and colours the pose noise: modelled as a measured velocity it put the
+    damping at half its truth on motion-capture bags. An experiment whose
+    poses are kept has its vx, vy modelled through them and is not flagged.
+    Numbers per experiment: ``derived`` (its provenance says so) and
+    ``channels`` (those modelled as measured although derived).
+
+    Examples
+    --------
+    A simulated run measures its velocities: nothing to say. The 20-step
+    chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.criticism_inputs import derived_velocities
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw", "vx"], max_steps=20,
+    ...                       seed=1)
+    >>> check = derived_velocities(posterior)
+    >>> check.numbers["v1"], check.warnings
+    ({'derived': False, 'channels': []}, [])
+    """
+    metadata = posterior_metadata(idata)
+    modelled = [
+        c
+        for c in metadata.channels
+        if c in ("vx", "vy") and c not in metadata.layout.pose_channels
+    ]
+    check = Check()
+    for record in metadata.experiments:
+        derived = velocities_derived(record.provenance)
+        channels = modelled if derived else []
+        check.numbers[record.name] = {"derived": derived, "channels": channels}
+        if channels:
+            check.warnings.append(
+                {
+                    "kind": "derived-velocity",
+                    "experiment": record.name,
+                    "channels": channels,
+                    "message": (
+                        f"{record.name}: {' and '.join(channels)} were derived from poses by a "
+                        "smoothing derivative and are modelled as measured velocities (the "
+                        "data hold no poses): the smoothing widens their kernel and colours "
+                        "the pose noise, which has put the damping at half its truth "
+                        "(docs/design.md 2.2); ingest the bag again (ingest keeps the poses), "
+                        "give the poses as columns x, y, heading, or use --channels yaw"
+                    ),
+                }
+            )
+    return check

@@ -40,6 +40,7 @@ __all__ = [
     "NOISE_MAX_STEPS",
     "NOISE_SHARING",
     "OPTIONAL",
+    "POSE_ROLES",
     "REQUIRED",
     "RESIDUAL_CHANNELS",
     "RESIDUAL_LAGS",
@@ -54,6 +55,7 @@ __all__ = [
     "SIMULATED_NOISE",
     "STATE_ESTIMATION",
     "THESIS_CHANNEL",
+    "VELOCITIES",
     "WALKERS",
 ]
 
@@ -141,8 +143,14 @@ CONVERSIONS = ("ros", "thesis")
 #: Columns every experiment has, and those it may have.
 REQUIRED = ("t", "yaw_rate", "omega_r", "omega_l")
 OPTIONAL = ("vx", "vy")
+#: A table's motion-capture pose, world x, y [m] and heading [rad] (all or none).
+POSE_ROLES = ("x", "y", "heading")
 #: Column roles a file's columns can be mapped to (``columns=``, ``--column``).
-ROLES = (*REQUIRED, *OPTIONAL)
+ROLES = (*REQUIRED, *OPTIONAL, *POSE_ROLES)
+#: What a table's vx, vy columns are (``velocities=``, ``--velocities``): measured by
+#: a sensor, or derived from poses the table lacks (the model is the same; a
+#: posterior then warns); the first is the default.
+VELOCITIES = ("measured", "derived")
 #: Longest tolerated dropout of a bag's topic [s] (``--max-gap``): 18 IMU samples at 72 Hz.
 MAX_GAP = 0.25
 #: Longest gap of an experiment file filled by interpolation [sample steps].

@@ -37,7 +37,7 @@ from ._files import write_hdf5
 from .defaults import OPTIONAL, REQUIRED
 from .errors import DataError
 from .physics import CHANNELS
-from .pose_track import POSE_FIELDS, PoseTrack
+from .pose_track import POSE_FIELDS, POSITION_LIMIT, PoseTrack
 from .stamps import MIN_SAMPLES, UNIFORM_TOLERANCE, longest_run
 
 __all__ = [
@@ -64,6 +64,9 @@ UNITS = {
     "omega_l": "rad/s",
     "vx": "m/s",
     "vy": "m/s",
+    "x": "m",
+    "y": "m",
+    "heading": "rad",
 }
 #: Largest magnitude each measured column may have [its units]. They are
 #: generous bounds on what any ground robot logs, there to catch garbage
@@ -78,6 +81,8 @@ MAGNITUDE_LIMITS = {
     "omega_l": 1e4,
     "vx": 100.0,
     "vy": 100.0,
+    "x": POSITION_LIMIT,
+    "y": POSITION_LIMIT,
 }
 #: Series label of experiments that carry none (grid and sigma_h tables).
 UNLABELLED = "unlabelled"

@@ -21,7 +21,14 @@ from scipy.signal import savgol_filter
 
 from .errors import DataError
 
-__all__ = ["POSE_FIELDS", "POSITION_LIMIT", "SMOOTHING_ORDER", "SMOOTHING_WINDOW", "PoseTrack"]
+__all__ = [
+    "POSE_FIELDS",
+    "POSITION_LIMIT",
+    "SMOOTHING_ORDER",
+    "SMOOTHING_WINDOW",
+    "PoseTrack",
+    "derived_velocities",
+]
 
 #: The arrays of a pose track, in order, and their units.
 POSE_FIELDS = {"t": "s", "x": "m", "y": "m", "heading": "rad"}
@@ -201,3 +208,32 @@ class PoseTrack:
             for values in (self.x, self.y, self.heading)
         ]
         return uniform, np.column_stack(rates)
+
+
+def derived_velocities(track: PoseTrack, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame vx, vy [m/s] derived from the poses, at times ``t`` [s], for plots.
+
+    The smoothed world velocity (:meth:`PoseTrack.smoothed_rates`) rotated
+    into the body frame by the heading, vx = cos(psi) x' + sin(psi) y',
+    vy = -sin(psi) x' + cos(psi) y', then interpolated to ``t``. Not a
+    measurement (docs/design.md §2.2): the likelihood models the poses.
+
+    Examples
+    --------
+    A circle of radius 2 m at 0.5 rad/s: 1 m/s forward (less the quadratic
+    fit's bias on the curve, 1e-4), nothing sideways:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.pose_track import PoseTrack, derived_velocities
+    >>> s = np.arange(600) / 120
+    >>> track = PoseTrack(s, 2 * np.sin(0.5 * s), 2 - 2 * np.cos(0.5 * s), 0.5 * s)
+    >>> vx, vy = derived_velocities(track, np.array([1.0, 2.0]))
+    >>> vx.round(3).tolist(), vy.round(4).tolist()
+    ([1.0, 1.0], [0.0, 0.0])
+    """
+    grid, rates = track.smoothed_rates()
+    psi = np.interp(grid, track.t, track.heading)
+    cos, sin = np.cos(psi), np.sin(psi)
+    vx = cos * rates[:, 0] + sin * rates[:, 1]
+    vy = -sin * rates[:, 0] + cos * rates[:, 1]
+    return np.interp(t, grid, vx), np.interp(t, grid, vy)

@@ -6,8 +6,13 @@ file by its suffix (the NetCDF experiment file lives in
 :mod:`bayes_jackal._matlab`).
 
 CSV format: a header naming the columns ``t, yaw_rate, omega_r, omega_l`` and
-optionally ``vx, vy`` (any order, extra columns ignored), SI units, t in
-seconds. MATLAB files hold the same names as vectors, at the top level or as
+optionally ``vx, vy`` and the motion-capture pose ``x, y, heading`` (any
+order, extra columns ignored), SI units, t in seconds. With the pose, vx and
+vy are modelled through it (docs/design.md §2.2; derived from it for plots
+where the file has no vx, vy columns); without it, vx and vy are modelled as
+measured, and ``velocities="derived"`` (``--velocities derived``) records
+that they were derived from poses the file lacks, which a posterior warns
+of. MATLAB files hold the same names as vectors, at the top level or as
 fields of a struct (``log.t``). Columns named otherwise are mapped with
 ``columns={"yaw_rate": "gyro_z", ...}`` (role to column). The CSV and MATLAB
 readers put the stamps on a uniform clock by the rules of
@@ -26,9 +31,10 @@ import numpy as np
 
 from ._files import atomic_path
 from ._matlab import mat_arrays, mat_vector
-from .defaults import ROLES
+from .defaults import POSE_ROLES, ROLES, VELOCITIES
 from .errors import DataError, InputError
 from .experiment import OPTIONAL, REQUIRED, Experiment, check_values, read_netcdf
+from .pose_track import PoseTrack, derived_velocities
 from .robot import RobotProfile
 from .stamps import UNIFORM_TOLERANCE, uniform_clock
 
@@ -142,12 +148,32 @@ def _from_columns(
     series: str | None,
     rate: float | None,
     max_gap: float | None,
+    velocities: str,
 ) -> Experiment:
-    """An experiment from a file's columns (by role), on the uniform clock of its stamps."""
+    """An experiment from a file's columns (by role), on the uniform clock of its stamps.
+
+    The pose columns, where the file has them, become its
+    :class:`~bayes_jackal.pose_track.PoseTrack`: the samples kept, at their
+    ticks (a filled tick is no pose), the heading unwrapped.
+    """
+    if velocities not in VELOCITIES:
+        raise InputError(
+            f"unknown velocities {velocities!r}; use one of {VELOCITIES}", field="velocities"
+        )
     check_values(columns, source, row_name)
     clock = uniform_clock(
         columns["t"], rate=rate, max_gap=max_gap, source=source, row_name=row_name
     )
+    measured = {
+        role: clock.resample(values)
+        for role, values in columns.items()
+        if role not in ("t", *POSE_ROLES)
+    }
+    pose = _pose_columns(columns, clock.t[clock.ticks], clock.rows, source)
+    if pose is not None:
+        velocities = "derived"
+        if "vx" not in measured:
+            measured["vx"], measured["vy"] = derived_velocities(pose, clock.t)
     provenance = {
         "source": source,
         "format": format,
@@ -155,14 +181,35 @@ def _from_columns(
         "time_base": clock.provenance,
         "repairs": clock.repairs,
     }
+    if "vx" in measured:
+        provenance["velocities"] = velocities
     return Experiment(
         t=clock.t,
-        **{role: clock.resample(values) for role, values in columns.items() if role != "t"},
+        **measured,
+        pose=pose,
         name=name,
         series=series,
         provenance=provenance,
         source=source,
     )
+
+
+def _pose_columns(
+    columns: dict[str, np.ndarray], t: np.ndarray, rows: np.ndarray, source: str
+) -> PoseTrack | None:
+    """The pose of the columns x, y, heading at the times ``t`` of their ``rows``; None without."""
+    present = [role for role in POSE_ROLES if role in columns]
+    if not present:
+        return None
+    if len(present) < len(POSE_ROLES):
+        missing = [role for role in POSE_ROLES if role not in columns]
+        raise DataError(
+            f"a pose needs the columns {list(POSE_ROLES)}; the file has {present}, not {missing}",
+            source=source,
+            field=missing[0],
+        )
+    x, y, heading = (columns[role][rows] for role in POSE_ROLES)
+    return PoseTrack(t, x, y, np.unwrap(heading), source=source)
 
 
 def read_csv(
@@ -173,6 +220,7 @@ def read_csv(
     columns: dict[str, str] | None = None,
     rate: float | None = None,
     max_gap: float | None = None,
+    velocities: str = VELOCITIES[0],
 ) -> Experiment:
     """Read an experiment from a CSV file (docs/design.md §2).
 
@@ -191,6 +239,11 @@ def read_csv(
         Declared sampling rate [Hz]; detected from the stamps when omitted.
     max_gap : float, optional
         Longest gap [s] filled by interpolation (:func:`bayes_jackal.stamps.uniform_clock`).
+    velocities : {"measured", "derived"}
+        What the vx, vy columns of a file without pose columns are: a
+        sensor's measurements (the model's assumption), or derived from
+        poses the file lacks (recorded in the provenance; a posterior then
+        warns: docs/design.md §2.2). With pose columns they are derived.
 
     Raises
     ------
@@ -234,6 +287,7 @@ def read_csv(
         series=series,
         rate=rate,
         max_gap=max_gap,
+        velocities=velocities,
     )
 
 
@@ -245,6 +299,7 @@ def read_mat(
     columns: dict[str, str] | None = None,
     rate: float | None = None,
     max_gap: float | None = None,
+    velocities: str = VELOCITIES[0],
 ) -> Experiment:
     """Read an experiment from a MATLAB ``.mat`` file (v5/v7, or v7.3 HDF5).
 
@@ -290,6 +345,7 @@ def read_mat(
         series=series,
         rate=rate,
         max_gap=max_gap,
+        velocities=velocities,
     )
 
 
@@ -477,10 +533,12 @@ def load_experiment(
     rate: float | None = None,
     max_gap: float | None = None,
     robot: RobotProfile | None = None,
+    velocities: str = VELOCITIES[0],
 ) -> Experiment:
     """Read a CSV (``.csv``), MATLAB (``.mat``) or NetCDF experiment file (``.nc``).
 
-    ``columns``, ``rate`` and ``max_gap`` are those of :func:`read_csv`. The
+    ``columns``, ``rate``, ``max_gap`` and ``velocities`` are those of
+    :func:`read_csv` (``velocities`` for CSV and MATLAB files). The
     column mapping applies to CSV and MATLAB files; a NetCDF experiment file
     is already uniform, and a declared rate must agree with its own (within
     :data:`~bayes_jackal.stamps.UNIFORM_TOLERANCE`). Given a ``robot``, the
@@ -505,7 +563,9 @@ def load_experiment(
     >>> print(csv.name, csv.truth, nc.name, nc.truth["d_lat"])
     a None v2 110.0
     """
-    experiment = _read_experiment(path, columns=columns, rate=rate, max_gap=max_gap)
+    experiment = _read_experiment(
+        path, columns=columns, rate=rate, max_gap=max_gap, velocities=velocities
+    )
     if robot is not None and rate is None:
         check_sample_time(experiment, robot)
     return experiment
@@ -517,11 +577,14 @@ def _read_experiment(
     columns: dict[str, str] | None,
     rate: float | None,
     max_gap: float | None,
+    velocities: str,
 ) -> Experiment:
     """An experiment file read by its suffix (:func:`load_experiment`)."""
     suffix = Path(path).suffix.lower()
     if suffix in _LOG_READERS:
-        return _LOG_READERS[suffix](path, columns=columns, rate=rate, max_gap=max_gap)
+        return _LOG_READERS[suffix](
+            path, columns=columns, rate=rate, max_gap=max_gap, velocities=velocities
+        )
     if suffix == ".nc":
         check_column_roles(columns)
         experiment = read_netcdf(path)

@@ -194,7 +194,7 @@ def ingest_logs(
         and ``truth`` of a simulated run.
     read_options : mapping, optional
         Keywords of :func:`~bayes_jackal.tables.load_experiment` for
-        experiment files (``columns``, ``rate``).
+        experiment files (``columns``, ``rate``, ``velocities``).
     say : callable
         Receives one line per input.
 

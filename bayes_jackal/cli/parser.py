@@ -50,6 +50,7 @@ from ..defaults import (
     SIMULATED_NOISE,
     STATE_ESTIMATION,
     THESIS_CHANNEL,
+    VELOCITIES,
     WALKERS,
 )
 from ..errors import InputError
@@ -149,6 +150,14 @@ def _add_input_flags(parser: argparse.ArgumentParser) -> None:
         type=_positive,
         metavar="HZ",
         help="declared sampling rate [Hz] (default: detected from the time stamps)",
+    )
+    parser.add_argument(
+        "--velocities",
+        choices=VELOCITIES,
+        default=VELOCITIES[0],
+        help="what a file's vx, vy columns are when it has no pose columns (x, y, heading): "
+        "measured by a sensor (the model's assumption), or derived from poses, which the "
+        "posterior then warns of (default: %(default)s)",
     )
 
 

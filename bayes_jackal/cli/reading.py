@@ -93,8 +93,12 @@ def each_experiment(
 
 
 def read_options(args: argparse.Namespace) -> dict:
-    """Keywords of reading experiment files (CSV, MATLAB) from ``--column`` and ``--rate``."""
-    return {"columns": check_column_roles(dict(args.column), field="--column"), "rate": args.rate}
+    """Keywords of reading CSV and MATLAB files: ``--column``, ``--rate``, ``--velocities``."""
+    return {
+        "columns": check_column_roles(dict(args.column), field="--column"),
+        "rate": args.rate,
+        "velocities": args.velocities,
+    }
 
 
 def log_options(args: argparse.Namespace) -> dict:
