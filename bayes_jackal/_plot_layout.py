@@ -15,6 +15,9 @@ BAND = (3.0, 97.0)
 #: Unit of each channel.
 UNITS = {"vx": "m/s", "vy": "m/s", "yaw": "rad/s"}
 DATA_COLOUR, MODEL_COLOUR = "0.25", "tab:red"
+#: The legend of a channel's data, by how it was recorded
+#: (:meth:`bayes_jackal.experiment.Experiment.measurement`).
+DATA_LABELS = {"rate": "measured", "pose": "derived from the poses"}
 
 
 def new_axes(ax: Axes | None, **figure_options) -> tuple[Figure, Axes]:

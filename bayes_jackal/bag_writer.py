@@ -28,10 +28,11 @@ from scipy.integrate import cumulative_trapezoid
 
 from ._files import atomic_path
 from .bag_reading import typestore
+from .defaults import POSE_NOISE
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import as_rng
-from .physics import CHANNELS, continuous_matrices
+from .physics import CHANNELS, continuous_matrices, step_integrals
 from .robot import RobotProfile
 from .simulate import Series, command_profile
 
@@ -49,13 +50,11 @@ __all__ = [
     "write_messages",
 ]
 
-#: :func:`write_bag`: motion-capture rate [Hz], its noise (position sd per
-#: axis [m], heading sd [rad]: a lab system's, OptiTrack's 0.1-0.5 mm),
-#: fraction of pose messages published twice, receive latency [ns], epoch of
-#: time zero [s], and the difference of front and rear wheel speeds [rad/s]
-#: (averages out per side).
+#: :func:`write_bag`: motion-capture rate [Hz], fraction of pose messages
+#: published twice, receive latency [ns], epoch of time zero [s], and the
+#: difference of front and rear wheel speeds [rad/s] (averages out per side).
+#: The motion capture's noise is :data:`POSE_NOISE` (bayes_jackal.defaults).
 POSE_RATE = 360.0
-POSE_NOISE = (0.5e-3, 0.002)
 #: Sub-steps per sample of the path between samples (:func:`pose_path`).
 SUBSTEPS = 20
 DUPLICATE_FRACTION = 0.005
@@ -360,7 +359,7 @@ def pose_path(experiment: Experiment, robot: RobotProfile) -> tuple[np.ndarray, 
     dt = experiment.dt
     states = np.column_stack([arrays[f"{c}_state"] for c in CHANNELS])  # (N, 3)
     noise = np.column_stack([arrays[f"{c}_process_noise"] for c in CHANNELS])[:-1]
-    g = dt * scipy.special.exprel(a * dt)
+    g, _ = step_integrals(np.exp(a * dt), dt)
     force = experiment.inputs[:-1] @ B.T + noise / g  # b . u_k + w_k / g, (N - 1, 3)
     s = dt * np.arange(SUBSTEPS) / SUBSTEPS
     decay = np.exp(np.multiply.outer(s, a))  # (S, 3)

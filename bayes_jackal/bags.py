@@ -210,12 +210,12 @@ def read_bag(
     first = max(seconds[role][0] for role in REQUIRED_ROLES)
     last = min(seconds[role][-1] for role in REQUIRED_ROLES)
     within = (clock.t >= first - 1e-3 * step) & (clock.t <= last + 1e-3 * step)
-    grid = _cut_dropouts(clock.t[within], seconds, streams, max_gap, source, repairs)
-
+    kept = _cut_dropouts(clock.t[within], seconds, streams, max_gap, source, repairs)
+    grid = clock.t[within][kept]
     # The IMU's own samples, one per tick of its clock: a sample keeps its
     # value (interpolating onto a clock that drifts from the samples would
     # smooth the gyro's noise); a tick it missed within max_gap is filled.
-    yaw_rate = clock.resample(imu.values[:, 0])[within][np.isin(clock.t[within], grid)]
+    yaw_rate = clock.resample(imu.values[:, 0])[within][kept]
     wheels = streams["joint_states"].values
     omega_r = np.interp(grid, seconds["joint_states"], wheels[:, 0])
     omega_l = np.interp(grid, seconds["joint_states"], wheels[:, 1])
@@ -445,8 +445,8 @@ def _cut_dropouts(
     max_gap: float,
     source: str,
     repairs: list[str],
-) -> np.ndarray:
-    """Keep the longest piece of ``grid`` [s] that lies in no gap > max_gap."""
+) -> slice:
+    """The longest piece of ``grid`` [s] that lies in no gap > max_gap, as a slice of it."""
     good = np.ones(len(grid), bool)
     for role in REQUIRED_ROLES:
         times = seconds[role]
@@ -470,7 +470,7 @@ def _cut_dropouts(
             f"run cut at dropouts to {grid[start]:.3f} .. {grid[stop - 1]:.3f} s "
             f"(the longest gap-free stretch; was {grid[0]:.3f} .. {grid[-1]:.3f} s)"
         )
-    return grid[start:stop]
+    return slice(start, stop)
 
 
 def _pose_track(

@@ -436,9 +436,10 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
 
     ``criticism`` holds the numbers under ``prior_boundary``,
     ``residual_input``, ``predictive_acf``, ``steadiness``,
-    ``derived_velocities`` and ``damping_scale``. The result is computed once per posterior and kept in
-    its ``criticism`` attribute (a saved file carries it); ``rng`` seeds the
-    replicated series (fixed by default, so the numbers are reproducible).
+    ``derived_velocities`` and ``damping_scale``. The result is computed
+    once per posterior and kept in its ``criticism`` attribute (a saved file
+    carries it); ``rng`` seeds the replicated series (fixed by default, so
+    the numbers are reproducible).
 
     Examples
     --------

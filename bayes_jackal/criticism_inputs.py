@@ -115,7 +115,7 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
                 experiment, metadata.robot, theta[0, 0], theta[0, 1], channel, steady=False
             )
             n = len(residual)
-            samples = measurement_of(experiment, channel).series(experiment, channel).samples
+            samples = measurement_of(experiment, channel).samples(experiment)
             acov = model_autocovariance(metadata, index, channel, theta, n, samples=samples)[0]
             length = min(lags, n - 1)
             sd = {
@@ -251,9 +251,11 @@ def _steadiness_failures(deviation: float | None, drift: float) -> list[str]:
 def velocities_derived(provenance: dict) -> bool:
     """Whether an experiment's vx, vy were derived from poses (its provenance says so).
 
-    A table read with ``velocities="derived"`` records it, and so does an
-    experiment file written by ``ingest`` before the poses were kept (its
-    provenance names the ``smoother``).
+    A table read with ``velocities="derived"`` records it, and so does every
+    bag's reading, whose provenance names the ``smoother``: one read before
+    the poses were kept has only those velocities, one read since has its
+    poses too, and its vx, vy are then modelled through them
+    (:func:`derived_velocities` flags only velocities modelled as measured).
 
     Examples
     --------

@@ -40,6 +40,7 @@ __all__ = [
     "NOISE_MAX_STEPS",
     "NOISE_SHARING",
     "OPTIONAL",
+    "POSE_NOISE",
     "POSE_ROLES",
     "REQUIRED",
     "RESIDUAL_CHANNELS",
@@ -136,6 +137,10 @@ SIMULATED_NOISE = {
 EXPERIMENT_FORMATS = ("nc", "csv")
 #: Formats of a simulated run's bag (``simulate --bag``): ROS1 ``.bag``, ROS2 ``.mcap``.
 BAG_FORMATS = ("ros1", "ros2")
+#: Motion-capture noise of a simulated run's bag (``simulate --pose-noise``,
+#: ``bag_writer.POSE_NOISE``): position sd per axis [m] and heading sd [rad], a
+#: lab system's (OptiTrack, Vicon: 0.1-0.5 mm).
+POSE_NOISE = (0.5e-3, 0.002)
 #: Ways of turning a velocity command (v, w) into wheel speeds (``robot.CONVERSIONS``).
 CONVERSIONS = ("ros", "thesis")
 

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from ._plot_layout import DATA_COLOUR, MODEL_COLOUR, UNITS
+from ._plot_layout import DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS
 from .errors import InputError
 from .experiment import Experiment
 from .kalman import StateEstimate
@@ -111,7 +111,7 @@ def plot_state_estimates(
         ax.fill_between(t, mean - 2 * sd, mean + 2 * sd, color=MODEL_COLOUR, alpha=0.25, lw=0,
                         label="+-2 sd")  # fmt: skip
         ax.plot(t, experiment.channel(channel)[shown], ".", color=DATA_COLOUR, ms=3,
-                label="measured")  # fmt: skip
+                label=DATA_LABELS[experiment.measurement(channel)])  # fmt: skip
         if truth is not None:
             ax.plot(t, truth[shown], "--", color="black", lw=0.9, label="true state")
         ax.plot(t, mean, color=MODEL_COLOUR, lw=1.2, label="estimate")

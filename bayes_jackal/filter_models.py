@@ -66,15 +66,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-import scipy.special
 
 from .defaults import FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
 from .errors import InputError
 from .experiment import Experiment
 from .kernels import FAMILIES, Family, get_family
-from .measurements import pose_weights
 from .parameters import DAMPING, ParameterLayout
-from .physics import CHANNELS
+from .physics import CHANNELS, step_integrals
 from .pose_increments import body_displacement, tick_poses
 from .posterior_format import ROBOT_CONSTANTS
 from .robot import RobotProfile, load_profile
@@ -300,9 +298,8 @@ def _with_travel(model: ChannelModel, alpha: float, dt: float, variance: float) 
     input too), with R the pose noise's ``variance``.
     """
     n = model.size
-    g = dt * scipy.special.exprel(np.log(alpha))
-    kappa_0, _ = pose_weights(np.asarray(alpha))
-    h_over_g = float(kappa_0) * dt  # kappa_0 = h / (g dt)
+    g, h = (float(v) for v in step_integrals(alpha, dt))
+    h_over_g = h / g
     F = np.zeros((n + 1, n + 1))
     F[:n, :n] = model.transition
     F[n, :n] = h_over_g * model.transition[0]
@@ -372,12 +369,14 @@ def _layout(prior: Mapping) -> ParameterLayout:
     channels = tuple(prior_field(prior, "noise.channels"))
     shared_width = bool(noise.get("shared_width", False))  # absent before one-width
     poses = tuple(noise.get("pose_channels", ()))  # absent before poses were modelled
-    try:
-        return ParameterLayout(
-            family, noise.get("sensor", SENSOR), channels, ("prior",), True, shared_width, poses
+    if not set(poses) <= set(channels):
+        raise InputError(
+            f"pose channels {list(poses)} are not among the channels {list(channels)}",
+            field="noise.pose_channels",
         )
-    except InputError as exc:
-        raise InputError(str(exc).split(": ", 1)[-1], field="noise.pose_channels") from None
+    return ParameterLayout(
+        family, noise.get("sensor", SENSOR), channels, ("prior",), True, shared_width, poses
+    )
 
 
 def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str, ...]:

@@ -162,10 +162,11 @@ def d_step(
     sensor_precision: np.ndarray,
     lookahead: int | None = None,
     initial: np.ndarray | None = None,
+    travel: bool = False,
 ) -> np.ndarray:
     """The D-step estimate of one channel's state in generalised coordinates.
 
-    For a channel recorded as poses, ``y`` is its travel and
+    For a channel recorded as poses (``travel``), ``y`` is its travel and
     ``sensor_precision`` one order larger than ``process_precision``: the
     state is then the travel's generalised coordinates (module docstring).
 
@@ -196,7 +197,7 @@ def d_step(
         travel [m].
     u : array_like, shape (N, m)
         Inputs at the samples.
-    sensor_precision : array_like, shape (p + 1, p + 1) or (p + 2, p + 2)
+    sensor_precision : array_like, shape (p + 1, p + 1), or (p + 2, p + 2) with ``travel``
         Pi_z, e.g.
         :func:`~bayes_jackal.generalised_coordinates.white_sensor_precision`;
         of order p + 1 for a pose channel's travel.
@@ -206,6 +207,9 @@ def d_step(
         SPM's floor(p / 2) by default, 0 for a causal filter).
     initial : array_like, shape (p + 1,), optional
         mu~ before the first sample; by default the embedded first measurement.
+    travel : bool
+        ``y`` is a pose channel's travel [m]: its generalised coordinates,
+        one order more, are the state (module docstring).
 
     Returns
     -------
@@ -239,9 +243,7 @@ def d_step(
     process_precision = np.asarray(process_precision, float)
     order = len(process_precision) - 1
     process_precision = _check_precision(process_precision, order + 1, "process_precision")
-    size = len(np.atleast_2d(sensor_precision))
-    if size not in (order + 1, order + 2):
-        size = order + 1  # refused below, naming the shape expected
+    size = order + 1 + travel
     sensor_precision = _check_precision(sensor_precision, size, "sensor_precision")
     y, u, b = np.asarray(y, float), np.asarray(u, float), np.atleast_1d(np.asarray(b, float))
     if y.ndim != 1 or u.shape != (len(y), len(b)):
@@ -276,7 +278,11 @@ def d_step(
 
 
 def conditional_covariance(
-    a: float, process_precision: np.ndarray, sensor_precision: np.ndarray
+    a: float,
+    process_precision: np.ndarray,
+    sensor_precision: np.ndarray,
+    *,
+    travel: bool = False,
 ) -> np.ndarray:
     """The D-step's conditional covariance of mu~: inv(Pi_z + (M S)' Pi_w M S), M = D - a I.
 
@@ -291,6 +297,8 @@ def conditional_covariance(
     process_precision, sensor_precision : array_like
         Pi_w (p + 1, p + 1) and Pi_z, as :func:`d_step` (one order more for a
         pose channel's travel).
+    travel : bool
+        As :func:`d_step`.
 
     Returns
     -------
@@ -307,10 +315,8 @@ def conditional_covariance(
     """
     process_precision = np.atleast_2d(np.asarray(process_precision, float))
     order = len(process_precision) - 1
-    size = len(np.atleast_2d(sensor_precision))
-    sensor_precision = _check_precision(
-        sensor_precision, size if size in (order + 1, order + 2) else order + 1, "sensor_precision"
-    )
+    size = order + 1 + travel
+    sensor_precision = _check_precision(sensor_precision, size, "sensor_precision")
     M = _motion(a, order, size)
     return np.linalg.inv(sensor_precision + M.T @ process_precision @ M)
 
@@ -485,8 +491,8 @@ def generalised_filter(
             prior, channel, order + travel, dt, parameters, sensor_precision, lookahead, samples
         )
         mu = d_step(A[row, row], B[row], dt, Pw, y, experiment.inputs, sensor_precision=Pz,
-                    lookahead=lookahead)  # fmt: skip
-        Sigma = conditional_covariance(A[row, row], Pw, Pz)
+                    lookahead=lookahead, travel=bool(travel))  # fmt: skip
+        Sigma = conditional_covariance(A[row, row], Pw, Pz, travel=bool(travel))
         step = taylor_step(order + travel, dt)
         predicted = np.full(len(y), np.nan)
         if lookahead == 0:  # with a look-ahead the estimate at t_(k-1) has seen y_k
@@ -497,7 +503,7 @@ def generalised_filter(
             variance=np.full(len(y), Sigma[travel, travel]),
             innovation=y - predicted,
             innovation_variance=np.concatenate([[np.nan], np.full(len(y) - 1, spread)]),
-            steady_from=0,
+            steady_from=order + 1 + travel,  # the first window inside the run
             derivatives=mu[:, travel:],
         )
     return estimates

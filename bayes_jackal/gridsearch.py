@@ -25,6 +25,7 @@ from ._files import write_hdf5
 from .defaults import DISCRETISATION, METHOD, METHODS, THESIS_CHANNEL
 from .errors import InputError
 from .experiment import UNLABELLED, Experiment
+from .measurements import RateMeasurement
 from .physics import Method, channel_coefficients, propagate
 from .robot import RobotProfile
 
@@ -106,6 +107,9 @@ def onestep_mse(
     d_long : ndarray, shape (M,)
         Grid values [N s/m].
     channel : {"yaw", "vx", "vy"}
+        The thesis' method takes a measured state: vx and vy recorded as
+        poses are taken as the velocities derived from them, as the thesis'
+        were (the posterior models the poses: docs/design.md §2.2).
     discretisation : {"zoh", "euler"}
 
     Returns
@@ -132,8 +136,7 @@ def onestep_mse(
     >>> bool(np.isclose(mse[1, 1], np.mean(w**2)))
     True
     """
-    y = experiment.channel(channel)
-    regressors = np.column_stack([y[1:], y[:-1], experiment.inputs[:-1]])
+    regressors = RateMeasurement().series(experiment, channel).regressors
     gram = regressors.T @ regressors / len(regressors)
     alpha, input_row = channel_coefficients(
         robot, d_lat[:, None], d_long[None, :], channel, experiment.dt, discretisation

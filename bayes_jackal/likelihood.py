@@ -260,7 +260,11 @@ class ResidualLikelihood:
     (``shared_width``): :attr:`layout` (a
     :class:`~bayes_jackal.parameters.ParameterLayout`) names them, their
     groups and columns. Log-likelihoods of experiments add: series are never
-    concatenated.
+    concatenated. Each channel enters as it was recorded
+    (:mod:`bayes_jackal.measurements`): vx, vy of experiments with poses
+    through the poses (their sensor parameter ``sigma_p``), the rest as
+    measured states; ``pose_samples`` holds, per experiment with poses, the
+    recorded poses each sample of its window averages.
 
     Parameters
     ----------
@@ -372,7 +376,7 @@ class ResidualLikelihood:
                 measurement = measurement_of(window, channel)
                 channel_series = measurement.series(window, channel)
                 regressors = channel_series.regressors
-                if measurement.name == "pose":
+                if measurement.name == "pose":  # the same for each pose channel
                     self.pose_samples[experiment.name] = channel_series.samples
                 key = (
                     channel,

@@ -55,12 +55,11 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import scipy.special
 
 from .experiment import Experiment
 from .kernels import Family
-from .physics import channel_coefficients
-from .pose_increments import body_increments, tick_poses
+from .physics import channel_coefficients, step_integrals
+from .pose_increments import body_increments, pose_samples, tick_poses
 from .robot import RobotProfile
 
 __all__ = [
@@ -129,6 +128,10 @@ class Measurement(abc.ABC):
     @abc.abstractmethod
     def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
         """The regressors Z of ``channel`` over the whole ``experiment``."""
+
+    def samples(self, experiment: Experiment) -> int:
+        """The recorded poses each sample of ``experiment`` averages (1: none)."""
+        return 1
 
     @abc.abstractmethod
     def coefficients(
@@ -230,6 +233,9 @@ class PoseMeasurement(Measurement):
     sensor_parameter = "sigma_p"
     regressor_count = 6
 
+    def samples(self, experiment: Experiment) -> int:
+        return pose_samples(experiment)[0]
+
     def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
         ticks = tick_poses(experiment)
         increments = body_increments(ticks, channel)
@@ -268,10 +274,8 @@ class PoseMeasurement(Measurement):
 def pose_weights(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """kappa_0 = h / (g dt) and kappa_1 = g / dt - alpha kappa_0 of a pose channel's pole.
 
-    With z = a dt = log alpha (module docstring): g = dt exprel(z),
-    h = dt^2 phi_2(z) with phi_2(z) = (exprel(z) - 1) / z = (e^z - 1 - z) / z^2
-    (from its series where |z| is small), so kappa_0 = phi_2(z) / exprel(z)
-    and kappa_1 = exprel(z) - e^z kappa_0.
+    :func:`bayes_jackal.physics.step_integrals` at dt = 1 (both are functions of
+    a dt alone).
 
     Examples
     --------
@@ -284,13 +288,9 @@ def pose_weights(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     >>> float(sum(pose_weights(np.array(0.3))))
     1.0
     """
-    z = np.log(np.asarray(alpha, float))
-    small = np.abs(z) < 1e-4
-    safe = np.where(small, 1.0, z)
-    phi_2 = np.where(small, 0.5 + z / 6.0 + z**2 / 24.0, (scipy.special.exprel(safe) - 1) / safe)
-    ratio = scipy.special.exprel(z)
-    kappa_0 = phi_2 / ratio
-    return kappa_0, ratio - np.exp(z) * kappa_0
+    g, h = step_integrals(alpha, 1.0)
+    kappa_0 = h / g
+    return kappa_0, g - np.asarray(alpha, float) * kappa_0
 
 
 #: The measurement models by name (:data:`bayes_jackal.experiment.MEASUREMENTS`).

@@ -366,7 +366,7 @@ def prior_overrides(
     """Prior ranges that replace a profile's, validated and keyed on :data:`PRIOR_KEYS`.
 
     Keys: ``d_lat``, ``d_long`` [N s/m], ``sigma_h`` [s] (every family's
-    width), ``sigma_c``, ``sigma_n`` [channel units]. Every name of the width
+    width), ``sigma_c``, ``sigma_n`` [channel units], ``sigma_p`` [m]. Every name of the width
     (``width``, and each registered family's own width name, such as a
     ``tau``) is accepted for ``sigma_h``; one width
     prior serves every family, so give it under one name. A range for a

@@ -34,6 +34,7 @@ __all__ = [
     "one_step_residuals",
     "propagate",
     "simulate",
+    "step_integrals",
     "wheel_speeds",
 ]
 
@@ -297,6 +298,31 @@ def channel_coefficients(
     else:
         alpha, gain = 1.0 + pole_dt, np.full_like(pole_dt, dt)
     return alpha, gain[..., None] * _input_row(robot, d_long, index)
+
+
+def step_integrals(alpha: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """g and h of a channel's pole over a step of held input (the zero-order hold, eq. 6-6).
+
+    With z = a dt = log alpha: g = (alpha - 1) / a = dt exprel(z), the held
+    input's gain, and h = (g - dt) / a = dt^2 phi_2(z), with phi_2(z) =
+    (exprel(z) - 1) / z = (e^z - 1 - z) / z^2 taken from its series where
+    |z| is small: the held input's gain on the step's integral
+    (:mod:`bayes_jackal.measurements`: the pose increments).
+
+    Examples
+    --------
+    A slow pole: g -> dt, h -> dt^2 / 2:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.physics import step_integrals
+    >>> [round(float(v), 12) for v in step_integrals(np.array(1 - 1e-12), 0.01)]
+    [0.01, 5e-05]
+    """
+    z = np.log(np.asarray(alpha, float))
+    small = np.abs(z) < 1e-4
+    safe = np.where(small, 1.0, z)
+    phi_2 = np.where(small, 0.5 + z / 6.0 + z**2 / 24.0, (scipy.special.exprel(safe) - 1) / safe)
+    return dt * scipy.special.exprel(z), dt**2 * phi_2
 
 
 def wheel_speeds(

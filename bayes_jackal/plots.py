@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from ._plot_layout import BAND, DATA_COLOUR, MODEL_COLOUR, UNITS, new_axes
+from ._plot_layout import BAND, DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS, new_axes
 from .criticism import criticise
 from .grid_plots import plot_grid, save_grid_plot
 from .physics import CHANNELS
@@ -133,8 +133,8 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     for i, (ax, channel) in enumerate(zip(axes, CHANNELS, strict=True)):
         _shade_window(ax, experiment)
         if channel in experiment.channels:
-            measured = experiment.channel(channel)
-            _curve(ax, t, measured, color=DATA_COLOUR, lw=0.6, label="measured")
+            label = DATA_LABELS[experiment.measurement(channel)]
+            _curve(ax, t, experiment.channel(channel), color=DATA_COLOUR, lw=0.6, label=label)
         _band(ax, t, low[:, i], high[:, i], color=MODEL_COLOUR, alpha=0.3)
         _curve(ax, t, median[:, i], color=MODEL_COLOUR, lw=1.2, label="model (94 % band)")
         ax.set_ylabel(f"{channel} [{UNITS[channel]}]")
@@ -145,7 +145,10 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
 
 def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray]:
-    """One-step residuals (eq. 7-3) at the posterior median, per channel (thesis figs. 7-1..7-6).
+    """One-step residuals at the posterior median, per channel (thesis figs. 7-1..7-6).
+
+    Eq. 7-3's for a measured state, a pose channel's those of its pose
+    increments (:mod:`bayes_jackal.measurements`), in the same unit.
 
     Past :data:`MAX_POINTS` residuals each channel is drawn as its envelope
     (the min-max band of each of MAX_POINTS / 2 bins).
@@ -177,7 +180,7 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
         _curve(ax, t, residuals, color=DATA_COLOUR, lw=0.6)
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_ylabel(f"{channel} residual [{UNITS[channel]}]")
-    axes[0].set_title(f"{experiment.name}: one-step residuals (eq. 7-3)")
+    axes[0].set_title(f"{experiment.name}: one-step residuals")
     axes[-1].set_xlabel("t [s]")
     return fig, axes
 

@@ -26,9 +26,11 @@ smoothing them:
 
    which is the integral of the body velocity over the step up to
    r^2 dt^3 v / 24 (< 1e-7 m at 0.5 rad/s, 72 Hz), and whose noise is the
-   difference of two samples' pose noise (the heading's noise moves it by
-   v dt sigma_psi / sqrt(2 n): 1 % of the position's at 0.002 rad and
-   0.1 mm, left out).
+   difference of two samples' pose noise. The heading's noise moves the
+   lateral increment by v dt sigma_psi / sqrt(2 n), v dt sigma_psi / (2
+   sigma_p) of the position noise's sd: 4 % at 0.3 m/s, 0.002 rad and
+   0.1 mm (0.2 % of the variance), 14 % at 1 m/s; it is left out, and grows
+   with the speed.
 
 :mod:`bayes_jackal.measurements` relates M_k to the model's state.
 """
@@ -42,7 +44,14 @@ import numpy as np
 from .errors import DataError
 from .experiment import POSE_CHANNELS, Experiment
 
-__all__ = ["BORROW_FRACTION", "TickPoses", "body_displacement", "body_increments", "tick_poses"]
+__all__ = [
+    "BORROW_FRACTION",
+    "TickPoses",
+    "body_displacement",
+    "body_increments",
+    "pose_samples",
+    "tick_poses",
+]
 
 #: Samples per pose at the most that may own fewer than the n poses each
 #: sample takes (they borrow): n is the largest count that all but this
@@ -99,8 +108,7 @@ def tick_poses(experiment: Experiment) -> TickPoses:
     Raises
     ------
     DataError
-        Naming the file when the experiment has no poses, or when a sample
-        has no pose within one step (the poses do not cover the samples).
+        As :func:`pose_samples`: no poses, or too few of them.
 
     Examples
     --------
@@ -121,6 +129,56 @@ def tick_poses(experiment: Experiment) -> TickPoses:
     >>> ticks.samples, ticks.borrowed, bool(np.allclose(ticks.x, 0.3 * t))
     (5, 0, True)
     """
+    track, t = experiment.pose, experiment.t
+    samples, borrowed = pose_samples(experiment)
+    index = _nearest_poses(track.t, t, samples)
+    grid, rates = track.smoothed_rates()
+    offset = track.t[index] - t[:, None]
+    # Each pose moved by its offset times the rate halfway between its stamp
+    # and the sample: exact to the offset^3 times the rate's curvature.
+    halfway = track.t[index] - offset / 2
+    moved = [
+        np.mean(values[index] - offset * np.interp(halfway, grid, rate), axis=1)
+        for values, rate in zip((track.x, track.y, track.heading), rates.T, strict=True)
+    ]
+    return TickPoses(*moved, samples=samples, borrowed=borrowed)
+
+
+def pose_samples(experiment: Experiment) -> tuple[int, int]:
+    """n, the recorded poses each sample averages, and how many samples borrow (own fewer).
+
+    n is the most that all but :data:`BORROW_FRACTION` of the samples own
+    (the poses within half a step of them).
+
+    Raises
+    ------
+    DataError
+        Naming the file: the experiment has no poses; a sample has no pose
+        within one step (the poses do not cover the samples); or more than
+        :data:`BORROW_FRACTION` of the samples own no pose (poses slower than
+        the samples, or dropping out often): their noise would be shared
+        with a neighbour's, which the model's white pose noise is not.
+
+    Examples
+    --------
+    Poses at 50 Hz are too slow for a 72 Hz IMU:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.experiment import Experiment
+    >>> from bayes_jackal.pose_increments import pose_samples
+    >>> from bayes_jackal.pose_track import PoseTrack
+    >>> t, s = np.arange(720) / 72, np.arange(-1, 502) / 50
+    >>> pose = PoseTrack(s, 0.3 * s, 0 * s, 0 * s)
+    >>> run = Experiment(t=t, yaw_rate=0 * t, omega_r=3 + 0 * t, omega_l=3 + 0 * t,
+    ...                  vx=0.3 + 0 * t, vy=0 * t, pose=pose, source="run.bag")
+    >>> try:
+    ...     pose_samples(run)
+    ... except ValueError as error:
+    ...     print(error)
+    run.bag: pose: 220 of 720 samples (31 %) own no pose within half a step: the poses (50
+    Hz) are slower than the samples (72 Hz) or drop out too often, and the pose channels need
+    a pose of each sample's own (--channels yaw leaves them out)
+    """
     track = experiment.pose
     if track is None:
         raise DataError("the experiment holds no poses", source=experiment.source, field="pose")
@@ -136,18 +194,18 @@ def tick_poses(experiment: Experiment) -> TickPoses:
         )
     owners = np.rint((track.t - t[0]) / dt).astype(int)
     counts = np.bincount(owners[(owners >= 0) & (owners < len(t))], minlength=len(t))
-    samples = max(1, int(np.quantile(counts, BORROW_FRACTION, method="lower")))
-    index = _nearest_poses(track.t, t, samples)
-    grid, rates = track.smoothed_rates()
-    offset = track.t[index] - t[:, None]
-    # Each pose moved by its offset times the rate halfway between its stamp
-    # and the sample: exact to the offset^3 times the rate's curvature.
-    halfway = track.t[index] - offset / 2
-    moved = [
-        np.mean(values[index] - offset * np.interp(halfway, grid, rate), axis=1)
-        for values, rate in zip((track.x, track.y, track.heading), rates.T, strict=True)
-    ]
-    return TickPoses(*moved, samples=samples, borrowed=int(np.sum(counts < samples)))
+    samples = int(np.quantile(counts, BORROW_FRACTION, method="lower"))
+    if samples == 0:
+        alone = int(np.sum(counts == 0))
+        raise DataError(
+            f"{alone} of {len(t)} samples ({100 * alone / len(t):.0f} %) own no pose within "
+            f"half a step: the poses ({track.rate:.4g} Hz) are slower than the samples "
+            f"({1 / dt:.4g} Hz) or drop out too often, and the pose channels need a pose of "
+            "each sample's own (--channels yaw leaves them out)",
+            source=experiment.source,
+            field="pose",
+        )
+    return samples, int(np.sum(counts < samples))
 
 
 def _nearest_poses(stamps: np.ndarray, t: np.ndarray, n: int) -> np.ndarray:

@@ -1,7 +1,8 @@
 """Priors and the log-posterior in sampling coordinates (docs/design.md §4).
 
 Priors: d_lat, d_long uniform on the profile's ranges; every kernel width,
-sigma_c and sigma_n log-uniform. The sampler works in z = log(theta), where
+sigma_c, sigma_n and sigma_p (the pose noise of vx, vy recorded as poses)
+log-uniform. The sampler works in z = log(theta), where
 the damping ridge d_lat / d_long ~ const is straight (see :class:`Prior`).
 The MAP search uses them in :mod:`bayes_jackal.map_search`, the sampler in
 :mod:`bayes_jackal.inference`.
@@ -79,8 +80,8 @@ class Prior:
         """Priors of every parameter of ``likelihood`` from the robot profile.
 
         ``overrides`` maps a prior key (``d_lat``, ``d_long``, ``sigma_h``,
-        ``sigma_c``, ``sigma_n``; ``width`` or a family's own width name for
-        ``sigma_h``) to a (low, high) pair that replaces the profile's,
+        ``sigma_c``, ``sigma_n``, ``sigma_p``; ``width`` or a family's own
+        width name for ``sigma_h``) to a (low, high) pair that replaces the profile's,
         validated by :func:`~bayes_jackal.parameters.prior_overrides`: an
         unknown key is an :class:`InputError` naming the keys allowed. Every
         noise family's width takes the ``sigma_h`` range.

@@ -184,9 +184,10 @@ def check_residual_window(
     window = experiment.steady() if steady else experiment
     y = window.channel(channel)
     span = "the steady-state window" if steady and experiment.steady_window else "the experiment"
-    if len(y) - 1 < minimum:
+    count = len(y) - (2 if window.measurement(channel) == "pose" else 1)  # two increments each
+    if count < minimum:
         raise DataError(
-            f"{span} holds {len(y)} samples, {len(y) - 1} one-step residuals; at least "
+            f"{span} holds {len(y)} samples, {count} one-step residuals; at least "
             f"{minimum} are needed{reason}",
             source=experiment.source,
             field=field or channel,

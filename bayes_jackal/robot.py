@@ -100,7 +100,8 @@ class RobotProfile:
     priors : dict of str to (float, float)
         Prior ranges ``d_lat``, ``d_long`` [N s/m] (uniform), ``sigma_h``
         [s] (log-uniform; the width of every noise family), ``sigma_c`` and
-        ``sigma_n`` [channel units] (log-uniform).
+        ``sigma_n`` [channel units] and ``sigma_p`` [m] (the pose noise of
+        vx, vy recorded as poses) (log-uniform).
     topics : dict of str to str
         ROS topic names (``imu``, ``joint_states``, ``cmd_vel``, ``pose``).
     wheels : dict of str to list of str

@@ -38,8 +38,8 @@ prediction error nu_k and its variance S_k give
 
 The scores start at the first sample every filter predicts from its own
 steady form: sample p + 1 when the generalised filter of order p runs (its
-first p estimates use an embedding window moved inside the run), else
-sample 1.
+first p estimates use an embedding window moved inside the run; p + 2 where
+it embeds a pose channel's travel, one order more), else sample 1.
 """
 
 from __future__ import annotations
@@ -213,14 +213,14 @@ def estimate_each(
 
 
 def _first_scored(estimates: Mapping[str, Mapping[str, StateEstimate]]) -> int:
-    """Sample p + 1 when a generalised filter of order p ran, else 1 (module docstring)."""
-    sizes = [
-        e.derivatives.shape[1]
+    """The first sample of every generalised filter's steady form, else 1 (module docstring)."""
+    starts = [
+        e.steady_from
         for per_channel in estimates.values()
         for e in per_channel.values()
         if e.derivatives is not None
     ]
-    return max([1, *sizes])
+    return max([1, *starts])
 
 
 def _nis(innovation: np.ndarray, variance: np.ndarray) -> dict | None:

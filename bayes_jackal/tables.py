@@ -24,6 +24,7 @@ and record what they did in ``provenance["time_base"]`` and
 from __future__ import annotations
 
 import csv
+import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -77,7 +78,7 @@ def check_column_roles(
     ... except InputError as exc:
     ...     print(exc)
     columns: unknown column role(s) ['yaw']; the roles are
-    ['t', 'yaw_rate', 'omega_r', 'omega_l', 'vx', 'vy']
+    ['t', 'yaw_rate', 'omega_r', 'omega_l', 'vx', 'vy', 'x', 'y', 'heading']
     """
     columns = dict(columns or {})
     unknown = [role for role in columns if role not in ROLES]
@@ -438,6 +439,11 @@ def numeric_column(rows: list[list[str]], index: int, key: str, source: str) -> 
 def write_csv(experiment: Experiment, path: str | Path) -> Path:
     """Write the measured columns of an experiment as CSV (atomically).
 
+    An experiment's poses are on a clock of their own and are not written
+    (a UserWarning says so): read back, its vx, vy are derived velocities,
+    which ``velocities="derived"`` declares; the NetCDF experiment file
+    (:func:`bayes_jackal.experiment.write_netcdf`) keeps the poses.
+
     Examples
     --------
     >>> import tempfile
@@ -454,6 +460,14 @@ def write_csv(experiment: Experiment, path: str | Path) -> Path:
     t,yaw_rate,omega_r,omega_l,vx,vy 1873 []
     """
     path = Path(path)
+    if experiment.pose is not None:
+        warnings.warn(
+            f"{path}: the poses of {experiment.name} are not written, only the velocities "
+            "derived from them: read the file with velocities='derived' (--velocities derived), "
+            "or keep the experiment as .nc, which holds the poses",
+            UserWarning,
+            stacklevel=2,
+        )
     keys = [k for k in (*REQUIRED, *OPTIONAL) if getattr(experiment, k) is not None]
     table = np.column_stack([getattr(experiment, k) for k in keys])
     with atomic_path(path) as temporary:

@@ -20,7 +20,7 @@ import pytest
 from bayes_jackal import load_profile
 from bayes_jackal.bag_writer import write_bag
 from bayes_jackal.bags import read_bag
-from bayes_jackal.filter_models import channel_model, measured_series
+from bayes_jackal.filter_models import channel_model, filter_models, measured_series
 from bayes_jackal.generalised_filtering import generalised_filter
 from bayes_jackal.kalman import kalman, kalman_filter
 from bayes_jackal.kernels import get_family
@@ -133,17 +133,38 @@ def test_the_pose_channels_filters_are_consistent_and_their_smoother_beats_the_d
     # NIS: ~2,700 innovations, band [0.95, 1.05] (measured 1.005, 0.991,
     # 1.004). The smoother against the reader's Savitzky-Golay velocity:
     # measured 0.0014 against 0.0023 m/s (vx) and 0.0014 against 0.0020 m/s
-    # (vy) on this run; the check asks for any gain.
+    # (vy) on this run, ratios 0.62 and 0.71; the check asks for 0.8.
     prior = _truth_prior()
     estimates = estimate_states(pose_run, prior)
     scores = score_estimates(pose_run, estimates)
     for channel in ("yaw", "vx", "vy"):
         assert scores["kalman-coloured"]["nis"][channel]["consistent"], channel
+    first = scores["generalised"]["first_sample"]
     for channel in ("vx", "vy"):
         derived = scores[DERIVED]["smoothed_state_rmse"][channel]
-        assert scores["kalman-coloured"]["smoothed_state_rmse"][channel] < derived
-        assert scores["generalised"]["state_rmse"][channel] is not None
+        assert scores["kalman-coloured"]["smoothed_state_rmse"][channel] < 0.8 * derived
+        # The generalised filter (causal) against the velocity of each step's
+        # increment, M_k / dt, whose error is the pose noise's sqrt(2) sd / dt
+        # (0.015 m/s here): measured 0.0079 (vx), 0.0062 (vy).
+        travel, _ = measured_series(pose_run, channel)
+        increment = np.diff(travel, prepend=np.nan) / DT
+        truth = pose_run.truth_arrays[f"{channel}_state"]
+        raw = np.sqrt(np.mean((increment - truth)[first:] ** 2))
+        assert scores["generalised"]["state_rmse"][channel] < 0.7 * raw
     assert set(scores[DERIVED]["smoothed_state_rmse"]) == {"vx", "vy"}
+
+
+def test_the_pose_channels_steady_filter_and_smoother_equal_their_recursion(pose_run):
+    # As the rate channels' check (tests/test_kalman.py): the FFT paths against
+    # the step-by-step recursion, 1e-12 on velocities ~0.3 m/s.
+    [model] = filter_models(_truth_prior(), channels=["vx"], pose_samples=5).values()
+    travel, _ = measured_series(pose_run, "vx")
+    fast = kalman(model, travel, pose_run.inputs)
+    slow = kalman(model, travel, pose_run.inputs, fast=False)
+    assert fast.steady_from < 500
+    for name in ("mean", "smoothed"):
+        np.testing.assert_allclose(getattr(fast, name), getattr(slow, name), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.innovation[1:], slow.innovation[1:], rtol=0, atol=1e-12)
 
 
 def test_a_prior_and_a_run_must_record_a_channel_the_same_way(pose_run):

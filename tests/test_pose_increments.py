@@ -130,3 +130,11 @@ def test_poses_need_their_derived_velocities_and_must_overlap_the_samples():
     far = PoseTrack(pose.t + 100.0, pose.x, pose.y, pose.heading)
     with pytest.raises(DataError, match="do not overlap the samples"):
         dataclasses.replace(run, pose=far)
+
+
+def test_poses_slower_than_the_samples_are_refused():
+    # At 50 Hz against 72 Hz, 31 % of the samples own no pose: borrowing them
+    # would share a pose's noise between neighbours, which the model's white
+    # pose noise is not.
+    with pytest.raises(DataError, match=r"own no pose within half a step: the poses \(50 Hz\)"):
+        tick_poses(_circle(50.0, 0.0))

@@ -83,3 +83,31 @@ def test_the_command_line_declares_velocities_for_every_reader():
             [command, "run.csv", "--velocities", "derived", *out, *extra]
         )
         assert log_options(args)["velocities"] == "derived", command
+
+
+def test_a_csv_of_an_experiment_with_poses_says_they_are_not_written(run, tmp_path):
+    experiment = read_csv(_pose_csv(run, tmp_path / "run.csv"))
+    with pytest.warns(UserWarning, match="the poses of run are not written"):
+        back = read_csv(write_csv(experiment, tmp_path / "back.csv"), velocities="derived")
+    assert back.pose is None and back.provenance["velocities"] == "derived"
+
+
+def test_simulate_writes_bags_with_the_pose_noise_asked_for(tmp_path, capsys):
+    import json
+
+    from bayes_jackal.bags import read_bag
+    from bayes_jackal.cli import main
+
+    code = main(["simulate", "--out", str(tmp_path), "--v1", "1", "--v2", "0", "--seed", "2",
+                 "--bag", "ros1", "--pose-noise", "2e-4", "0", "--json"])  # fmt: skip
+    assert code == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["bag_truth"]["sigma_p"] == {"vx": 2e-4, "vy": 2e-4}
+    experiment = read_bag(tmp_path / "v1_01.bag", ROBOT)
+    truth = bj.simulate_experiment(
+        ROBOT, 110.0, 30.0, "v1", rng=np.random.default_rng(2).spawn(1)[0]
+    )
+    fine_t, path = pose_path(truth, ROBOT)
+    error = experiment.pose.x - np.interp(experiment.pose.t, fine_t, path[:, 0])
+    # ~13,700 poses: the sd's sampling error is 0.6 %; 3 % is 5 of them.
+    assert error.std() == pytest.approx(2e-4, rel=0.03)

@@ -14,7 +14,7 @@ from typing import Any
 
 from .._files import write_json
 from ..api import likelihood_options
-from ..bag_writer import POSE_NOISE, write_bag
+from ..bag_writer import POSE_NOISE, bag_truth, write_bag
 from ..comparison import compare_groups
 from ..criticism import criticise
 from ..demo import DEMO_TRUTH, run_demo
@@ -82,19 +82,23 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     writer, suffix = (write_csv, ".csv") if args.format == "csv" else (write_netcdf, ".nc")
     paths = [str(writer(e, Path(args.out) / f"{e.name}{suffix}")) for e in experiments]
+    pose_noise = tuple(args.pose_noise)
+    result: dict = {"truth": experiments[0].truth if experiments else None}
     if args.bag:
         bag_suffix = ".bag" if args.bag == "ros1" else ".mcap"
         paths += [
-            str(write_bag(e, Path(args.out) / f"{e.name}{bag_suffix}", robot, args.bag, args.seed))
+            str(write_bag(e, Path(args.out) / f"{e.name}{bag_suffix}", robot, args.bag,
+                          args.seed, pose_noise=pose_noise))
             for e in experiments
-        ]
+        ]  # fmt: skip
+        result["bag_truth"] = bag_truth(experiments[0], pose_noise) if experiments else None
     for path in paths:
         out.say(f"wrote {path}")
     out.say(
         f"{len(experiments)} simulated experiments "
         f"(truth d_lat={args.d_lat}, d_long={args.d_long})"
     )
-    out.result({"experiments": paths, "truth": experiments[0].truth if experiments else None})
+    out.result({"experiments": paths, **result})
     return EXIT_OK
 
 

@@ -55,13 +55,21 @@ def residual_table(result: dict, say: Callable[[str], None]) -> None:
         f"{'experiment':12s} {'channel':7s} {'n':>6s} {'sd':>10s} {'LB p':>9s} "
         f"{'r1':>7s} {'sigma_h [s]':>11s}"
     )
+    derived = False
     for name, channels in result["experiments"].items():
         for channel, row in channels.items():
             r1 = row["autocorrelation"][0]
+            mark = "*" if row.get("derived") else ""
+            derived |= bool(mark)
             say(
-                f"{name:12s} {channel:7s} {row['n']:6d} {row['sd']:10.4g} "
+                f"{name:12s} {channel + mark:7s} {row['n']:6d} {row['sd']:10.4g} "
                 f"{row['ljung_box_p']:9.3g} {r1:7.3f} {row['sigma_h']:11.3f}"
             )
+    if derived:
+        say(
+            "* derived from motion-capture poses by the reader's smoother, as the thesis' data "
+            "were: its sigma_h is the smoother's too; the posterior (sample) models the poses"
+        )
     say()
     say("sigma_h of the yaw channel (thesis table 7-1: v1 0.051, v2 0.041, all 0.047 s)")
     say(f"{'series':12s} {'runs':>5s} {'sigma_h [s]':>11s}")

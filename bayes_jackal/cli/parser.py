@@ -39,6 +39,7 @@ from ..defaults import (
     METHODS,
     NOISE,
     NOISE_SHARING,
+    POSE_NOISE,
     RESIDUAL_CHANNELS,
     RESIDUAL_LAGS,
     ROLES,
@@ -351,6 +352,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.add_argument(
         "--bag", choices=BAG_FORMATS, help="also write each run as a ROS1 or ROS2 bag"
+    )
+    sim.add_argument(
+        "--pose-noise",
+        type=_non_negative,
+        nargs=2,
+        metavar=("POSITION", "HEADING"),
+        default=POSE_NOISE,
+        help="the bags' motion-capture noise: position sd per axis [m] and heading sd [rad] "
+        f"({POSE_NOISE[0]:g} {POSE_NOISE[1]:g}); vx, vy of a bag are seen through its poses",
     )
     _add_common(sim)
 
