@@ -36,9 +36,11 @@ from .criticism_statistics import (
     boundary_density,
     predictive_flags,
     predictive_p_values,
+    prior_shift,
 )
 from .experiment import Experiment
 from .kernels import as_rng
+from .parameters import DAMPING
 from .posterior import (
     HDI_PROB,
     PosteriorMetadata,
@@ -63,6 +65,7 @@ __all__ = [
     "PREDICTIVE_DRAWS",
     "PREDICTIVE_LAGS",
     "PREDICTIVE_WINDOW",
+    "PRIOR_SHIFT",
     "RESIDUAL_INPUT_LAGS",
     "RESIDUAL_INPUT_LEVEL",
     "Check",
@@ -102,6 +105,13 @@ PREDICTIVE_WINDOW = 16_384
 #: is flagged only when the observed statistic lies beyond all 200
 #: replicated ones, which an exact p-value does with probability 1/201.
 PREDICTIVE_ALARM = 0.05
+#: Posterior sds of log d by which the damping's other usual prior (uniform
+#: for a log-uniform one) may move the posterior mean before the damping's
+#: scale counts as set by its prior (:func:`damping_scale`). A normal
+#: posterior of log d moves by about twice its sd (both dampings, the ridge's
+#: correlation near one): 0.5 flags an HDI spanning a factor of 2.6 or more;
+#: the thesis' robot (d_lat [95, 144]) moves by ~0.2.
+PRIOR_SHIFT = 0.5
 
 
 # --- prior boundary -----------------------------------------------------------------
@@ -378,25 +388,37 @@ _IDENTIFIES = {
 
 
 def damping_scale(idata: az.InferenceData) -> Check:
-    """A warning when the posterior used a single channel: the damping is then not identified.
+    """A warning when the damping's scale is not identified: one channel, or a prior-made one.
 
     The yaw rate's steady state depends on d_lat / d_long only: it
     identifies the ratio, not the scale. vx identifies d_long and vy d_lat.
-    Any two channels identify both. The advice names the channels every
-    experiment measured (:attr:`~bayes_jackal.posterior.PosteriorMetadata.measured_channels`).
-    Numbers: ``channels``, ``identified``, ``measured``.
+    Any two channels identify both in principle; the advice names the
+    channels every experiment measured
+    (:attr:`~bayes_jackal.posterior.PosteriorMetadata.measured_channels`).
+
+    In practice two channels can still leave the scale to the prior: when
+    the poles are fast against the noise's bandwidth (a stiff robot under
+    smooth noise), the states follow the noise quasi-statically and the
+    runs fix the ratio only (docs/design.md §4). So the draws are
+    reweighted to the damping's other usual prior (uniform on the same
+    range for a log-uniform one, and back;
+    :func:`~bayes_jackal.criticism_statistics.prior_shift`), and the check
+    warns when the mean of log d_lat or log d_long moves by
+    :data:`PRIOR_SHIFT` posterior sds or more. Numbers: ``channels``,
+    ``identified``, ``measured`` and ``prior_shift`` (per damping parameter,
+    in sds).
 
     Examples
     --------
     A yaw-only posterior of a run that also measured vx and vy (a 20-step
-    chain, short on purpose: the check reads the file's layout, not the draws):
+    chain, short on purpose: the single-channel rule reads the file's layout):
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.criticism import damping_scale
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = damping_scale(posterior)
-    >>> check.numbers
+    >>> {key: check.numbers[key] for key in ("channels", "identified", "measured")}
     {'channels': ['yaw'], 'identified': False, 'measured': ['yaw', 'vx', 'vy']}
     >>> print(check.warnings[0]["message"])
     yaw alone identifies ...; add vx or vy (--channels yaw,vx,vy)
@@ -405,9 +427,22 @@ def damping_scale(idata: az.InferenceData) -> Check:
     channels = list(metadata.channels)
     # Yaw first: the channel a single-channel posterior usually has.
     measured = [c for c in ("yaw", "vx", "vy") if c in metadata.measured_channels]
-    identified = len(channels) >= 2
-    check = Check({"channels": channels, "identified": identified, "measured": measured})
-    if identified:
+    draws, _ = parameter_draws(idata)
+    damping = draws.reshape(-1, draws.shape[-1])[:, : len(DAMPING)]
+    shift = _damping_prior_shift(damping, metadata.prior)
+    scaled = max(abs(value) for value in shift.values()) < PRIOR_SHIFT
+    identified = len(channels) >= 2 and scaled
+    check = Check(
+        {
+            "channels": channels,
+            "identified": identified,
+            "measured": measured,
+            "prior_shift": shift,
+        }
+    )
+    if len(channels) >= 2:
+        if not scaled:
+            check.warnings.append(_prior_made_warning(damping, metadata.prior, shift, channels))
         return check
     (channel,) = channels
     others = [c for c in measured if c != channel]
@@ -426,6 +461,42 @@ def damping_scale(idata: az.InferenceData) -> Check:
         }
     )
     return check
+
+
+def _damping_prior_shift(damping: np.ndarray, prior: Prior) -> dict[str, float]:
+    """:func:`prior_shift` of log d_lat and log d_long to the damping's other usual prior.
+
+    Uniform and log-uniform densities on one range differ by the factor d
+    (in z = log d), so the weights are d_lat d_long for a log-uniform prior
+    and its inverse for a uniform one.
+    """
+    log_damping = np.log(damping)
+    log_weights = log_damping @ np.where(prior.log_uniform[: len(DAMPING)], 1.0, -1.0)
+    return {name: prior_shift(log_damping[:, j], log_weights) for j, name in enumerate(DAMPING)}
+
+
+def _prior_made_warning(
+    damping: np.ndarray, prior: Prior, shift: dict[str, float], channels: list[str]
+) -> dict:
+    """The warning of a posterior whose damping scale another prior would move."""
+    kind, other = (
+        ("log-uniform", "uniform") if prior.log_uniform[0] else ("uniform", "log-uniform")
+    )
+    ratio = az.hdi(damping[:, 0] / damping[:, 1], hdi_prob=HDI_PROB)
+    name = max(shift, key=lambda key: abs(shift[key]))
+    return {
+        "kind": "damping-scale-not-identified",
+        "channels": channels,
+        "prior_shift": shift,
+        "message": (
+            f"the runs fix the ratio d_lat/d_long (94 % HDI [{ratio[0]:.3g}, {ratio[1]:.3g}]) "
+            f"but hardly the damping's scale: a {other} prior on the same range instead of "
+            f"the {kind} one moves the posterior mean of log {name} by {shift[name]:.2g} "
+            "posterior sd, so the HDIs of d_lat and d_long show the prior's choice as much "
+            "as the data (docs/design.md §4). Report the ratio, or give the scale a prior "
+            "from elsewhere (--prior d_lat LOW HIGH, --prior d_long LOW HIGH)"
+        ),
+    }
 
 
 # --- all checks -----------------------------------------------------------------------

@@ -32,6 +32,7 @@ __all__ = [
     "cross_correlation_sd",
     "predictive_flags",
     "predictive_p_values",
+    "prior_shift",
     "simultaneous_threshold",
     "steadiness",
 ]
@@ -120,6 +121,35 @@ def boundary_density(
         float(np.mean(x <= lo + width) / width / mean_density),
         float(np.mean(x >= hi - width) / width / mean_density),
     )
+
+
+def prior_shift(values: np.ndarray, log_weights: np.ndarray) -> float:
+    """How far another prior moves a posterior: the shift of its mean, in posterior sds.
+
+    The draws ``values`` (of one coordinate) reweighted by the ratio of the
+    other prior's density to the one they were drawn under, ``exp(log_weights)``
+    up to a constant (importance sampling): (weighted mean - mean) / sd. For
+    a normal posterior of sd s reweighted by exp(x) the shift is s, so a
+    posterior well inside its data (s small) hardly moves, and one the
+    prior shapes moves by a good part of its width.
+
+    Examples
+    --------
+    Normal draws of sd 0.1 and 1 reweighted by exp(x): shifts of 0.1 and 1 sd:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.criticism_statistics import prior_shift
+    >>> x = np.random.default_rng(1).standard_normal(100_000)
+    >>> round(prior_shift(0.1 * x, 0.1 * x), 2), round(prior_shift(x, x), 1)
+    (0.1, 1.0)
+    """
+    values = np.asarray(values, float).ravel()
+    spread = np.std(values)
+    if spread == 0:  # draws all alike (a stuck chain): nothing to move
+        return 0.0
+    weights = np.exp(log_weights - np.max(log_weights)).ravel()
+    shifted = np.sum(weights * values) / np.sum(weights)
+    return float((shifted - np.mean(values)) / spread)
 
 
 # --- residual-input cross-correlation -------------------------------------------------

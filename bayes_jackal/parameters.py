@@ -294,11 +294,6 @@ class ParameterLayout:
         """The prior range a parameter takes: its base, or :data:`WIDTH_PRIOR` for a width."""
         return WIDTH_PRIOR if base == self.width_name else base
 
-    @property
-    def log_uniform(self) -> tuple[bool, ...]:
-        """Whether each column's prior is log-uniform (all but the damping's)."""
-        return tuple(base not in DAMPING for base in self.bases)
-
 
 def prior_range(key: str, value: Sequence[float]) -> tuple[float, float]:
     """A prior range (low, high), validated: numbers with 0 < low < high, finite.

@@ -18,6 +18,7 @@ from matplotlib.figure import Figure
 from ._plot_layout import BAND, DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS, new_axes
 from .criticism import criticise
 from .grid_plots import plot_grid, save_grid_plot
+from .parameters import DAMPING
 from .physics import CHANNELS
 from .posterior import (
     THESIS_RATIO,
@@ -213,12 +214,12 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     layout = posterior_layout(idata)
     names = layout.names
     fig, axes = _figures(axes, len(names), figsize=(7.0, 1.0 + 1.2 * len(names)))
-    for ax, name, values, log in zip(
-        axes, names, np.moveaxis(draws, -1, 0), layout.log_uniform, strict=True
+    for ax, name, values, base in zip(
+        axes, names, np.moveaxis(draws, -1, 0), layout.bases, strict=True
     ):
         ax.plot(values, lw=0.4, alpha=0.5, rasterized=True)
         ax.set_ylabel(name, fontsize="small")
-        if log:  # the noise parameters, log-uniform a priori
+        if base not in DAMPING:  # the noise parameters, spanning decades
             ax.set_yscale("log")
     axes[0].set_title("walkers (kept draws)")
     axes[-1].set_xlabel("draw")

@@ -1,9 +1,13 @@
 """Priors and the log-posterior in sampling coordinates (docs/design.md §4).
 
-Priors: d_lat, d_long uniform on the profile's ranges; every kernel width,
-sigma_c, sigma_n and sigma_p (the pose noise of vx, vy recorded as poses)
-log-uniform. The sampler works in z = log(theta), where
-the damping ridge d_lat / d_long ~ const is straight (see :class:`Prior`).
+Priors: every parameter log-uniform on the profile's ranges: d_lat, d_long,
+every kernel width, sigma_c, sigma_n and sigma_p (the pose noise of vx, vy
+recorded as poses). The damping's is scale-invariant on purpose: runs that
+fix the skid ratio d_lat / d_long but not the damping's scale leave the
+posterior where the prior puts it, and a uniform prior (the thesis' grid, 5-1)
+puts it at the top of its range (docs/design.md §4). The sampler works in
+z = log(theta), where the damping ridge d_lat / d_long ~ const is straight
+(see :class:`Prior`).
 The MAP search uses them in :mod:`bayes_jackal.map_search`, the sampler in
 :mod:`bayes_jackal.inference`.
 """
@@ -31,6 +35,9 @@ class Prior:
     the damping, d_lat / d_long ~ const, is a straight line there, which
     affine-invariant moves cross easily. A prior uniform in theta has
     log-density z - log(high - low) in z; a log-uniform one is constant.
+    New priors are all log-uniform (:meth:`for_likelihood`); a uniform one
+    is the damping's of a posterior file written by an earlier version, read
+    back as it was sampled.
 
     Attributes
     ----------
@@ -44,7 +51,7 @@ class Prior:
     Examples
     --------
     The priors of a likelihood's parameters, one range overridden; the density
-    is in z = log(theta), so a uniform prior gains the Jacobian z:
+    of z = log(theta) of a log-uniform prior is 1 / log(high / low):
 
     >>> import numpy as np
     >>> import bayes_jackal as bj
@@ -57,11 +64,10 @@ class Prior:
     >>> prior.names
     ('d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n')
     >>> prior.low.tolist(), prior.log_uniform.tolist()
-    ([50.0, 10.0, 0.001, 1e-05, 0.0001], [False, False, True, True, True])
+    ([50.0, 10.0, 0.001, 1e-05, 0.0001], [True, True, True, True, True])
     >>> theta = np.array([110.0, 30.0, 0.047, 0.01, 0.005])
-    >>> uniform = np.log(theta[:2] / (prior.high - prior.low)[:2]).sum()
-    >>> log_uniform = -np.log(np.log(prior.high / prior.low)[2:]).sum()
-    >>> bool(np.isclose(prior.log_density(np.log(theta)), uniform + log_uniform))
+    >>> expected = -np.log(np.log(prior.high / prior.low)).sum()
+    >>> bool(np.isclose(prior.log_density(np.log(theta)), expected))
     True
     """
 
@@ -90,7 +96,7 @@ class Prior:
         ranges = {**robot.priors, **prior_overrides(overrides)}
         keys = [layout.prior_key(base) for base in layout.bases]
         low, high = np.array([prior_range(key, ranges[key]) for key in keys]).T
-        return cls(layout.names, low, high, np.array(layout.log_uniform))
+        return cls(layout.names, low, high, np.ones(len(keys), bool))
 
     @property
     def z_low(self) -> np.ndarray:

@@ -37,8 +37,8 @@ _DIFF_DRIVE_KEYS = ("wheel_separation", "wheel_separation_multiplier")
 SCHEMA_VERSION = 1
 _PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "sigma_p")
 _WHEEL_SIDES = ("right", "left")
-#: Prior ranges: uniform for the damping [N s/m], log-uniform for the kernel
-#: width [s] and the noise standard deviations [channel units]. sigma_n is
+#: Prior ranges, all log-uniform (docs/design.md §4): the damping [N s/m],
+#: the kernel width [s] and the noise standard deviations [channel units]. sigma_n is
 #: kept away from zero (docs/design.md §4). sigma_p, the motion-capture
 #: position noise per recorded pose [m], spans 1 um to 1 cm: its log-centre,
 #: 0.1 mm, is the specification of lab systems (OptiTrack, Vicon: 0.1-0.5 mm),
@@ -98,10 +98,10 @@ class RobotProfile:
     rate : float
         Sampling rate of the measured state (IMU) [Hz].
     priors : dict of str to (float, float)
-        Prior ranges ``d_lat``, ``d_long`` [N s/m] (uniform), ``sigma_h``
-        [s] (log-uniform; the width of every noise family), ``sigma_c`` and
+        Prior ranges, each log-uniform: ``d_lat``, ``d_long`` [N s/m],
+        ``sigma_h`` [s] (the width of every noise family), ``sigma_c`` and
         ``sigma_n`` [channel units] and ``sigma_p`` [m] (the pose noise of
-        vx, vy recorded as poses) (log-uniform).
+        vx, vy recorded as poses).
     topics : dict of str to str
         ROS topic names (``imu``, ``joint_states``, ``cmd_vel``, ``pose``).
     wheels : dict of str to list of str

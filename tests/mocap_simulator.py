@@ -420,14 +420,14 @@ def write_mocap_bag(
     )
 
 
-def write_mocap_pair(folder: str | Path, *, seed: int, **options) -> list[MocapRun]:
+def write_mocap_pair(folder: str | Path, *, seed: int | list[int], **options) -> list[MocapRun]:
     """A thesis v1 and v2 run, ``folder``/v1.bag and v2.bag, with independent noise.
 
     Parameters
     ----------
     folder : str or Path
         Existing folder to write into.
-    seed : int
+    seed : int or list of int
         Seed of a numpy SeedSequence; each run gets one of its two spawned children.
     **options
         Keyword options of :func:`write_mocap_bag` other than v, w, duration and rng.

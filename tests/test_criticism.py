@@ -15,7 +15,13 @@ from synthetic_posteriors import posterior_at
 from bayes_jackal import criticism, load_profile, predictive
 from bayes_jackal.cli import main
 from bayes_jackal.comparison import Comparison
-from bayes_jackal.criticism import BOUNDARY_DENSITY, criticise, damping_scale, predictive_acf
+from bayes_jackal.criticism import (
+    BOUNDARY_DENSITY,
+    PRIOR_SHIFT,
+    criticise,
+    damping_scale,
+    predictive_acf,
+)
 from bayes_jackal.criticism_statistics import (
     acf_statistics,
     boundary_density,
@@ -319,6 +325,30 @@ def test_one_channel_never_identifies_the_damping_and_two_always_do(
         assert all(text in found["message"] for text in expected), found["message"]
 
 
+@pytest.mark.parametrize(("spread", "warns"), [(0.3, False), (1.0, True)])
+def test_two_channels_warn_when_the_prior_makes_the_damping_scale(simulated, spread, warns):
+    # Draws log-normal of sd s in every parameter, independent: reweighted by
+    # d_lat d_long (uniform over log-uniform) the mean of log d_lat moves by
+    # s sd exactly (prior_shift's closed form). From 320 draws the estimate
+    # errs by ~1 / sqrt(ESS) = 0.06 sd at s = 0.3 (ESS ~ 270): 0.15 is 2.5 of
+    # those. At s = 1 the weights are heavy (ESS ~ 40) and the estimate is
+    # low, but far above PRIOR_SHIFT.
+    run = _single(simulated, "v2", vx=None)
+    theta = [300.0, 60.0, *[0.1, 0.01, 0.005] * 2]
+    check = damping_scale(posterior_at([run], theta, channels=("yaw", "vx"), spread=spread))
+    shift = check.numbers["prior_shift"]
+    assert check.numbers["identified"] is not warns
+    if not warns:
+        assert shift == pytest.approx({"d_lat": spread, "d_long": spread}, abs=0.15)
+        assert check.warnings == []
+        return
+    assert min(shift.values()) > PRIOR_SHIFT
+    (found,) = check.warnings
+    assert found["kind"] == "damping-scale-not-identified"
+    for text in ("ratio d_lat/d_long", "a uniform prior", "--prior d_lat LOW HIGH"):
+        assert text in found["message"], found["message"]
+
+
 def test_not_steady_names_only_the_failing_criteria_and_stays_valid_json(simulated):
     n = simulated.t.size
     still = Experiment(
@@ -489,4 +519,5 @@ def test_sample_prints_the_warnings_on_stderr_and_in_its_json(tmp_path, capsys):
         "steadiness",
         "residual_input",
         "predictive_acf",
+        "derived_velocities",
     }

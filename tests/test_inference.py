@@ -42,27 +42,23 @@ def _short_run(likelihood, **kwargs):
         return sample_posterior(likelihood, SHORT, **kwargs)
 
 
-def test_prior_is_uniform_in_damping_and_log_uniform_in_noise(v2_run):
+def test_prior_is_log_uniform_in_every_parameter(v2_run):
     likelihood = ResidualLikelihood([v2_run], ROBOT, channels=YAW)
     prior = Prior.for_likelihood(likelihood, ROBOT)
     assert prior.names == ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n")
-    np.testing.assert_array_equal(prior.log_uniform, [False, False, True, True, True])
-    # The density of z = log(theta) integrates to one over the box: for
-    # d ~ U(10, 1000) it is e^z / 990, for log-uniform ones 1 / log(high/low).
+    np.testing.assert_array_equal(prior.log_uniform, [True] * 5)
+    # The density of z = log(theta) of a log-uniform prior on [low, high] is
+    # 1 / log(high / low), and it integrates to one over the box.
     z = np.log([[110.0, 30.0, 0.047, 0.01, 0.005]])
-    expected = np.log(110.0 / 990) + np.log(30.0 / 990) - np.log(np.log(1000)) * 1
+    expected = -2 * np.log(np.log(100)) - np.log(np.log(1000))
     expected -= np.log(np.log(1e5)) + np.log(np.log(1e4))
     assert prior.log_density(z)[0] == pytest.approx(expected, rel=1e-12)
     draws = prior.to_natural(prior.draw(4096, np.random.default_rng(0)))
-    # Uniform draws of d_lat: the Kolmogorov-Smirnov p-value of a correct
-    # sampler is uniform; p > 1e-3 fails one time in a thousand.
-    assert scipy.stats.kstest(draws[:, 0], scipy.stats.uniform(10, 990).cdf).pvalue > 1e-3
-    assert (
-        scipy.stats.kstest(
-            np.log(draws[:, 2]), scipy.stats.uniform(np.log(1e-3), np.log(1e3)).cdf
-        ).pvalue
-        > 1e-3
-    )
+    # log d_lat and log sigma_h uniform: the Kolmogorov-Smirnov p-value of a
+    # correct sampler is uniform; p > 1e-3 fails one time in a thousand.
+    for column, (low, high) in ((0, (10.0, 1000.0)), (2, (1e-3, 1.0))):
+        uniform = scipy.stats.uniform(np.log(low), np.log(high / low))
+        assert scipy.stats.kstest(np.log(draws[:, column]), uniform.cdf).pvalue > 1e-3
     log_posterior = LogPosterior(likelihood, prior)
     outside = np.log([[5.0, 30.0, 0.047, 0.01, 0.005]])
     assert log_posterior(outside)[0] == -np.inf
@@ -261,12 +257,14 @@ def _draws(idata, label: str) -> np.ndarray:
 @pytest.mark.xdist_group("thesis")
 @pytest.mark.parametrize("case", ["thesis", "stiff"])
 def test_recovery_of_the_truth_with_converged_chains(case, yaw_vx_posterior):
-    # With yaw and vx both damping coefficients are identified (vx's pole is
-    # -4 d_long / m). One data set, eight parameters: a calibrated posterior
-    # misses a 94 % HDI 6 % of the time per parameter (1 - 0.94^8 = 39 % for
-    # at least one), so the per-data-set check is: every truth inside its
-    # central 99.7 % interval (family-wise false alarm < 2.4 %) and at least
-    # 6 of 8 inside the 94 % HDI (fewer: probability 0.8 %). The 94 %
+    # With yaw and vx both damping coefficients are identified in principle
+    # (vx's pole is -4 d_long / m); the stiff robot's fast poles under noise
+    # of width 0.1 s leave its scale to the prior (docs/design.md §4), and
+    # the criticism must say so. d_lat, d_long and both sigma_c lie on one
+    # ridge and miss together, so the per-data-set check is: every truth
+    # inside its central 99.7 % interval (family-wise false alarm < 2.4 %),
+    # and at least 3 of the 4 parameters off the ridge (sigma_h, sigma_n of
+    # each channel) inside the 94 % HDI (fewer: probability 2.0 %). The 94 %
     # statement itself is the coverage test's, over many data sets.
     if case == "thesis":
         truth, idata = _truth_by_label(110.0, 30.0, NoiseSettings()), yaw_vx_posterior
@@ -285,11 +283,14 @@ def test_recovery_of_the_truth_with_converged_chains(case, yaw_vx_posterior):
         row = summary[name]
         low, high = np.quantile(_draws(idata, name), [0.0015, 0.9985])
         assert low <= value <= high, (name, value, low, high)
-        inside += row["hdi_3%"] <= value <= row["hdi_97%"]
+        if name.startswith(("sigma_h", "sigma_n")):
+            inside += row["hdi_3%"] <= value <= row["hdi_97%"]
         assert row["ess_autocorr"] > 1000, (name, row)
         assert row["ess_bulk"] > 1000, (name, row)
         assert row["r_hat"] < 1.05, (name, row)
-    assert inside >= 6, inside
+    assert inside >= 3, inside
+    kinds = {warning["kind"] for warning in summary["warnings"]}
+    assert ("damping-scale-not-identified" in kinds) is (case == "stiff"), summary["criticism"]
 
 
 @pytest.mark.slow

@@ -101,7 +101,7 @@ def test_one_width_is_one_column_that_every_group_reads(shared_noise, labels):
     assert layout.bases == tuple(name.split("[")[0] for name in layout.names)
     assert layout.names_of("sigma_h") == ("sigma_h",)
     assert layout.column_groups == (None, None, None, *np.repeat(range(groups), 2))
-    assert len(layout.log_uniform) == len(layout.names) == 3 + 2 * groups
+    assert len(layout.bases) == len(layout.names) == 3 + 2 * groups
     theta = np.arange(3.0 + 2 * groups)[None] + 100.0 * np.arange(2.0)[:, None]
     for g in range(groups):
         assert layout.noise_columns(g) == [2, 3 + 2 * g, 4 + 2 * g]
@@ -164,7 +164,6 @@ def test_width_and_sigma_h_both_set_every_family_width(runs, family, key):
     width = layout.column(layout.width_name, 0)
     assert (prior.low[width], prior.high[width]) == (0.01, 0.2)
     assert (prior.low[0], prior.high[0]) == (50.0, 500.0)
-    assert prior.log_uniform.tolist() == [False, False, True, True, True]
     unchanged = layout.column("sigma_c", 0)
     assert (prior.low[unchanged], prior.high[unchanged]) == ROBOT.priors["sigma_c"]
 

@@ -177,6 +177,8 @@ def test_a_file_written_before_the_format_had_an_owner_loads_and_summarises():
     }
     assert metadata.robot.priors == ROBOT.priors
     assert metadata.convergence.n_steps == 200 and metadata.convergence.walkers == 8
+    # Sampled when the damping's prior was uniform: read back as it was.
+    assert metadata.prior.log_uniform.tolist() == [False, False, True, True]
     summary = summarize(idata)
     assert summary["family"] == "white" and summary["channels"] == ["yaw"]
     assert summary["n_steps"] == 200 and summary["converged"] is False
