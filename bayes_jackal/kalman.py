@@ -94,6 +94,13 @@ class StateEstimate:
         E[x_k | y_0..y_N-1, u] and its variance: the Kalman filters'
         Rauch-Tung-Striebel smoother, which also uses the samples after
         t_k (None for the generalised filter).
+    nis_spread : float or None
+        The sd of log NIS (the mean of nu_k^2 / S_k from the first
+        prediction) over the same filter run with the noise parameters of
+        the prior's draws instead: how far the NIS moves with the parameters'
+        posterior uncertainty (set by
+        :func:`bayes_jackal.state_estimation.estimate_states` for the Kalman
+        filters; None when not computed).
 
     Examples
     --------
@@ -112,6 +119,7 @@ class StateEstimate:
     derivatives: np.ndarray | None = None
     smoothed: np.ndarray | None = None
     smoothed_variance: np.ndarray | None = None
+    nis_spread: float | None = None
 
 
 def kalman(

@@ -21,7 +21,9 @@ prediction error nu_k and its variance S_k give
   a Kalman filter under its own model the innovations are independent, so
   n NIS is chi-square(n) and lies in the band [chi2(0.025, n),
   chi2(0.975, n)] / n with probability 0.95 (Bar-Shalom, Li & Kirubarajan
-  2001, sec. 5.4). The generalised filter's predictions come from
+  2001, sec. 5.4) when the parameters are known; identified ones move it
+  too, so the Kalman filters' band is widened by the spread of NIS over
+  the prior's draws (:func:`nis_band`). The generalised filter's predictions come from
   overlapping windows and its variance from the Laplace approximation, so
   its innovations are correlated and the band is a yardstick there, not a
   test; with a look-ahead its estimate at t_(k-1) has seen y_k, so it
@@ -45,6 +47,7 @@ it embeds a pose channel's travel, one order more), else sample 1.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -62,10 +65,12 @@ from .robot import RobotProfile
 __all__ = [
     "DERIVED",
     "FILTERS",
+    "NIS_DRAWS",
     "NIS_PROBABILITY",
     "estimate_columns",
     "estimate_each",
     "estimate_states",
+    "nis_band",
     "score_estimates",
     "score_rows",
     "write_estimates",
@@ -76,6 +81,10 @@ __all__ = [
 FILTERS = defaults.FILTERS
 #: Probability of the NIS band (two-sided).
 NIS_PROBABILITY = 0.95
+#: The prior's draws (evenly spaced among them) each Kalman filter is run
+#: with again for its NIS band's parameter term (:func:`estimate_states`):
+#: the term's sd is then known to ~13 % (1 / sqrt(2 (D - 1))).
+NIS_DRAWS = 32
 #: The scores' name of the velocities a reader derived from motion-capture
 #: poses (module docstring).
 DERIVED = "derived"
@@ -152,15 +161,50 @@ def estimate_states(
     estimates = {}
     for name in _check_filters(filters):
         if name in KALMAN_FILTERS:
-            estimates[name] = kalman_filter(experiment, prior, noise=KALMAN_FILTERS[name],
-                                            channels=channels, parameters=parameters,
-                                            robot=robot)  # fmt: skip
+            options = {"noise": KALMAN_FILTERS[name], "channels": channels, "robot": robot}
+            estimate = kalman_filter(experiment, prior, parameters=parameters, **options)
+            spread = _nis_spread([kalman_filter(experiment, at_draw, **options)
+                                  for at_draw in _draw_priors(prior)])  # fmt: skip
+            estimates[name] = {
+                c: replace(e, nis_spread=spread.get(c)) for c, e in estimate.items()
+            }
         else:
             estimates[name] = generalised_filter(experiment, prior, channels=channels,
                                                  order=order, parameters=parameters,
                                                  sensor_precision=sensor_precision,
                                                  lookahead=lookahead, robot=robot)  # fmt: skip
     return estimates
+
+
+def _draw_priors(prior: Mapping) -> list[Mapping]:
+    """The prior with its noise parameters' means set to :data:`NIS_DRAWS` of its draws.
+
+    Empty for a prior without draws of every noise parameter. The damping
+    stays at its mean, as in the filters' averaged mode.
+    """
+    parameters = prior["noise"]["parameters"]
+    draws = prior.get("draws")
+    if not isinstance(draws, Mapping) or not all(name in draws for name in parameters):
+        return []
+    count = min(len(draws[name]) for name in parameters)
+    picks = np.unique(np.linspace(0, count - 1, min(NIS_DRAWS, count)).astype(int))
+    return [
+        {**prior, "noise": {**prior["noise"], "parameters": {
+            name: {**stats, "mean": draws[name][i]} for name, stats in parameters.items()}}}
+        for i in picks
+    ]  # fmt: skip
+
+
+def _nis_spread(runs: Sequence[Mapping[str, StateEstimate]]) -> dict[str, float]:
+    """Per channel, the sd of log NIS over a filter's runs at the prior's draws (two or more)."""
+    if len(runs) < 2:
+        return {}
+    spread = {}
+    for channel in runs[0]:
+        nis = [np.nanmean(run[channel].innovation ** 2 / run[channel].innovation_variance)
+               for run in runs]  # fmt: skip
+        spread[channel] = float(np.std(np.log(nis), ddof=1))
+    return spread
 
 
 def estimate_each(
@@ -223,15 +267,44 @@ def _first_scored(estimates: Mapping[str, Mapping[str, StateEstimate]]) -> int:
     return max([1, *starts])
 
 
-def _nis(innovation: np.ndarray, variance: np.ndarray) -> dict | None:
-    """Mean NIS, its band for n samples, whether it lies in it; None without predictions."""
+def nis_band(samples: int, spread: float | None = None) -> np.ndarray:
+    """The :data:`NIS_PROBABILITY` band of a mean NIS over ``samples`` predictions.
+
+    Under the filter's model with known parameters, n NIS is chi-square(n)
+    (Bar-Shalom et al. 2001, sec. 5.4). A filter driven by identified
+    parameters misses the data's innovation variance by their estimation
+    error too: with ``spread``, the sd of log NIS over the prior's draws
+    (:attr:`~bayes_jackal.kalman.StateEstimate.nis_spread`), each side's
+    half-width in log NIS becomes sqrt(h^2 + (z spread)^2), z the band's
+    normal quantile (both terms near normal in log NIS; the chi-square band
+    for spread 0 or None).
+
+    Examples
+    --------
+    >>> from bayes_jackal.state_estimation import nis_band
+    >>> nis_band(2700).round(3).tolist(), nis_band(2700, 0.02).round(3).tolist()
+    ([0.947, 1.054], [0.935, 1.068])
+    """
+    tail = (1.0 - NIS_PROBABILITY) / 2.0
+    band = scipy.stats.chi2.ppf([tail, 1.0 - tail], samples) / samples
+    if not spread:
+        return band
+    z = scipy.stats.norm.isf(tail)
+    return np.exp(np.sign(np.log(band)) * np.hypot(np.log(band), z * spread))
+
+
+def _nis(estimate: StateEstimate, first: int) -> dict | None:
+    """Mean NIS from sample ``first``, its band (:func:`nis_band`), whether it lies in it.
+
+    None without predictions.
+    """
+    innovation = estimate.innovation[first:]
     if not np.isfinite(innovation).any():
         return None
-    n = len(innovation)
-    tail = (1.0 - NIS_PROBABILITY) / 2.0
-    band = scipy.stats.chi2.ppf([tail, 1.0 - tail], n) / n
-    mean = float(np.mean(innovation**2 / variance))
-    return {"mean": mean, "band": band.tolist(), "consistent": bool(band[0] <= mean <= band[1])}
+    band = nis_band(len(innovation), estimate.nis_spread)
+    mean = float(np.mean(innovation**2 / estimate.innovation_variance[first:]))
+    return {"mean": mean, "band": band.tolist(), "consistent": bool(band[0] <= mean <= band[1]),
+            "parameter_spread": estimate.nis_spread}  # fmt: skip
 
 
 def _rmse(error: np.ndarray) -> float | None:
@@ -295,10 +368,7 @@ def score_estimates(
         scores[name] = {
             "first_sample": first,
             "innovation_rmse": {c: _rmse(e.innovation[first:]) for c, e in per_channel.items()},
-            "nis": {
-                c: _nis(e.innovation[first:], e.innovation_variance[first:])
-                for c, e in per_channel.items()
-            },
+            "nis": {c: _nis(e, first) for c, e in per_channel.items()},
             "state_rmse": {c: error(c, e.mean) for c, e in per_channel.items()},
             "smoothed_state_rmse": {c: error(c, e.smoothed) for c, e in per_channel.items()},
         }

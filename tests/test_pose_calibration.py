@@ -27,10 +27,17 @@ model, as before issue 23, and prints its rows (not asserted: it fails).
 The same cases test the prior on a run it has not seen: a third run (v1's
 command, its own seed) is filtered with the posterior's exported prior.
 ``kalman-coloured``'s NIS must lie in its 95 % band on every channel in at
-least 90 % of the runs (the issue's bar; under the model each channel's NIS
-is in its band with probability 0.95), and the Kalman smoother's vx and vy
-must be closer to the true velocities than the reader's Savitzky-Golay
-ones in every run (both are centred smoothers; measured: ~1.5x closer).
+least 90 % of the runs (the issue's bar), channel by channel: with the true
+parameters each channel's NIS is in its chi-square band with probability
+0.95, all three at once only 0.86 (measured at the truth over 20 left-out
+runs: 93 % of channels, 80 % of runs). The band allows for the identified
+parameters' uncertainty (:func:`bayes_jackal.state_estimation.nis_band`):
+two runs leave sigma_c and sigma_p a few percent uncertain, which moves the
+NIS of a 38 s run by a log-sd of ~0.02 against the chi-square band's 0.027
+(measured over 8 posterior draws); the chi-square band alone held vx in
+14 of 20 runs. The Kalman smoother's vx and vy must be closer to the true
+velocities than the reader's Savitzky-Golay ones in every run (both are
+centred smoothers; measured: ~1.5x closer).
 """
 
 from __future__ import annotations
@@ -68,7 +75,7 @@ CI_CONFIGS = [("thesis", 1e-4, 360.0)]
 FULL_SEEDS = 10
 #: The central interval of the reduced form.
 WIDE = 0.999
-#: The runs left out whose kalman-coloured NIS must be consistent on every channel.
+#: The share of left-out runs whose kalman-coloured NIS must be consistent, per channel.
 NIS_RUNS = 0.9
 CHANNELS = ("yaw", "vx", "vy")
 
@@ -184,6 +191,7 @@ def _estimation(posterior, experiment: bj.Experiment) -> dict:
     return {
         "nis": {c: coloured["nis"][c]["mean"] for c in CHANNELS},
         "consistent": {c: coloured["nis"][c]["consistent"] for c in CHANNELS},
+        "band": {c: coloured["nis"][c]["band"] for c in CHANNELS},
         "smoothed": {c: coloured["smoothed_state_rmse"][c] for c in ("vx", "vy")},
         "derived": scores[DERIVED]["smoothed_state_rmse"],
     }
@@ -198,9 +206,10 @@ def calibration_failures(rows: list[dict]) -> list[tuple]:
         for c in ("vx", "vy")
         if not row["estimation"]["smoothed"][c] < row["estimation"]["derived"][c]
     ]
-    consistent = [all(row["estimation"]["consistent"].values()) for row in rows]
-    if sum(consistent) < NIS_RUNS * len(rows):
-        failures.append(("kalman-coloured's NIS out of its band", sum(consistent), len(rows)))
+    for c in CHANNELS:
+        consistent = sum(row["estimation"]["consistent"][c] for row in rows)
+        if consistent < NIS_RUNS * len(rows):
+            failures.append(("kalman-coloured's NIS out of its band", c, consistent, len(rows)))
     if len({row["seed"] for row in rows}) == 1:  # the reduced form
         return failures + [
             ("truth outside the 99.9 % interval", row["case"], name, result["hdi"])

@@ -10,7 +10,7 @@ from synthetic_posteriors import posterior_at
 import bayes_jackal as bj
 from bayes_jackal import InputError
 from bayes_jackal.kalman import StateEstimate
-from bayes_jackal.state_estimation import NIS_PROBABILITY
+from bayes_jackal.state_estimation import NIS_PROBABILITY, nis_band
 
 ROBOT = bj.load_profile()
 #: The simulator's truth for the yaw channel: d_lat, d_long [N s/m], sigma_h [s],
@@ -88,6 +88,40 @@ def test_nis_band_and_state_rmse_by_hand():
     untrue = bj.Experiment(**{**vars(run), "truth_arrays": {}})
     untrue_score = bj.score_estimates(untrue, {"kalman": {"yaw": made_up}})["kalman"]
     assert untrue_score["state_rmse"] == {"yaw": None}
+
+
+def test_the_nis_band_allows_for_the_parameters_uncertainty(prior):
+    # nis_band by hand: spread 0 is the chi-square band; for n so large that
+    # the chi-square term vanishes the band is exp(+-z s), z = 1.96.
+    z = scipy.stats.norm.isf((1 - NIS_PROBABILITY) / 2)
+    np.testing.assert_array_equal(nis_band(500, 0.0), nis_band(500))
+    np.testing.assert_allclose(nis_band(10**12, 0.03), np.exp([-z * 0.03, z * 0.03]), rtol=1e-4)
+    # The fixture's draws spread every noise parameter by 2 % in log: S, a
+    # positive mix of variances each of log-sd 0.04, moves NIS by a log-sd
+    # between a mean of two independent ones (0.028) and all at once (0.04
+    # times the three); 0.01-0.12 brackets it, 32 draws giving the sd to ~13 %.
+    run = bj.simulate_experiment(ROBOT, 110.0, 30.0, "v1", rng=5)
+    both = ["kalman", "kalman-coloured"]
+    estimates = bj.estimate_states(run, prior, filters=both)
+    scores = bj.score_estimates(run, estimates)
+    for name in both:
+        spread = estimates[name]["yaw"].nis_spread
+        assert 0.01 < spread < 0.12, (name, spread)
+        nis = scores[name]["nis"]["yaw"]
+        n = len(run.t) - scores[name]["first_sample"]
+        np.testing.assert_allclose(nis["band"], nis_band(n, spread), rtol=1e-12)
+        assert nis["parameter_spread"] == spread
+    # Draws all at the means: every run is the plug-in one, no spread, the
+    # chi-square band.
+    count = prior["draws"]["count"]
+    means = {n: [s["mean"]] * count for n, s in prior["noise"]["parameters"].items()}
+    certain = {**prior, "draws": {**prior["draws"], **means}}
+    (estimate,) = bj.estimate_states(run, certain, filters=["kalman-coloured"]).values()
+    assert estimate["yaw"].nis_spread == 0.0
+    # No draws (a prior written by hand): not computed, the chi-square band.
+    bare = {key: value for key, value in prior.items() if key != "draws"}
+    (estimate,) = bj.estimate_states(run, bare, filters=["kalman"]).values()
+    assert estimate["yaw"].nis_spread is None
 
 
 def test_estimates_are_written_as_columns(tmp_path, prior):
