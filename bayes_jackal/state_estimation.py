@@ -23,8 +23,9 @@ prediction error nu_k and its variance S_k give
   chi2(0.975, n)] / n with probability 0.95 (Bar-Shalom, Li & Kirubarajan
   2001, sec. 5.4) when the parameters are known; identified ones move it
   too, so the Kalman filters' band is widened by the spread of NIS over
-  the prior's draws (:func:`nis_band`). The generalised filter's predictions come from
-  overlapping windows and its variance from the Laplace approximation, so
+  the prior's draws (:func:`nis_band`). The generalised filter's
+  predictions come from overlapping windows and its variance from the
+  Laplace approximation, so
   its innovations are correlated and the band is a yardstick there, not a
   test; with a look-ahead its estimate at t_(k-1) has seen y_k, so it
   predicts nothing and has no innovation scores (None);
@@ -196,14 +197,18 @@ def _draw_priors(prior: Mapping) -> list[Mapping]:
 
 
 def _nis_spread(runs: Sequence[Mapping[str, StateEstimate]]) -> dict[str, float]:
-    """Per channel, the sd of log NIS over a filter's runs at the prior's draws (two or more)."""
-    if len(runs) < 2:
-        return {}
+    """Per channel, the sd of log NIS over a filter's runs at the prior's draws.
+
+    A channel with fewer than two finite NIS (draws that are no parameters)
+    has none: its band is then the chi-square one.
+    """
     spread = {}
-    for channel in runs[0]:
-        nis = [np.nanmean(run[channel].innovation ** 2 / run[channel].innovation_variance)
-               for run in runs]  # fmt: skip
-        spread[channel] = float(np.std(np.log(nis), ddof=1))
+    for channel in runs[0] if runs else ():
+        nis = np.array([np.nanmean(run[channel].innovation**2 / run[channel].innovation_variance)
+                        for run in runs])  # fmt: skip
+        nis = nis[np.isfinite(nis) & (nis > 0)]
+        if len(nis) >= 2:
+            spread[channel] = float(np.std(np.log(nis), ddof=1))
     return spread
 
 
