@@ -15,7 +15,7 @@ and pooled over them, against the 0.1 % quantile of Binomial(N, 0.94)
 The configurations: pose noise 0.1 and 1 mm, motion capture at 120 and
 360 Hz, truths (d_lat, d_long, sigma_h) = (110, 30, 0.047) and (300, 60,
 0.1), 10 seeds each (``BAYES_JACKAL_CALIBRATION_SEEDS``; the full form,
-run by hand, takes about 3 h of one core,
+run by hand, takes about 4.5 h of one core,
 ``BAYES_JACKAL_CALIBRATION_PROCESSES=2`` halves it). With one seed (CI) only
 :data:`CI_CONFIGS` run, and each parameter's truth must lie in its central
 99.9 % interval (a calibrated posterior misses it once in a thousand; one
