@@ -38,8 +38,8 @@ SCHEMA_VERSION = 1
 _PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "sigma_p")
 _WHEEL_SIDES = ("right", "left")
 #: Prior ranges, all log-uniform (docs/design.md §4): the damping [N s/m],
-#: the kernel width [s] and the noise standard deviations [channel units]. sigma_n is
-#: kept away from zero (docs/design.md §4). sigma_p, the motion-capture
+#: the kernel width [s] and the noise standard deviations [channel units];
+#: sigma_n is kept away from zero. sigma_p, the motion-capture
 #: position noise per recorded pose [m], spans 1 um to 1 cm: its log-centre,
 #: 0.1 mm, is the specification of lab systems (OptiTrack, Vicon: 0.1-0.5 mm),
 #: and its floor keeps the pose channels' covariance away from singular as
