@@ -20,7 +20,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import OutputError
-from .outputs import refuse_input
+from .outputs import make_folder, refuse_input
 
 
 def _umask() -> int:
@@ -32,16 +32,6 @@ def _umask() -> int:
 
 #: Bytes kept free beyond an HDF5 write's estimate: metadata, B-trees, attributes.
 SPACE_MARGIN = 256 * 1024
-
-
-def make_folder(folder: Path, *, output: str | Path | None = None) -> None:
-    """Create ``folder`` and its parents; OutputError naming ``output`` (or it) on failure."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise OutputError(output or folder, f"{folder} is a file, not a folder") from None
-    except OSError as exc:
-        raise OutputError.from_os_error(output or folder, exc) from None
 
 
 def check_space(path: Path, nbytes: int, *, grows: bool = False, advice: str = "") -> None:

@@ -43,6 +43,7 @@ __all__ = [
     "OutputLock",
     "OutputLockedError",
     "check_outputs",
+    "make_folder",
     "protected",
     "refuse_input",
 ]
@@ -179,10 +180,36 @@ def check_outputs(outputs: Sequence[Output], *, inputs: Iterable[str | Path]) ->
                 source=f"{output.flag} {output.path}",
             )
         seen[resolved] = output
-    from ._files import make_folder  # _files consults this module: imported late
-
     for output in outputs:
         make_folder(output.path if output.kind == "folder" else output.path.parent)
+
+
+def make_folder(folder: Path, *, output: str | Path | None = None) -> None:
+    """Create ``folder`` and its parents; OutputError naming ``output`` (or it) on failure.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import make_folder
+    >>> with tempfile.TemporaryDirectory() as root:
+    ...     make_folder(Path(root) / "a" / "b")
+    ...     (Path(root) / "file").write_text("x")
+    ...     try:
+    ...         make_folder(Path(root) / "file")
+    ...     except OSError as error:
+    ...         print("refused:", error.__class__.__name__)
+    ...     print((Path(root) / "a" / "b").is_dir())
+    1
+    refused: OutputError
+    True
+    """
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputError(output or folder, f"{folder} is a file, not a folder") from None
+    except OSError as exc:
+        raise OutputError.from_os_error(output or folder, exc) from None
 
 
 #: The protected inputs, (device, inode) -> the path as given; a mapping that is never mutated.
