@@ -26,7 +26,7 @@ from . import interrupt
 from ._files import atomic_path, check_space
 from .defaults import BRIDGE_MIN_DRAWS, MAX_STEPS, MIN_EVIDENCE_STEPS, WALKERS
 from .errors import InputError, OutputError
-from .outputs import OutputLock
+from .outputs import OutputLock, refuse_link
 from .progress import Progress
 from .sampler_warnings import ConvergenceWarning
 
@@ -282,6 +282,7 @@ def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush
         backend = emcee.backends.Backend()
         backend.reset(walkers, ndim)
         return backend
+    refuse_link(path)  # a link planted at the chain's name is never written through
     backend = BufferedHDFBackend(str(path), flush_every)
     if path.exists():
         try:

@@ -15,7 +15,10 @@ The guarantees, in the order a command meets them:
   ``sample --out p.nc`` writing ``p.<experiment>.nc`` for each experiment.
 - :class:`OutputLock`, for the whole run: a second run on the same output
   is refused at once, naming the run that holds it; a chain is never
-  written by two runs.
+  written by two runs. A file the package keeps beside an output (the
+  lock, the chain) is never written through a symbolic or hard link
+  (:func:`refuse_link`): a link planted in a shared folder cannot make a
+  run overwrite another file.
 
 POSIX only (Linux, macOS): the lock is :func:`fcntl.flock`.
 """
@@ -30,6 +33,7 @@ import fcntl
 import json
 import os
 import socket
+import stat
 import sys
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -46,6 +50,7 @@ __all__ = [
     "make_folder",
     "protected",
     "refuse_input",
+    "refuse_link",
 ]
 
 
@@ -97,10 +102,10 @@ class Output:
 def _identity(path: Path) -> tuple[int, int] | None:
     """(device, inode) of an existing path, following links; None if it does not exist."""
     try:
-        stat = path.stat()
+        status = path.stat()
     except OSError:
         return None
-    return stat.st_dev, stat.st_ino
+    return status.st_dev, status.st_ino
 
 
 def _check_one(output: Output, inputs: dict[tuple[int, int] | Path, str]) -> None:
@@ -278,6 +283,63 @@ def refuse_input(path: Path) -> None:
         )
 
 
+#: Flags that open a file the package keeps beside an output without
+#: following a symbolic link or blocking on a FIFO or device.
+_NO_LINK = os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY
+
+
+def refuse_link(
+    path: str | Path, status: os.stat_result | None = None, *, folder: bool = False
+) -> None:
+    """Refuse (InputError, exit 2) a file beside an output that is a link or not a regular file.
+
+    The package writes its own files beside an output (the lock, the chain,
+    a report's figure folder) only when each is a plain file or folder of
+    its own: a symbolic link, a hard link (a second name of another file) or
+    a FIFO or device there would make the run write into something else.
+    ``status``: the file's :func:`os.fstat` once opened (without following
+    links); without it the path is examined as it stands, and a missing file
+    passes. ``folder``: the path must be a folder, not a file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import refuse_link
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     _ = (Path(folder) / "precious.csv").write_text("t,yaw")
+    ...     (Path(folder) / ".p.nc.lock").symlink_to("precious.csv")
+    ...     try:
+    ...         refuse_link(Path(folder) / ".p.nc.lock")
+    ...     except ValueError as error:
+    ...         print(str(error).split(": ", 1)[1].split(";")[0])
+    is a symbolic link (to precious.csv)
+    """
+    path = Path(path)
+    if status is None:
+        try:
+            status = path.lstat()
+        except FileNotFoundError:
+            return
+    if stat.S_ISLNK(status.st_mode):
+        what = f"a symbolic link (to {os.readlink(path)})"
+    elif folder:
+        if stat.S_ISDIR(status.st_mode):
+            return
+        what = "not a folder"
+    elif not stat.S_ISREG(status.st_mode):
+        what = "not a regular file"
+    elif status.st_nlink > 1:
+        what = f"a hard link (one of {status.st_nlink} names of one file)"
+    else:
+        return
+    raise InputError(
+        f"is {what}; bayes-jackal does not write through links beside an output: "
+        "remove it, or choose another output",
+        source=str(path),
+    )
+
+
 def lock_path(path: str | Path, *, folder: bool = False) -> Path:
     """An output's lock file: ``.NAME.lock`` beside a file, ``.bayes-jackal.lock`` in a folder."""
     path = Path(path)
@@ -331,9 +393,15 @@ class OutputLock:
     def __enter__(self) -> OutputLock:
         while self._fd is None:
             try:
-                fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
-            except OSError as exc:  # a read-only folder, no permission
+                fd = os.open(self.lock_file, _NO_LINK | os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:  # a read-only folder, no permission, a link
+                refuse_link(self.lock_file)
                 raise OutputError.from_os_error(self.path, exc) from None
+            try:
+                refuse_link(self.lock_file, os.fstat(fd))
+            except InputError:
+                os.close(fd)
+                raise
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:

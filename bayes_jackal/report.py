@@ -19,6 +19,7 @@ from pathlib import Path
 from . import __version__
 from ._files import atomic_path
 from .errors import InputError, each_input, refuse
+from .outputs import refuse_link
 from .posterior import az, load_posterior, posterior_metadata
 from .report_figures import FIGURE_FORMATS, ReportFigures
 from .report_sections import evidence_section, posterior_section
@@ -276,10 +277,10 @@ def write_page(
     Raises
     ------
     InputError
-        For an unknown format.
+        For an unknown format, or when the figure folder's name holds a
+        symbolic link or a file (:func:`~bayes_jackal.outputs.refuse_link`).
     OSError
-        When the folder or the page cannot be written (e.g. a file stands
-        where the folder should be).
+        When the folder or the page cannot be written.
 
     Examples
     --------
@@ -294,6 +295,7 @@ def write_page(
     """
     out = Path(out)
     figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
+    refuse_link(figures.folder, folder=True)
     figures.folder.mkdir(parents=True, exist_ok=True)
     text = render(figures)
     with atomic_path(out) as temporary:

@@ -204,6 +204,17 @@ def hardlink(target: str) -> Builder:
     return build
 
 
+def fifo() -> Builder:
+    def build(lib: Library, path: Path) -> None:
+        os.mkfifo(path)
+
+    return build
+
+
+#: Another user's recording in a shared folder, and links planted beside an output.
+PRECIOUS = {"a.nc": experiment(), "precious.csv": raw(b"t,yaw_rate\n0,0.1\n")}
+
+
 def csv_text(edit: Callable[[str], str]) -> Builder:
     """The simulated run's CSV text with ``edit(text) -> text`` applied."""
 
@@ -577,6 +588,62 @@ OUTPUT_CASES = [
         r"(hard|a)\.nc",
         r"input",
         files={"a.nc": experiment(), "hard.nc": hardlink("a.nc")},
+        timeout=FAST,
+    ),
+    # Issue 24, item 1: a planted link beside an output is never written through.
+    C(
+        "lock-file-is-symlink",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"\.p\.nc\.lock",
+        r"symbolic link \(to precious\.csv\)",
+        files={**PRECIOUS, ".p.nc.lock": symlink("precious.csv")},
+        timeout=FAST,
+    ),
+    C(
+        "lock-file-is-hardlink",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"\.p\.nc\.lock",
+        r"hard link",
+        files={**PRECIOUS, ".p.nc.lock": hardlink("precious.csv")},
+        timeout=FAST,
+    ),
+    C(
+        "lock-file-is-fifo",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"\.p\.nc\.lock",
+        r"not a regular file",
+        files={"a.nc": experiment(), ".p.nc.lock": fifo()},
+        timeout=FAST,
+    ),
+    C(
+        "lock-in-folder-is-symlink",
+        f"compare a.nc --out cmp {COMPARE}",
+        2,
+        r"cmp/\.bayes-jackal\.lock",
+        r"symbolic link",
+        files={**PRECIOUS, "cmp/.bayes-jackal.lock": symlink("../precious.csv")},
+        timeout=FAST,
+    ),
+    C(
+        "chain-file-is-symlink",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"p\.chain\.h5",
+        r"symbolic link \(to precious\.csv\)",
+        files={**PRECIOUS, "p.chain.h5": symlink("precious.csv")},
+        timeout=FAST,
+    ),
+    C(
+        "report-figure-folder-is-symlink",
+        "report post.nc --out r.html --formats png",
+        2,
+        r"r_figures",
+        r"symbolic link \(to theirs\)",
+        files={**POST, "theirs/trace.png": raw(b"their figure"), "r_figures": symlink("theirs")},
+        absent=("r.html",),
         timeout=FAST,
     ),
     C(
