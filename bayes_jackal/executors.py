@@ -22,6 +22,7 @@ import concurrent.futures
 import contextlib
 import multiprocessing
 import os
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from typing import Any, TypeVar
@@ -290,18 +291,49 @@ class DaskExecutor(Executor):
     def _connect(self):
         """A new client of the scheduler; InputError naming it when it cannot be reached."""
         try:
+            if isinstance(self.scheduler, str):
+                self._check_scheduler()
             return self._distributed.Client(
                 self.scheduler, timeout=self.timeout, set_as_default=False
             )
         # Unreachable, not an address, or a port that is not a scheduler's
         # (asyncio.TimeoutError is no OSError before Python 3.11).
         except (OSError, ValueError, TypeError, asyncio.TimeoutError) as exc:
+            reason = str(exc) or "no Dask handshake: something else may listen there"
             raise InputError(
                 f"cannot reach the Dask scheduler at {self._address()!r} within "
-                f"{self.timeout:g} s ({exc}); start one with `dask scheduler` and its "
+                f"{self.timeout:g} s ({reason}); start one with `dask scheduler` and its "
                 "workers with `dask worker ADDRESS`",
                 field="scheduler",
             ) from None
+
+    def _check_scheduler(self) -> None:
+        """Ask the address who it is, within the timeout, before a client is made.
+
+        A ``distributed.Client`` waits for ever on a port where another
+        service (a web server) accepts the connection but never answers
+        Dask's handshake, and one that fails leaves a traceback from its
+        ``__del__``. The question runs on an event loop of its own, in a
+        thread, so a caller's running loop (a notebook) is not disturbed.
+        """
+        answer: dict[str, Any] = {}
+
+        def ask() -> None:
+            try:
+                answer["identity"] = asyncio.run(
+                    asyncio.wait_for(_identity(self.scheduler, self.timeout), self.timeout)
+                )
+            except Exception as exc:  # handed to the caller's thread
+                answer["error"] = exc
+
+        thread = threading.Thread(target=ask, name="dask-scheduler-check", daemon=True)
+        thread.start()
+        thread.join(self.timeout + 5.0)
+        if "error" in answer:
+            raise answer["error"]
+        kind = answer.get("identity", {}).get("type")
+        if kind != "Scheduler":
+            raise ValueError(f"it answers as {kind or 'nothing'}, not as a Dask scheduler")
 
     def __enter__(self) -> DaskExecutor:
         if self._client is None:
@@ -332,6 +364,17 @@ class DaskExecutor(Executor):
                 yield (future.result() for future in finished)
             finally:  # left early (an error, an interrupt): nothing keeps running for us
                 client.cancel([future for future in futures if not future.done()])
+
+
+async def _identity(address: str, timeout: float) -> dict:
+    """The ``identity`` of the Dask server at ``address`` (its ``type``: Scheduler, Worker)."""
+    from distributed.core import rpc
+
+    server = rpc(address, timeout=timeout)
+    try:
+        return await server.identity()
+    finally:
+        await server.close_rpc()
 
 
 def executor_for(scheduler: Any = None, *, processes: int = 1) -> Executor:

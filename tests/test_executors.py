@@ -173,6 +173,54 @@ def test_unreachable_scheduler_is_bad_input_named_fast(tmp_path):
     assert time.perf_counter() - start < 30
 
 
+def _listening(port: int, seconds: float = 30.0) -> None:
+    """Wait until something accepts connections on 127.0.0.1:``port``."""
+    deadline = time.monotonic() + seconds
+    while True:
+        with socket.socket() as probe:
+            if probe.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"nothing listens on port {port} after {seconds} s")
+        time.sleep(0.1)
+
+
+@pytest.mark.parametrize("command", ["sample", "analyse"])
+def test_a_port_that_is_not_a_scheduler_is_refused_not_waited_on(tmp_path, command):
+    """Issue 24, item 2: a web server on the port hung ``sample`` and ``analyse`` for ever."""
+    out = "p.nc" if command == "sample" else "out"
+    port = _free_port()
+    server = _start([sys.executable, "-m", "http.server", str(port), "--bind", "127.0.0.1"])
+    try:
+        _listening(port)
+        address = f"tcp://127.0.0.1:{port}"
+        done = subprocess.run(
+            [BIN / "bayes-jackal", command, "missing.nc", "--out", out, "--scheduler", address],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=120,  # the Dask check's 5 s timeout, far from this on any load
+        )
+    finally:
+        _stop(server)
+    assert done.returncode == 2, done.stderr
+    assert address in done.stderr and "no Dask handshake" in done.stderr
+
+
+@pytest.mark.parametrize("address", ["not-an-address", "bogus://"])
+def test_a_scheduler_address_that_is_garbage_gives_one_line(tmp_path, address):
+    """Issue 24, item 7: the refusal was followed by a Client.__del__ traceback."""
+    done = subprocess.run(
+        [BIN / "bayes-jackal", "sample", "missing.nc", "--out", "p.nc", "--scheduler", address],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and address in done.stderr, done.stderr
+
+
 def test_dask_executor_without_a_scheduler_address_refused():
     with pytest.raises(InputError, match="cannot reach the Dask scheduler at 'nowhere'"):
         with DaskExecutor("nowhere", timeout=1.0):
