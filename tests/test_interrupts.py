@@ -5,7 +5,6 @@ from __future__ import annotations
 import gc
 import json
 import os
-import resource
 import shutil
 import signal
 import subprocess
@@ -18,7 +17,13 @@ import h5py
 import numpy as np
 import pytest
 import xarray as xr
-from cli_helpers import CLI
+from cli_helpers import (
+    CLI,
+    STOP_CPU_SECONDS,
+    STOP_WALL_SECONDS,
+    children_cpu_seconds,
+    process_cpu_seconds,
+)
 
 from bayes_jackal import interrupt
 from bayes_jackal.chains import BufferedHDFBackend, SamplerSettings, _run_until_converged
@@ -257,39 +262,13 @@ def experiment(tmp_path_factory) -> str:
     return str(folder / "v1_01.nc")
 
 
-#: CPU seconds a run may spend after a signal, its processes' together: the
-#: earlier wall-clock bound. Measured: <= 0.08 s for sample and analyse, up
-#: to 0.7 s for compare, whose workers' results are criticised and written
-#: as they come (what finished is kept).
-STOP_CPU_SECONDS = 2.0
-
-
-def _cpu_seconds(pid: int) -> float:
-    """User and system CPU [s] of a process and its descendants, live or reaped (Linux)."""
-    stats = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rpartition(")")[2].split()
-        except OSError:  # gone meanwhile
-            continue
-        stats[int(stat.parent.name)] = (int(fields[1]), sum(int(t) for t in fields[11:15]))
-    family, grown = set(), {pid}
-    while grown:  # the spawned workers of compare, and their children
-        family |= grown
-        grown = {child for child, (parent, _) in stats.items() if parent in grown}
-    ticks = sum(stats[member][1] for member in family if member in stats)
-    return ticks / os.sysconf("SC_CLK_TCK")
-
-
 def _interrupt(args: list[str], delay: float, signum: int, *, after: str = ""):
     """Signal the CLI ``delay`` s after ``after`` is on stderr; (code, CPU s after, out, err).
 
-    How promptly a run stops is the CPU it spends after the signal, which
-    the machine's load does not change (the wall time it does: CI once saw
-    a stop of 0.05 s CPU take 3 s on a busy 2-core machine). A run that
-    waits instead of working fails the wall-clock bound, 15x the CPU one.
+    How promptly a run stops is the CPU it spends after the signal
+    (tests/cli_helpers.py, :data:`STOP_CPU_SECONDS`).
     """
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    before = children_cpu_seconds()
     process = subprocess.Popen(
         [*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
@@ -297,14 +276,12 @@ def _interrupt(args: list[str], delay: float, signum: int, *, after: str = ""):
     while after and after not in err:
         err += process.stderr.readline()
     time.sleep(delay)
-    at_signal = _cpu_seconds(process.pid)
+    at_signal = process_cpu_seconds(process.pid)
     sent = time.monotonic()
     process.send_signal(signum)
     out, rest = process.communicate(timeout=60)
-    assert time.monotonic() - sent < 15 * STOP_CPU_SECONDS, "waited after the signal"
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    total = sum(getattr(usage, f) - getattr(before, f) for f in ("ru_utime", "ru_stime"))
-    return process.returncode, total - at_signal, out, err + rest
+    assert time.monotonic() - sent < STOP_WALL_SECONDS, "waited after the signal"
+    return process.returncode, children_cpu_seconds() - before - at_signal, out, err + rest
 
 
 def _assert_clean_stop(code, cpu_after, out, err, signum):
