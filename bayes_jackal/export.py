@@ -555,8 +555,8 @@ def read_prior(path: str | Path) -> dict:
     ...     try:
     ...         read_prior(path)
     ...     except ValueError as error:
-    ...         print(str(error).split(": ", 1)[1])
-    format: not a prior of this package: 'bayes_jackal.posterior/1' (expected bayes_jackal.prior/1)
+    ...         print(str(error).split(": ", 2)[2])
+    not a prior this version reads: 'bayes_jackal.posterior/1' (expected bayes_jackal.prior/1)
     """
     source = str(path)
     try:
@@ -566,9 +566,9 @@ def read_prior(path: str | Path) -> dict:
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise DataError(f"not JSON: {error}", source=source) from None
     form = prior.get("format") if isinstance(prior, dict) else None
-    if not (isinstance(form, str) and form.split("/")[0] == PRIOR_FORMAT.split("/")[0]):
+    if form != PRIOR_FORMAT:
         raise DataError(
-            f"not a prior of this package: {form!r} (expected {PRIOR_FORMAT})",
+            f"not a prior this version reads: {form!r} (expected {PRIOR_FORMAT})",
             source=source,
             field="format",
         )

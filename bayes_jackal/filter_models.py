@@ -102,8 +102,10 @@ PARAMETERS = FILTER_PARAMETERS
 #: Largest relative difference between an experiment's sample time and the
 #: prior's: the discrete pole is exp(a dt), so 1 % in dt moves ln(alpha) by 1 %.
 RATE_TOLERANCE = 0.01
-#: Prefix of the exported prior's format (:data:`bayes_jackal.export.PRIOR_FORMAT`).
-_FORMAT_PREFIX = "bayes_jackal.prior/"
+#: The exported prior's format this version reads (:data:`bayes_jackal.export.PRIOR_FORMAT`).
+_FORMAT = "bayes_jackal.prior/1"
+#: The model matrices a prior holds and their shapes: (states, states) and (states, inputs).
+_MODEL_SHAPES = {"model.A": (3, 3), "model.B": (3, 2), "model.Ad": (3, 3), "model.Bd": (3, 2)}
 
 
 @dataclass(frozen=True)
@@ -418,7 +420,10 @@ def check_prior(
     ------
     InputError
         For a prior of another format, robot or sample time (beyond
-        :data:`RATE_TOLERANCE`), or channels it lacks, naming the field and value.
+        :data:`RATE_TOLERANCE`), channels it lacks, or a number the filters
+        cannot trust (a parameter that is not finite and positive, a model
+        matrix of the wrong shape, not finite or unstable), naming the field
+        and value.
     DataError
         When the experiment does not measure a channel.
 
@@ -437,8 +442,11 @@ def check_prior(
     (dt = 0.01389 s)
     """
     form = prior_field(prior, "format")
-    if not str(form).startswith(_FORMAT_PREFIX):
-        raise InputError(f"not an exported prior: format {form!r}", field="format")
+    if form != _FORMAT:
+        raise InputError(
+            f"not a prior this version reads: format {form!r} (expected {_FORMAT})",
+            field="format",
+        )
     constants = prior_field(prior, "robot")
     name = experiment.provenance.get("robot")
     if name is not None and name != constants.get("name"):
@@ -473,7 +481,65 @@ def check_prior(
                 f"({experiment.source}) records it as {_RECORDED[recorded]}",
                 field="noise.pose_channels",
             )
+    _check_numbers(prior)
     return channels
+
+
+def _check_numbers(prior: Mapping) -> None:
+    """Every number the filters take from a prior: finite, positive where a scale, shaped.
+
+    The damping and noise parameters (their means, and their draws when the
+    prior has them) must be finite and > 0; the model's matrices finite, of
+    the model's shapes and diagonal (the thesis' A, eq. 4-32), with a stable
+    continuous pole (A[i, i] < 0) and a discrete one in (0, 1); each filter
+    asks for the matrices it uses. A refusal names the field and the value.
+    """
+    layout = _layout(prior)
+    scales = {"damping.mean": prior_field(prior, "damping.mean")}
+    for name in layout.names[len(DAMPING) :]:
+        scales[f"noise.parameters.{name}.mean"] = prior_field(
+            prior, f"noise.parameters.{name}.mean"
+        )
+    draws = prior.get("draws")
+    if isinstance(draws, Mapping):
+        scales.update({f"draws.{name}": draws[name] for name in layout.names if name in draws})
+    for path, value in scales.items():
+        values = np.atleast_1d(_numbers(path, value))
+        bad = values[~(np.isfinite(values) & (values > 0))]
+        if bad.size:
+            raise InputError(f"{bad[0]!r} is not a positive finite number", field=path)
+    if len(scales["damping.mean"]) != len(DAMPING):
+        raise InputError(f"expected {list(DAMPING)}, got {scales['damping.mean']!r}",
+                         field="damping.mean")  # fmt: skip
+    model = prior_field(prior, "model")  # the Kalman filters take Ad, Bd; the generalised A, B
+    matrices = {path: _numbers(path, model[path[6:]]) for path in _MODEL_SHAPES
+                if isinstance(model, Mapping) and path[6:] in model}  # fmt: skip
+    for path, values in matrices.items():
+        if values.shape != _MODEL_SHAPES[path] or not np.all(np.isfinite(values)):
+            raise InputError(
+                f"expected a finite {' x '.join(map(str, _MODEL_SHAPES[path]))} matrix, got "
+                f"shape {values.shape} with {int(np.sum(~np.isfinite(values)))} non-finite",
+                field=path,
+            )
+    for path, low, high in (("model.A", -np.inf, 0.0), ("model.Ad", 0.0, 1.0)):
+        if path not in matrices:
+            continue
+        values = matrices[path]
+        poles = np.diag(values)
+        if np.any(values != np.diag(poles)) or not np.all((poles > low) & (poles < high)):
+            raise InputError(
+                f"expected a diagonal matrix with poles in ({low:g}, {high:g}) (eq. 4-32), "
+                f"got {values.tolist()}",
+                field=path,
+            )
+
+
+def _numbers(path: str, value) -> np.ndarray:
+    """``value`` as an array of floats, or an InputError naming ``path``."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"expected numbers, got {value!r:.80}", field=path) from None
 
 
 #: How a prior or an experiment has a channel recorded, in words.

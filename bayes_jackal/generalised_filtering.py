@@ -67,7 +67,7 @@ import scipy.linalg
 from . import defaults
 from .errors import InputError
 from .experiment import Experiment
-from .export import temporal_covariance
+from .export import checked_precision, temporal_covariance
 from .export_consumers import continuous_sd, mean_covariance_precision
 from .filter_models import (
     check_prior,
@@ -345,7 +345,9 @@ def process_precision(
         One of its channels.
     order : int
         Embedding order p: at most the family's
-        (:meth:`bayes_jackal.kernels.Family.check_order`).
+        (:meth:`bayes_jackal.kernels.Family.check_order`), and one whose
+        precision keeps 4 significant digits at these parameters
+        (:func:`bayes_jackal.export.checked_precision`, as ``export-prior``).
     parameters : {"plug-in", "averaged"}
         As :func:`bayes_jackal.filter_models.noise_parameters`.
 
@@ -379,7 +381,8 @@ def process_precision(
     damping = parameter_values(prior, parameters=parameters)[:, : len(DAMPING)]
     dt = float(prior_field(prior, "dt"))
     sd = continuous_sd(prior_robot(prior), damping, dt, [channel], sigma_c[:, None])
-    return mean_covariance_precision(temporal_covariance(family, width, order)[:, None], sd)
+    _, V, _ = checked_precision(family, width[:, None], sd, order, dt=dt)
+    return mean_covariance_precision(V, sd)
 
 
 def generalised_filter(

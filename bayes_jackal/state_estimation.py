@@ -212,6 +212,11 @@ def _nis_spread(runs: Sequence[Mapping[str, StateEstimate]]) -> dict[str, float]
     return spread
 
 
+#: Fields of the options a caller gives the filters: a filter that cannot
+#: honour one is an error, not a filter the prior cannot drive.
+_CALLER_FIELDS = ("order", "lookahead")
+
+
 def estimate_each(
     experiment: Experiment, prior: Mapping, *, filters: Sequence[str] = FILTERS, **options
 ) -> tuple[dict[str, dict[str, StateEstimate]], dict[str, str]]:
@@ -231,8 +236,11 @@ def estimate_each(
     Raises
     ------
     InputError
-        When no filter can run (every reason named), or for a prior that
-        does not fit the experiment.
+        When no filter can run (every reason named), for a prior that does
+        not fit the experiment, or for an option of the caller's that a
+        filter cannot honour (an embedding order the prior's noise cannot
+        give, a look-ahead beyond the order): those are the caller's to
+        change, not the prior's.
 
     Examples
     --------
@@ -254,6 +262,8 @@ def estimate_each(
         try:
             estimates |= estimate_states(experiment, prior, filters=(name,), **options)
         except InputError as exc:
+            if exc.field in _CALLER_FIELDS:
+                raise
             refused[name] = str(exc)
     if not estimates:
         reasons = "; ".join(f"{name}: {reason}" for name, reason in refused.items())

@@ -116,6 +116,68 @@ def test_a_prior_that_does_not_fit_is_named(tmp_path, capsys, files):
     assert_bad_input(code, capsys.readouterr(), "yaw_only.csv", "channel 'vx' is not in")
 
 
+def _set(path: str, value):
+    """An edit of a prior: the field at ``path`` (keys joined by dots; a list index) set."""
+
+    def edit(prior: dict) -> None:
+        *parents, last = path.split(".")
+        node = prior
+        for key in parents:
+            node = node[int(key)] if isinstance(node, list) else node[key]
+        if isinstance(node, list):
+            node[int(last)] = value
+        else:
+            node[last] = value
+
+    return edit
+
+
+#: Issue 24, item 3: priors the filters accepted (exit 0, or a bare LinAlgError).
+UNTRUSTED = {
+    "negative-sensor-sd": (_set("noise.parameters.sigma_n.mean", -1), [],
+                           (r"noise\.parameters\.sigma_n\.mean", "-1")),
+    "nan-in-draws": (_set("draws.sigma_c.3", float("nan")), ["--parameters", "averaged"],
+                     (r"draws\.sigma_c", "nan")),
+    "newer-format": (_set("format", "bayes_jackal.prior/99"), [], ("format", "prior/99")),
+    "nan-in-A": (_set("model.A.0.0", float("nan")), [], (r"model\.A", "non-finite")),
+    "infinite-in-Ad": (_set("model.Ad.1.1", float("inf")), [], (r"model\.Ad", "non-finite")),
+    "text-in-A": (_set("model.A.2", "x"), [], (r"model\.A", "expected numbers")),
+    "huge-pole": (_set("model.A.0.0", 1e308), [], (r"model\.A", "poles")),
+    "coupled-A": (_set("model.A.0.1", 1e308), [], (r"model\.A", "diagonal")),
+    "wrong-shape-Bd": (_set("model.Bd", [[0.0, 0.0]]), [], (r"model\.Bd", r"3 x 2")),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize(("edit", "flags", "words"), UNTRUSTED.values(), ids=list(UNTRUSTED))
+def test_a_prior_the_filters_cannot_trust_is_refused_by_field(
+    tmp_path, capsys, files, edit, flags, words
+):
+    prior = json.loads(Path(files["prior"]).read_text())
+    edit(prior)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(prior))
+    out = tmp_path / "estimates.csv"
+    code = main(["filter", files["nc"], "--prior", str(path), "--out", str(out), *flags])
+    assert_bad_input(code, capsys.readouterr(), "edited.json", *words)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("flags", "words"),
+    [
+        (["--order", "99"], (r"order 99 gives a precision", "allowed here are 0, 1, 2, 3, 4")),
+        (["--lookahead", "100000"], ("lookahead must lie in 0 .. 2", "100000")),
+    ],
+    ids=["order-99", "lookahead-100000"],
+)
+def test_generalised_options_it_cannot_honour_are_refused(tmp_path, capsys, files, flags, words):
+    """Issue 24, item 3: the generalised filter was dropped, the run exited 0."""
+    out = tmp_path / "estimates.csv"
+    code = main(["filter", files["nc"], "--prior", files["prior"], "--out", str(out), *flags])
+    assert_bad_input(code, capsys.readouterr(), "left.nc", *words)
+    assert not out.exists()
+
+
 def test_one_bad_run_does_not_stop_the_others(tmp_path, capsys, files):
     bad = tmp_path / "bad.csv"
     bad.write_text("t,yaw_rate,omega_r,omega_l\n0,1,2\n")

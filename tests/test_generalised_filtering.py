@@ -246,6 +246,8 @@ def test_prior_driven_filter_refuses_what_it_cannot_run():
         generalised_filter(run, prior, sensor_precision="pink")
     with pytest.raises(InputError, match="sensor-noise sd"):
         generalised_filter(run, prior | {"sensor_noise": None})
-    exponential = prior | {"noise": prior["noise"] | {"family": "exponential"}}
+    exponential = export_prior(
+        posterior_at([run], [110.0, 30.0, 0.05, 0.01, 0.005], family="exponential"), order=0
+    )
     with pytest.raises(InputError, match="order"):
         generalised_filter(run, exponential, order=1)
