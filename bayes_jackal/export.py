@@ -93,6 +93,7 @@ __all__ = [
     "allowed_orders",
     "autocorrelation_derivatives",
     "checked_precision",
+    "checked_sensor_smoothness",
     "export_prior",
     "read_prior",
     "temporal_covariance",
@@ -136,10 +137,13 @@ def _temporal_precision(
     with np.errstate(all="ignore"):  # overflow is caught below, as a non-finite matrix
         scales = {"seconds": 1.0} | ({} if dt is None else {"bins": dt ** -np.add.outer(k, k)})
         V = temporal_covariance(family, width, order)  # (draws, channels, P+1, P+1)
+        unusable = V, np.full_like(V, math.nan), dict.fromkeys(scales, math.inf)
+        if not np.isfinite(V).all():  # LAPACK crawls through NaN (11 s at order 99)
+            return unusable
         try:
             S = np.linalg.inv(V)
         except np.linalg.LinAlgError:  # exactly singular
-            return V, np.full_like(V, math.nan), dict.fromkeys(scales, math.inf)
+            return unusable
         blocks = (S / continuous_sd[..., None, None] ** 2).mean(axis=0)
         finite = np.isfinite(V).all() and np.isfinite(S).all()
         conditions = {unit: _condition(blocks * scale, finite) for unit, scale in scales.items()}
@@ -294,6 +298,51 @@ def autocorrelation_derivatives(family: str, width: np.ndarray, order: int) -> n
     return get_family(family).autocorrelation_derivatives(width, order)
 
 
+def checked_sensor_smoothness(smoothness: float, order: int, *, dt: float) -> float:
+    """The sensor smoothness [bins], refused when its Pi_z at ``order`` is ill conditioned.
+
+    Pi_z's temporal part is the inverse of the Gaussian family's V at width
+    s_z = ``smoothness`` bins, held to :data:`MAX_CONDITION` in bins: the
+    unit the smoothness is given in and SPM's ``spm_DEM_R`` works in. (In
+    seconds a white sensor's Pi_z spans dt^-2p whatever s_z: SPM's default
+    0.5 bins at 72 Hz gives 5e8 at order 2 and 2e18 at order 4; the export
+    reports it as ``sensor_noise.condition``.)
+
+    Raises
+    ------
+    InputError
+        Naming the condition numbers and the smoothnesses this order allows.
+
+    Examples
+    --------
+    >>> from bayes_jackal.export import checked_sensor_smoothness
+    >>> checked_sensor_smoothness(0.5, 2, dt=1 / 72)
+    0.5
+    >>> try:
+    ...     checked_sensor_smoothness(0.01, 4, dt=1 / 72)
+    ... except ValueError as error:
+    ...     print(str(error).split("; ")[1])
+    order 4 allows 0.045 to 32 bins
+    """
+    smoothness = check_sensor_smoothness(smoothness)
+
+    def condition(bins: float) -> float:
+        width = np.array([[bins * dt]])
+        return _temporal_precision("gaussian", width, np.ones_like(width), order, dt)[2]["bins"]
+
+    found = condition(smoothness)
+    if found < MAX_CONDITION:
+        return smoothness
+    allowed = [s for s in np.geomspace(1e-3, 1e3, 121) if condition(s) < MAX_CONDITION]
+    span = f"{allowed[0]:.2g} to {allowed[-1]:.2g} bins" if allowed else "none"
+    raise InputError(
+        f"a sensor smoothness of {smoothness:g} bins gives Pi_z the condition number "
+        f"{found:.3g} in bins (above {MAX_CONDITION:.0e}: it would keep fewer than 4 "
+        f"significant digits); order {order} allows {span}",
+        field="sensor_smoothness",
+    )
+
+
 def temporal_covariance(family: str, width: np.ndarray, order: int) -> np.ndarray:
     """V[i, j] = (-1)^i rho^(i+j)(0), the covariance of (w, w', .., w^(P)) / sigma^2.
 
@@ -400,6 +449,8 @@ def export_prior(
     every_sensor = all(layout.sensor_parameter(g) for g in range(len(channels)))
     process_sd = continuous_sd(robot, d, dt, channels, sigma_c)
     order, V, S = checked_precision(family, width, process_sd, order, dt=dt, source=source)
+    if every_sensor:
+        checked_sensor_smoothness(sensor_smoothness, order, dt=dt)
     mean_d = d.mean(axis=0)
     A, B = continuous_matrices(robot, *mean_d)
     Ad, Bd = discrete_matrices(robot, *mean_d, dt)

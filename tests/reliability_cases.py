@@ -699,6 +699,21 @@ OUTPUT_CASES = [
         files=POST,
         timeout=FAST,
     ),
+    # Issue 24, item 4: a sensor smoothness whose Pi_z is ill conditioned.
+    *(
+        C(
+            f"export-prior-sensor-smoothness-{value}",
+            f"export-prior post.nc --out prior.json --order {order} --sensor-smoothness {value}",
+            2,
+            r"sensor_smoothness",
+            re.escape(value),
+            r"order \d allows [0-9.e+-]+ to [0-9.e+-]+ bins",
+            files=POST,
+            absent=("prior.json",),
+            timeout=FAST,
+        )
+        for order, value in ((2, "1e-05"), (2, "1e-300"), (2, "1e+300"))
+    ),
     C(
         "report-out-is-input",
         "report post.nc --out post.nc",
