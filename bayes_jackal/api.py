@@ -44,7 +44,12 @@ from .kernels import FAMILIES
 from .likelihood import ResidualLikelihood
 from .posterior import az
 from .robot import RobotProfile, load_profile
-from .tables import check_column_roles, check_unique_names
+from .tables import (
+    check_column_roles,
+    check_columns_apply,
+    check_declared_rate,
+    check_unique_names,
+)
 from .workflow import read_log
 
 __all__ = [
@@ -249,7 +254,8 @@ def read_logs(
     DataError
         When two experiments that could be read share a name.
     InputError
-        For an unknown column role.
+        For an unknown column role, or a column mapping none of the paths
+        can use (:func:`~bayes_jackal.tables.check_columns_apply`).
 
     Examples
     --------
@@ -267,9 +273,15 @@ def read_logs(
     (['v1_01'], ['missing.nc'])
     """
     robot = _profile(robot)
-    options = {"columns": check_column_roles(columns), "rate": rate, "velocities": velocities}
+    options = {
+        "columns": check_column_roles(columns),
+        "rate": check_declared_rate(rate),
+        "velocities": velocities,
+    }
+    paths = _paths(paths)
+    check_columns_apply(paths, columns)
     experiments, failed = each_input(
-        _paths(paths),
+        paths,
         lambda path: read_log(
             path, robot, window=window, max_gap=max_gap, progress=progress, read_options=options
         ),

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import csv
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -37,12 +37,15 @@ from .errors import DataError, InputError
 from .experiment import OPTIONAL, REQUIRED, Experiment, check_values, read_netcdf
 from .pose_track import PoseTrack, derived_velocities
 from .robot import RobotProfile
-from .stamps import UNIFORM_TOLERANCE, uniform_clock
+from .stamps import UNIFORM_TOLERANCE, positive_number, uniform_clock
 
 __all__ = [
+    "PLAUSIBLE_RATES",
     "RATE_TOLERANCE",
     "ROLES",
     "check_column_roles",
+    "check_columns_apply",
+    "check_declared_rate",
     "check_sample_time",
     "check_unique_names",
     "load_experiment",
@@ -52,6 +55,33 @@ __all__ = [
     "read_mat",
     "write_csv",
 ]
+
+
+def check_columns_apply(paths: Iterable[str | Path], columns: Mapping[str, str] | None) -> None:
+    """Refuse a column mapping that none of ``paths`` can use (no CSV or MATLAB file).
+
+    Experiment files (``.nc``) keep their own names and bags their topics:
+    a ``--column`` given with only those would be ignored in silence.
+
+    Examples
+    --------
+    >>> from bayes_jackal.tables import check_columns_apply
+    >>> check_columns_apply(["a.csv", "b.nc"], {"yaw_rate": "gyro_z"})  # a.csv uses it
+    >>> try:
+    ...     check_columns_apply(["b.nc"], {"yaw_rate": "gyro_z"})
+    ... except ValueError as error:
+    ...     print(error)
+    columns: a column mapping names columns of CSV and MATLAB files (.csv, .mat), and no
+    input is one: an experiment file (.nc) keeps its own names, a bag its topics (--topic)
+    """
+    paths = list(paths)
+    if columns and not any(Path(path).suffix.lower() in _LOG_READERS for path in paths):
+        raise InputError(
+            "a column mapping names columns of CSV and MATLAB files "
+            f"({', '.join(_LOG_READERS)}), and no input is one: an experiment file (.nc) "
+            "keeps its own names, a bag its topics (--topic)",
+            field="columns",
+        )
 
 
 def check_column_roles(
@@ -488,6 +518,39 @@ _LOG_READERS = {".csv": read_csv, ".mat": read_mat}
 RATE_TOLERANCE = 0.05
 #: Time units a time column is mistaken for, by their size in seconds.
 _TIME_UNITS = {"milliseconds": 1e-3, "microseconds": 1e-6, "nanoseconds": 1e-9}
+#: Sample rates [Hz] a robot's log can have: a 10 Hz Husky log to a 10 kHz
+#: simulator. A declared rate outside is a unit slip (0.072 Hz for a 72 Hz
+#: log stamped in milliseconds), which it would otherwise confirm.
+PLAUSIBLE_RATES = (1.0, 10_000.0)
+
+
+def check_declared_rate(rate: float | None) -> float | None:
+    """A declared sample rate [Hz] (``--rate``), refused outside :data:`PLAUSIBLE_RATES`.
+
+    Examples
+    --------
+    >>> from bayes_jackal.tables import check_declared_rate
+    >>> check_declared_rate(72), check_declared_rate(None)
+    (72.0, None)
+    >>> try:
+    ...     check_declared_rate(0.072)
+    ... except ValueError as error:
+    ...     print(error)
+    rate: a declared rate of 0.072 Hz (a sample every 13.9 s) is outside the rates of robot
+    logs (1-10000 Hz): is the time column in milliseconds? Time must be in seconds
+    """
+    rate = positive_number(rate, name="rate", unit="Hz")
+    low, high = PLAUSIBLE_RATES
+    if rate is None or low <= rate <= high:
+        return rate
+    units = [name for name, size in _TIME_UNITS.items() if low <= rate / size <= high]
+    hint = f"is the time column in {units[0]}? Time must be in seconds" if units else (
+        "declare the rate in Hz")  # fmt: skip
+    raise InputError(
+        f"a declared rate of {rate:g} Hz (a sample every {1 / rate:.3g} s) is outside the "
+        f"rates of robot logs ({low:g}-{high:g} Hz): {hint}",
+        field="rate",
+    )
 
 
 def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
@@ -578,8 +641,9 @@ def load_experiment(
     a None v2 110.0
     """
     experiment = _read_experiment(
-        path, columns=columns, rate=rate, max_gap=max_gap, velocities=velocities
-    )
+        path, columns=columns, rate=check_declared_rate(rate), max_gap=max_gap,
+        velocities=velocities,
+    )  # fmt: skip
     if robot is not None and rate is None:
         check_sample_time(experiment, robot)
     return experiment

@@ -586,7 +586,7 @@ def test_cli_column_and_rate_flags(tmp_path, capsys):
     capsys.readouterr()
     for extra, pattern in (
         (["--column", "gyro", "gyro_z"], r"--column: unknown column role\(s\) \['gyro'\]"),
-        (["--column", "yaw_rate", "yaw_z"], r"yaw_z: column 'yaw_z' \(mapped to yaw_rate\)"),
+        (["--column", "yaw_rate", "yaw_z"], r"--column: role 'yaw_rate' is given 2 times"),
         (["--rate", "25"], r"t: time is not uniformly sampled at line .*declared 25 Hz"),
         (["--rate", "-1"], r"argument --rate: expected a finite number > 0, got '-1'"),
     ):
@@ -594,6 +594,11 @@ def test_cli_column_and_rate_flags(tmp_path, capsys):
         err = capsys.readouterr().err
         assert code == 2, err
         assert re.search(pattern, err) and "Traceback" not in err, err
+    renamed = [f for role, name in MAPPING.items()
+               for f in ("--column", role, "yaw_z" if role == "yaw_rate" else name)]  # fmt: skip
+    code = main(["grid", str(path), *renamed, *grid, "--rate", "10"])
+    err = capsys.readouterr().err
+    assert code == 2 and re.search(r"yaw_z: column 'yaw_z' \(mapped to yaw_rate\)", err), err
 
 
 def test_declared_rate_against_an_experiment_file(tmp_path):

@@ -93,7 +93,17 @@ def each_experiment(
 
 
 def read_options(args: argparse.Namespace) -> dict:
-    """Keywords of reading CSV and MATLAB files: ``--column``, ``--rate``, ``--velocities``."""
+    """Keywords of reading CSV and MATLAB files: ``--column``, ``--rate``, ``--velocities``.
+
+    A role given twice is refused: the later would silently win.
+    """
+    names: dict[str, list[str]] = {}
+    for role, name in args.column:
+        names.setdefault(role, []).append(name)
+    twice = {role: given for role, given in names.items() if len(given) > 1}
+    if twice:
+        role, given = next(iter(twice.items()))
+        raise InputError(f"role {role!r} is given {len(given)} times: {given}", field="--column")
     return {
         "columns": check_column_roles(dict(args.column), field="--column"),
         "rate": args.rate,
