@@ -299,7 +299,8 @@ def refuse_link(
     a FIFO or device there would make the run write into something else.
     ``status``: the file's :func:`os.fstat` once opened (without following
     links); without it the path is examined as it stands, and a missing file
-    passes. ``folder``: the path must be a folder, not a file.
+    passes. ``folder``: the path is a folder the package makes; only a
+    link there is refused (a file in its way fails when it is made).
 
     Examples
     --------
@@ -324,9 +325,7 @@ def refuse_link(
     if stat.S_ISLNK(status.st_mode):
         what = f"a symbolic link (to {os.readlink(path)})"
     elif folder:
-        if stat.S_ISDIR(status.st_mode):
-            return
-        what = "not a folder"
+        return  # a file in the folder's way fails where the folder is made
     elif not stat.S_ISREG(status.st_mode):
         what = "not a regular file"
     elif status.st_nlink > 1:

@@ -278,9 +278,10 @@ def write_page(
     ------
     InputError
         For an unknown format, or when the figure folder's name holds a
-        symbolic link or a file (:func:`~bayes_jackal.outputs.refuse_link`).
+        symbolic link (:func:`~bayes_jackal.outputs.refuse_link`).
     OSError
-        When the folder or the page cannot be written.
+        When the folder or the page cannot be written (e.g. a file stands
+        where the folder should be).
 
     Examples
     --------
