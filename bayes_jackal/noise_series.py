@@ -41,8 +41,8 @@ from .bag_reading import BAG_SUFFIXES, bag_format, header_stamp, open_bag, recei
 from .errors import DataError, InputError
 from .experiment import check_finite
 from .series_likelihood import check_length, check_series
-from .stamps import positive_number, uniform_clock
-from .tables import numeric_column, read_csv_table
+from .stamps import uniform_clock
+from .tables import check_declared_rate, numeric_column, read_csv_table
 
 __all__ = [
     "BAG_SUFFIXES",
@@ -211,7 +211,7 @@ def read_noise_series(
         provenance["time_column"] = time_name
         repairs = []
         time_name = time_name or "t"
-    rate = positive_number(rate, name="rate", unit="Hz")
+    rate = check_declared_rate(rate)
     check_finite(values, source, data_name, row_name)
     check_length(len(values), minimum=MIN_SERIES_SAMPLES, source=source, field=data_name)
     if stamps is None:  # the declared rate's clock

@@ -67,6 +67,7 @@ from .toeplitz import fallback_loglike, toeplitz_loglike
 __all__ = [
     "MIN_SAMPLES",
     "SERIES_ENGINES",
+    "SERIES_SPREAD",
     "WHITE_SD",
     "SeriesLikelihood",
     "check_length",
@@ -355,6 +356,12 @@ def check_length(
         )
 
 
+#: The sds a noise series may have [series units]: its covariances (sd^2,
+#: and the prior's sds down to 1e-3 of it) stay well inside double
+#: precision's 1e-308 to 1e308.
+SERIES_SPREAD = (1e-100, 1e100)
+
+
 def check_series(
     values: object,
     dt: float | None,
@@ -389,7 +396,8 @@ def check_series(
     ------
     DataError
         For values that are not a 1-D series of numbers, non-finite values
-        (naming the first), too few samples or a constant series.
+        (naming the first), too few samples, a constant series, or one whose
+        sd is outside :data:`SERIES_SPREAD`.
     InputError
         For a ``dt`` that is not a positive number (field ``dt``).
 
@@ -416,6 +424,17 @@ def check_series(
         raise DataError(
             f"the series is constant (every sample {array[0]:g}): a constant series has no noise "
             "to characterise",
+            source=source,
+            field=field,
+        )
+    # Its spread, computed without squaring the values (which overflow at 1e155).
+    largest = float(np.max(np.abs(array)))
+    spread = largest * float(np.std(array / largest))
+    if not SERIES_SPREAD[0] <= spread <= SERIES_SPREAD[1]:
+        raise DataError(
+            f"the series' sd is {spread:.3g}, outside {SERIES_SPREAD[0]:g} to "
+            f"{SERIES_SPREAD[1]:g}: its variances and covariances would leave double "
+            "precision; rescale it (e.g. to SI units)",
             source=source,
             field=field,
         )

@@ -518,9 +518,9 @@ _LOG_READERS = {".csv": read_csv, ".mat": read_mat}
 RATE_TOLERANCE = 0.05
 #: Time units a time column is mistaken for, by their size in seconds.
 _TIME_UNITS = {"milliseconds": 1e-3, "microseconds": 1e-6, "nanoseconds": 1e-9}
-#: Sample rates [Hz] a robot's log can have: a 10 Hz Husky log to a 10 kHz
-#: simulator. A declared rate outside is a unit slip (0.072 Hz for a 72 Hz
-#: log stamped in milliseconds), which it would otherwise confirm.
+#: Sample rates [Hz] a robot's or a sensor's log can have: a 10 Hz Husky log
+#: to a 10 kHz simulator. A declared rate outside is a unit slip (0.072 Hz
+#: for a 72 Hz log stamped in milliseconds), which it would otherwise confirm.
 PLAUSIBLE_RATES = (1.0, 10_000.0)
 
 
@@ -536,7 +536,7 @@ def check_declared_rate(rate: float | None) -> float | None:
     ...     check_declared_rate(0.072)
     ... except ValueError as error:
     ...     print(error)
-    rate: a declared rate of 0.072 Hz (a sample every 13.9 s) is outside the rates of robot
+    rate: a declared rate of 0.072 Hz (a sample every 13.9 s) is outside the rates of sensor
     logs (1-10000 Hz): is the time column in milliseconds? Time must be in seconds
     """
     rate = positive_number(rate, name="rate", unit="Hz")
@@ -548,7 +548,7 @@ def check_declared_rate(rate: float | None) -> float | None:
         "declare the rate in Hz")  # fmt: skip
     raise InputError(
         f"a declared rate of {rate:g} Hz (a sample every {1 / rate:.3g} s) is outside the "
-        f"rates of robot logs ({low:g}-{high:g} Hz): {hint}",
+        f"rates of sensor logs ({low:g}-{high:g} Hz): {hint}",
         field="rate",
     )
 

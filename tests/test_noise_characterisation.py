@@ -105,6 +105,29 @@ def test_the_prior_is_scaled_to_the_series():
         bj.characterise_noise(values)
 
 
+@pytest.mark.parametrize("scale", [1e300, 1e-300])
+def test_a_series_beyond_double_precision_is_refused_by_name(tmp_path, capsys, scale):
+    """Issue 24, item 6: x 1e300 failed with KeyError (inf, inf), x 1e-300 in an SVD."""
+    path = tmp_path / "huge.csv"
+    values = scale * gaussian_series(0.02, 600, 0.3, seed=7)
+    np.savetxt(path, np.column_stack([np.arange(600) * DT, values]), delimiter=",",
+               header="time,gyro_z", comments="")  # fmt: skip
+    code = main(["noise", str(path), "--families", "white", "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    assert re.search(r"huge\.csv: gyro_z: the series' sd is [0-9.]+e[+-]\d+, outside", err), err
+
+
+def test_an_implausible_rate_is_blamed_not_a_gap(tmp_path, capsys):
+    """Issue 24, item 8: ``--rate 1e9`` was reported as a gap of 5e-09 s."""
+    path = tmp_path / "series.csv"
+    np.savetxt(path, gaussian_series(0.02, 600, 0.3, seed=7), header="gyro_z", comments="")
+    code = main(["noise", str(path), "--rate", "1e9", "--families", "white", "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    assert "rate: a declared rate of 1e+09 Hz" in err and "gap" not in err, err
+
+
 def digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
