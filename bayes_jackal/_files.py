@@ -19,8 +19,15 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import OutputError
+from .errors import DataError, OutputError
 from .outputs import make_folder, refuse_input
+
+
+def require_file(path: Path, source: str) -> None:
+    """A DataError naming ``source`` unless ``path`` is a file: "no such file", or a folder."""
+    if not path.is_file():
+        reason = "is a folder, not a file" if path.is_dir() else "no such file"
+        raise DataError(reason, source=source)
 
 
 def _umask() -> int:

@@ -11,6 +11,7 @@ import h5py
 import numpy as np
 import scipy.io
 
+from ._files import require_file
 from .errors import DataError
 
 __all__ = ["mat_arrays", "mat_vector"]
@@ -41,8 +42,7 @@ _MAT_NUMERIC = {
 
 def mat_arrays(path: Path, source: str) -> dict[str, np.ndarray]:
     """Numeric arrays of a MATLAB file by name (struct fields as ``struct.field``)."""
-    if not path.is_file():
-        raise DataError("no such file", source=source)
+    require_file(path, source)
     try:
         if h5py.is_hdf5(path):
             with h5py.File(path, "r") as file:

@@ -164,6 +164,12 @@ def open_bag(path: Path, source: str) -> Iterator[AnyReader]:
             f"link it) as {path.stem}{path.suffix.lower()}",
             source=source,
         )
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise DataError(
+            "is a folder but no ROS2 bag (it has no metadata.yaml); give a bag, or a "
+            "CSV, MATLAB or experiment file",
+            source=source,
+        )
     try:
         with AnyReader([path], default_typestore=typestore(format)) as reader:
             yield reader

@@ -83,6 +83,9 @@ class Output:
         A file's allowed suffixes (lower case, with the dot); empty: any.
     flag : str
         The option that named it, for messages (``--out``, ``--plot``).
+    create : bool
+        A folder: made with the checks (True), or by the run as it writes
+        into it (False: a run refused before then leaves no empty folder).
 
     Examples
     --------
@@ -97,6 +100,7 @@ class Output:
     kind: str = "file"
     suffixes: tuple[str, ...] = ()
     flag: str = "--out"
+    create: bool = True
 
 
 def _identity(path: Path) -> tuple[int, int] | None:
@@ -108,10 +112,24 @@ def _identity(path: Path) -> tuple[int, int] | None:
     return status.st_dev, status.st_ino
 
 
+def _resolved(path: Path) -> Path | None:
+    """The path with its links followed; None for a symbolic-link loop.
+
+    (Python before 3.13 raises RuntimeError there, 3.13 an OSError.)
+    """
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):
+        return None
+
+
 def _check_one(output: Output, inputs: dict[tuple[int, int] | Path, str]) -> None:
     path, where = output.path, f"{output.flag} {output.path}"
-    if path.resolve() in inputs or _identity(path) in inputs:
-        given = inputs.get(path.resolve()) or inputs[_identity(path)]
+    resolved = _resolved(path)
+    if resolved is None:
+        raise InputError("is a loop of symbolic links; choose another", source=where)
+    if resolved in inputs or _identity(path) in inputs:
+        given = inputs.get(resolved) or inputs[_identity(path)]
         raise InputError(
             f"is the input {given}; an output never replaces an input, choose another",
             source=where,
@@ -171,8 +189,9 @@ def check_outputs(outputs: Sequence[Output], *, inputs: Iterable[str | Path]) ->
     (True, True)
     """
     known: dict[tuple[int, int] | Path, str] = {}
-    for given in inputs:
-        known[Path(given).resolve()] = str(given)
+    for given in inputs:  # a link loop is no file: its reading fails, named, alone
+        if (resolved := _resolved(Path(given))) is not None:
+            known[resolved] = str(given)
         if (identity := _identity(Path(given))) is not None:
             known[identity] = str(given)
     seen: dict[Path, Output] = {}
@@ -186,7 +205,8 @@ def check_outputs(outputs: Sequence[Output], *, inputs: Iterable[str | Path]) ->
             )
         seen[resolved] = output
     for output in outputs:
-        make_folder(output.path if output.kind == "folder" else output.path.parent)
+        made_now = output.kind == "folder" and output.create
+        make_folder(output.path if made_now else output.path.parent)
 
 
 def make_folder(folder: Path, *, output: str | Path | None = None) -> None:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import write_hdf5
+from ._files import require_file, write_hdf5
 from .errors import DataError
 from .experiment import Experiment
 from .kernels import get_family
@@ -566,8 +566,7 @@ def load_posterior(path: str | Path) -> az.InferenceData:
     'white'
     """
     path = Path(path)
-    if not path.is_file():
-        raise DataError("no such file", source=str(path))
+    require_file(path, str(path))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

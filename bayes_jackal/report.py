@@ -11,6 +11,7 @@ embedded as PNG and written beside the report as PNG and SVG by
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import html
 from collections.abc import Callable, Mapping, Sequence
@@ -297,8 +298,15 @@ def write_page(
     out = Path(out)
     figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
     refuse_link(figures.folder, folder=True)
+    created = not figures.folder.exists()
     figures.folder.mkdir(parents=True, exist_ok=True)
-    text = render(figures)
+    try:
+        text = render(figures)
+    except BaseException:
+        if created:  # a refused or failed page leaves no empty folder behind
+            with contextlib.suppress(OSError):
+                figures.folder.rmdir()
+        raise
     with atomic_path(out) as temporary:
         temporary.write_text(text, encoding="utf-8")
     return out

@@ -669,6 +669,42 @@ OUTPUT_CASES = [
         absent=("r.html",),
         timeout=FAST,
     ),
+    # Issue 24, item 8: messages that named the wrong thing.
+    C(
+        "sample-input-is-a-symlink-loop",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"a\.nc",
+        r"symbolic links",
+        files={"a.nc": symlink("a.nc")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-out-is-a-symlink-loop",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"p\.nc",
+        r"loop of symbolic links",
+        files={"a.nc": experiment(), "p.nc": symlink("p.nc")},
+        timeout=FAST,
+    ),
+    C(
+        "sample-input-is-a-folder-named-csv",
+        f"sample x.csv --out p.nc {SAMPLE}",
+        2,
+        r"x\.csv",
+        r"is a folder",
+        files={"x.csv": folder()},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-posterior-is-a-folder",
+        "export-prior posts --out prior.json",
+        2,
+        r"posts: is a folder, not a file",
+        files={"posts": folder()},
+        timeout=FAST,
+    ),
     C(
         "sample-out-is-second-input-pooled",
         "sample a.nc b.nc --pooled --out b.nc",
@@ -1282,7 +1318,7 @@ REPORT_CASES = [
         2,
         r"x\.nc",
         files={"x.nc": experiment()},
-        absent=("r.html",),
+        absent=("r.html", "r_figures"),  # issue 24, item 8: no empty folder
         timeout=FAST,
     ),
     C(
@@ -1291,7 +1327,7 @@ REPORT_CASES = [
         2,
         r"e\.nc",
         files={"e.nc": EMPTY},
-        absent=("r.html",),
+        absent=("r.html", "r_figures"),  # issue 24, item 8: no empty folder
         timeout=FAST,
     ),
     C(

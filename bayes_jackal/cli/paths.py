@@ -42,7 +42,7 @@ def planned_outputs(args: argparse.Namespace) -> list[Output]:
         path = Path(out)
         return [
             Output(path, suffixes=(".html", ".htm")),
-            Output(path.parent / f"{path.stem}_figures", "folder"),
+            Output(path.parent / f"{path.stem}_figures", "folder", create=False),
         ]
     return []  # residuals writes nothing
 
