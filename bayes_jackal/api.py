@@ -154,7 +154,9 @@ def load_experiments(
     robot : RobotProfile, str or Path, optional
         A profile or its TOML file; the Jackal's by default (``--robot``).
         Its topics and wheel joints read bags; an experiment file's sample
-        rate must agree with its rate within 5 % unless ``rate`` is given.
+        rate is checked against its rate unless ``rate`` is given
+        (:func:`~bayes_jackal.tables.check_sample_time`: a time unit slip is
+        refused, another plausible rate said).
     columns : mapping of str to str, optional
         CSV and MATLAB files: the file's column for a role, e.g.
         ``{"yaw_rate": "gyro_z"}`` (``--column``).

@@ -554,11 +554,15 @@ def check_declared_rate(rate: float | None) -> float | None:
 
 
 def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
-    """Refuse an experiment whose sample time disagrees with the robot's rate.
+    """Refuse a sample time no robot log has; say when it differs from the robot's rate.
 
-    The rates must agree within :data:`RATE_TOLERANCE`. This is what catches
-    a time column in milliseconds or nanoseconds, which would otherwise be
-    read as a robot sampled a thousand (or a billion) times too slowly.
+    A rate within :data:`RATE_TOLERANCE` of the profile's passes. Time in
+    the wrong unit (milliseconds, nanoseconds) is refused: a rate that the
+    unit would bring to the profile's, or one outside
+    :data:`PLAUSIBLE_RATES`, would otherwise be read as a robot sampled a
+    thousand (or a billion) times too slowly. Another plausible rate (a
+    1 kHz log under the 72 Hz Jackal profile) is accepted with a warning
+    naming both rates: the model is discretised at the data's rate.
 
     Raises
     ------
@@ -570,6 +574,7 @@ def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
     Time written in milliseconds is caught against the profile's 72 Hz:
 
     >>> import dataclasses
+    >>> import warnings
     >>> from bayes_jackal.errors import DataError
     >>> from bayes_jackal.robot import load_profile
     >>> from bayes_jackal.simulate import simulate_experiment
@@ -583,6 +588,15 @@ def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
     ...     print(exc)
     <memory>: t: sample time 13.8889 s (0.072 Hz) disagrees with the profile's rate 72 Hz (...)
     by more than 5%: the time column looks like milliseconds; time must be in seconds. ...
+
+    Sampled at 144 Hz, it is accepted and said:
+
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     check_sample_time(dataclasses.replace(run, t=run.t / 2), robot)
+    >>> print(caught[0].message)
+    <memory>: sampled at 144 Hz, not at the profile's 72 Hz (...): the model is discretised
+    at 144 Hz; --rate 144 (rate= in Python) says it is meant
     """
     rate = 1.0 / experiment.dt
     if abs(rate / robot.rate - 1.0) <= RATE_TOLERANCE:
@@ -592,6 +606,16 @@ def check_sample_time(experiment: Experiment, robot: RobotProfile) -> None:
         for name, size in _TIME_UNITS.items()
         if abs(experiment.dt * size * robot.rate - 1.0) <= RATE_TOLERANCE
     ]
+    low, high = PLAUSIBLE_RATES
+    if not unit and low <= rate <= high:
+        warnings.warn(
+            f"{experiment.source}: sampled at {rate:.6g} Hz, not at the profile's "
+            f"{robot.rate:g} Hz ({robot.source}): the model is discretised at {rate:.6g} Hz; "
+            f"--rate {rate:.6g} (rate= in Python) says it is meant",
+            UserWarning,
+            stacklevel=2,
+        )
+        return
     hint = f"the time column looks like {unit[0]}; " if unit else "time in milliseconds? "
     raise DataError(
         f"sample time {experiment.dt:.6g} s ({rate:.6g} Hz) disagrees with the profile's rate "
