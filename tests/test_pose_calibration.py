@@ -6,9 +6,9 @@ a continuous coloured force, an IMU at 72 Hz, motion capture on its own
 clock with white pose noise, wheel encoders at 50 Hz, stamps jittered,
 poses duplicated and dropped. Each case is a v1 and a v2 run of one truth,
 read with ``read_bag`` and sampled pooled with ``bj.sample``'s defaults (the
-channels yaw, vx, vy; the Gaussian family). d_lat, d_long, every channel's
-sigma_h and the pose noise sigma_p of vx and vy must hold their truth in
-the 94 % HDI within the binomial tolerance over seeds: per configuration
+channels yaw, vx, vy; the Gaussian family). d_lat, d_long, their ratio,
+every channel's sigma_h and the pose noise sigma_p of vx and vy must hold
+their truth in the 94 % HDI within the binomial tolerance over seeds: per configuration
 and pooled over them, against the 0.1 % quantile of Binomial(N, 0.94)
 (tests/calibration.py).
 
@@ -20,7 +20,37 @@ run by hand, takes about 4.5 h of one core,
 :data:`CI_CONFIGS` run, and each parameter's truth must lie in its central
 99.9 % interval (a calibrated posterior misses it once in a thousand; one
 seed's 94 % HDI misses a truth in 6 % of cases, too often to assert on 7
-intervals). ``BAYES_JACKAL_POSE_BASELINE=1`` also samples each case with the
+intervals).
+
+Under the stiff truth the runs do not identify the damping's scale, and no
+posterior can hold a fixed truth there at the nominal rate. The poles (time
+constants of 14-69 ms) are fast against the noise's 0.1 s width, the states follow
+the noise quasi-statically, and the profile log-posterior of d_lat (every
+other parameter at its best) changes by only 3-6 nats between 300 and
+1000 N s/m on three pairs, rising towards 1000 on one; runs five times as
+long leave it within 3 nats. Under the thesis truth it falls by 21 nats over
+the same factor from 110. Where on that plateau the truth lies is then
+the prior's to say. So for the stiff truth the parameters on the ridge
+(:data:`RIDGE`: d_lat, d_long, and sigma_h[vx], which moves along it by more
+than its HDI's half-width) are recorded, not asserted. The ratio d_lat /
+d_long and the other parameters are asserted as for the thesis truth, and
+the posterior must say that the scale is not identified
+(``damping-scale-not-identified``, or ``prior-boundary`` on the damping) in
+at least 90 % of the stiff truth's rows and at most 10 % of the thesis
+truth's (:data:`SCALE_WARNED`). At the truth the likelihood is right: over
+200 pairs of each thesis configuration with 1 mm noise, the score's mean
+moves the maximum-likelihood log d_lat by -0.02 to -0.03 (0.13-0.22 of its
+sd; first order).
+
+Measured in the full form (80 rows, 3.5 h of row time, 2026-11-27): the
+thesis truth held d_lat 35/40 (1 mm at 120 Hz: 6/10, the bound), d_long
+36/40, every other parameter 35-37/40; the stiff truth held the ratio
+37/40, sigma_h[yaw] 35/40, sigma_h[vy] 36/40, sigma_p 37-38/40, and warned
+in 38/40 rows (the thesis truth in none); d_lat held 300 in 30/40. NIS in
+its band: yaw 77/80, vx 75/80, vy 79/80 (all three at once 71/80); the
+smoother beat the derived velocities in 160/160 (RMSE ratio 0.23-0.77).
+
+``BAYES_JACKAL_POSE_BASELINE=1`` also samples each case with the
 poses dropped, vx and vy then the reader's derived velocities under the rate
 model, as before issue 23, and prints its rows (not asserted: it fails).
 
@@ -61,6 +91,14 @@ from bayes_jackal.state_estimation import DERIVED
 ROBOT = bj.load_profile()
 #: (d_lat [N s/m], d_long [N s/m], sigma_h [s]) of each truth.
 TRUTHS = {"thesis": (110.0, 30.0, 0.047), "stiff": (300.0, 60.0, 0.1)}
+#: The parameters each truth's runs leave to the prior, recorded but not
+#: asserted (module docstring): under the stiff truth steady circles fix the
+#: ratio d_lat / d_long and a lower bound on the damping, not its scale, and
+#: sigma_h[vx] moves along that ridge by more than its HDI's half-width.
+RIDGE = {"thesis": (), "stiff": ("d_lat", "d_long", "sigma_h[vx]")}
+#: The most of the thesis truth's rows that may warn that the damping scale is
+#: not identified, and the least of the stiff truth's that must.
+SCALE_WARNED = {"thesis": (0.0, 0.1), "stiff": (0.9, 1.0)}
 #: (truth, pose noise sd [m], motion-capture rate [Hz]).
 CONFIGS = [
     (truth, pose_sd, rate)
@@ -95,6 +133,7 @@ def truth_by_name(truth: str, pose_sd: float) -> dict[str, float]:
     return {
         "d_lat": d_lat,
         "d_long": d_long,
+        "ratio": d_lat / d_long,
         **{f"sigma_h[{c}]": sigma_h for c in CHANNELS},
         "sigma_p[vx]": float(np.sqrt(pose_sd**2 + POSE_JITTER**2 * speed)),
         "sigma_p[vy]": pose_sd,
@@ -132,11 +171,7 @@ def calibration_row(case: tuple[str, float, float, int, bool]) -> dict:
     for name, value in truth_by_name(truth, pose_sd).items():
         if name not in summary:  # the baseline has sigma_n for vx, vy
             continue
-        base, _, group = name.partition("[")
-        variable = draws[base]
-        if group:
-            variable = variable.sel({variable.dims[-1]: group.rstrip("]")})
-        wide = np.quantile(variable.values.ravel(), [tail, 1 - tail])
+        wide = np.quantile(_draws(draws, name), [tail, 1 - tail])
         hdi = (summary[name]["hdi_3%"], summary[name]["hdi_97%"])
         rows[name] = {
             "truth": value,
@@ -152,6 +187,11 @@ def calibration_row(case: tuple[str, float, float, int, bool]) -> dict:
         "parameters": rows,
         "steps": summary["n_steps"],
         "warnings": sorted({w["kind"] for w in summary["warnings"]}),
+        "scale_warned": any(
+            w["kind"] == "damping-scale-not-identified"
+            or (w["kind"] == "prior-boundary" and w["parameter"] in ("d_lat", "d_long"))
+            for w in summary["warnings"]
+        ),
         "prior_shift": summary["criticism"]["damping_scale"]["prior_shift"],
         "estimation": None if left_out is None else _estimation(posterior, left_out),
         "seconds": time.perf_counter() - start,
@@ -170,6 +210,17 @@ def calibration_row(case: tuple[str, float, float, int, bool]) -> dict:
           f"  missed: {', '.join(missed) or '-'}"
           f"  warnings: {', '.join(row['warnings']) or '-'}", flush=True)  # fmt: skip
     return row
+
+
+def _draws(draws, name: str) -> np.ndarray:
+    """The flat draws of a parameter named as in the summary (``ratio``: d_lat / d_long)."""
+    if name == "ratio":
+        return (draws["d_lat"] / draws["d_long"]).values.ravel()
+    base, _, group = name.partition("[")
+    variable = draws[base]
+    if group:
+        variable = variable.sel({variable.dims[-1]: group.rstrip("]")})
+    return variable.values.ravel()
 
 
 def _left_out(path: Path, seed: list[int], options: dict) -> bj.Experiment:
@@ -210,17 +261,22 @@ def calibration_failures(rows: list[dict]) -> list[tuple]:
         consistent = sum(row["estimation"]["consistent"][c] for row in rows)
         if consistent < NIS_RUNS * len(rows):
             failures.append(("kalman-coloured's NIS out of its band", c, consistent, len(rows)))
+    for truth, (least, most) in SCALE_WARNED.items():
+        warned = [row["scale_warned"] for row in rows if row["case"][0] == truth]
+        if warned and not least <= np.mean(warned) <= most:
+            failures.append(("damping-scale warnings", truth, sum(warned), len(warned)))
     if len({row["seed"] for row in rows}) == 1:  # the reduced form
         return failures + [
             ("truth outside the 99.9 % interval", row["case"], name, result["hdi"])
             for row in rows
             for name, result in row["parameters"].items()
-            if not result["wide"]
+            if not result["wide"] and name not in RIDGE[row["case"][0]]
         ]
     hits: dict[tuple, list[bool]] = {}
     for row in rows:
         for name, result in row["parameters"].items():
-            hits.setdefault((row["case"], name), []).append(result["hit"])
+            if name not in RIDGE[row["case"][0]]:
+                hits.setdefault((row["case"], name), []).append(result["hit"])
     failures += [
         ("HDI misses the truth", case, name, sum(found), len(found))
         for (case, name), found in hits.items()
