@@ -489,20 +489,24 @@ def _check_numbers(prior: Mapping) -> None:
     """Every number the filters take from a prior: finite, positive where a scale, shaped.
 
     The damping and noise parameters (their means, and their draws when the
-    prior has them) must be finite and > 0; the model's matrices finite, of
-    the model's shapes and diagonal (the thesis' A, eq. 4-32), with a stable
-    continuous pole (A[i, i] < 0) and a discrete one in (0, 1); each filter
-    asks for the matrices it uses. A refusal names the field and the value.
+    prior has them) must be finite and > 0 (:func:`_check_scales`); the
+    model's matrices finite, of the model's shapes and diagonal, with stable
+    poles (:func:`_check_matrices`). A refusal names the field and the value.
     """
-    layout = _layout(prior)
+    _check_scales(prior)
+    _check_matrices(prior)
+
+
+def _check_scales(prior: Mapping) -> None:
+    """The damping and noise parameters' means and draws: finite and > 0."""
+    names = _layout(prior).names
     scales = {"damping.mean": prior_field(prior, "damping.mean")}
-    for name in layout.names[len(DAMPING) :]:
-        scales[f"noise.parameters.{name}.mean"] = prior_field(
-            prior, f"noise.parameters.{name}.mean"
-        )
+    for name in names[len(DAMPING) :]:
+        path = f"noise.parameters.{name}.mean"
+        scales[path] = prior_field(prior, path)
     draws = prior.get("draws")
     if isinstance(draws, Mapping):
-        scales.update({f"draws.{name}": draws[name] for name in layout.names if name in draws})
+        scales.update({f"draws.{name}": draws[name] for name in names if name in draws})
     for path, value in scales.items():
         values = np.atleast_1d(_numbers(path, value))
         bad = values[~(np.isfinite(values) & (values > 0))]
@@ -511,9 +515,18 @@ def _check_numbers(prior: Mapping) -> None:
     if len(scales["damping.mean"]) != len(DAMPING):
         raise InputError(f"expected {list(DAMPING)}, got {scales['damping.mean']!r}",
                          field="damping.mean")  # fmt: skip
-    model = prior_field(prior, "model")  # the Kalman filters take Ad, Bd; the generalised A, B
-    matrices = {path: _numbers(path, model[path[6:]]) for path in _MODEL_SHAPES
-                if isinstance(model, Mapping) and path[6:] in model}  # fmt: skip
+
+
+def _check_matrices(prior: Mapping) -> None:
+    """The model's matrices a prior holds (the Kalman filters take Ad, Bd; the generalised A, B).
+
+    Finite, of :data:`_MODEL_SHAPES`, and A, Ad diagonal (eq. 4-32, 6-6)
+    with continuous poles < 0 and discrete ones in (0, 1).
+    """
+    model = prior_field(prior, "model")
+    given = model if isinstance(model, Mapping) else {}
+    matrices = {path: _numbers(path, given[path.removeprefix("model.")])
+                for path in _MODEL_SHAPES if path.removeprefix("model.") in given}  # fmt: skip
     for path, values in matrices.items():
         if values.shape != _MODEL_SHAPES[path] or not np.all(np.isfinite(values)):
             raise InputError(
@@ -528,8 +541,8 @@ def _check_numbers(prior: Mapping) -> None:
         poles = np.diag(values)
         if np.any(values != np.diag(poles)) or not np.all((poles > low) & (poles < high)):
             raise InputError(
-                f"expected a diagonal matrix with poles in ({low:g}, {high:g}) (eq. 4-32), "
-                f"got {values.tolist()}",
+                f"expected a diagonal matrix with poles in ({low:g}, {high:g}) (eq. 4-32, "
+                f"6-6), got {values.tolist()}",
                 field=path,
             )
 
