@@ -40,8 +40,17 @@ _MAT_NUMERIC = {
 }
 
 
-def mat_arrays(path: Path, source: str) -> dict[str, np.ndarray]:
-    """Numeric arrays of a MATLAB file by name (struct fields as ``struct.field``)."""
+#: MATLAB classes of v7.3 variables that hold no numbers, in words.
+_MAT_WORDS = {"char": "text (char)", "cell": "a cell array", "string": "text (string)"}
+
+
+def mat_arrays(path: Path, source: str) -> dict[str, np.ndarray | str]:
+    """A MATLAB file's variables by name (struct fields as ``struct.field``).
+
+    Numeric ones as arrays; text and cell arrays as what they hold in words
+    (``"text (char)"``, ``"a cell array"``), so that asking for one as a
+    column says so (:func:`mat_vector`) instead of calling it missing.
+    """
     require_file(path, source)
     try:
         if h5py.is_hdf5(path):
@@ -78,7 +87,8 @@ def mat_vector(
     Raises
     ------
     DataError
-        For a variable that is not a vector once squeezed, naming its shape.
+        For a variable that holds text or cells, or is not a vector once
+        squeezed (naming its shape).
 
     Examples
     --------
@@ -87,9 +97,15 @@ def mat_vector(
     >>> mat_vector({"log.t": np.arange(3).reshape(1, 3)}, "log.t", "log.mat")
     array([0., 1., 2.])
     """
+    what = "" if role is None else f" ({role})"
+    if isinstance(variables[name], str):
+        raise DataError(
+            f"variable {name!r}{what} holds {variables[name]}, not numbers",
+            source=source,
+            field=name,
+        )
     vector = np.squeeze(variables[name])
     if vector.ndim != 1:
-        what = "" if role is None else f" ({role})"
         raise DataError(
             f"variable {name!r}{what} has shape {variables[name].shape}; a vector is needed",
             source=source,
@@ -98,8 +114,8 @@ def mat_vector(
     return vector.astype(float)
 
 
-def _arrays(contents: dict, prefix: str) -> dict[str, np.ndarray]:
-    """Numeric arrays of scipy.io.loadmat's nested dicts."""
+def _arrays(contents: dict, prefix: str) -> dict[str, np.ndarray | str]:
+    """The variables of scipy.io.loadmat's nested dicts (:func:`mat_arrays`)."""
     arrays = {}
     for key, value in contents.items():
         if key.startswith("__"):
@@ -108,6 +124,12 @@ def _arrays(contents: dict, prefix: str) -> dict[str, np.ndarray]:
             arrays |= _arrays(value, f"{prefix}{key}.")
         elif isinstance(value, (np.ndarray, int, float)) and np.asarray(value).dtype.kind in "iuf":
             arrays[prefix + key] = np.asarray(value)
+        elif isinstance(value, str) or (
+            isinstance(value, np.ndarray) and value.dtype.kind in "US"
+        ):
+            arrays[prefix + key] = "text (char)"
+        elif isinstance(value, (list, np.ndarray)):
+            arrays[prefix + key] = "a cell array"
     return arrays
 
 
@@ -124,4 +146,6 @@ def _hdf5_arrays(group: h5py.Group, prefix: str) -> dict[str, np.ndarray]:
         kind = kind.decode() if isinstance(kind, bytes) else str(kind)
         if kind in _MAT_NUMERIC and "MATLAB_empty" not in item.attrs:
             arrays[prefix + key] = np.asarray(item[()])
+        elif kind in _MAT_WORDS:
+            arrays[prefix + key] = _MAT_WORDS[kind]
     return arrays

@@ -284,7 +284,8 @@ def _table_columns(
         def vector(name: str) -> np.ndarray:
             return mat_vector(variables, name, source)
 
-        return sorted(variables), vector, lambda i: f"index {i + 1}", "mat"
+        numeric = sorted(name for name, value in variables.items() if not isinstance(value, str))
+        return numeric, vector, lambda i: f"index {i + 1}", "mat"
     raise DataError(
         f"unknown series file type {suffix!r}; expected .csv, .mat or a bag "
         f"({', '.join(BAG_SUFFIXES)} or a ROS2 bag directory)",

@@ -435,6 +435,19 @@ BAD_EXPERIMENTS = [
     ),
     ("nc-string-variable", "x.nc", nc_string_variable("yaw_rate"), (r"x\.nc", "yaw_rate")),
     ("mat-empty", "e.mat", EMPTY, (r"e\.mat",)),
+    # Issue 24, item 8: text or cells were reported as a missing column.
+    (
+        "mat-text-variable",
+        "x.mat",
+        mat(lambda columns: columns | {"yaw_rate": "not numbers"}),
+        (r"x\.mat", r"'yaw_rate' \(yaw_rate\) holds text \(char\), not numbers"),
+    ),
+    (
+        "mat-cell-variable",
+        "x.mat",
+        mat(lambda columns: columns | {"yaw_rate": np.array([[1.0, "a"]], dtype=object)}),
+        (r"x\.mat", r"'yaw_rate' \(yaw_rate\) holds a cell array, not numbers"),
+    ),
     ("mat-truncated", "x.mat", truncated("mat"), (r"x\.mat",)),
     (
         "mat-missing-variable",
