@@ -70,6 +70,7 @@ import scipy.linalg
 from .defaults import FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
 from .errors import InputError
 from .experiment import Experiment
+from .export import PRIOR_FORMAT
 from .kernels import FAMILIES, Family, get_family
 from .parameters import DAMPING, ParameterLayout
 from .physics import CHANNELS, step_integrals
@@ -102,8 +103,6 @@ PARAMETERS = FILTER_PARAMETERS
 #: Largest relative difference between an experiment's sample time and the
 #: prior's: the discrete pole is exp(a dt), so 1 % in dt moves ln(alpha) by 1 %.
 RATE_TOLERANCE = 0.01
-#: The exported prior's format this version reads (:data:`bayes_jackal.export.PRIOR_FORMAT`).
-_FORMAT = "bayes_jackal.prior/1"
 #: The model matrices a prior holds and their shapes: (states, states) and (states, inputs).
 _MODEL_SHAPES = {"model.A": (3, 3), "model.B": (3, 2), "model.Ad": (3, 3), "model.Bd": (3, 2)}
 
@@ -442,9 +441,9 @@ def check_prior(
     (dt = 0.01389 s)
     """
     form = prior_field(prior, "format")
-    if form != _FORMAT:
+    if form != PRIOR_FORMAT:
         raise InputError(
-            f"not a prior this version reads: format {form!r} (expected {_FORMAT})",
+            f"not a prior this version reads: format {form!r} (expected {PRIOR_FORMAT})",
             field="format",
         )
     constants = prior_field(prior, "robot")

@@ -627,32 +627,21 @@ OUTPUT_CASES = [
         timeout=FAST,
     ),
     # Issue 24, item 1: a planted link beside an output is never written through.
-    C(
-        "lock-file-is-symlink",
-        f"sample a.nc --out p.nc {SAMPLE}",
-        2,
-        r"\.p\.nc\.lock",
-        r"symbolic link \(to precious\.csv\)",
-        files={**PRECIOUS, ".p.nc.lock": symlink("precious.csv")},
-        timeout=FAST,
-    ),
-    C(
-        "lock-file-is-hardlink",
-        f"sample a.nc --out p.nc {SAMPLE}",
-        2,
-        r"\.p\.nc\.lock",
-        r"hard link",
-        files={**PRECIOUS, ".p.nc.lock": hardlink("precious.csv")},
-        timeout=FAST,
-    ),
-    C(
-        "lock-file-is-fifo",
-        f"sample a.nc --out p.nc {SAMPLE}",
-        2,
-        r"\.p\.nc\.lock",
-        r"not a regular file",
-        files={"a.nc": experiment(), ".p.nc.lock": fifo()},
-        timeout=FAST,
+    *(
+        C(
+            f"lock-file-is-{kind}",
+            f"sample a.nc --out p.nc {SAMPLE}",
+            2,
+            r"\.p\.nc\.lock",
+            words,
+            files={**PRECIOUS, ".p.nc.lock": planted},
+            timeout=FAST,
+        )
+        for kind, planted, words in (
+            ("symlink", symlink("precious.csv"), r"symbolic link \(to precious\.csv\)"),
+            ("hardlink", hardlink("precious.csv"), r"hard link"),
+            ("fifo", fifo(), r"not a regular file"),
+        )
     ),
     C(
         "lock-in-folder-is-symlink",
