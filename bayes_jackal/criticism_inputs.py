@@ -168,6 +168,29 @@ def _input_warning(
     }
 
 
+def blame_noise_first(warning: dict, family: str) -> dict:
+    """A residual-input ``warning`` where the family's noise misses the residuals' colour.
+
+    The test's band comes from the fitted family's residual autocorrelation;
+    where the predictive check finds that autocorrelation wrong for the same
+    experiment and channel, the band is too narrow and the family's damping
+    may be biased, so the input path is not the first suspect (a white
+    family on coloured noise trips the test on data simulated with the right
+    input path).
+    """
+    head = warning["message"].split("): ", 1)[0]
+    return warning | {
+        "cause": "noise-family",
+        "message": (
+            f"{head}), but the fitted {family} noise does not reproduce this channel's "
+            "residual colour (predictive-acf), and the test's band assumes it does: the "
+            "noise family, and the damping it biases, come first; only if a family that fits "
+            "the colour leaves the correlation is the input path wrong (wheel radius, input "
+            "conversion, track width or a missing dynamic)"
+        ),
+    }
+
+
 # --- steadiness ----------------------------------------------------------------------
 
 

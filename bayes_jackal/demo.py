@@ -6,7 +6,9 @@ known truth d_lat = 110, d_long = 30 N s/m and Gaussian process noise of
 sigma_h = 0.047 s, their motion-capture poses with a lab system's noise
 (0.5 mm, 0.002 rad: :data:`bayes_jackal.bag_writer.POSE_NOISE`);
 ``manifest.json`` labels them as simulated and holds the truth
-(:func:`bayes_jackal.bag_writer.bag_truth`). :func:`run_demo` runs
+(:func:`bayes_jackal.bag_writer.bag_truth`); ``<run>.states.npz`` holds each
+run's true states (vx, vy [m/s], yaw rate [rad/s] on the bag's IMU stamps),
+against which the analysis scores the filters' state estimates. :func:`run_demo` runs
 :func:`bayes_jackal.workflow.analyse_logs` on them, as ``bayes-jackal
 analyse`` does on a user's logs: ingest, the thesis' grid searches, white
 against Gaussian noise by evidence on every channel (the posterior of the
@@ -21,17 +23,27 @@ from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from . import __version__
 from ._files import write_json
 from .bag_writer import bag_truth, write_bag
 from .defaults import STATE_ESTIMATION
 from .inference import SamplerSettings
 from .kernels import as_rng
+from .physics import CHANNELS
 from .robot import RobotProfile, load_profile
 from .simulate import NoiseSettings, simulate_series
 from .workflow import DEFAULT_FAMILIES, analyse_logs
 
-__all__ = ["DEMO_FAMILIES", "DEMO_TRUTH", "demo_folder", "make_demo_bags", "run_demo"]
+__all__ = [
+    "DEMO_FAMILIES",
+    "DEMO_TRUTH",
+    "demo_folder",
+    "demo_labels",
+    "make_demo_bags",
+    "run_demo",
+]
 
 DEMO_TRUTH = {"d_lat": 110.0, "d_long": 30.0}
 DEMO_COUNTS = {"v1": 1, "v2": 1}
@@ -49,7 +61,7 @@ def demo_folder() -> Path:
     >>> import json
     >>> from bayes_jackal.demo import demo_folder
     >>> sorted(path.name for path in demo_folder().iterdir())
-    ['manifest.json', 'v1_01.bag', 'v2_01.bag']
+    ['manifest.json', 'v1_01.bag', 'v1_01.states.npz', 'v2_01.bag', 'v2_01.states.npz']
     >>> manifest = json.loads((demo_folder() / "manifest.json").read_text())
     >>> manifest["simulated"], manifest["runs"]["v1_01"]["truth"]["d_lat"]
     (True, 110.0)
@@ -92,8 +104,13 @@ def make_demo_bags(folder: str | Path, robot: RobotProfile | None = None) -> Pat
     }
     for run, child in zip(runs, rng.spawn(len(runs)), strict=True):
         path = write_bag(run, folder / f"{run.name}.bag", robot, "ros1", child, "bz2")
+        states = folder / f"{run.name}.states.npz"
+        np.savez_compressed(
+            states, t=run.t, **{c: run.truth_arrays[f"{c}_state"] for c in CHANNELS}
+        )
         manifest["runs"][run.name] = {
             "bag": path.name,
+            "states": states.name,
             "series": run.series,
             "truth": bag_truth(run),
         }
@@ -109,7 +126,8 @@ def run_demo(
 ) -> dict:
     """Run :func:`bayes_jackal.workflow.analyse_logs` on the shipped bags into ``folder``.
 
-    The runs keep their simulated series labels and truth from the manifest.
+    The runs keep their simulated series labels, truth and true states from
+    the manifest, so the filters' state estimates are scored against the truth.
 
     Parameters
     ----------
@@ -141,24 +159,52 @@ def run_demo(
     >>> result["best"], result["channels"]  # doctest: +SKIP
     ('gaussian', ['yaw', 'vx', 'vy'])
     """
-    source = demo_folder()
-    manifest = json.loads((source / MANIFEST).read_text())
-    bags = {str(source / run["bag"]): run for run in manifest["runs"].values()}
+    labels = demo_labels()
     say(
         f"bayes-jackal {__version__} demo on SIMULATED thesis-like runs shipped as ROS1 bags "
         f"(truth d_lat = {DEMO_TRUTH['d_lat']:g}, d_long = {DEMO_TRUTH['d_long']:g} N s/m, "
         f"Gaussian process noise sigma_h = {NoiseSettings().width} s) -> {folder}/"
     )
     return analyse_logs(
-        list(bags),
+        list(labels),
         folder,
         robot=load_profile(),
         families=DEMO_FAMILIES,
         settings=SamplerSettings(progress=progress),
         seed=DEMO_SEED,
-        labels={
-            path: {"series": run["series"], "truth": run["truth"]} for path, run in bags.items()
-        },
+        labels=labels,
         state_estimation=state_estimation,
         say=say,
     )
+
+
+def demo_labels() -> dict[str, dict]:
+    """Each shipped bag's path and its labels from the manifest: series, truth, true states.
+
+    ``analyse_logs(..., labels=demo_labels())`` gives the ingested runs
+    their simulated truth (:class:`~bayes_jackal.experiment.Experiment`'s
+    ``truth`` and ``truth_arrays``).
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from bayes_jackal.demo import demo_labels
+    >>> labels = demo_labels()
+    >>> [Path(path).name for path in labels]
+    ['v1_01.bag', 'v2_01.bag']
+    >>> run = next(iter(labels.values()))
+    >>> run["series"], run["truth"]["d_lat"], sorted(run["truth_arrays"])
+    ('v1', 110.0, ['vx_state', 'vy_state', 'yaw_state'])
+    """
+    source = demo_folder()
+    manifest = json.loads((source / MANIFEST).read_text())
+    labels = {}
+    for run in manifest["runs"].values():
+        with np.load(source / run["states"]) as states:
+            arrays = {f"{c}_state": states[c] for c in CHANNELS}
+        labels[str(source / run["bag"])] = {
+            "series": run["series"],
+            "truth": run["truth"],
+            "truth_arrays": arrays,
+        }
+    return labels

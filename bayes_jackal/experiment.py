@@ -181,6 +181,13 @@ class Experiment:
             object.__setattr__(self, "steady_window", _window(self.steady_window, self.source))
         if self.pose is not None:
             _check_pose(self.pose, columns, self.source)
+        for key, value in self.truth_arrays.items():
+            if np.shape(value) != columns["t"].shape:
+                raise DataError(
+                    f"{np.shape(value)} values for {len(columns['t'])} samples",
+                    source=self.source,
+                    field=f"truth_{key}",
+                )
         for key, value in columns.items():
             value.setflags(write=False)
             object.__setattr__(self, key, value)

@@ -85,9 +85,9 @@ class LeaveOneOut:
         The reason for each run whose posterior, prior or filters failed.
     skipped : str or None
         Why nothing was run (fewer than two runs, or turned off).
-    shown : (Experiment, estimates) or None
-        The first run done, in the analysis' order, with its estimates
-        (``[filter][channel]``), for the report's figure.
+    estimates : dict of str to (Experiment, estimates)
+        Per run done, in the analysis' order, the run and its filters'
+        estimates (``[filter][channel]``), for the report's figures.
 
     Examples
     --------
@@ -100,10 +100,12 @@ class LeaveOneOut:
     runs: dict[str, dict] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)
     skipped: str | None = None
-    shown: tuple[Experiment, dict[str, dict[str, StateEstimate]]] | None = None
+    estimates: dict[str, tuple[Experiment, dict[str, dict[str, StateEstimate]]]] = field(
+        default_factory=dict
+    )
 
     def to_dict(self) -> dict:
-        """JSON-ready: ``family``, ``runs``, ``failed``, ``skipped`` (``shown`` left out)."""
+        """JSON-ready: ``family``, ``runs``, ``failed``, ``skipped`` (``estimates`` left out)."""
         return {
             "family": self.family,
             "runs": self.runs,
@@ -144,6 +146,7 @@ def _estimate(
 def _write_summary(result: LeaveOneOut, order: list[str], out: Path) -> None:
     """``out/state_estimation.json``, the runs in the analysis' order."""
     result.runs = {run: result.runs[run] for run in order if run in result.runs}
+    result.estimates = {run: result.estimates[run] for run in order if run in result.estimates}
     write_json(out / SUMMARY, result.to_dict())
 
 
@@ -244,9 +247,7 @@ def leave_one_out(
             for filter_name, reason in record["filters_failed"].items()
         )
         say(f"  leaving out {name}: wrote {record['files']['estimates']}{refused}")
-        shown = result.shown[0].name if result.shown else None
-        if shown is None or order.index(name) < order.index(shown):
-            result.shown = (by_name[name], estimates)
+        result.estimates[name] = (by_name[name], estimates)
 
     with keep_warnings() as kept:  # the chains' convergence goes into each run's record
         try:

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from ._plot_layout import BAND, DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS, new_axes
 from .criticism import criticise
@@ -352,6 +354,9 @@ def plot_criticism(idata, axes=None) -> tuple[Figure, np.ndarray]:
     >>> axes.shape, [ax.get_title() for ax in axes[0]]  # a row per channel
     ((1, 2), ['residual-input cross-correlation (99 % band)',
      'posterior-predictive p-values of the residual ACF'])
+    >>> [text.get_text() for text in axes[0, 0].get_legend().get_texts()]
+    ['v1', 'wheel-speed sum', 'wheel-speed difference', '99 % band per lag',
+     'warning level, all lags']
     """
     criticism = criticise(idata)["criticism"]
     channels = _channels(idata)
@@ -384,4 +389,25 @@ def plot_criticism(idata, axes=None) -> tuple[Figure, np.ndarray]:
     axes[0, 0].set_title("residual-input cross-correlation (99 % band)", fontsize="medium")
     axes[0, 1].set_title("posterior-predictive p-values of the residual ACF", fontsize="medium")
     axes[-1, 0].set_xlabel("lag k [samples] (input leads for k > 0)")
+    _criticism_legends(axes[0], list(criticism["residual_input"]), list(test["z"]))
     return fig, axes
+
+
+def _criticism_legends(row: np.ndarray, experiments: list[str], inputs: list[str]) -> None:
+    """:func:`plot_criticism`'s legends on its first row: colours, line styles and zones."""
+    runs = [Line2D([], [], color=f"C{n % 10}", label=name) for n, name in enumerate(experiments)]
+    styles = [
+        Line2D([], [], color="k", ls=style, lw=0.9, label=f"wheel-speed {name}")
+        for name, style in zip(inputs, ("-", ":"), strict=False)
+    ]
+    left = [
+        *runs,
+        *styles,
+        Patch(color="tab:blue", alpha=0.12, label="99 % band per lag"),
+        Line2D([], [], color="k", ls="--", lw=0.8, label="warning level, all lags"),
+    ]
+    row[0].legend(handles=left, fontsize="x-small", loc="upper right", ncols=2)
+    flagged = Patch(color=MODEL_COLOUR, alpha=0.2, label="flagged (Bonferroni tails)")
+    right = [Line2D([], [], ls="", marker="o", color=h.get_color(), label=h.get_label())
+             for h in runs]  # fmt: skip
+    row[1].legend(handles=[*right, flagged], fontsize="x-small", loc="center right")

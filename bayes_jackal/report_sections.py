@@ -422,15 +422,14 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
     header = ["left out", "prior from", "filter", "channel", "innovation RMSE", "NIS",
               "95 % band", "verdict", "state RMSE", "smoothed state RMSE"]  # fmt: skip
     parts.append(html_table(header, rows))
-    if result.shown is not None:
-        experiment, estimates = result.shown
+    for name, (experiment, estimates) in result.estimates.items():
         start, stop = estimate_plots.shown_window(experiment)
         parts.append(
             figures.html(
-                f"state-estimation-{experiment.name}",
-                f"{experiment.name} (left out): each filter's estimate with its +-2 sd band "
+                f"state-estimation-{name}",
+                f"{name} (left out): each filter's estimate with its +-2 sd band "
                 f"against the measurements, {start:.1f}-{stop:.1f} s",
-                lambda: estimate_plots.plot_state_estimates(experiment, estimates),
+                lambda e=experiment, x=estimates: estimate_plots.plot_state_estimates(e, x),
             )
         )
     parts.append("</section>")

@@ -17,7 +17,7 @@ from bayes_jackal import progress as progress_module
 from bayes_jackal.bag_writer import write_bag
 from bayes_jackal.bags import read_bag
 from bayes_jackal.cli import main
-from bayes_jackal.demo import demo_folder
+from bayes_jackal.demo import demo_folder, demo_labels
 from bayes_jackal.executors import SerialExecutor
 from bayes_jackal.experiment import read_netcdf, write_netcdf
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
@@ -345,6 +345,33 @@ def _demo_truth_by_label(truth: dict) -> dict[str, float]:
         "sigma_n[yaw]": truth["sigma_n"]["yaw"],
         **{f"sigma_p[{c}]": truth["sigma_p"][c] for c in ("vx", "vy")},
     }
+
+
+def test_the_demo_runs_carry_the_true_states_their_bags_were_recorded_from(tmp_path):
+    """The shipped true states are the bags' (issue 24, item 12: the state RMSE was "-").
+
+    The bags' yaw rate is the true one plus the IMU's white noise of sd
+    sigma_n = 0.005 rad/s, so the difference's sd estimates sigma_n: over
+    1,873-2,737 samples its relative standard error is 1 / sqrt(2 N) < 1.7 %;
+    5 % is three of them. States from another seed would differ by the
+    process noise's whole spread (~0.03 rad/s).
+    """
+    labels = demo_labels()
+    runs, failed = ingest_logs(list(labels), load_profile(), tmp_path, labels=labels)
+    assert not failed
+    for run in runs:
+        sigma_n = run.truth["sigma_n"]["yaw"]
+        error = run.channel("yaw") - run.truth_arrays["yaw_state"]
+        assert np.std(error) == pytest.approx(sigma_n, rel=0.05)
+        # Written with the experiment, so the left-out runs' filters are scored on it.
+        stored = read_netcdf(tmp_path / f"{run.name}.nc")
+        assert np.array_equal(stored.truth_arrays["vx_state"], run.truth_arrays["vx_state"])
+
+
+def test_truth_arrays_of_another_length_are_refused():
+    run = simulate_experiment(load_profile(), 110.0, 30.0, rng=1)
+    with pytest.raises(ValueError, match=r"truth_yaw_state: \(5,\) values for \d+ samples"):
+        dataclasses.replace(run, truth_arrays={"yaw_state": np.zeros(5)})
 
 
 @pytest.mark.slow
