@@ -312,7 +312,7 @@ def sample(
     priors: Mapping[str, tuple[float, float]] | None = None,
     robot: RobotProfile | str | Path | None = None,
     chain_file: str | Path | None = None,
-    progress: bool = False,
+    progress: bool = True,
 ) -> az.InferenceData:
     """The posterior of the damping and the noise, sampled with emcee (``bayes-jackal sample``).
 
@@ -354,7 +354,9 @@ def sample(
         HDF5 file of the chain: a run with the same file and options resumes
         it (``sample`` keeps it beside the posterior as ``*.chain.h5``).
     progress : bool
-        Show the chain's progress on stderr.
+        Show the chain's progress on stderr (by default: a bar on a terminal, a
+        line every 10 s elsewhere, with the steps the chain expects to need and
+        the time left); False for silence.
 
     Returns
     -------
@@ -415,7 +417,7 @@ def compare(
     nested: bool = False,
     processes: int = 1,
     executor: Executor | None = None,
-    progress: bool = False,
+    progress: bool = True,
 ) -> Comparison:
     """Noise-filter families ranked by evidence (``bayes-jackal compare --pooled``).
 

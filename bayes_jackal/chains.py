@@ -322,6 +322,15 @@ def _passes(tau: np.ndarray, previous_tau: np.ndarray, steps: int, settings) -> 
     return bool(long_enough and np.all(np.abs(previous_tau - tau) < settings.tau_rtol * tau))
 
 
+def _expected_steps(tau: np.ndarray, steps: int, settings: SamplerSettings) -> int:
+    """The steps the criterion will need, as tau stands: the multiple of tau, at a check.
+
+    At least the next check's (tau must also settle over one more check).
+    """
+    needed = max(float(np.max(tau)) * settings.autocorr_multiple, steps + settings.check_every)
+    return int(np.ceil(needed / settings.check_every) * settings.check_every)
+
+
 def _replay(sampler: emcee.EnsembleSampler, settings: SamplerSettings) -> tuple[np.ndarray, bool]:
     """The convergence monitor where a stored chain stopped: the last check's tau and verdict.
 
@@ -366,6 +375,7 @@ def _run_until_converged(
                     continue
                 tau = _autocorr(sampler, sampler.iteration)
                 progress.update(0, tau=f"{np.max(tau):.0f}")
+                progress.expect(_expected_steps(tau, sampler.iteration, settings))
                 if _passes(tau, previous_tau, sampler.iteration, settings):
                     return True, tau
                 previous_tau = tau

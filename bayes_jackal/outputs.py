@@ -51,6 +51,7 @@ __all__ = [
     "protected",
     "refuse_input",
     "refuse_link",
+    "removed_if_empty",
 ]
 
 
@@ -235,6 +236,47 @@ def make_folder(folder: Path, *, output: str | Path | None = None) -> None:
         raise OutputError(output or folder, f"{folder} is a file, not a folder") from None
     except OSError as exc:
         raise OutputError.from_os_error(output or folder, exc) from None
+
+
+@contextlib.contextmanager
+def removed_if_empty(folders: Iterable[Path], *, on_success: bool = True) -> Iterator[None]:
+    """Remove, when the block ends, the folders made in it that are still empty.
+
+    Of ``folders`` and their parents, those that do not exist on entry: a
+    run that fails, or is refused, before writing into a folder it made
+    leaves no empty folder behind. Deepest first; a folder that holds
+    anything (another run's file too) stays. With ``on_success=False`` only
+    when the block raises.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.outputs import removed_if_empty
+    >>> with tempfile.TemporaryDirectory() as root:
+    ...     made, used = Path(root) / "a" / "b", Path(root) / "c"
+    ...     with removed_if_empty([made, used]):
+    ...         made.mkdir(parents=True)
+    ...         used.mkdir()
+    ...         _ = (used / "result.json").write_text("{}")
+    ...     print(sorted(path.name for path in Path(root).iterdir()))
+    ['c']
+    """
+    missing = {f for folder in folders for f in (folder, *folder.parents) if not f.exists()}
+    deepest_first = sorted(missing, key=lambda f: len(f.parts), reverse=True)
+    try:
+        yield
+    except BaseException:
+        _remove_empty(deepest_first)
+        raise
+    if on_success:
+        _remove_empty(deepest_first)
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 #: The protected inputs, (device, inode) -> the path as given; a mapping that is never mutated.

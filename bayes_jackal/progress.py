@@ -4,7 +4,10 @@ tqdm redraws its bar with carriage returns and ANSI cursor moves, which a
 log file (CI, ``nohup``, a cluster's batch output) keeps as garbage. Where
 the stream is a terminal, :class:`Progress` shows tqdm's bar; elsewhere it
 prints a plain line every :data:`LOG_INTERVAL` seconds, e.g.
-``gaussian: 1200/20000 steps, tau ~ 35, 40 s``, and one when the loop ends.
+``gaussian: 1200/~1800 steps (cap 20000), tau ~ 35, 40 s, ~ 20 s left``,
+and one when the loop ends. Where the loop can tell how many items it will
+need (a chain, from its autocorrelation time), :meth:`Progress.expect`
+makes that the bar's total and the base of the time left.
 Every progress display of the package (emcee sampling, bag ingest, compare's
 families in parallel processes) goes through it.
 """
@@ -66,6 +69,18 @@ class Progress:
     white: 3/3 steps, tau ~ 35, 0 s
     white: 3/3 steps, tau ~ 35, 0 s, done
 
+    Once the loop knows how many items it will need, the lines say so and
+    how long that will take at the rate so far:
+
+    >>> log = io.StringIO()
+    >>> with Progress(20000, "gaussian", stream=log, interval=0) as progress:
+    ...     progress.expect(1800)
+    ...     progress.update(1200, tau="35")
+    >>> first = log.getvalue().splitlines()[0]
+    >>> print(first.rsplit(", ", 2)[0]), first.endswith(" s left")
+    gaussian: 1200/~1800 steps (cap 20000), tau ~ 35
+    (None, True)
+
     :meth:`wrap` counts the items of a loop; the default interval (10 s)
     leaves only the last line here:
 
@@ -90,7 +105,8 @@ class Progress:
         self.total, self.label, self.unit = total, label.strip(), unit
         self.stream = sys.stderr if stream is None else stream
         self.interval = LOG_INTERVAL if interval is None else interval
-        self.count = initial
+        self.count = self.initial = initial
+        self.expected: int | None = None
         self.status: dict[str, str] = {}
         self.enabled = enabled
         self.start = self.last = time.monotonic()
@@ -125,13 +141,35 @@ class Progress:
             self.last = now
             self._line()
 
+    def expect(self, expected: int) -> None:
+        """The loop now expects to end after ``expected`` items (at most ``total``).
+
+        The lines show ``count/~expected (cap total)`` and the time left at
+        the rate so far; a bar takes ``expected`` as its total.
+        """
+        if not self.enabled:
+            return
+        self.expected = min(int(expected), self.total)
+        if self.bar is not None:
+            self.bar.total = self.expected
+            self.bar.refresh()
+
     def _line(self, end: str = "") -> None:
         extra = "".join(f", {key} ~ {value}" for key, value in self.status.items())
         elapsed = time.monotonic() - self.start
-        self.stream.write(
-            f"{self.label}: {self.count}/{self.total} {self.unit}{extra}, {elapsed:.0f} s{end}\n"
-        )
+        of = f"{self.total} {self.unit}"
+        if self.expected is not None and self.expected < self.total:
+            of = f"~{self.expected} {self.unit} (cap {self.total})"
+        left = "" if end else self._time_left(elapsed)
+        self.stream.write(f"{self.label}: {self.count}/{of}{extra}, {elapsed:.0f} s{left}{end}\n")
         self.stream.flush()
+
+    def _time_left(self, elapsed: float) -> str:
+        """``, ~ N s left`` at the rate so far, once an end is expected."""
+        done = self.count - self.initial
+        if self.expected is None or done <= 0 or self.expected <= self.count:
+            return ""
+        return f", ~ {(self.expected - self.count) * elapsed / done:.0f} s left"
 
     def close(self, outcome: str = "done") -> None:
         """End the display: close the bar, or write the last plain line ending in ``outcome``."""

@@ -11,7 +11,6 @@ embedded as PNG and written beside the report as PNG and SVG by
 
 from __future__ import annotations
 
-import contextlib
 import datetime
 import html
 from collections.abc import Callable, Mapping, Sequence
@@ -20,7 +19,7 @@ from pathlib import Path
 from . import __version__
 from ._files import atomic_path
 from .errors import InputError, each_input, refuse
-from .outputs import refuse_link
+from .outputs import refuse_link, removed_if_empty
 from .posterior import az, load_posterior, posterior_metadata
 from .report_figures import FIGURE_FORMATS, ReportFigures
 from .report_sections import evidence_section, posterior_section
@@ -141,6 +140,7 @@ def render_report(
     lags: int = LAGS,
     *,
     sections: Sequence[Section] = (),
+    say: Callable[[str], None] | None = None,
 ) -> str:
     """The HTML text of a report on loaded posteriors.
 
@@ -157,6 +157,9 @@ def render_report(
         Further sections after the evidence tables, each called with
         ``figures`` and returning its HTML (``analyse`` adds
         :func:`~bayes_jackal.report_sections.state_estimation_section`).
+    say : callable, optional
+        Receives a line as each posterior's part begins (its model criticism
+        and figures take from seconds to a minute each).
 
     Returns
     -------
@@ -192,7 +195,10 @@ def render_report(
         )
     body.append(evidence_section(posteriors))
     body += [section(figures) for section in sections]
-    body += [posterior_section(path, idata, figures, lags) for path, idata in posteriors]
+    for number, (path, idata) in enumerate(posteriors, 1):
+        if say is not None:
+            say(f"  report: {path.name} ({number} of {len(posteriors)}): criticism and figures...")
+        body.append(posterior_section(path, idata, figures, lags))
     what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
     return report_page("bayes_jackal report", what, figures, body)
 
@@ -298,15 +304,9 @@ def write_page(
     out = Path(out)
     figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
     refuse_link(figures.folder, folder=True)
-    created = not figures.folder.exists()
-    figures.folder.mkdir(parents=True, exist_ok=True)
-    try:
+    with removed_if_empty([figures.folder], on_success=False):  # a failed page leaves none
+        figures.folder.mkdir(parents=True, exist_ok=True)
         text = render(figures)
-    except BaseException:
-        if created:  # a refused or failed page leaves no empty folder behind
-            with contextlib.suppress(OSError):
-                figures.folder.rmdir()
-        raise
     with atomic_path(out) as temporary:
         temporary.write_text(text, encoding="utf-8")
     return out
@@ -355,6 +355,7 @@ def write_report(
     formats: tuple[str, ...] = FIGURE_FORMATS,
     lags: int = LAGS,
     sections: Sequence[Section] = (),
+    say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors, in files or in memory, and its figures beside it.
 
@@ -377,6 +378,8 @@ def write_report(
         Lags of the autocorrelation figures.
     sections : sequence of callable
         Further sections after the evidence tables (:func:`render_report`).
+    say : callable, optional
+        Receives a line as each posterior's part begins (:func:`render_report`).
 
     Returns
     -------
@@ -407,7 +410,7 @@ def write_report(
     """
     labelled, failed, count = _labelled(posteriors)
     refuse(failed, count)
-    return save_report(labelled, out, formats, lags, sections=sections)
+    return save_report(labelled, out, formats, lags, sections=sections, say=say)
 
 
 def save_report(
@@ -417,6 +420,7 @@ def save_report(
     lags: int = LAGS,
     *,
     sections: Sequence[Section] = (),
+    say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors already read (:func:`read_posteriors`).
 
@@ -444,6 +448,6 @@ def save_report(
         raise InputError("no posterior files given", field="POSTERIOR")
     return write_page(
         out,
-        lambda figures: render_report(posteriors, figures, lags, sections=sections),
+        lambda figures: render_report(posteriors, figures, lags, sections=sections, say=say),
         formats=formats,
     )

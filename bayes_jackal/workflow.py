@@ -498,6 +498,7 @@ def analyse_logs(
         [paths_by_family[family] for family in ranked],
         folder / "report.html",
         sections=[functools.partial(state_estimation_section, left_out)],
+        say=say,
     )
     convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
     convergence_left_out = [

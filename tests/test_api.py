@@ -113,6 +113,17 @@ def test_sample_defaults_are_the_cli_defaults(tmp_path):
     assert inspect.signature(bj.export_prior).parameters["order"].default == order == 2
 
 
+def test_sample_and_compare_show_their_progress_by_default(run, capsys):
+    """Issue 24, item 12: ``bj.sample`` was silent for minutes; the CLI shows its chains."""
+    for function in (bj.sample, bj.compare):
+        assert inspect.signature(function).parameters["progress"].default is True
+    quiet(bj.sample, [run], **QUICK)
+    # Not a terminal here: the closing plain line (lines every 10 s before it).
+    assert re.search(r"emcee: 80/80 steps, \d+ s, done", capsys.readouterr().err)
+    quiet(bj.sample, [run], **QUICK, progress=False)
+    assert capsys.readouterr().err == ""
+
+
 def test_sample_gives_the_chain_of_the_cli(run, posterior, tmp_path):
     # Flags left out take their defaults on both sides (engine, sensor, noise, walkers).
     source = write_netcdf(run, tmp_path / "v1_01.nc")

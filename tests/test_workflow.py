@@ -62,6 +62,29 @@ def test_progress_in_a_log_writes_plain_periodic_lines():
     assert re.fullmatch(r"gaussian: 30/30 steps, tau ~ 12, \d+ s, done", lines[-1])
 
 
+def test_progress_shows_the_expected_end_and_the_time_left():
+    """Issue 24, item 12: the lines showed only the 20,000-step cap and no time left."""
+    stream = io.StringIO()
+    with Progress(20000, "gaussian", stream=stream, interval=0.0) as bar:
+        bar.update(100, tau="30")
+        bar.expect(1600)
+        bar.update(1)
+        bar.expect(30000)  # beyond the cap: the cap is the end
+        bar.update(1)
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("gaussian: 100/20000 steps, tau ~ 30, ") and "left" not in lines[0]
+    assert re.fullmatch(
+        r"gaussian: 101/~1600 steps \(cap 20000\), tau ~ 30, \d+ s, ~ \d+ s left", lines[1]
+    )
+    assert re.fullmatch(r"gaussian: 102/20000 steps, tau ~ 30, \d+ s, ~ \d+ s left", lines[2])
+    assert re.fullmatch(r"gaussian: 102/20000 steps, tau ~ 30, \d+ s, done", lines[3])
+    terminal = _Terminal()
+    with Progress(20000, "white", stream=terminal) as bar:
+        bar.expect(1600)
+        bar.update(1600)
+    assert bar.bar.total == 1600 and "1600/1600" in terminal.getvalue()
+
+
 def test_progress_lines_are_spaced_by_the_interval():
     stream = io.StringIO()
     with Progress(1000, "ingest", unit="msg", stream=stream, interval=3600.0) as bar:
@@ -126,8 +149,10 @@ def test_sampler_progress_in_a_log_has_no_cursor_codes(short_runs, monkeypatch, 
     assert not CURSOR.search(err)
     lines = err.splitlines()
     assert lines[0].startswith("emcee: 1/200 steps, ")
-    # The autocorrelation estimate joins the line at the first check (step 100).
-    assert any(line.startswith("emcee: 101/200 steps, tau ~ ") for line in lines)
+    # The autocorrelation estimate joins the line at the first check (step 100),
+    # and with it the steps the criterion will need (here the cap) and the time left.
+    assert any(re.fullmatch(r"emcee: 101/200 steps, tau ~ \d+, \d+ s, ~ \d+ s left", line)
+               for line in lines)  # fmt: skip
     assert re.fullmatch(r"emcee: 200/200 steps, tau ~ \d+, \d+ s, done", lines[-1])
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ..experiment import Experiment
 from ..inference import chain_path
-from ..outputs import Output, OutputLock, check_outputs, protected
+from ..outputs import Output, OutputLock, check_outputs, protected, removed_if_empty
 
 #: Figure suffixes of ``grid --plot`` (matplotlib's formats the README names).
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
@@ -83,10 +83,16 @@ def summary_file(folder: Path, name: str) -> Path:
 
 @contextlib.contextmanager
 def guarded(args: argparse.Namespace) -> Iterator[None]:
-    """Check the outputs, protect the inputs and lock the main output while the command runs."""
+    """Check the outputs, protect the inputs and lock the main output while the command runs.
+
+    A folder the checks make for an output and the command leaves empty (it
+    failed, or was refused, before writing) is removed.
+    """
     outputs, inputs = planned_outputs(args), command_inputs(args)
-    check_outputs(outputs, inputs=inputs)
+    folders = [o.path if o.kind == "folder" else o.path.parent for o in outputs]
     with contextlib.ExitStack() as stack:
+        stack.enter_context(removed_if_empty(folders))
+        check_outputs(outputs, inputs=inputs)
         if outputs:
             main = outputs[0]
             stack.enter_context(OutputLock(main.path, folder=main.kind == "folder"))
