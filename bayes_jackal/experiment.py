@@ -386,9 +386,16 @@ def check_values(
     run.csv: yaw_rate: 1000 rad/s at line 0 (100 values): magnitudes must be below 100
     rad/s, beyond any ground robot (wrong units or a corrupt file?)
     """
-    lengths = {key: value.shape for key, value in columns.items()}
-    if len(set(lengths.values())) != 1 or len(columns["t"].shape) != 1:
-        raise DataError(f"columns differ in length or are not 1-D: {lengths}", source=source)
+    for key, value in columns.items():
+        if value.ndim != 1:
+            raise DataError(f"shape {value.shape}: a column must be 1-D", source=source, field=key)
+        if len(value) != len(columns["t"]):
+            raise DataError(
+                f"{len(value)} values for {len(columns['t'])} time stamps; columns must "
+                "have one length",
+                source=source,
+                field=key,
+            )
     if len(columns["t"]) < MIN_SAMPLES:
         raise DataError(
             f"only {len(columns['t'])} samples; at least {MIN_SAMPLES} are needed", source=source
@@ -616,7 +623,9 @@ def read_netcdf(path: str | Path) -> Experiment:
     path = Path(path)
     source = str(path)
     try:
-        with xr.open_dataset(path, engine="h5netcdf") as dataset:
+        # phony_dims: an HDF5 variable without dimension scales (a file from h5py)
+        # is read, and refused as not 1-D by name, without h5netcdf's warning.
+        with xr.open_dataset(path, engine="h5netcdf", phony_dims="access") as dataset:
             dataset = dataset.load()
     except FileNotFoundError:
         raise DataError("no such file", source=source) from None
