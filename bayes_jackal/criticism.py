@@ -57,10 +57,24 @@ from .predictive import predictive_series
 from .priors import Prior
 from .residuals import channel_residuals
 
+#: What each kind of warning means for the result, in a phrase (the CLI's summary line).
+KIND_MEANINGS = {
+    "not-converged": "a chain stopped before its criterion held: its numbers are preliminary",
+    "prior-boundary": "a parameter is piled at its prior's bound: the data give only a limit",
+    "damping-scale-not-identified": (
+        "the runs fix the ratio d_lat/d_long, not the damping's scale: report the ratio"
+    ),
+    "residual-input": "the residuals follow the wheel speeds: a dynamic or input is missing",
+    "predictive-acf": "the fitted noise misses the residuals' colour: try another family",
+    "not-steady": "an analysed window is not steady cornering, which the model assumes",
+    "derived-velocity": "velocities derived from poses are modelled as measured: damping biased",
+}
+
 __all__ = [
     "BOUNDARY_DENSITY",
     "BOUNDARY_STRIP",
     "INPUTS",
+    "KIND_MEANINGS",
     "PORTMANTEAU_LAGS",
     "PREDICTIVE_ALARM",
     "PREDICTIVE_DRAWS",

@@ -525,6 +525,9 @@ def test_sample_without_pooling_finishes_the_good_inputs_and_names_the_bad_one(
     [line] = error_lines(captured)
     assert line.startswith(f"bayes-jackal: error: {simulated[0]}: not a bayes_jackal posterior")
     assert f"posteriors: {posteriors[0]}, {posteriors[2]}. Figures" in report.read_text()
+    # A line as each posterior's criticism and figures begin (issue 24, item 12: silent).
+    assert "report: post.v1_01.nc (1 of 2): criticism and figures" in captured.out
+    assert "report: post.v2_01.nc (2 of 2): criticism and figures" in captured.out
 
 
 def test_sample_goes_on_past_an_input_without_a_requested_channel(simulated, tmp_path, capsys):
@@ -667,6 +670,29 @@ def test_a_warning_is_shown_once(capsys):
         "bayes-jackal: WARNING: the same message",
         "bayes-jackal: WARNING: another message",
     ]
+
+
+def test_criticism_warnings_are_one_line_per_kind_and_a_line_of_meaning(capsys):
+    """Issue 24, item 10: 47 WARNING lines buried the answer; repeats are one line."""
+    from bayes_jackal.cli.output import print_criticism
+
+    acf = [
+        {"kind": "predictive-acf", "experiment": run, "channel": "yaw", "statistic": s,
+         "message": f"{run}, yaw: the residuals' {s} is higher than in 200 of 200"}
+        for run in ("v1_01", "v2_01") for s in ("acf[1]", "acf[5]")
+    ]  # fmt: skip
+    bound = {"kind": "prior-boundary", "parameter": "d_long", "message": "d_long: piled"}
+    print_criticism([*acf, bound], where="compare.json")
+    assert capsys.readouterr().err.splitlines() == [
+        "bayes-jackal: WARNING: predictive-acf x4: v1_01, yaw: the residuals' acf[1] is higher "
+        "than in 200 of 200; the same at v1_01 yaw acf[5], v2_01 yaw acf[1], v2_01 yaw acf[5]",
+        "bayes-jackal: WARNING: d_long: piled",
+        "bayes-jackal: note: 5 warning(s): predictive-acf: the fitted noise misses the "
+        "residuals' colour: try another family; prior-boundary: a parameter is piled at its "
+        "prior's bound: the data give only a limit. In full: compare.json",
+    ]
+    print_criticism([])
+    assert capsys.readouterr().err == ""
 
 
 def test_version_is_the_installed_distributions(capsys):

@@ -531,8 +531,15 @@ def test_sample_prints_the_warnings_on_stderr_and_in_its_json(tmp_path, capsys):
     result = json.loads(captured.out)
     kinds = [w["kind"] for w in result["warnings"]]
     assert "damping-scale-not-identified" in kinds
+    # One line per kind (issue 24, item 10): its first message, with a count when repeated.
+    by_kind: dict[str, list[dict]] = {}
     for warning in result["warnings"]:
-        assert f"bayes-jackal: WARNING: {warning['message']}" in captured.err
+        by_kind.setdefault(warning["kind"], []).append(warning)
+    for kind, group in by_kind.items():
+        count = "" if len(group) == 1 else f"{kind} x{len(group)}: "
+        assert f"bayes-jackal: WARNING: {count}{group[0]['message']}" in captured.err
+    assert captured.err.count("bayes-jackal: WARNING:") == len(by_kind)
+    assert f"note: {len(result['warnings'])} warning(s): " in captured.err
     assert set(result["criticism"]) == {
         "damping_scale",
         "prior_boundary",

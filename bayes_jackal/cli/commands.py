@@ -54,6 +54,7 @@ from .output import (
     Reporter,
     analysis_text,
     comparison_table,
+    family_warnings,
     filter_table,
     grid_table,
     posterior_table,
@@ -402,9 +403,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
             print(f"bayes-jackal: WARNING: {message}", file=sys.stderr)
         result = comparison.to_dict() | {"channels": list(resolve_channels(group, args.channels))}
         comparison_table(result, out.say)
-        print_criticism(result["warnings"])
+        name = group_name(group)
+        saved = "" if folder is None else f" and {summary_file(folder, name)}"
+        family_warnings(result["warnings"], result, where=f"--json{saved}")
         if folder is not None:
-            name = group_name(group)
             write_json(summary_file(folder, name), result)
             out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
         return result
@@ -554,6 +556,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     posteriors, _ = read_posteriors(args.posteriors, on_failure=failures)
     if not posteriors:  # every input named on stderr already
         return failures.code
-    path = save_report(posteriors, args.out, args.formats)
+    path = save_report(posteriors, args.out, args.formats, say=out.say)
     out.say(f"wrote {path} and its figures in {path.parent / (path.stem + '_figures')}/")
     return failures.code

@@ -7,6 +7,7 @@ import traceback
 from collections.abc import Callable
 
 from .._files import json_text
+from ..criticism import KIND_MEANINGS
 from ..errors import InputError, describe
 from ..gridsearch import GridResult
 from ..state_estimation import score_rows
@@ -131,11 +132,42 @@ def warn_not_converged(what: str) -> None:
           file=sys.stderr)  # fmt: skip
 
 
-def print_criticism(findings: list[dict]) -> None:
-    """Model-criticism warnings on stderr, as ConvergenceWarning (compare: with the family)."""
+def print_criticism(findings: list[dict], *, where: str = "--json and the report") -> None:
+    """Criticism warnings on stderr: one line per kind, then what the kinds mean.
+
+    A kind found once is shown whole; found more often, its first message
+    with the count and where the others are (``compare``: per family). The
+    last line says in a phrase what each kind means
+    (:data:`bayes_jackal.criticism.KIND_MEANINGS`) and ``where`` every
+    warning is given in full.
+    """
+    groups: dict[tuple[str, str], list[dict]] = {}
     for finding in findings:
-        family = f"{finding['family']}: " if "family" in finding else ""
-        print(f"bayes-jackal: WARNING: {family}{finding['message']}", file=sys.stderr)
+        groups.setdefault((finding.get("family", ""), finding["kind"]), []).append(finding)
+    for (family, kind), group in groups.items():
+        named = f"{family}: " if family else ""
+        first = group[0]["message"]
+        if len(group) == 1:
+            print(f"bayes-jackal: WARNING: {named}{first}", file=sys.stderr)
+            continue
+        others = ", ".join(_place(finding) for finding in group[1:])
+        print(
+            f"bayes-jackal: WARNING: {named}{kind} x{len(group)}: {first}; the same at {others}",
+            file=sys.stderr,
+        )
+    kinds = dict.fromkeys(kind for _, kind in groups)
+    if kinds:
+        meanings = "; ".join(f"{kind}: {KIND_MEANINGS.get(kind, kind)}" for kind in kinds)
+        print(
+            f"bayes-jackal: note: {len(findings)} warning(s): {meanings}. In full: {where}",
+            file=sys.stderr,
+        )
+
+
+def _place(finding: dict) -> str:
+    """Where a warning points, in a few words (experiment, channel, parameter, statistic)."""
+    fields = ("experiment", "channel", "parameter", "statistic", "input", "left_out")
+    return " ".join(str(finding[key]) for key in fields if key in finding) or "another"
 
 
 def comparison_table(result: dict, say: Callable[[str], None]) -> None:
@@ -193,33 +225,37 @@ def analysis_text(result: dict, out: Reporter) -> int:
         f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "
         f"Inference prior), {files['posterior']}, posteriors/, experiments/, grid_*.png, *.json."
     )
-    analysis_warnings(result)
+    family_warnings(
+        result["warnings"],
+        result["comparison"],
+        where="compare.json, posterior.json and the report",
+    )
     for reason in result["failed"].values():
         print(f"bayes-jackal: error: {reason}", file=sys.stderr)
     out.result(result)
     return EXIT_BAD_INPUT if result["failed"] else EXIT_OK
 
 
-def analysis_warnings(result: dict) -> None:
-    """The reported posterior's warnings in full; another family's counted in one line each.
+def family_warnings(findings: list[dict], comparison: dict, *, where: str) -> None:
+    """The best family's warnings (:func:`print_criticism`); a losing family's in one line each.
 
-    The families that lost by evidence are not the result: a wrong model's
+    ``comparison`` is a comparison's JSON (``best``, ``families``). The
+    families that lost by evidence are not the result: a wrong model's
     posterior often piles at a bound, and its every warning would bury the
-    ones that matter. Their warnings stay in the JSON and the report.
+    ones that matter. Their warnings stay in ``where`` (the JSON, the report).
     """
-    best = result["best"]
-    print_criticism([w for w in result["warnings"] if w.get("family", best) == best])
+    best = comparison["best"]
+    print_criticism([w for w in findings if w.get("family", best) == best], where=where)
     others: dict[str, list[str]] = {}
-    for warning in result["warnings"]:
+    for warning in findings:
         if warning.get("family", best) != best:
             others.setdefault(warning["family"], []).append(warning["kind"])
     for family, kinds in others.items():
-        versus = result["comparison"]["families"][family]["log_bayes_factor_vs_best"]
+        versus = comparison["families"][family]["log_bayes_factor_vs_best"]
         counts = ", ".join(f"{kind} {kinds.count(kind)}" for kind in dict.fromkeys(kinds))
         print(
             f"bayes-jackal: note: {family} (ln B = {versus:.1f} against {best}, not the "
-            f"posterior reported): {len(kinds)} criticism warnings ({counts}), listed in "
-            "compare.json and the report",
+            f"posterior reported): {len(kinds)} criticism warnings ({counts}), listed in {where}",
             file=sys.stderr,
         )
 
