@@ -312,6 +312,40 @@ def json_text(payload: str) -> Builder:
     return raw(payload.encode())
 
 
+def prior_file(edit: Callable[[dict], object] = lambda prior: None) -> Builder:
+    """The posterior's exported prior (order 2) as JSON, ``edit(prior)`` applied in place."""
+
+    def build(lib: Library, path: Path) -> None:
+        import json
+
+        prior = json.loads(_exported_prior(lib).read_text())
+        edit(prior)
+        path.write_text(json.dumps(prior))
+
+    return build
+
+
+def _exported_prior(lib: Library) -> Path:
+    """``export-prior`` of the library's posterior, made once per session in its folder."""
+    path = lib.root / "prior.json"
+    if not path.exists():
+        from bayes_jackal.export import export_prior, write_prior
+        from bayes_jackal.posterior import load_posterior
+
+        prior = export_prior(load_posterior(lib.posterior), order=2, source=str(lib.posterior))
+        write_prior(prior, path)
+    return path
+
+
+def series(
+    edit: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] = lambda t, x: (t, x),
+) -> Builder:
+    """The run's yaw rate as a bare noise series (columns t, gyro), ``edit(t, x)`` applied."""
+    return csv_table(
+        lambda h, v: (["t", "gyro"], np.column_stack(edit(v[:, 0].copy(), v[:, 1].copy())))
+    )
+
+
 GOOD = {"a.nc": experiment()}
 GOOD2 = {"a.nc": experiment(), "b.nc": experiment()}
 GOOD_CSV = {"a.csv": copy("csv")}
@@ -2014,6 +2048,742 @@ SPECIAL_CASES = [
 ]
 
 
+# A lab on a shared server, its field recordings irreplaceable: what a hostile but
+# realistic user tries next. Each row holds on the current code.
+NOISE = "--families white --max-steps 200 --seed 1 --no-progress --processes 1"
+PRIOR = {**GOOD, "prior.json": prior_file()}
+
+
+def _bad_prior(edit: Callable[[dict], object]) -> dict[str, Builder]:
+    return {**GOOD, "bad.json": prior_file(edit)}
+
+
+def csv_encoded(encoding: str, edit: Callable[[str], str] = lambda text: text) -> Builder:
+    """The simulated run's CSV text, ``edit`` applied, in another encoding (Excel's exports)."""
+
+    def build(lib: Library, path: Path) -> None:
+        path.write_bytes(edit(lib.csv.read_text()).encode(encoding))
+
+    return build
+
+
+FILTER_CASES = [
+    # A prior.json that is JSON but not a prior: the format field is named.
+    C(
+        "filter-prior-is-json-list",
+        "filter a.nc --prior list.json --out est.csv",
+        2,
+        r"list\.json",
+        r"format",
+        files={**GOOD, "list.json": json_text("[1, 2, 3]")},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-empty-object",
+        "filter a.nc --prior obj.json --out est.csv",
+        2,
+        r"obj\.json",
+        r"format",
+        files={**GOOD, "obj.json": json_text("{}")},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    # An empty prior file (a copy that failed half-way) is not JSON.
+    C(
+        "filter-prior-empty-file",
+        "filter a.nc --prior e.json --out est.csv",
+        2,
+        r"e\.json",
+        r"not JSON",
+        files={**GOOD, "e.json": EMPTY},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    # The posterior given where its exported prior belongs.
+    C(
+        "filter-prior-is-a-posterior",
+        "filter a.nc --prior post.nc --out est.csv",
+        2,
+        r"post\.nc",
+        r"JSON",
+        files={**GOOD, **POST},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-missing",
+        "filter a.nc --prior nothere.json --out est.csv",
+        2,
+        r"nothere\.json",
+        r"no such file",
+        files=GOOD,
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    # A hand-edited prior: a field deleted, a family misspelt, a sign flipped, the rate halved.
+    C(
+        "filter-prior-without-damping",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"damping\.mean",
+        files=_bad_prior(lambda p: p.pop("damping")),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-family-unknown",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"noise\.family",
+        r"'pink'",
+        files=_bad_prior(lambda p: p["noise"].update(family="pink")),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-noise-is-list",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"noise\.channels",
+        files=_bad_prior(lambda p: p.update(noise=[])),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-damping-is-text",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"damping\.mean",
+        r"numbers",
+        files=_bad_prior(lambda p: p["damping"].update(mean=["a", "b"])),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-model-matrix-wrong-shape",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"model\.Ad",
+        r"3 x 3",
+        files=_bad_prior(lambda p: p["model"].update(Ad=[1.0])),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-dt-negative",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"\bdt\b",
+        r"-72 Hz",
+        files=_bad_prior(lambda p: p.update(dt=-p["dt"])),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-for-36-hz",
+        "filter a.nc --prior bad.json --out est.csv",
+        2,
+        r"bad\.json",
+        r"\bdt\b",
+        r"36 Hz",
+        r"72 Hz",
+        files=_bad_prior(lambda p: p.update(dt=2 * p["dt"])),
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    # Outputs: never an input (the data or the prior), a .csv, a file not a folder.
+    C(
+        "filter-out-is-input-csv",
+        "filter a.csv --prior prior.json --out a.csv",
+        2,
+        r"a\.csv",
+        r"input",
+        files={**GOOD_CSV, "prior.json": prior_file()},
+        timeout=FAST,
+    ),
+    C(
+        "filter-out-is-the-prior",
+        "filter a.nc --prior prior.json --out prior.json",
+        2,
+        r"prior\.json",
+        r"input",
+        files=PRIOR,
+        timeout=FAST,
+    ),
+    C(
+        "filter-out-wrong-suffix",
+        "filter a.nc --prior prior.json --out est.json",
+        2,
+        r"est\.json",
+        r"suffix|\.csv",
+        files=PRIOR,
+        absent=("est.json",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-out-existing-folder",
+        "filter a.nc --prior prior.json --out est.csv",
+        2,
+        r"est\.csv",
+        r"folder",
+        files={**PRIOR, "est.csv": folder()},
+        timeout=FAST,
+    ),
+    # Flags refused by the parser, naming the flag and the value.
+    C(
+        "filter-filters-unknown",
+        "filter a.nc --prior prior.json --out est.csv --filters kalman,particle",
+        2,
+        r"--filters",
+        r"particle",
+        files=PRIOR,
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-order-negative",
+        "filter a.nc --prior prior.json --out est.csv --order -1",
+        2,
+        r"--order",
+        r"-1",
+        files=PRIOR,
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-lookahead-negative",
+        "filter a.nc --prior prior.json --out est.csv --lookahead -1",
+        2,
+        r"--lookahead",
+        r"-1",
+        files=PRIOR,
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    # An order whose precision is not finite: the allowed orders are said.
+    C(
+        "filter-order-99",
+        "filter a.nc --prior prior.json --out est.csv --order 99",
+        2,
+        r"prior\.json",
+        r"order 99",
+        r"allowed",
+        files=PRIOR,
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    # Item 9 for filter: the good run's estimates are written, the bad one named, exit 2.
+    C(
+        "filter-one-empty-of-two",
+        "filter a.nc e.csv --prior prior.json --out est.csv",
+        2,
+        r"e\.csv",
+        files={**PRIOR, "e.csv": EMPTY},
+        exists=("est.csv",),
+    ),
+    C(
+        "filter-json-valid",
+        "filter a.nc --prior prior.json --out est.csv --json",
+        0,
+        files=PRIOR,
+        exists=("est.csv",),
+    ),
+]
+
+NOISE_CASES = [
+    # Bare noise series a bench recording can hold: each refused, naming file, column, value.
+    C(
+        "noise-constant-series",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv",
+        r"gyro",
+        r"constant",
+        files={"x.csv": series(lambda t, x: (t, np.full_like(x, 0.3)))},
+        timeout=FAST,
+    ),
+    C(
+        "noise-single-sample",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv",
+        r"gyro",
+        r"\b1 samples?",
+        files={"x.csv": series(lambda t, x: (t[:1], x[:1]))},
+        timeout=FAST,
+    ),
+    # The logger's clock stepped back 1 s: a clock jump, with its line.
+    C(
+        "noise-clock-jump",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv",
+        r"backwards",
+        r"line \d+",
+        files={"x.csv": series(lambda t, x: (np.where(t > 4.0, t - 1.0, t), x))},
+        timeout=FAST,
+    ),
+    C(
+        "noise-all-nan",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv",
+        r"gyro",
+        r"nan",
+        files={"x.csv": series(lambda t, x: (t, np.full_like(x, np.nan)))},
+        timeout=FAST,
+    ),
+    C(
+        "noise-inf-sample",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv",
+        r"gyro",
+        r"inf at line \d+",
+        files={"x.csv": series(lambda t, x: (t, np.where(np.arange(len(x)) == 10, np.inf, x)))},
+        timeout=FAST,
+    ),
+    C(
+        "noise-values-1e308",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv",
+        r"gyro",
+        r"rescale",
+        files={"x.csv": series(lambda t, x: (t, x / np.abs(x).max() * 1e308))},
+        timeout=FAST,
+    ),
+    C(
+        "noise-column-missing",
+        f"noise x.csv --column gyro_z {NOISE}",
+        2,
+        r"x\.csv",
+        r"gyro_z",
+        files={"x.csv": series()},
+        timeout=FAST,
+    ),
+    C(
+        "noise-no-time-column",
+        f"noise x.csv {NOISE}",
+        2,
+        r"x\.csv",
+        r"--rate",
+        files={"x.csv": csv_columns(lambda h: [1])},
+        timeout=FAST,
+    ),
+    # An experiment file is no bare series: the suffix is named.
+    C(
+        "noise-experiment-file",
+        f"noise a.nc {NOISE}",
+        2,
+        r"a\.nc",
+        r"\.nc",
+        files=GOOD,
+        timeout=FAST,
+    ),
+    C(
+        "noise-topic-on-csv",
+        f"noise x.csv --column gyro --topic /imu/data {NOISE}",
+        2,
+        r"x\.csv",
+        r"topic",
+        files={"x.csv": series()},
+        timeout=FAST,
+    ),
+    C(
+        "noise-prior-width-reversed",
+        f"noise x.csv --column gyro {NOISE} --prior width 2 0.001",
+        2,
+        r"sigma_h",
+        r"0\.001",
+        files={"x.csv": series()},
+        timeout=FAST,
+    ),
+    # Fewer steps than bridge sampling needs: refused before any series is read.
+    C(
+        "noise-max-steps-below-evidence",
+        "noise x.csv --column gyro --families white --max-steps 5 --no-progress",
+        2,
+        r"max_steps",
+        r"16",
+        files={"x.csv": series()},
+        timeout=FAST,
+    ),
+    C(
+        "noise-families-unknown",
+        "noise x.csv --column gyro --families white,pink",
+        2,
+        r"--families",
+        r"pink",
+        files={"x.csv": series()},
+        timeout=FAST,
+    ),
+    C(
+        "noise-out-existing-file",
+        f"noise x.csv --column gyro --out taken {NOISE}",
+        2,
+        r"taken",
+        r"file|folder",
+        files={"x.csv": series(), "taken": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    C(
+        "noise-out-is-input",
+        f"noise x.csv --column gyro --out x.csv {NOISE}",
+        2,
+        r"x\.csv",
+        r"input",
+        files={"x.csv": series()},
+        timeout=FAST,
+    ),
+    # Two folders' series of one stem: the first is written, the second never replaces it.
+    C(
+        "noise-same-stem-two-folders",
+        f"noise one/a.csv two/a.csv --column gyro --out out {NOISE}",
+        2,
+        r"two/a\.csv",
+        r"rename",
+        files={"one/a.csv": series(), "two/a.csv": series()},
+        count={"out/*.noise.json": 1},
+    ),
+    # Item 9 for noise: the good series' files are written, the bad one named, exit 2.
+    C(
+        "noise-one-empty-of-two",
+        f"noise a.csv e.csv --column gyro --out out --json {NOISE}",
+        2,
+        r"e\.csv",
+        files={"a.csv": series(), "e.csv": EMPTY},
+        exists=("out/a.noise.json",),
+        json_files=("out/a.noise.json",),
+    ),
+]
+
+# More robot profiles a lab edits by hand: each refused, naming the file and the key.
+PROFILE_MORE_CASES = [
+    C(
+        f"profile-{case_id}",
+        f"{command} --robot bad.toml",
+        2,
+        r"bad\.toml",
+        *words,
+        files={**GOOD, "bad.toml": profile(replace(old, new))},
+        timeout=FAST,
+    )
+    for case_id, command, old, new, words in [
+        (
+            "yaw-inertia-negative",
+            f"grid a.nc {GRID}",
+            "yaw_inertia = 0.5485",
+            "yaw_inertia = -0.5485",
+            (r"yaw_inertia", r"-0\.5485"),
+        ),
+        (
+            "half-track-zero",
+            "residuals a.nc",
+            "half_track = 0.2078",
+            "half_track = 0.0",
+            (r"half_track", r"\b0\.0\b"),
+        ),
+        (
+            "half-wheelbase-inf",
+            "residuals a.nc",
+            "half_wheelbase = 0.131",
+            "half_wheelbase = inf",
+            (r"half_wheelbase", r"\binf\b"),
+        ),
+        (
+            "wheel-radius-missing",
+            "residuals a.nc",
+            "wheel_radius = 0.098",
+            "# wheel_radius = 0.098",
+            (r"wheel_radius", r"missing"),
+        ),
+        # TOML's true is no number, though Python's bool is an int.
+        ("mass-is-bool", "residuals a.nc", "mass = 16.523", "mass = true", (r"mass", r"True")),
+        ("rate-is-text", "residuals a.nc", "rate = 72.0", 'rate = "72"', (r"rate", r"'72'")),
+        (
+            "multiplier-negative",
+            "residuals a.nc",
+            "wheel_separation_multiplier = 1.5",
+            "wheel_separation_multiplier = -1.5",
+            (r"wheel_separation_multiplier", r"-1\.5"),
+        ),
+        (
+            "prior-from-zero",
+            "residuals a.nc",
+            "sigma_n = [1e-4, 1.0]",
+            "sigma_n = [0.0, 1.0]",
+            (r"sigma_n", r"0\.0, 1\.0"),
+        ),
+        (
+            "schema-version-text",
+            "residuals a.nc",
+            "schema_version = 1",
+            'schema_version = "1"',
+            (r"schema_version", r"'1'"),
+        ),
+        (
+            "topic-empty",
+            "residuals a.nc",
+            'imu = "/imu/data"',
+            'imu = ""',
+            (r"topics\.imu", r"empty"),
+        ),
+        (
+            "section-capitalised",
+            "residuals a.nc",
+            "[sampling]",
+            "[Sampling]",
+            (r"Sampling",),
+        ),
+    ]
+]
+
+NEWLINE = "bad\nname.csv"
+
+# File names and text a lab's own tools produce: odd names work; odd text is named.
+FILE_CASES = [
+    C(
+        "grid-unicode-and-space-paths",
+        f'grid "relevé 1.nc" {GRID} --out "sortie é/g ü.nc" --json',
+        0,
+        files={"relevé 1.nc": experiment()},
+        exists=("sortie é/g ü.nc",),
+    ),
+    C(
+        "grid-newline-in-paths",
+        f'grid "a\nb.nc" {GRID} --out "g\nh.nc"',
+        0,
+        files={"a\nb.nc": experiment()},
+        exists=("g\nh.nc",),
+    ),
+    C(
+        "residuals-unicode-name-named",
+        'residuals "relevé 3.csv"',
+        2,
+        r"relevé 3\.csv",
+        r"empty",
+        files={"relevé 3.csv": EMPTY},
+        timeout=FAST,
+    ),
+    # A newline in a name is shown raw or escaped, the name whole either way.
+    C(
+        "residuals-newline-name-named",
+        f'residuals "{NEWLINE}"',
+        2,
+        r"bad(\n|\\n|\?)name\.csv",
+        r"empty",
+        files={NEWLINE: EMPTY},
+        timeout=FAST,
+    ),
+    C(
+        "residuals-csv-tabs",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"column",
+        files={"x.csv": csv_text(lambda t: t.replace(",", "\t"))},
+        timeout=FAST,
+    ),
+    # Excel's "Unicode text" (UTF-16) and a Latin-1 header: an encoding error, named.
+    C(
+        "residuals-csv-utf16",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"utf-8|decode|encoding",
+        files={"x.csv": csv_encoded("utf-16")},
+        timeout=FAST,
+    ),
+    C(
+        "residuals-csv-latin1-header",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"utf-8|decode|encoding",
+        files={
+            "x.csv": csv_encoded("latin-1", lambda t: t.replace("vy\n", "vy,température\n", 1))
+        },
+        timeout=FAST,
+    ),
+    C(
+        "residuals-csv-nul-byte",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"line \d+",
+        files={"x.csv": csv_text(lambda t: t[:5000] + "\0" + t[5000:])},
+        timeout=FAST,
+    ),
+    # A European export: semicolons between fields, decimal commas inside them.
+    C(
+        "residuals-csv-decimal-comma",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"line \d+|column",
+        files={"x.csv": csv_text(lambda t: t.replace(",", ";").replace(".", ","))},
+        timeout=FAST,
+    ),
+    C(
+        "residuals-csv-trailing-comment",
+        "residuals x.csv",
+        2,
+        r"x\.csv",
+        r"line \d+",
+        files={"x.csv": csv_text(lambda t: t + "# end of log\n")},
+        timeout=FAST,
+    ),
+    # What the csv module reads as the same table: quotes and spaces after the commas.
+    C(
+        "grid-accepts-csv-quoted",
+        f"grid x.csv {GRID} --json",
+        0,
+        files={
+            "x.csv": csv_text(
+                lambda t: (
+                    "\n".join(
+                        ",".join(f'"{cell}"' for cell in line.split(","))
+                        for line in t.splitlines()
+                    )
+                    + "\n"
+                )
+            )
+        },
+    ),
+    C(
+        "grid-accepts-csv-spaces-after-commas",
+        f"grid x.csv {GRID} --json",
+        0,
+        files={"x.csv": csv_text(lambda t: t.replace(",", ", "))},
+    ),
+]
+
+# Outputs and flags on a shared server: a link planted at the output is replaced,
+# its target (another user's file) untouched; repeated names are refused.
+SHARED_CASES = [
+    C(
+        "grid-out-is-symlink-to-theirs",
+        f"grid a.nc {GRID} --out g.nc --plot s.png",
+        0,
+        files={
+            **GOOD,
+            "theirs/g.nc": raw(b"their surface\n"),
+            "theirs/s.png": raw(b"their figure\n"),
+            "g.nc": symlink("theirs/g.nc"),
+            "s.png": symlink("theirs/s.png"),
+        },
+        exists=("g.nc", "s.png"),
+    ),
+    C(
+        "export-prior-out-is-symlink-to-theirs",
+        "export-prior post.nc --out prior.json",
+        0,
+        files={
+            **POST,
+            "theirs/prior.json": json_text('{"theirs": 1}'),
+            "prior.json": symlink("theirs/prior.json"),
+        },
+        json_files=("prior.json",),
+    ),
+    C(
+        "export-prior-out-parent-is-file",
+        "export-prior post.nc --out notdir/prior.json",
+        2,
+        r"notdir",
+        r"file",
+        files={**POST, "notdir": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    C(
+        "report-out-parent-is-file",
+        "report post.nc --out notdir/r.html",
+        2,
+        r"notdir",
+        r"file",
+        files={**POST, "notdir": raw(b"mine\n")},
+        timeout=FAST,
+    ),
+    # A netCDF of someone else's tool is no posterior.
+    C(
+        "report-foreign-netcdf",
+        "report x.nc --out r.html",
+        2,
+        r"x\.nc",
+        r"posterior",
+        files={"x.nc": nc_edit(lambda ds: ds[["yaw_rate"]].assign_attrs(format="theirs/1"))},
+        absent=("r.html", "r_figures"),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-foreign-netcdf",
+        "export-prior x.nc --out prior.json",
+        2,
+        r"x\.nc",
+        r"posterior",
+        files={"x.nc": nc_edit(lambda ds: ds[["yaw_rate"]].assign_attrs(format="theirs/1"))},
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "report-formats-empty",
+        "report post.nc --out r.html --formats ,",
+        2,
+        r"--formats",
+        files=POST,
+        absent=("r.html",),
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-sensor-smoothness-zero",
+        "export-prior post.nc --out prior.json --sensor-smoothness 0",
+        2,
+        r"--sensor-smoothness",
+        r"'0'",
+        files=POST,
+        absent=("prior.json",),
+        timeout=FAST,
+    ),
+    C(
+        "sample-channels-repeated",
+        "sample a.nc --out p.nc --channels yaw,yaw",
+        2,
+        r"channels",
+        r"'yaw', 'yaw'",
+        files=GOOD,
+        absent=("p.nc", "p.chain.h5"),
+        timeout=FAST,
+    ),
+    C(
+        "compare-families-repeated",
+        "compare a.nc --out cmp --families white,white",
+        2,
+        r"families",
+        r"'white', 'white'",
+        files=GOOD,
+        absent=("cmp/*.nc",),
+        timeout=FAST,
+    ),
+    C(
+        "analyse-families-unknown",
+        "analyse a.nc --out out --families white,pink",
+        2,
+        r"--families",
+        r"pink",
+        files=GOOD,
+        absent=("out/*",),
+        timeout=FAST,
+    ),
+]
+
+
 CASES: list[Case] = [
     *_bad_experiment_cases(),
     *_accepted_cases(),
@@ -2026,6 +2796,11 @@ CASES: list[Case] = [
     *PROFILE_CASES,
     *GARBAGE_CASES,
     *SPECIAL_CASES,
+    *FILTER_CASES,
+    *NOISE_CASES,
+    *PROFILE_MORE_CASES,
+    *FILE_CASES,
+    *SHARED_CASES,
 ]
 
 
