@@ -157,8 +157,8 @@ class Progress:
     def _line(self, end: str = "") -> None:
         extra = "".join(f", {key} ~ {value}" for key, value in self.status.items())
         elapsed = time.monotonic() - self.start
-        of = f"{self.total} {self.unit}"
-        if self.expected is not None and self.expected < self.total:
+        of = f"{self.total} {self.unit}"  # the closing line: the count against the cap
+        if not end and self.expected is not None and self.expected < self.total:
             of = f"~{self.expected} {self.unit} (cap {self.total})"
         left = "" if end else self._time_left(elapsed)
         self.stream.write(f"{self.label}: {self.count}/{of}{extra}, {elapsed:.0f} s{left}{end}\n")

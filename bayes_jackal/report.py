@@ -2,8 +2,9 @@
 
 One report covers one or more posteriors, read from files or given in
 memory (:func:`write_report`). This module reads them and assembles the
-page (:func:`render_report`): a title, a banner naming the chains that did
-not converge, the evidence tables, then one section per posterior. The
+page (:func:`render_report`): a title, a summary of the answer and of what
+to distrust, a banner naming the chains that did not converge, the
+evidence tables, then one section per posterior. The
 sections' content is :mod:`bayes_jackal.report_sections`'s; the figures are
 embedded as PNG and written beside the report as PNG and SVG by
 :mod:`bayes_jackal.report_figures`.
@@ -22,7 +23,7 @@ from .errors import InputError, each_input, refuse
 from .outputs import refuse_link, removed_if_empty
 from .posterior import az, load_posterior, posterior_metadata
 from .report_figures import FIGURE_FORMATS, ReportFigures
-from .report_sections import evidence_section, posterior_section
+from .report_sections import evidence_section, posterior_section, summary_section
 
 __all__ = [
     "FIGURE_FORMATS",
@@ -49,6 +50,8 @@ th:first-child, td:first-child { text-align: left; }
 .not-converged { color: #b00020; border: 2px solid #b00020; padding: 0.6em 1em;
   font-weight: bold; font-size: 1.1em; }
 .simulated { background: #eef4fb; padding: 0.5em 1em; }
+.summary { background: #f6f8f6; border-left: 4px solid #2e7d32; padding: 0.2em 1.2em 0.6em; }
+.summary h2 { margin-top: 0.6em; } .not-converged-text { color: #b00020; font-weight: bold; }
 .warnings li { color: #8a4b00; }
 figure { display: inline-block; margin: 0.5em; vertical-align: top; }
 figure img { max-width: 100%; } figcaption { font-size: 0.85em; color: #555; }
@@ -140,6 +143,7 @@ def render_report(
     lags: int = LAGS,
     *,
     sections: Sequence[Section] = (),
+    highlights: Sequence[str] = (),
     say: Callable[[str], None] | None = None,
 ) -> str:
     """The HTML text of a report on loaded posteriors.
@@ -157,6 +161,9 @@ def render_report(
         Further sections after the evidence tables, each called with
         ``figures`` and returning its HTML (``analyse`` adds
         :func:`~bayes_jackal.report_sections.state_estimation_section`).
+    highlights : sequence of str
+        Further lines of the summary at the top, as HTML (``analyse`` adds
+        :func:`~bayes_jackal.report_sections.state_estimation_highlight`).
     say : callable, optional
         Receives a line as each posterior's part begins (its model criticism
         and figures take from seconds to a minute each).
@@ -186,7 +193,7 @@ def render_report(
     >>> "NOT CONVERGED: white.nc" in text
     True
     """
-    body = []
+    body = [summary_section(posteriors, highlights)]
     stale = [p.name for p, i in posteriors if not posterior_metadata(i).convergence.converged]
     if stale:
         body.append(
@@ -355,6 +362,7 @@ def write_report(
     formats: tuple[str, ...] = FIGURE_FORMATS,
     lags: int = LAGS,
     sections: Sequence[Section] = (),
+    highlights: Sequence[str] = (),
     say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors, in files or in memory, and its figures beside it.
@@ -378,6 +386,8 @@ def write_report(
         Lags of the autocorrelation figures.
     sections : sequence of callable
         Further sections after the evidence tables (:func:`render_report`).
+    highlights : sequence of str
+        Further lines of the summary at the top, as HTML (:func:`render_report`).
     say : callable, optional
         Receives a line as each posterior's part begins (:func:`render_report`).
 
@@ -410,7 +420,9 @@ def write_report(
     """
     labelled, failed, count = _labelled(posteriors)
     refuse(failed, count)
-    return save_report(labelled, out, formats, lags, sections=sections, say=say)
+    return save_report(
+        labelled, out, formats, lags, sections=sections, highlights=highlights, say=say
+    )
 
 
 def save_report(
@@ -420,6 +432,7 @@ def save_report(
     lags: int = LAGS,
     *,
     sections: Sequence[Section] = (),
+    highlights: Sequence[str] = (),
     say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors already read (:func:`read_posteriors`).
@@ -448,6 +461,8 @@ def save_report(
         raise InputError("no posterior files given", field="POSTERIOR")
     return write_page(
         out,
-        lambda figures: render_report(posteriors, figures, lags, sections=sections, say=say),
+        lambda figures: render_report(
+            posteriors, figures, lags, sections=sections, highlights=highlights, say=say
+        ),
         formats=formats,
     )

@@ -19,14 +19,17 @@ its prior drives, on runs left out of the prior
 from __future__ import annotations
 
 import html
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import estimate_plots, plots
+from .comparison_result import colour_verdict
+from .criticism import KIND_MEANINGS
 from .physics import CHANNELS, discrete_matrices
-from .posterior import az, posterior_metadata, summarize
+from .posterior import HDI_PROB, az, posterior_metadata, summarize
 from .report_figures import ReportFigures
 from .state_estimation import score_rows
 
@@ -154,6 +157,149 @@ def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:
         "is a secondary check: emcee's walkers are not independent chains.</p>"
     )
     return table + diagnostics
+
+
+def summary_section(
+    posteriors: list[tuple[Path, az.InferenceData]], highlights: Sequence[str] = ()
+) -> str:
+    """The report's opening: the answer, and what to distrust, in thirty seconds.
+
+    Of the reported posterior (:func:`reported_posterior`): the damping with
+    its interval and the ratio beside it, the noise family and width, the
+    verdict on colour from the evidence of the families fitted to the same
+    data, the chain's state, then ``highlights`` (HTML lines of further
+    sections, e.g. :func:`state_estimation_highlight`), and each kind of
+    warning once, with what it means. Simulated data say so, with whether
+    the truth was held.
+    """
+    path, idata = reported_posterior(posteriors)
+    metadata = posterior_metadata(idata)
+    summary = summarize(idata)
+    runs = ", ".join(e.name for e in metadata.experiments)
+    lines = [
+        _damping_summary(summary, metadata.truth),
+        _noise_summary(summary, metadata),
+        _colour_summary(posteriors, idata),
+        f"<b>Chain</b>: {_chain_summary(summary)}; {len(metadata.experiments)} run(s) "
+        f"({html.escape(runs)}), channels {', '.join(summary['channels'])}; "
+        f"<code>{html.escape(path.name)}</code>.",
+        *highlights,
+    ]
+    items = "".join(f"<li>{line}</li>" for line in lines)
+    return (
+        '<section class="summary"><h2>Summary</h2>'
+        + ('<p class="simulated">SIMULATED data with known truth.</p>' if metadata.truth else "")
+        + f"<p>Posterior means, {100 * HDI_PROB:.0f} % HDIs in brackets.</p><ul>{items}</ul>"
+        + f"<p><b>What to distrust</b></p>{_distrust(summary['warnings'])}"
+        + "</section>"
+    )
+
+
+def reported_posterior(
+    posteriors: list[tuple[Path, az.InferenceData]],
+) -> tuple[Path, az.InferenceData]:
+    """The posterior a report's summary reports: of highest evidence on the first's data.
+
+    Among the posteriors fitted to the same runs as the first that carry a
+    log evidence; the first where none does.
+    """
+    first = _runs(posteriors[0][1])
+    rivals = [
+        (path, idata)
+        for path, idata in posteriors
+        if _runs(idata) == first and posterior_metadata(idata).evidence is not None
+    ]
+    if not rivals:
+        return posteriors[0]
+    return max(rivals, key=lambda item: posterior_metadata(item[1]).evidence.log_evidence)
+
+
+def _runs(idata: az.InferenceData) -> tuple[str, ...]:
+    return tuple(e.name for e in posterior_metadata(idata).experiments)
+
+
+def _hdi(row: dict, unit: str = "") -> str:
+    """``mean unit [low, high]`` (the HDI), three significant digits."""
+    return f"{row['mean']:.3g}{unit} [{row['hdi_3%']:.3g}, {row['hdi_97%']:.3g}]"
+
+
+def _damping_summary(summary: dict, truth: dict | None) -> str:
+    ratio = summary["ratio"]
+    text = (
+        f"<b>Damping</b>: d_lat = {_hdi(summary['d_lat'], ' N s/m')}, d_long = "
+        f"{_hdi(summary['d_long'], ' N s/m')}; their ratio d_lat/d_long = {_hdi(ratio)}"
+    )
+    spread = {name: summary[name]["sd"] / summary[name]["mean"] for name in ("d_lat", "ratio")}
+    if spread["ratio"] < 0.5 * spread["d_lat"]:
+        text += (
+            f", known far better than either (correlation "
+            f"{summary['corr_d_lat_d_long']:.3f}: the two move together along a ridge)"
+        )
+    if truth:
+        missed = [
+            name
+            for name in ("d_lat", "d_long")
+            if not summary[name]["hdi_3%"] <= truth[name] <= summary[name]["hdi_97%"]
+        ]
+        held = "both inside their intervals" if not missed else f"{' and '.join(missed)} missed"
+        text += f". Truth: {truth['d_lat']:g} and {truth['d_long']:g} N s/m, {held}"
+    return text + "."
+
+
+def _noise_summary(summary: dict, metadata) -> str:
+    layout = metadata.layout
+    family = html.escape(metadata.family)
+    if layout.width_name is None:
+        return f"<b>Noise</b>: {family} (no correlation time)."
+    widths = ", ".join(
+        f"{html.escape(name)} = {_hdi(summary[name], ' s')}"
+        for name in layout.names_of(layout.width_name)
+    )
+    return f"<b>Noise</b>: {family} family, width {widths}."
+
+
+def _colour_summary(
+    posteriors: list[tuple[Path, az.InferenceData]], idata: az.InferenceData
+) -> str:
+    """The verdict on colour from the families fitted to the reported posterior's runs."""
+    runs = _runs(idata)
+    evidence = {}
+    for _, other in posteriors:
+        metadata = posterior_metadata(other)
+        if metadata.evidence is not None and _runs(other) == runs:
+            evidence[metadata.family] = metadata.evidence
+    return f"<b>Is the noise coloured?</b> {html.escape(colour_verdict(evidence)[1])}."
+
+
+def _chain_summary(summary: dict) -> str:
+    tau = max(summary["autocorr_time"].values())
+    steps = f"{summary['n_steps']} steps ({summary['n_steps'] / tau:.0f} autocorrelation times)"
+    if summary["converged"]:
+        return f"converged, {steps}"
+    return (
+        f'<span class="not-converged-text">NOT CONVERGED after {steps}: every number '
+        "is preliminary</span>"
+    )
+
+
+def _distrust(warnings: list[dict]) -> str:
+    """Each kind of warning once: what it means, its first message, how many."""
+    if not warnings:
+        return (
+            "<p>Nothing flagged: prior bounds, the damping's scale, residual-input "
+            "correlation, the residuals' predicted colour and the runs' steadiness all "
+            "passed their checks (section <i>Model criticism</i> below).</p>"
+        )
+    kinds: dict[str, list[dict]] = {}
+    for warning in warnings:
+        kinds.setdefault(warning["kind"], []).append(warning)
+    items = "".join(
+        f"<li><b>{html.escape(KIND_MEANINGS.get(kind, kind))}</b> ({html.escape(kind)}"
+        f"{f', {len(found)} times' if len(found) > 1 else ''}): "
+        f"{html.escape(found[0]['message'])}</li>"
+        for kind, found in kinds.items()
+    )
+    return f'<ul class="warnings">{items}</ul>'
 
 
 def evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
@@ -374,6 +520,37 @@ def _filter_rows(run: str, record: dict) -> list[list]:
         for name, channel, rmse, nis, band, verdict, state, smoothed
         in score_rows(record["scores"])
     ]  # fmt: skip
+
+
+def state_estimation_highlight(result: LeaveOneOut) -> str | None:
+    """The summary's line on the filters: on the runs left out, how often each is consistent.
+
+    Per filter that predicts, over every run left out and channel: how many
+    have a consistent NIS and how many its prediction error is the lowest
+    of; None where nothing ran.
+    """
+    rows = [
+        (run, *row) for run, record in result.runs.items() for row in score_rows(record["scores"])
+    ]
+    predicted = [row for row in rows if row[6] != "no prediction"]
+    if not predicted:
+        return None
+    lowest: dict[tuple[str, str], tuple[float, str]] = {}
+    for run, name, channel, rmse, *_ in predicted:
+        lowest[run, channel] = min(lowest.get((run, channel), (rmse, name)), (rmse, name))
+    parts = []
+    for name in dict.fromkeys(row[1] for row in predicted):
+        mine = [row for row in predicted if row[1] == name]
+        consistent = sum(row[6] == "consistent" for row in mine)
+        best = sum(winner == name for _, winner in lowest.values())
+        parts.append(
+            f"<b>{html.escape(name)}</b> consistent on {consistent} of {len(mine)}, "
+            f"lowest prediction error on {best}"
+        )
+    return (
+        f"<b>Filters</b> driven by the {html.escape(result.family)} prior on the runs left out "
+        f"(run and channel): {'; '.join(parts)} (section <i>State estimation</i> below)."
+    )
 
 
 def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str:

@@ -58,7 +58,7 @@ from .likelihood import resolve_channels
 from .plots import save_grid_plot
 from .posterior import save_posterior, summarize
 from .report import write_report
-from .report_sections import state_estimation_section
+from .report_sections import state_estimation_highlight, state_estimation_section
 from .robot import RobotProfile, load_profile
 from .tables import load_experiment
 
@@ -498,6 +498,7 @@ def analyse_logs(
         [paths_by_family[family] for family in ranked],
         folder / "report.html",
         sections=[functools.partial(state_estimation_section, left_out)],
+        highlights=[line for line in [state_estimation_highlight(left_out)] if line],
         say=say,
     )
     convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]

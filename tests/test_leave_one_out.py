@@ -90,8 +90,17 @@ def test_each_run_is_filtered_with_the_prior_of_exactly_the_others(analysis):
 
 
 def test_the_report_has_the_section_its_table_and_figure(analysis):
-    _, out, _ = analysis
+    _, out, result = analysis
     report = (out / "report.html").read_text()
+    # The summary at the top says how each filter did (issue 24, item 11), counted here
+    # independently from the scores: a consistent NIS per run and channel.
+    summary = report[report.index('<section class="summary">') :]
+    summary = summary[: summary.index("</section>")]
+    runs = result["state_estimation"]["runs"].values()
+    for name in FILTERS:
+        nis = [record["scores"][name]["nis"]["yaw"] for record in runs]
+        consistent = sum(value["consistent"] for value in nis)
+        assert f"<b>{name}</b> consistent on {consistent} of {len(RUNS)}, lowest" in summary
     section = report[report.index("<h2>State estimation with this prior</h2>") :]
     section = section[: section.index("</section>")]
     assert "normalised innovation squared" in section

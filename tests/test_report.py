@@ -103,6 +103,11 @@ def test_report_embeds_every_figure_and_saves_png_and_svg(posteriors, tmp_path, 
     assert all(b"<svg" in p.read_bytes()[:2000] for p in svgs)
     assert "NOT CONVERGED" not in text
     assert "SIMULATED data with known truth" in text
+    # The summary states the damping with its interval and whether the truth was held.
+    summary = text[text.index('<section class="summary">') : text.index("<section>")]
+    assert re.search(r"d_lat = [\d.]+ N s/m \[[\d.]+, [\d.]+\]", summary)
+    assert "Truth: 110 and 30 N s/m" in summary
+    assert "Is the noise coloured?</b> white noise and a coloured family must both" in summary
     for label in ("d_lat", "sigma_h[yaw]", "sigma_c[vx]", "ratio", "R-hat", "ESS (tau)"):
         assert label in text
     for label in ("<h3>Model criticism</h3>", "max |z| residual-input", "acf[1]", "Q[1..30]"):
@@ -114,6 +119,9 @@ def test_an_unconverged_posterior_says_so_at_the_top_in_red(posteriors, tmp_path
     assert code == 0
     banner = text.index('<div class="not-converged">NOT CONVERGED')
     assert banner < text.index("<section>")
+    # The summary above it says so too, and that its numbers are preliminary.
+    summary = text[text.index('<section class="summary">') : banner]
+    assert "NOT CONVERGED after 160 steps" in summary and "preliminary" in summary
     assert re.search(r"\.not-converged \{ color: #b00020", text)
     assert not list((tmp_path / "report_figures").glob("*.svg"))
 
@@ -136,6 +144,21 @@ def test_an_evidence_table_appears_for_compared_families(posteriors, tmp_path):
     assert "predictive-acf" in {w["kind"] for w in evidence["families"]["white"]["warnings"]}
     for warning in evidence["warnings"]:
         assert html.escape(warning["message"]) in text
+    # The report opens with a summary of the family of highest evidence (issue 24, item 11).
+    summary = text[text.index('<section class="summary">') :]
+    summary = summary[: summary.index("</section>")]
+    assert text.index('<section class="summary">') < text.index("<h2>Evidence</h2>")
+    best = evidence["best"]
+    assert f"<code>{best}.nc</code>" in summary.replace("v2_01.", "")
+    assert html.escape(evidence["verdict_text"]) in summary
+    row = evidence["families"][best]
+    assert "<b>Damping</b>: d_lat = " in summary and "their ratio d_lat/d_long = " in summary
+    shown = [w for w in evidence["warnings"] if w["family"] == best]
+    for kind in {w["kind"] for w in shown}:
+        assert f"({kind}" in summary
+    if not shown:
+        assert "Nothing flagged" in summary
+    assert row["converged"] == ("NOT CONVERGED" not in summary)
 
 
 def test_the_criticism_table_aligns_runs_with_different_statistics():
