@@ -15,19 +15,77 @@ import math
 import os
 import resource
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import DataError, OutputError
+from .errors import DataError, InputError, OutputError
 from .outputs import make_folder, refuse_input
 
+#: What a path that is neither a regular file nor a folder is, by its ``stat`` test.
+_SPECIAL_FILES = (
+    (stat.S_ISFIFO, "a named pipe"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+)
 
-def require_file(path: Path, source: str) -> None:
-    """A DataError naming ``source`` unless ``path`` is a file: "no such file", or a folder."""
-    if not path.is_file():
-        reason = "is a folder, not a file" if path.is_dir() else "no such file"
-        raise DataError(reason, source=source)
+
+def require_file(
+    path: str | Path, source: str, *, folder: bool = False, error: type[InputError] = DataError
+) -> None:
+    """Refuse (a DataError naming ``source``) an input that is not a regular file.
+
+    Every reader of an input calls this before it opens it: a named pipe
+    (FIFO) would block the read until another process writes into it, for
+    ever if none does, and a device or socket is no recording either.
+    Links are followed: a link to a regular file is one.
+
+    Parameters
+    ----------
+    path : str or Path
+        The input, as the reader will open it.
+    source : str
+        Names the input in the error.
+    folder : bool
+        A folder is an input too (a ROS2 bag is one).
+    error : type
+        The InputError subclass raised (a robot profile's is a ProfileError).
+
+    Raises
+    ------
+    DataError (or ``error``)
+        ``no such file``, ``is a folder, not a file``, ``not a regular file
+        (a named pipe)`` (or a socket, a device), or why it cannot be
+        examined (a loop of links, no permission).
+
+    Examples
+    --------
+    >>> import os
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal._files import require_file
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     os.mkfifo(Path(folder) / "x.csv")
+    ...     try:
+    ...         require_file(Path(folder) / "x.csv", "x.csv")
+    ...     except ValueError as error:
+    ...         print(error)
+    x.csv: not a regular file (a named pipe)
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        raise error("no such file", source=source) from None
+    except OSError as failure:
+        raise error(f"cannot read: {failure.strerror}", source=source) from None
+    if stat.S_ISREG(mode) or (folder and stat.S_ISDIR(mode)):
+        return
+    if stat.S_ISDIR(mode):
+        raise error("is a folder, not a file", source=source)
+    kind = next((what for test, what in _SPECIAL_FILES if test(mode)), "of an unknown kind")
+    raise error(f"not a regular file ({kind})", source=source)
 
 
 def _umask() -> int:

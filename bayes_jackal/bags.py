@@ -64,7 +64,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.highlevel import AnyReader
 
-from ._files import file_sha256
+from ._files import file_sha256, require_file
 from .bag_reading import READ_ERRORS, bag_format, header_stamp, open_bag, receive_time_for_zero
 from .defaults import MAX_GAP
 from .errors import DataError, InputError
@@ -175,8 +175,7 @@ def read_bag(
     """
     path = Path(path)
     source = str(path)
-    if not path.exists():
-        raise DataError("no such file", source=source)
+    require_file(path, source, folder=True)
     if not (np.isfinite(max_gap) and max_gap > 0):
         raise InputError(f"must be positive, got {max_gap!r} s", field="max_gap")
     digest = file_sha256(path)

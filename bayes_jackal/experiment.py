@@ -33,7 +33,7 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import uniform_filter1d
 
-from ._files import write_hdf5
+from ._files import require_file, write_hdf5
 from .defaults import OPTIONAL, REQUIRED
 from .errors import DataError
 from .physics import CHANNELS
@@ -622,13 +622,12 @@ def read_netcdf(path: str | Path) -> Experiment:
     """
     path = Path(path)
     source = str(path)
+    require_file(path, source)
     try:
         # phony_dims: an HDF5 variable without dimension scales (a file from h5py)
         # is read, and refused as not 1-D by name, without h5netcdf's warning.
         with xr.open_dataset(path, engine="h5netcdf", phony_dims="access") as dataset:
             dataset = dataset.load()
-    except FileNotFoundError:
-        raise DataError("no such file", source=source) from None
     except (OSError, ValueError) as exc:
         raise DataError(f"not a readable NetCDF file ({exc})", source=source) from None
     if dataset.attrs.get("format") != FORMAT:

@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._files import write_json
+from ._files import require_file, write_json
 from .defaults import AUTO_ORDER
 from .errors import DataError, InputError
 from .export_consumers import (
@@ -84,11 +84,11 @@ from .posterior import (
     summarize,
     thinned_indices,
 )
+from .prior_fields import PRIOR_FORMAT, check_prior_fields
 
 __all__ = [
     "AUTO_ORDER",
     "MAX_CONDITION",
-    "PRIOR_FORMAT",
     "SENSOR_SMOOTHNESS",
     "allowed_orders",
     "autocorrelation_derivatives",
@@ -100,7 +100,6 @@ __all__ = [
     "write_prior",
 ]
 
-PRIOR_FORMAT = "bayes_jackal.prior/1"
 #: Largest condition number of an exported precision Pi, in each time unit
 #: the file holds it in: seconds and time bins. Inverting V or solving
 #: with Pi by Cholesky or LU loses about log10 of the condition number of
@@ -592,8 +591,11 @@ def read_prior(path: str | Path) -> dict:
     Raises
     ------
     DataError
-        For a file that is missing, not JSON, or not an exported prior (its
-        ``format``), naming the file.
+        For a file that is missing or not a regular file, not JSON, not an
+        exported prior (its ``format``), or a field the filters read that
+        is missing or of the wrong type
+        (:func:`bayes_jackal.prior_fields.check_prior_fields`), naming the
+        file and the field.
 
     Examples
     --------
@@ -610,17 +612,12 @@ def read_prior(path: str | Path) -> dict:
     not a prior this version reads: 'bayes_jackal.posterior/1' (expected bayes_jackal.prior/1)
     """
     source = str(path)
+    require_file(path, source)
     try:
         prior = json.loads(Path(path).read_text())
     except OSError as error:
         raise DataError(f"cannot read: {error.strerror}", source=source) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise DataError(f"not JSON: {error}", source=source) from None
-    form = prior.get("format") if isinstance(prior, dict) else None
-    if form != PRIOR_FORMAT:
-        raise DataError(
-            f"not a prior this version reads: {form!r} (expected {PRIOR_FORMAT})",
-            source=source,
-            field="format",
-        )
+    check_prior_fields(prior, source=source)
     return prior

@@ -70,12 +70,12 @@ import scipy.linalg
 from .defaults import FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
 from .errors import InputError
 from .experiment import Experiment
-from .export import PRIOR_FORMAT
-from .kernels import FAMILIES, Family, get_family
-from .parameters import DAMPING, ParameterLayout
+from .kernels import Family, get_family
+from .parameters import DAMPING
 from .physics import CHANNELS, step_integrals
 from .pose_increments import body_displacement, tick_poses
 from .posterior_format import ROBOT_CONSTANTS
+from .prior_fields import check_prior_fields, prior_field, prior_layout
 from .robot import RobotProfile, load_profile
 
 __all__ = [
@@ -89,7 +89,6 @@ __all__ = [
     "measured_series",
     "noise_parameters",
     "parameter_values",
-    "prior_field",
     "prior_robot",
 ]
 
@@ -103,8 +102,6 @@ PARAMETERS = FILTER_PARAMETERS
 #: Largest relative difference between an experiment's sample time and the
 #: prior's: the discrete pole is exp(a dt), so 1 % in dt moves ln(alpha) by 1 %.
 RATE_TOLERANCE = 0.01
-#: The model matrices a prior holds and their shapes: (states, states) and (states, inputs).
-_MODEL_SHAPES = {"model.A": (3, 3), "model.B": (3, 2), "model.Ad": (3, 3), "model.Bd": (3, 2)}
 
 
 @dataclass(frozen=True)
@@ -331,55 +328,6 @@ def _realisation(realise, width: np.ndarray, dt: float) -> tuple:
     return T[0], np.broadcast_to(g, (len(width), m)), c[0], np.broadcast_to(d, width.shape)
 
 
-def prior_field(prior: Mapping, path: str):
-    """``prior[a][b]..`` for ``path`` = "a.b..", or an InputError naming the missing field.
-
-    Parameters
-    ----------
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.export.export_prior`).
-    path : str
-        Keys joined by dots, e.g. ``"model.Ad"``.
-
-    Examples
-    --------
-    >>> from bayes_jackal.filter_models import prior_field
-    >>> prior_field({"model": {"dt": 0.01}}, "model.dt")
-    0.01
-    >>> prior_field({"model": {}}, "model.Ad")
-    Traceback (most recent call last):
-    ...
-    bayes_jackal.errors.InputError: model.Ad: the prior has no field 'model.Ad'
-    """
-    value = prior
-    for key in path.split("."):
-        if not isinstance(value, Mapping) or key not in value:
-            raise InputError(f"the prior has no field {path!r}", field=path)
-        value = value[key]
-    return value
-
-
-def _layout(prior: Mapping) -> ParameterLayout:
-    """The prior's parameter layout: shared noise, one group per channel (and one width)."""
-    noise = prior_field(prior, "noise")
-    family = prior_field(prior, "noise.family")
-    if family not in FAMILIES:
-        raise InputError(
-            f"unknown noise family {family!r}; use one of {list(FAMILIES)}", field="noise.family"
-        )
-    channels = tuple(prior_field(prior, "noise.channels"))
-    shared_width = bool(noise.get("shared_width", False))  # absent before one-width
-    poses = tuple(noise.get("pose_channels", ()))  # absent before poses were modelled
-    if not set(poses) <= set(channels):
-        raise InputError(
-            f"pose channels {list(poses)} are not among the channels {list(channels)}",
-            field="noise.pose_channels",
-        )
-    return ParameterLayout(
-        family, noise.get("sensor", SENSOR), channels, ("prior",), True, shared_width, poses
-    )
-
-
 def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str, ...]:
     """The channels asked for (None: all the prior's), each one the prior has."""
     known = list(prior_field(prior, "noise.channels"))
@@ -418,11 +366,13 @@ def check_prior(
     Raises
     ------
     InputError
-        For a prior of another format, robot or sample time (beyond
-        :data:`RATE_TOLERANCE`), channels it lacks, or a number the filters
-        cannot trust (a parameter that is not finite and positive, a model
-        matrix of the wrong shape, not finite or unstable), naming the field
-        and value.
+        For a prior of another format, a field the filters read missing or
+        of the wrong type, a number they cannot trust (a parameter that is
+        not finite and positive, a model matrix of the wrong shape, not
+        finite or unstable: :func:`bayes_jackal.prior_fields.check_prior_fields`),
+        or a prior of another robot or sample time (beyond
+        :data:`RATE_TOLERANCE`) or without a channel asked for, naming the
+        field and value.
     DataError
         When the experiment does not measure a channel.
 
@@ -432,7 +382,9 @@ def check_prior(
     >>> from bayes_jackal.filter_models import check_prior
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> prior = {"format": "bayes_jackal.prior/1", "dt": 1 / 36, "robot": {"name": "jackal"},
-    ...          "noise": {"channels": ["yaw"]}}
+    ...          "damping": {"mean": [110.0, 30.0]}, "model": {},
+    ...          "noise": {"family": "white", "channels": ["yaw"],
+    ...                    "parameters": {"sigma_c": {"mean": 0.01}, "sigma_n": {"mean": 0.005}}}}
     >>> try:
     ...     check_prior(prior, run)
     ... except ValueError as error:
@@ -440,12 +392,7 @@ def check_prior(
     dt: the prior is for 36 Hz (dt = 0.02778 s), the experiment is sampled at 72 Hz
     (dt = 0.01389 s)
     """
-    form = prior_field(prior, "format")
-    if form != PRIOR_FORMAT:
-        raise InputError(
-            f"not a prior this version reads: format {form!r} (expected {PRIOR_FORMAT})",
-            field="format",
-        )
+    check_prior_fields(prior)
     constants = prior_field(prior, "robot")
     name = experiment.provenance.get("robot")
     if name is not None and name != constants.get("name"):
@@ -470,7 +417,7 @@ def check_prior(
             field="dt",
         )
     channels = _prior_channels(prior, channels)
-    poses = _layout(prior).pose_channels
+    poses = prior_layout(prior).pose_channels
     for channel in channels:
         recorded = experiment.measurement(channel)  # a DataError when it is not measured
         modelled = "pose" if channel in poses else "rate"
@@ -480,78 +427,7 @@ def check_prior(
                 f"({experiment.source}) records it as {_RECORDED[recorded]}",
                 field="noise.pose_channels",
             )
-    _check_numbers(prior)
     return channels
-
-
-def _check_numbers(prior: Mapping) -> None:
-    """Every number the filters take from a prior: finite, positive where a scale, shaped.
-
-    The damping and noise parameters (their means, and their draws when the
-    prior has them) must be finite and > 0 (:func:`_check_scales`); the
-    model's matrices finite, of the model's shapes and diagonal, with stable
-    poles (:func:`_check_matrices`). A refusal names the field and the value.
-    """
-    _check_scales(prior)
-    _check_matrices(prior)
-
-
-def _check_scales(prior: Mapping) -> None:
-    """The damping and noise parameters' means and draws: finite and > 0."""
-    names = _layout(prior).names
-    scales = {"damping.mean": prior_field(prior, "damping.mean")}
-    for name in names[len(DAMPING) :]:
-        path = f"noise.parameters.{name}.mean"
-        scales[path] = prior_field(prior, path)
-    draws = prior.get("draws")
-    if isinstance(draws, Mapping):
-        scales.update({f"draws.{name}": draws[name] for name in names if name in draws})
-    for path, value in scales.items():
-        values = np.atleast_1d(_numbers(path, value))
-        bad = values[~(np.isfinite(values) & (values > 0))]
-        if bad.size:
-            raise InputError(f"{bad[0]!r} is not a positive finite number", field=path)
-    if len(scales["damping.mean"]) != len(DAMPING):
-        raise InputError(f"expected {list(DAMPING)}, got {scales['damping.mean']!r}",
-                         field="damping.mean")  # fmt: skip
-
-
-def _check_matrices(prior: Mapping) -> None:
-    """The model's matrices a prior holds (the Kalman filters take Ad, Bd; the generalised A, B).
-
-    Finite, of :data:`_MODEL_SHAPES`, and A, Ad diagonal (eq. 4-32, 6-6)
-    with continuous poles < 0 and discrete ones in (0, 1).
-    """
-    model = prior_field(prior, "model")
-    given = model if isinstance(model, Mapping) else {}
-    matrices = {path: _numbers(path, given[path.removeprefix("model.")])
-                for path in _MODEL_SHAPES if path.removeprefix("model.") in given}  # fmt: skip
-    for path, values in matrices.items():
-        if values.shape != _MODEL_SHAPES[path] or not np.all(np.isfinite(values)):
-            raise InputError(
-                f"expected a finite {' x '.join(map(str, _MODEL_SHAPES[path]))} matrix, got "
-                f"shape {values.shape} with {int(np.sum(~np.isfinite(values)))} non-finite",
-                field=path,
-            )
-    for path, low, high in (("model.A", -np.inf, 0.0), ("model.Ad", 0.0, 1.0)):
-        if path not in matrices:
-            continue
-        values = matrices[path]
-        poles = np.diag(values)
-        if np.any(values != np.diag(poles)) or not np.all((poles > low) & (poles < high)):
-            raise InputError(
-                f"expected a diagonal matrix with poles in ({low:g}, {high:g}) (eq. 4-32, "
-                f"6-6), got {values.tolist()}",
-                field=path,
-            )
-
-
-def _numbers(path: str, value) -> np.ndarray:
-    """``value`` as an array of floats, or an InputError naming ``path``."""
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"expected numbers, got {value!r:.80}", field=path) from None
 
 
 #: How a prior or an experiment has a channel recorded, in words.
@@ -652,7 +528,7 @@ def filter_models(
         raise InputError(
             f"unknown noise model {noise!r}; use one of {NOISE_MODELS}", field="noise"
         )
-    layout = _layout(prior)
+    layout = prior_layout(prior)
     Ad, Bd = np.asarray(prior_field(prior, "model.Ad")), np.asarray(prior_field(prior, "model.Bd"))
     dt = float(prior_field(prior, "dt"))
     family = layout.family if noise == "coloured" else "white"
@@ -707,7 +583,7 @@ def parameter_values(prior: Mapping, *, parameters: str = "plug-in") -> np.ndarr
         raise InputError(
             f"unknown parameters {parameters!r}; use one of {PARAMETERS}", field="parameters"
         )
-    names = _layout(prior).names
+    names = prior_layout(prior).names
     if parameters == "plug-in":
         means = [prior_field(prior, f"noise.parameters.{n}.mean") for n in names[len(DAMPING) :]]
         return np.array([[*prior_field(prior, "damping.mean")[: len(DAMPING)], *means]], float)
@@ -759,7 +635,7 @@ def noise_parameters(
     [0.04, 0.06]
     """
     theta = parameter_values(prior, parameters=parameters)
-    layout = _layout(prior)
+    layout = prior_layout(prior)
     (channel,) = _prior_channels(prior, [channel])
     return layout.noise_parameters(theta, layout.channels.index(channel))
 

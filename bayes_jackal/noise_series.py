@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import file_sha256
+from ._files import file_sha256, require_file
 from ._matlab import mat_arrays, mat_vector
 from .bag_reading import BAG_SUFFIXES, bag_format, header_stamp, open_bag, receive_time_for_zero
 from .errors import DataError, InputError
@@ -194,8 +194,7 @@ def read_noise_series(
     """
     path = Path(path)
     source = str(path)
-    if not path.exists():
-        raise DataError("no such file", source=source)
+    require_file(path, source, folder=True)
     bag = _is_bag(path, source)
     _check_options(bag, column=column, time_column=time_column, topic=topic, field=field)
     if bag:

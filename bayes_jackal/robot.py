@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from ._files import require_file
 from .defaults import CONVERSIONS
 from .errors import ProfileError
 
@@ -217,6 +218,7 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     """
     path = Path(path) if path is not None else default_profile_path()
     source = str(path)
+    require_file(path, source, error=ProfileError)
     try:
         with open(path, "rb") as stream:
             doc = tomllib.load(stream)

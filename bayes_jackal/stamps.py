@@ -32,6 +32,7 @@ __all__ = [
     "MAX_GAP_STEPS",
     "MAX_JITTER_FRACTION",
     "MAX_JITTER_STEPS",
+    "MAX_TICKS",
     "MIN_SAMPLES",
     "ONE_PER_TICK",
     "UNIFORM",
@@ -57,6 +58,10 @@ MAX_JITTER_FRACTION = 0.01
 MAX_DRIFT_STEPS = 0.5
 #: Float floor of the stamps' scatter [steps] when rounding rate and origin.
 FLOAT_FLOOR = 1e-9
+#: Most steps a stamp may lie from the run's median stamp: a double holds
+#: whole numbers exactly up to 2^53, so beyond it no clock tells a tick from
+#: its neighbours (and the clock's sums overflow near 1e308 s).
+MAX_TICKS = 2.0**53
 #: Names of the clocks in the provenance (``time_base["clock"]``).
 ONE_PER_TICK, GRID, UNIFORM = "one sample per tick", "grid", "uniform"
 
@@ -222,8 +227,8 @@ def sort_stamps(
     if jumps.size:
         i = int(jumps[0]) + 1
         raise DataError(
-            f"timestamps go backwards by {-steps[i - 1] * unit:.3f} s at {where(i)} (more than "
-            f"max_gap {max_backstep * unit:g} s: a clock jump)",
+            f"timestamps go backwards by {_seconds(-steps[i - 1] * unit)} s at {where(i)} (more "
+            f"than max_gap {max_backstep * unit:g} s: a clock jump)",
             source=source,
             field=field,
         )
@@ -242,6 +247,34 @@ def sort_stamps(
         )
         order = np.delete(order, repeated)
     return order, repairs
+
+
+def _seconds(value: float) -> str:
+    """A duration [s] in messages: to the millisecond, in 4 significant digits when huge."""
+    return f"{value:.3f}" if abs(value) < 1e6 else f"{value:.4g}"
+
+
+def _check_span(
+    t: np.ndarray, step: float, source: str, row_name: Callable[[int], str], field: str
+) -> None:
+    """Refuse the first stamp more than :data:`MAX_TICKS` steps from the median stamp.
+
+    Such a stamp (a corrupt one, 1e308 s) is a clock jump no clock can
+    hold: fitting one through it would overflow.
+    """
+    centre, limit = float(np.median(t)), MAX_TICKS * step
+    with np.errstate(over="ignore"):
+        distance = np.abs(t - centre)
+    far = np.flatnonzero(~(distance <= limit))
+    if far.size:
+        i = int(far[0])
+        raise DataError(
+            f"a clock jump at {row_name(i)}: {field} = {t[i]:.4g} s, {distance[i]:.4g} s from "
+            f"the median stamp {centre:.6g} s, beyond the {limit:.4g} s (2^53 steps of "
+            f"{step:.4g} s) a clock resolves",
+            source=source,
+            field=field,
+        )
 
 
 def longest_run(mask: np.ndarray) -> tuple[int, int]:
@@ -321,13 +354,6 @@ def uniform_clock(
     declared = positive_number(rate, name="rate", unit="Hz")
     declared = None if declared is None else 1.0 / declared
     max_gap = positive_number(max_gap, name="max_gap", unit="s")
-    steps = np.diff(t)
-    increasing = bool((steps > 0).all())
-    one, one_fits = _one_per_tick(t, declared)
-
-    def jittered() -> UniformClock:
-        return _clock(t, np.arange(len(t)), np.arange(len(t)), one, [], field, ONE_PER_TICK)
-
     distinct = np.unique(t)
     if len(distinct) < MIN_SAMPLES:
         raise DataError(
@@ -336,6 +362,14 @@ def uniform_clock(
             field=field,
         )
     nominal = declared or float(np.median(np.diff(distinct)))
+    _check_span(t, nominal, source, row_name, field)
+    steps = np.diff(t)
+    increasing = bool((steps > 0).all())
+    one, one_fits = _one_per_tick(t, declared)
+
+    def jittered() -> UniformClock:
+        return _clock(t, np.arange(len(t)), np.arange(len(t)), one, [], field, ONE_PER_TICK)
+
     max_gap = max_gap if max_gap is not None else MAX_GAP_STEPS * nominal
     try:
         order, repairs = sort_stamps(

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import atomic_path
+from ._files import atomic_path, require_file
 from ._matlab import mat_arrays, mat_vector
 from .defaults import POSE_ROLES, ROLES, VELOCITIES
 from .errors import DataError, InputError
@@ -404,6 +404,7 @@ def read_csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]
     >>> header, rows
     (['t', 'gyro'], [['0', '0.5'], ['0.01', 'x']])
     """
+    require_file(path, source)
     try:  # utf-8-sig: a byte-order mark (Excel's "CSV UTF-8") is not part of the header
         with open(path, newline="", encoding="utf-8-sig") as stream:
             rows = list(csv.reader(stream))
@@ -414,6 +415,13 @@ def read_csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]
     if not rows:
         raise DataError("file is empty", source=source)
     header = [cell.strip() for cell in rows[0]]
+    if all(_is_number(name) for name in header if name) and any(header):
+        shown = ", ".join(header[:4]) + (", ..." if len(header) > 4 else "")
+        raise DataError(
+            f"line 1 holds numbers ({shown}), not column names: the header row is missing; "
+            "add a first line naming the columns",
+            source=source,
+        )
     repeated = [name for i, name in enumerate(header) if name and name in header[:i]]
     if repeated:
         raise DataError(
@@ -456,14 +464,21 @@ def numeric_column(rows: list[list[str]], index: int, key: str, source: str) -> 
     try:
         return np.array(cells, dtype=float)
     except ValueError:
-        for line, cell in enumerate(cells, start=2):
-            try:
-                float(cell)
-            except ValueError:
-                raise DataError(
-                    f"non-numeric value {cell!r} at line {line}", source=source, field=key
-                ) from None
-        raise
+        bad = next(((n, c) for n, c in enumerate(cells, start=2) if not _is_number(c)), None)
+        if bad is None:
+            raise
+        raise DataError(
+            f"non-numeric value {bad[1]!r} at line {bad[0]}", source=source, field=key
+        ) from None
+
+
+def _is_number(cell: str) -> bool:
+    """Whether a CSV cell reads as a number, as :func:`numeric_column` reads it."""
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def write_csv(experiment: Experiment, path: str | Path) -> Path:

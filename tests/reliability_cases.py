@@ -146,6 +146,24 @@ def nc_string_variable(variable: str) -> Builder:
     )
 
 
+def h5_two_columns(variable: str) -> Builder:
+    """The experiment's columns written by h5py (no dimension scales), ``variable`` twice over."""
+
+    def build(lib: Library, path: Path) -> None:
+        import h5py
+        import xarray as xr
+
+        with xr.open_dataset(lib.nc, engine="h5netcdf") as source:
+            dataset = source.load()
+        with h5py.File(path, "w") as written:
+            written.attrs["format"] = dataset.attrs["format"]
+            for name in ("time", "yaw_rate", "omega_r", "omega_l"):
+                values = dataset[name].values
+                written[name] = np.column_stack([values, values]) if name == variable else values
+
+    return build
+
+
 def nc_drop(variable: str) -> Builder:
     return nc_edit(lambda ds: ds.drop_vars(variable))
 
@@ -468,6 +486,13 @@ BAD_EXPERIMENTS = [
         (r"x\.nc", "provenance"),
     ),
     ("nc-string-variable", "x.nc", nc_string_variable("yaw_rate"), (r"x\.nc", "yaw_rate")),
+    # Issue 24, item 8: h5netcdf's phony_dims warning led the message.
+    (
+        "nc-2d-variable-from-h5py",
+        "x.nc",
+        h5_two_columns("yaw_rate"),
+        (r"x\.nc: yaw_rate: shape \(\d+, 2\): a column must be 1-D", r"\A(?![\s\S]*phony)"),
+    ),
     ("mat-empty", "e.mat", EMPTY, (r"e\.mat",)),
     # Issue 24, item 8: text or cells were reported as a missing column.
     (
@@ -1396,6 +1421,26 @@ REPORT_CASES = [
 
 # Item 9: several inputs, one bad: the good ones are written, exit 2. Pooled: named first.
 ONE_BAD_CASES = [
+    # Issue 24, item 12: a failed analyse left its empty output folder behind.
+    C(
+        "analyse-every-input-bad-leaves-no-folder",
+        f"analyse nothere.bag e.csv --out deep/out {ANALYSE}",
+        2,
+        r"nothere\.bag: no such file",
+        r"none of the 2 inputs could be used",
+        files={"e.csv": EMPTY},
+        absent=("deep", "deep/out"),
+        timeout=FAST,
+    ),
+    C(
+        "compare-every-input-bad-leaves-no-folder",
+        f"compare e.csv --out cmp {COMPARE}",
+        2,
+        r"e\.csv",
+        files={"e.csv": EMPTY},
+        absent=("cmp",),
+        timeout=FAST,
+    ),
     C(
         "sample-one-empty-of-two",
         f"sample a.nc e.csv --out p.nc {SAMPLE}",
@@ -2198,6 +2243,83 @@ FILTER_CASES = [
         absent=("est.csv",),
         timeout=FAST,
     ),
+    # Fields edited to the wrong type: each named with the file and its value, never a
+    # ValueError, TypeError, ZeroDivisionError or AttributeError of the filters.
+    *(
+        C(
+            f"filter-prior-{case_id}",
+            "filter a.nc --prior bad.json --out est.csv",
+            2,
+            r"bad\.json",
+            *words,
+            files=_bad_prior(edit),
+            absent=("est.csv",),
+            timeout=FAST,
+        )
+        for case_id, edit, words in [
+            (
+                "dt-text",
+                lambda p: p.update(dt="fast"),
+                (r"\bdt: expected a positive number", "'fast'"),
+            ),
+            (
+                "dt-null",
+                lambda p: p.update(dt=None),
+                (r"\bdt: expected a positive number", "None"),
+            ),
+            (
+                "dt-zero",
+                lambda p: p.update(dt=0),
+                (r"\bdt: expected a positive number", r"got 0\b"),
+            ),
+            (
+                "robot-is-list",
+                lambda p: p.update(robot=[]),
+                (r"\brobot: expected an object", r"\[\]"),
+            ),
+            (
+                "robot-mass-text",
+                lambda p: p["robot"].update(mass="heavy"),
+                (r"robot\.mass: expected a positive number", "'heavy'"),
+            ),
+            # Item 2: a string was iterated letter by letter; an empty list wrote only t.
+            (
+                "channels-is-text",
+                lambda p: p["noise"].update(channels="yaw"),
+                (r"noise\.channels: expected a non-empty list of channel names", "'yaw'"),
+            ),
+            (
+                "channels-empty",
+                lambda p: p["noise"].update(channels=[]),
+                (r"noise\.channels: expected a non-empty list of channel names", r"\[\]"),
+            ),
+            (
+                "order-text",
+                lambda p: p["generalised_coordinates"].update(order="two"),
+                (r"generalised_coordinates\.order", "whole number", "'two'"),
+            ),
+            (
+                "smoothness-text",
+                lambda p: p["sensor_noise"].update(smoothness_seconds="x"),
+                (r"sensor_noise\.smoothness_seconds", "positive number", "'x'"),
+            ),
+            (
+                "draws-of-two-lengths",
+                lambda p: p["draws"].update(d_lat=p["draws"]["d_lat"][:5]),
+                (r"\bdraws: ", r"'d_lat': 5\b"),
+            ),
+        ]
+    ),
+    # Item 4: a named pipe as the prior blocked the read for ever.
+    C(
+        "filter-prior-is-fifo",
+        "filter a.nc --prior pr.json --out est.csv",
+        2,
+        r"pr\.json: not a regular file \(a named pipe\)",
+        files={**GOOD, "pr.json": fifo()},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
     # Outputs: never an input (the data or the prior), a .csv, a file not a folder.
     C(
         "filter-out-is-input-csv",
@@ -2328,6 +2450,24 @@ NOISE_CASES = [
         r"backwards",
         r"line \d+",
         files={"x.csv": series(lambda t, x: (np.where(t > 4.0, t - 1.0, t), x))},
+        timeout=FAST,
+    ),
+    # Item 3: one stamp of 1e308 (here the last) overflowed the clock's fit: exit 1.
+    C(
+        "noise-stamp-1e308",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv: t: a clock jump at line \d+",
+        r"t = 1e\+308 s",
+        files={"x.csv": series(lambda t, x: (np.append(t[:-1], 1e308), x))},
+        timeout=FAST,
+    ),
+    C(
+        "noise-series-is-fifo",
+        f"noise x.csv --column gyro {NOISE}",
+        2,
+        r"x\.csv: not a regular file \(a named pipe\)",
+        files={"x.csv": fifo()},
         timeout=FAST,
     ),
     C(
@@ -2581,6 +2721,59 @@ FILE_CASES = [
         r"bad(\n|\\n|\?)name\.csv",
         r"empty",
         files={NEWLINE: EMPTY},
+        timeout=FAST,
+    ),
+    # Item 4: a named pipe as an input blocked the read for ever; a FIFO is no recording.
+    *(
+        C(
+            f"{argv.split()[0]}-input-is-fifo-{name.split('.')[-1]}",
+            argv.format(name),
+            2,
+            rf"{re.escape(name)}: not a regular file \(a named pipe\)",
+            files={**GOOD, name: fifo()},
+            timeout=FAST,
+        )
+        for argv, name in [
+            ("residuals {}", "x.csv"),
+            ("residuals {}", "x.mat"),
+            ("residuals {}", "x.nc"),
+            (f"sample {{}} --out p.nc {SAMPLE}", "x.mcap"),
+            ("ingest {} --out exps", "x.bag"),
+            ("residuals a.nc --robot {}", "r.toml"),
+            ("report {} --out r.html", "post.nc"),
+        ]
+    ),
+    # Item 5: a CSV without its header row was "column '0' appears 3 times".
+    C(
+        "residuals-csv-no-header",
+        "residuals x.csv",
+        2,
+        r"x\.csv: line 1 holds numbers",
+        r"header row is missing",
+        files={"x.csv": csv_text(lambda t: t.split("\n", 1)[1])},
+        timeout=FAST,
+    ),
+    # Item 3: one stamp of 1e308 overflowed the clock's fit (exit 1) in every reader.
+    *(
+        C(
+            f"{command}-csv-last-stamp-1e308",
+            f"{command} x.csv{options}",
+            2,
+            r"x\.csv: t: a clock jump at line \d+",
+            r"t = 1e\+308 s",
+            files={"x.csv": csv_cell("t", 1e308, row=-1)},
+            timeout=FAST,
+        )
+        for command, options in [("residuals", ""), ("grid", f" {GRID}")]
+    ),
+    # ... and one of 1e200 was said in 201 digits.
+    C(
+        "residuals-csv-stamp-1e200-compact",
+        "residuals x.csv",
+        2,
+        r"x\.csv: t: a clock jump at line 102",
+        r"t = 1e\+200 s",
+        files={"x.csv": csv_cell("t", 1e200)},
         timeout=FAST,
     ),
     C(

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import json
+import re
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from bayes_jackal.errors import DataError, InputError
 from bayes_jackal.export import export_prior
 from bayes_jackal.filter_models import channel_model, check_prior, filter_models
 from bayes_jackal.kernels import FAMILIES
+from bayes_jackal.prior_fields import check_prior_fields
 from bayes_jackal.simulate import simulate_experiment
 
 ROBOT = load_profile()
@@ -156,6 +159,65 @@ def test_bad_priors_are_refused_naming_the_field_and_value(run):
     yaw_only = dataclasses.replace(run, vx=None, vy=None)
     with pytest.raises(DataError, match="'vx' is not in this experiment"):
         check_prior(prior, yaw_only)
+
+
+def _edited(prior: dict, path: str, value) -> dict:
+    """A deep copy of ``prior`` with the field at ``path`` ("a.b") set to ``value``."""
+    copy = json.loads(json.dumps(prior))
+    *parents, last = path.split(".")
+    node = copy
+    for key in parents:
+        node = node[key]
+    node[last] = value
+    return copy
+
+
+#: Fields of the wrong type the filters read: (path, value, words of the error).
+WRONG_TYPES = [
+    ("dt", "fast", "expected a positive number of seconds, got 'fast'"),
+    ("dt", None, "expected a positive number of seconds, got None"),
+    ("dt", 0, "expected a positive number of seconds, got 0"),
+    ("dt", True, "expected a positive number of seconds, got True"),
+    ("robot", [], "expected an object of named fields, got []"),
+    ("robot.mass", "heavy", "expected a positive number, got 'heavy'"),
+    ("robot.name", 7, "expected text, got 7"),
+    (
+        "noise.channels",
+        "yaw",
+        "expected a non-empty list of channel names (vx, vy, yaw), got 'yaw'",
+    ),
+    ("noise.channels", [], "expected a non-empty list of channel names (vx, vy, yaw), got []"),
+    ("noise.channels", ["yaw", "yaw"], "a channel is listed twice"),
+    ("noise.channels", ["roll"], "unknown channel 'roll'"),
+    ("noise.family", ["white"], "unknown noise family ['white']"),
+    ("noise.sensor", 1, "unknown sensor model 1"),
+    ("noise.shared_width", "no", "expected true or false, got 'no'"),
+    ("noise.pose_channels", None, "expected a list of channel names"),
+    ("noise.parameters.sigma_c", 3, "expected an object with the mean, got 3"),
+    ("damping.mean", [110.0], "expected ['d_lat', 'd_long'], got [110.0]"),
+    ("damping.mean", ["a", "b"], "expected numbers"),
+    ("model", 5, "expected an object of named fields, got 5"),
+    ("draws", {"sigma_c": [0.01, 0.02], "sigma_n": [0.005]}, "different numbers of draws"),
+    ("draws", {"sigma_c": "x"}, "expected numbers"),
+    ("generalised_coordinates", {"order": "two"}, "expected a whole number >= 0, got 'two'"),
+    ("generalised_coordinates", {"order": 1.5}, "expected a whole number >= 0, got 1.5"),
+    ("sensor_noise", {"smoothness_seconds": "x"}, "expected a positive number of seconds"),
+]
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "words"), WRONG_TYPES, ids=[f"{p}={v!r}" for p, v, _ in WRONG_TYPES]
+)
+def test_a_field_of_the_wrong_type_is_refused_by_name(run, path, value, words):
+    """Issue 24: "dt": "fast" was a ValueError, null a TypeError, 0 a ZeroDivisionError."""
+    prior = _edited(truth_prior(("yaw",), family="white"), path, value)
+    for call in (lambda: check_prior(prior, run), lambda: check_prior_fields(prior)):
+        with pytest.raises(InputError) as error:
+            call()
+        assert words in str(error.value)
+        assert error.value.field.startswith(path)
+    with pytest.raises(DataError, match=rf"^bad\.json: {re.escape(error.value.field)}: "):
+        check_prior_fields(prior, source="bad.json")
 
 
 def test_a_prior_within_one_percent_of_the_rate_is_accepted(run):

@@ -174,12 +174,14 @@ def test_table_given_as_a_plain_value_is_a_profile_error(tmp_path, table, value)
 
 def test_missing_profile_file(tmp_path):
     path = tmp_path / "nowhere.toml"
-    with pytest.raises(ProfileError, match=rf"^{re.escape(str(path))}: cannot read profile"):
+    with pytest.raises(ProfileError, match=rf"^{re.escape(str(path))}: no such file$"):
         load_profile(path)
 
 
 def test_profile_path_that_is_a_folder(tmp_path):
-    with pytest.raises(ProfileError, match=rf"^{re.escape(str(tmp_path))}: cannot read profile"):
+    with pytest.raises(
+        ProfileError, match=rf"^{re.escape(str(tmp_path))}: is a folder, not a file"
+    ):
         load_profile(tmp_path)
 
 

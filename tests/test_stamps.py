@@ -191,6 +191,27 @@ def test_sort_stamps_in_nanoseconds_names_the_clock_jump():
         )
 
 
+@pytest.mark.parametrize("value", [1e308, -1e308, 1e307, 1e200, 1e16])
+@pytest.mark.parametrize("row", [0, 100, 1998, 1999])
+def test_a_stamp_beyond_any_clock_is_a_clock_jump_naming_line_and_value(row, value):
+    # One corrupt stamp overflowed the clock's fit (ValueError: cannot convert float NaN
+    # to integer, or an AttributeError), or was said in hundreds of digits; no warning now
+    # (they are errors here).
+    t = np.arange(2000) / 72.0
+    t[row] = value
+    with pytest.raises(DataError) as info:
+        uniform_clock(t, source="x.csv", row_name=lambda i: f"line {i + 2}")
+    message = str(info.value)
+    assert message.startswith(f"x.csv: t: a clock jump at line {row + 2}: t = {value:.4g} s,")
+    assert re.search(r"\d{20}", message) is None  # compact numbers
+
+
+def test_a_huge_backward_step_is_said_compactly():
+    stamps = np.array([0.0, 1e200, 2.0, 3.0])
+    with pytest.raises(DataError, match=r"backwards by 1e\+200 s at 2 \(more than max_gap 1 s"):
+        sort_stamps(stamps, max_backstep=1.0, where=str, source="x.csv", field="t", label="t")
+
+
 def test_a_truly_irregular_series_is_an_error_naming_line_and_stamp():
     rng = np.random.default_rng(5)
     t = np.cumsum(np.exp(rng.uniform(np.log(1e-4), np.log(1e-2), 2000)))
