@@ -26,7 +26,6 @@ from .criticism_inputs import (
     INPUTS,
     RESIDUAL_INPUT_LAGS,
     RESIDUAL_INPUT_LEVEL,
-    blame_noise_first,
     derived_velocities,
     residual_input,
     steady_windows,
@@ -555,12 +554,6 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
         "predictive_acf": predictive_acf(idata, rng=rng),
         "derived_velocities": derived_velocities(idata),
     }
-    miscoloured = {(w["experiment"], w["channel"]) for w in checks["predictive_acf"].warnings}
-    family = posterior_metadata(idata).family
-    checks["residual_input"].warnings = [
-        blame_noise_first(w, family) if (w["experiment"], w["channel"]) in miscoloured else w
-        for w in checks["residual_input"].warnings
-    ]
     result = {
         "warnings": [w for check in checks.values() for w in check.warnings],
         "criticism": {name: check.numbers for name, check in checks.items()},

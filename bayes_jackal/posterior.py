@@ -453,8 +453,6 @@ def model_autocovariance(
     channel: str,
     theta: np.ndarray,
     n: int,
-    *,
-    samples: int | None = None,
 ) -> np.ndarray:
     """The model's autocovariance of one experiment's one-step residuals in one channel.
 
@@ -469,10 +467,6 @@ def model_autocovariance(
         Parameter vectors in natural units (the layout's order).
     n : int
         Number of lags.
-    samples : int, optional
-        For a channel recorded as poses: the poses averaged per sample
-        (:func:`bayes_jackal.pose_increments.tick_poses`); by default the
-        likelihood's window's (:attr:`ExperimentRecord.pose_samples`).
 
     Returns
     -------
@@ -510,7 +504,7 @@ def model_autocovariance(
         record.dt,
         n,
         sensor=layout.sensor,
-        samples=record.pose_samples if samples is None else samples,
+        samples=record.pose_samples,
     )
 
 

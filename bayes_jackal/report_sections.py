@@ -364,7 +364,7 @@ def _criticism_section(idata: az.InferenceData, figures: ReportFigures, prefix: 
         "wheel speeds 5 %, yaw-rate drift 10 %; - where the wheels stand still):</p>"
         + steady
         + "<p>Residual-input cross-correlation over the whole run at the posterior median "
-        "(MATLAB <code>resid</code>; band from the model's residual autocorrelation), and "
+        "(MATLAB <code>resid</code>; band from the residuals' own autocorrelation), and "
         "posterior-predictive p-values of the residual autocorrelation (flagged at a "
         "family-wise 5 % per experiment and channel: Bonferroni over both tails of its "
         "statistics; - where a short run has no such statistic):</p>"

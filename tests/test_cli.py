@@ -693,6 +693,13 @@ def test_criticism_warnings_are_one_line_per_kind_and_a_line_of_meaning(capsys):
     ]
     print_criticism([])
     assert capsys.readouterr().err == ""
+    # Warnings told apart only by their text (a chain's convergence) are each shown whole.
+    chains = [{"kind": "not-converged", "message": f"{f}: NOT CONVERGED"} for f in ("a", "b")]
+    print_criticism(chains)
+    assert capsys.readouterr().err.splitlines()[:2] == [
+        "bayes-jackal: WARNING: a: NOT CONVERGED",
+        "bayes-jackal: WARNING: b: NOT CONVERGED",
+    ]
 
 
 def test_version_is_the_installed_distributions(capsys):

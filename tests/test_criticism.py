@@ -450,18 +450,16 @@ def test_a_white_family_on_coloured_noise_does_not_blame_the_input_path():
 
     The posterior sits where the white family's chain ends on this run
     (sigma_h = 0.3 s: d_long piled at its bound 10, d_lat 36, from a 600-step
-    chain, seed 1); its residuals are coloured, the band assumes they are
-    not, and the test fires (z = 4.1 against 3.9). The predictive check flags
-    the same channel, so the warning names the noise family first.
+    chain, seed 1). With the family's flat autocorrelation in the band, max |z|
+    was 4.1 against the 99 % level 3.9; with the residuals' own it is 1.2. The
+    colour the family misses is the predictive check's to flag, and it does.
     """
     run = simulate_experiment(ROBOT, 110.0, 30.0, rng=1, noise=NoiseSettings(width=0.3))
     result = criticise(posterior_at([run], [36.3, 10.0, 0.0076, 0.0014], family="white"))
-    kinds = {(w["kind"], w["channel"]) for w in result["warnings"] if "channel" in w}
-    assert ("predictive-acf", "yaw") in kinds
-    [found] = [w for w in result["warnings"] if w["kind"] == "residual-input"]
-    assert found["cause"] == "noise-family"
-    assert "the fitted white noise does not reproduce" in found["message"]
-    assert "the model's input path is wrong" not in found["message"]
+    kinds = {w["kind"] for w in result["warnings"]}
+    assert "predictive-acf" in kinds and "residual-input" not in kinds
+    row = result["criticism"]["residual_input"]["v1"]["yaw"]
+    assert row["max_abs_z"] < row["threshold"] / 2
 
 
 @pytest.mark.slow
@@ -470,7 +468,7 @@ def test_a_wrong_input_gain_is_flagged_by_the_residual_input_test_and_the_right_
     right_model,
 ):
     # vx carries the gain error: its pole (-7.3 /s, 10 samples) makes the
-    # transients long enough to show it (max |z| 5.8 against the 99 % level 3.9;
+    # transients long enough to show it (max |z| 5.5 against the 99 % level 3.9;
     # the right gain gives 1.6). The fitted d_long absorbs the steady state,
     # not the transients. The flag's family-wise false-alarm rate is at most
     # 1 % per channel (Bonferroni over 2 inputs x 51 lags), much less here, as
@@ -482,7 +480,7 @@ def test_a_wrong_input_gain_is_flagged_by_the_residual_input_test_and_the_right_
         assert bool(found) == flagged, result["criticism"]["residual_input"]
         if flagged:
             assert [w["channel"] for w in found] == ["vx"]
-            assert "wheel-speed" in found[0]["message"] and "cause" not in found[0]
+            assert "wheel-speed" in found[0]["message"]
         else:  # the right model: its posterior lies well inside the prior, too
             assert [w for w in result["warnings"] if w["kind"] == "prior-boundary"] == []
 
@@ -538,7 +536,12 @@ def test_sample_prints_the_warnings_on_stderr_and_in_its_json(tmp_path, capsys):
     for kind, group in by_kind.items():
         count = "" if len(group) == 1 else f"{kind} x{len(group)}: "
         assert f"bayes-jackal: WARNING: {count}{group[0]['message']}" in captured.err
-    assert captured.err.count("bayes-jackal: WARNING:") == len(by_kind)
+    criticism_lines = [
+        line
+        for line in captured.err.splitlines()
+        if line.startswith("bayes-jackal: WARNING:") and "NOT CONVERGED" not in line
+    ]  # the 200-step chain's convergence warning aside
+    assert len(criticism_lines) == len(by_kind)
     assert f"note: {len(result['warnings'])} warning(s): " in captured.err
     assert set(result["criticism"]) == {
         "damping_scale",

@@ -136,7 +136,8 @@ def print_criticism(findings: list[dict], *, where: str = "--json and the report
     """Criticism warnings on stderr: one line per kind, then what the kinds mean.
 
     A kind found once is shown whole; found more often, its first message
-    with the count and where the others are (``compare``: per family). The
+    with the count and where the others are (``compare``: per family), or
+    each whole where only their text tells them apart. The
     last line says in a phrase what each kind means
     (:data:`bayes_jackal.criticism.KIND_MEANINGS`) and ``where`` every
     warning is given in full.
@@ -146,13 +147,14 @@ def print_criticism(findings: list[dict], *, where: str = "--json and the report
         groups.setdefault((finding.get("family", ""), finding["kind"]), []).append(finding)
     for (family, kind), group in groups.items():
         named = f"{family}: " if family else ""
-        first = group[0]["message"]
-        if len(group) == 1:
-            print(f"bayes-jackal: WARNING: {named}{first}", file=sys.stderr)
+        places = [_place(finding) for finding in group[1:]]
+        if not places or not all(places):  # once, or not told apart but by its text
+            for finding in group:
+                print(f"bayes-jackal: WARNING: {named}{finding['message']}", file=sys.stderr)
             continue
-        others = ", ".join(_place(finding) for finding in group[1:])
         print(
-            f"bayes-jackal: WARNING: {named}{kind} x{len(group)}: {first}; the same at {others}",
+            f"bayes-jackal: WARNING: {named}{kind} x{len(group)}: {group[0]['message']}; the "
+            f"same at {', '.join(places)}",
             file=sys.stderr,
         )
     kinds = dict.fromkeys(kind for _, kind in groups)
@@ -165,9 +167,12 @@ def print_criticism(findings: list[dict], *, where: str = "--json and the report
 
 
 def _place(finding: dict) -> str:
-    """Where a warning points, in a few words (experiment, channel, parameter, statistic)."""
+    """Where a warning points, in a few words (experiment, channel, parameter, statistic).
+
+    Empty for a warning that says it only in its text (a chain's convergence).
+    """
     fields = ("experiment", "channel", "parameter", "statistic", "input", "left_out")
-    return " ".join(str(finding[key]) for key in fields if key in finding) or "another"
+    return " ".join(str(finding[key]) for key in fields if key in finding)
 
 
 def comparison_table(result: dict, say: Callable[[str], None]) -> None:
