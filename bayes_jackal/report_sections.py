@@ -203,12 +203,7 @@ def reported_posterior(
     Among the posteriors fitted to the same runs as the first that carry a
     log evidence; the first where none does.
     """
-    first = _runs(posteriors[0][1])
-    rivals = [
-        (path, idata)
-        for path, idata in posteriors
-        if _runs(idata) == first and posterior_metadata(idata).evidence is not None
-    ]
+    rivals = _with_evidence(posteriors).get(_runs(posteriors[0][1]))
     if not rivals:
         return posteriors[0]
     return max(rivals, key=lambda item: posterior_metadata(item[1]).evidence.log_evidence)
@@ -216,6 +211,17 @@ def reported_posterior(
 
 def _runs(idata: az.InferenceData) -> tuple[str, ...]:
     return tuple(e.name for e in posterior_metadata(idata).experiments)
+
+
+def _with_evidence(
+    posteriors: list[tuple[Path, az.InferenceData]],
+) -> dict[tuple[str, ...], list[tuple[Path, az.InferenceData]]]:
+    """The posteriors that carry a log evidence, grouped by the runs they were fitted to."""
+    groups: dict[tuple[str, ...], list[tuple[Path, az.InferenceData]]] = {}
+    for path, idata in posteriors:
+        if posterior_metadata(idata).evidence is not None:
+            groups.setdefault(_runs(idata), []).append((path, idata))
+    return groups
 
 
 def _hdi(row: dict, unit: str = "") -> str:
@@ -262,12 +268,8 @@ def _colour_summary(
     posteriors: list[tuple[Path, az.InferenceData]], idata: az.InferenceData
 ) -> str:
     """The verdict on colour from the families fitted to the reported posterior's runs."""
-    runs = _runs(idata)
-    evidence = {}
-    for _, other in posteriors:
-        metadata = posterior_metadata(other)
-        if metadata.evidence is not None and _runs(other) == runs:
-            evidence[metadata.family] = metadata.evidence
+    fitted = _with_evidence(posteriors).get(_runs(idata), [])
+    evidence = {m.family: m.evidence for m in (posterior_metadata(i) for _, i in fitted)}
     return f"<b>Is the noise coloured?</b> {html.escape(colour_verdict(evidence)[1])}."
 
 
@@ -304,15 +306,10 @@ def _distrust(warnings: list[dict]) -> str:
 
 def evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
     """Evidence tables, one per data set, from posteriors that carry one."""
-    data_sets: dict[tuple, list] = {}
-    for path, idata in posteriors:
-        metadata = posterior_metadata(idata)
-        if metadata.evidence is not None:
-            names = tuple(e.name for e in metadata.experiments)
-            data_sets.setdefault(names, []).append((path, metadata))
     parts = []
-    for names, members in data_sets.items():
-        evidence = {m.family: m.evidence.to_dict() for _, m in members}
+    for names, members in _with_evidence(posteriors).items():
+        metadata = [posterior_metadata(idata) for _, idata in members]
+        evidence = {m.family: m.evidence.to_dict() for m in metadata}
         best = max(evidence.values(), key=lambda e: e["log_evidence"])["log_evidence"]
         white = evidence.get("white", {}).get("log_evidence")
         rows = [
