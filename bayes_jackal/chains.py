@@ -1,8 +1,11 @@
 """Running an emcee chain to convergence: stored step by step, resumed, kept after burn-in.
 
-The ensemble moves with differential evolution until the chain is longer
-than 50 integrated autocorrelation times and that estimate changed by less
-than 1 % (emcee's monitoring recipe), or a step cap with a
+The ensemble moves with differential evolution until the answer is known:
+the chain is longer than 50 integrated autocorrelation times (emcee's
+advice, so that tau itself is estimated reliably) and every parameter has
+an effective sample size of at least 400 in the bulk and in the tails
+(arviz's rank-normalised ``ess``, walkers as chains, on the draws kept
+after burn-in; Vehtari et al. 2021), or a step cap with a
 :class:`~bayes_jackal.sampler_warnings.ConvergenceWarning`. Every step is
 stored in an HDF5 file; a run started again with the same file and
 fingerprint resumes where it stopped. The posteriors of the robot model
@@ -18,19 +21,29 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import arviz as az
 import emcee
 import h5py
 import numpy as np
+import scipy.fft
+import xarray as xr
 
 from . import interrupt
 from ._files import atomic_path, check_space
-from .defaults import BRIDGE_MIN_DRAWS, MAX_STEPS, MIN_EVIDENCE_STEPS, WALKERS
+from .defaults import (
+    AUTOCORR_MULTIPLE,
+    BRIDGE_MIN_DRAWS,
+    MAX_STEPS,
+    MIN_ESS,
+    MIN_EVIDENCE_STEPS,
+    WALKERS,
+)
 from .errors import InputError, OutputError
 from .outputs import OutputLock, refuse_link
 from .progress import Progress
 from .sampler_warnings import ConvergenceWarning
 
-__all__ = ["BufferedHDFBackend", "Chain", "SamplerSettings", "run_chain"]
+__all__ = ["BufferedHDFBackend", "Chain", "SamplerSettings", "autocorrelation_time", "run_chain"]
 
 
 @dataclass(frozen=True)
@@ -47,8 +60,9 @@ class SamplerSettings:
         Steps between convergence checks.
     autocorr_multiple : float
         The chain must be longer than this many autocorrelation times (50).
-    tau_rtol : float
-        ... and the estimate must have changed by less than this (1 %).
+    min_ess : int
+        ... and have at least this bulk and tail effective sample size for
+        every parameter after burn-in (400; 0 leaves the 50-tau rule alone).
     design_points : int
         Size of the MAP search's design: ``design_points / 16`` damping
         points, each crossed with every noise group's grid
@@ -80,8 +94,8 @@ class SamplerSettings:
     walkers: int = WALKERS
     max_steps: int = MAX_STEPS
     check_every: int = 100
-    autocorr_multiple: float = 50.0
-    tau_rtol: float = 0.01
+    autocorr_multiple: float = AUTOCORR_MULTIPLE
+    min_ess: int = MIN_ESS
     design_points: int = 1024
     progress: bool = False
     progress_label: str = "emcee"
@@ -93,14 +107,16 @@ class SamplerSettings:
             "max_steps": (self.max_steps, 1),
             "check_every": (self.check_every, 1),
             "design_points": (self.design_points, 16),  # design_points / 16 damping points
+            "min_ess": (self.min_ess, 0),
         }
         for name, (value, least) in counts.items():
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise InputError(f"must be an integer >= {least}, got {value!r}", field=name)
-        for name in ("autocorr_multiple", "tau_rtol"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise InputError(f"must be a finite number > 0, got {value!r}", field=name)
+        value = self.autocorr_multiple
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise InputError(
+                f"must be a finite number > 0, got {value!r}", field="autocorr_multiple"
+            )
 
     def check_evidence_steps(self) -> None:
         """Refuse a step cap too short for bridge sampling (before any sampling).
@@ -311,51 +327,124 @@ def _backend(path: Path | None, fingerprint: str, walkers: int, ndim: int, flush
     return backend
 
 
+def autocorrelation_time(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
+    """Integrated autocorrelation time of each parameter of an ensemble's chain [steps].
+
+    emcee's estimator (``emcee.autocorr.integrated_time`` with ``tol=0``):
+    the walkers' normalised autocorrelation functions averaged, summed up to
+    Sokal's automatic window (the first lag M with M >= c tau(M)). All the
+    walkers of a parameter in one transform instead of one per walker.
+
+    Parameters
+    ----------
+    chain : ndarray, shape (steps, walkers, k)
+    c : float
+        The window's multiple of tau.
+
+    Returns
+    -------
+    ndarray, shape (k,)
+
+    Examples
+    --------
+    An AR(1) chain of coefficient 0.5 has tau = (1 + 0.5) / (1 - 0.5) = 3:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.chains import autocorrelation_time
+    >>> rng = np.random.default_rng(1)
+    >>> chain = np.zeros((20000, 8, 1))
+    >>> for step in range(1, len(chain)):
+    ...     chain[step] = 0.5 * chain[step - 1] + rng.standard_normal((8, 1))
+    >>> round(float(autocorrelation_time(chain)[0]), 1)
+    3.0
+    """
+    steps = len(chain)
+    size = 2 * 2 ** int(np.ceil(np.log2(max(steps, 1))))  # emcee's zero padding
+    tau = np.empty(chain.shape[2])
+    for k in range(chain.shape[2]):  # one parameter's walkers at a time: bounded memory
+        deviations = chain[:, :, k] - chain[:, :, k].mean(axis=0)
+        power = np.abs(scipy.fft.rfft(deviations, size, axis=0)) ** 2
+        acf = scipy.fft.irfft(power, size, axis=0)[:steps]
+        with np.errstate(invalid="ignore", divide="ignore"):  # a stuck walker: NaN, as emcee
+            taus = 2.0 * np.cumsum(np.mean(acf / acf[0], axis=1)) - 1.0
+        inside = np.arange(steps) < c * taus
+        tau[k] = taus[np.argmin(inside) if np.any(inside) else steps - 1]
+    return tau
+
+
 def _autocorr(sampler: emcee.EnsembleSampler, steps: int) -> np.ndarray:
     """Integrated autocorrelation time of the chain's first ``steps`` steps [steps]."""
-    return emcee.autocorr.integrated_time(sampler.get_chain()[:steps], tol=0)
+    return autocorrelation_time(sampler.get_chain()[:steps])
 
 
-def _passes(tau: np.ndarray, previous_tau: np.ndarray, steps: int, settings) -> bool:
-    """emcee's criterion: longer than the multiple of tau, and tau settled."""
-    long_enough = np.all(tau * settings.autocorr_multiple < steps)
-    return bool(long_enough and np.all(np.abs(previous_tau - tau) < settings.tau_rtol * tau))
+def effective_sizes(draws: np.ndarray) -> np.ndarray:
+    """arviz's bulk and tail effective sample sizes of each parameter, shape (2, k).
 
-
-def _expected_steps(tau: np.ndarray, steps: int, settings: SamplerSettings) -> int:
-    """The steps the criterion will need, as tau stands: the multiple of tau, at a check.
-
-    At least the next check's (tau must also settle over one more check).
+    ``draws`` (steps, walkers, k), the walkers taken as chains.
     """
-    needed = max(float(np.max(tau)) * settings.autocorr_multiple, steps + settings.check_every)
+    dataset = xr.Dataset({"z": (("chain", "draw", "parameter"), np.swapaxes(draws, 0, 1))})
+    return np.array([az.ess(dataset, method=method)["z"].values for method in ("bulk", "tail")])
+
+
+def _shortfall(
+    sampler: emcee.EnsembleSampler, tau: np.ndarray, steps: int, settings, names: tuple
+) -> str | None:
+    """What the chain's first ``steps`` steps lack by the stopping rule (module text), or None."""
+    if not np.all(tau * settings.autocorr_multiple < steps):
+        return (
+            f"{steps} steps are fewer than {settings.autocorr_multiple:g} autocorrelation "
+            f"times (max tau {np.max(tau):.0f} steps)"
+        )
+    if not settings.min_ess:
+        return None
+    discard, _ = _burn_in_and_thinning(steps, tau)
+    sizes = effective_sizes(sampler.get_chain()[discard:steps])
+    if np.all(sizes >= settings.min_ess):
+        return None
+    kind, k = np.unravel_index(np.argmin(np.nan_to_num(sizes, nan=-1.0)), sizes.shape)
+    return (
+        f"the {('bulk', 'tail')[kind]} effective sample size of {names[k]} is "
+        f"{sizes[kind, k]:.0f} after {steps} steps, fewer than {settings.min_ess}"
+    )
+
+
+def _expected_steps(tau: np.ndarray, steps: int, walkers: int, settings: SamplerSettings) -> int:
+    """The steps the rule will need, as tau stands, at a check after this one.
+
+    The multiple of tau, or the burn-in plus the steps whose walkers hold
+    ``min_ess`` independent draws at this tau, whichever is longer.
+    """
+    longest = float(np.max(tau))
+    needed = max(
+        longest * settings.autocorr_multiple,
+        2 * longest + settings.min_ess * longest / walkers,
+        steps + settings.check_every,
+    )
     return int(np.ceil(needed / settings.check_every) * settings.check_every)
 
 
-def _replay(sampler: emcee.EnsembleSampler, settings: SamplerSettings) -> tuple[np.ndarray, bool]:
-    """The convergence monitor where a stored chain stopped: the last check's tau and verdict.
+def _replay(sampler: emcee.EnsembleSampler, settings: SamplerSettings, names: tuple) -> bool:
+    """Whether the rule held at the last check of a stored chain.
 
-    Both follow from the chain itself, so a resumed run continues the
+    It follows from the chain itself, so a resumed run continues the
     uninterrupted one's test bit for bit, wherever it was stopped.
     """
-    inf = np.full(sampler.ndim, np.inf)
     last = sampler.iteration - sampler.iteration % settings.check_every
-    if last == 0:
-        return inf, False
-    tau = _autocorr(sampler, last)
-    earlier = last - settings.check_every
-    previous_tau = _autocorr(sampler, earlier) if earlier > 0 else inf
-    return tau, _passes(tau, previous_tau, last, settings)
+    if not last:
+        return False
+    return _shortfall(sampler, _autocorr(sampler, last), last, settings, names) is None
 
 
 def _run_until_converged(
-    sampler: emcee.EnsembleSampler, start, settings: SamplerSettings
-) -> tuple[bool, np.ndarray]:
-    """Advance the chain until the autocorrelation criterion holds or the cap is reached.
+    sampler: emcee.EnsembleSampler, start, settings: SamplerSettings, names: tuple
+) -> tuple[str | None, np.ndarray]:
+    """Advance the chain until the stopping rule holds or the cap is reached.
 
+    Returns what the chain still lacks (None once the rule holds) and tau.
     emcee steps inside :func:`bayes_jackal.interrupt.deferred` (its catch-all
     handlers must not see an interrupt); a signal stops the run between steps.
     """
-    previous_tau, converged = _replay(sampler, settings)
+    converged = _replay(sampler, settings, names)
     remaining = settings.max_steps - sampler.iteration
     if remaining > 0 and not converged:
         with (
@@ -375,13 +464,15 @@ def _run_until_converged(
                     continue
                 tau = _autocorr(sampler, sampler.iteration)
                 progress.update(0, tau=f"{np.max(tau):.0f}")
-                progress.expect(_expected_steps(tau, sampler.iteration, settings))
-                if _passes(tau, previous_tau, sampler.iteration, settings):
-                    return True, tau
-                previous_tau = tau
+                progress.expect(
+                    _expected_steps(tau, sampler.iteration, sampler.nwalkers, settings)
+                )
+                if _shortfall(sampler, tau, sampler.iteration, settings, names) is None:
+                    return None, tau
     tau = _autocorr(sampler, sampler.iteration)
-    converged = converged or bool(np.all(tau * settings.autocorr_multiple < sampler.iteration))
-    return converged, tau
+    if converged:
+        return None, tau
+    return _shortfall(sampler, tau, sampler.iteration, settings, names), tau
 
 
 @dataclass(frozen=True)
@@ -499,21 +590,19 @@ def run_chain(
             if say is not None:
                 say(f"resuming {chain_file} at step {backend.iteration}")
         try:
-            converged, tau = _run_until_converged(sampler, start, settings)
+            shortfall, tau = _run_until_converged(sampler, start, settings, tuple(names))
         finally:
             if isinstance(backend, BufferedHDFBackend):
                 with interrupt.deferred():  # a batch is written whole or not at all
                     backend.flush()
-        if not converged:
+        if shortfall is not None:
             warnings.warn(
                 ConvergenceWarning(
-                    f"NOT CONVERGED: {sampler.iteration} steps are fewer than "
-                    f"{settings.autocorr_multiple:g} autocorrelation times (max tau "
-                    f"{np.max(tau):.0f} steps); raise max_steps or resume the run"
+                    f"NOT CONVERGED: {shortfall}; raise max_steps or resume the run"
                 ),
                 stacklevel=3,
             )
-        return _kept(sampler, names, tau, converged, settings, seed)
+        return _kept(sampler, names, tau, shortfall is None, settings, seed)
 
 
 def _burn_in_and_thinning(steps: int, tau: np.ndarray) -> tuple[int, int]:

@@ -10,6 +10,7 @@ also importable, as before, from the module it belongs to (named below).
 from __future__ import annotations
 
 __all__ = [
+    "AUTOCORR_MULTIPLE",
     "AUTO_ORDER",
     "BAG_FORMATS",
     "BRIDGE_MIN_DRAWS",
@@ -35,6 +36,7 @@ __all__ = [
     "MAX_STEPS",
     "METHOD",
     "METHODS",
+    "MIN_ESS",
     "MIN_EVIDENCE_STEPS",
     "NOISE",
     "NOISE_MAX_STEPS",
@@ -105,6 +107,11 @@ BRIDGE_MIN_DRAWS = 8
 MIN_EVIDENCE_STEPS = 2 * BRIDGE_MIN_DRAWS
 #: Ensemble size (``--walkers``); 0: max(32, 4 x parameters).
 WALKERS = 0
+#: A chain stops once longer than this many autocorrelation times (emcee's advice) ...
+AUTOCORR_MULTIPLE = 50.0
+#: ... with at least this bulk and tail effective sample size for every parameter
+#: (arviz's ess, walkers as chains; Vehtari et al. 2021 ask 400 before trusting r_hat).
+MIN_ESS = 400
 
 # -- the thesis' grid search and residual analysis (gridsearch, residual_analysis)
 #: The channel of the thesis' grid search and residual analysis: the yaw rate.

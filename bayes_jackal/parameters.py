@@ -269,6 +269,22 @@ class ParameterLayout:
         """Columns of a group's noise parameters (shared ones too), in ``noise_bases_of`` order."""
         return [self.column(base, group) for base in self.noise_bases_of(group)]
 
+    @cached_property
+    def _noise_indices(self) -> tuple[tuple[int | None, int, int | None], ...]:
+        """Per group, the columns of (width, sigma_c, sensor sd); None where there is none."""
+        indices = []
+        for group in range(len(self.groups)):
+            columns = dict(zip(self.noise_bases_of(group), self.noise_columns(group), strict=True))
+            sensor = self.sensor_parameter(group)
+            indices.append(
+                (
+                    columns.get(self.width_name),
+                    columns["sigma_c"],
+                    None if sensor is None else columns[sensor],
+                )
+            )
+        return tuple(indices)
+
     def noise_parameters(self, theta: np.ndarray, group: int) -> tuple[np.ndarray, ...]:
         """(width [s], sigma_c, sensor sd) of one noise group, each shape (B,).
 
@@ -283,12 +299,12 @@ class ParameterLayout:
             Parameter vectors in natural units, in :attr:`names` order.
         group : int
         """
-        bases = self.noise_bases_of(group)
-        values = dict(zip(bases, theta[:, self.noise_columns(group)].T, strict=True))
-        width = values.get(self.width_name, np.ones(len(theta)))
-        sensor = self.sensor_parameter(group)
-        zeros = np.zeros(len(theta))
-        return width, values["sigma_c"], zeros if sensor is None else values[sensor]
+        width, sigma_c, sensor = self._noise_indices[group]
+        return (
+            np.ones(len(theta)) if width is None else theta[:, width],
+            theta[:, sigma_c],
+            np.zeros(len(theta)) if sensor is None else theta[:, sensor],
+        )
 
     def prior_key(self, base: str) -> str:
         """The prior range a parameter takes: its base, or :data:`WIDTH_PRIOR` for a width."""

@@ -76,6 +76,9 @@ CEPSTRUM_TOLERANCE = 1e-10
 ACOV_TOLERANCE = 1e-13
 #: A set's predictor taps past its last one above this are dropped.
 PREDICTOR_TOLERANCE = 1e-14
+#: Segment spectra kept per block (:meth:`ResidualBlock.edge_spectra`): the
+#: predictor lengths m of a chain's nearby sets take a few values.
+_EDGE_SPECTRA_KEPT = 8
 #: Elements of the largest work array of one chunk of parameter sets
 #: (2^22 doubles: 32 MiB).
 CHUNK_ELEMENTS = 2**22
@@ -167,44 +170,64 @@ class ResidualBlock:
         return self.regressors - self.means[:, None, :]
 
     @cached_property
-    def deviation_gram(self) -> np.ndarray:
-        """sum_e sum_i D_e[i] D_e[i+l]' (symmetrised) for l = 0..n-1, shape (n, K^2).
+    def _lag_basis(self) -> np.ndarray:
+        """[G_D(l), S(l)] for l = 0..n-1, shape (n, K^2 + E K), contiguous.
 
-        D_e = Z_e - mu_e; from the deviations' cross-periodogram on >= 2n
-        points, so the lags are not circular.
-        """
-        spectra = sum(cross_periodogram(d, self.size) for d in self._deviations())
-        spectra = spectra.reshape(-1, self.width**2)
-        return np.ascontiguousarray(scipy.fft.irfft(spectra, self.size, axis=0)[: self.n])
-
-    @cached_property
-    def edge_sums(self) -> np.ndarray:
-        """sum_{i<n-l} D_e[i] + sum_{i>=l} D_e[i] for l = 0..n-1, shape (n, E, K).
-
-        As the deviations sum to zero: -(sum of the first l) - (sum of the last l).
+        G_D(l) = sum_e sum_i D_e[i] D_e[i+l]' (symmetrised), the deviations'
+        lagged Gram tensor (D_e = Z_e - mu_e), from their cross-periodogram on
+        >= 2n points, so the lags are not circular; S_e(l) = sum_{i<n-l} D_e[i]
+        + sum_{i>=l} D_e[i], their edge sums: as the deviations sum to zero,
+        -(sum of the first l) - (sum of the last l).
         """
         deviations = self._deviations()
+        spectra = sum(cross_periodogram(d, self.size) for d in deviations)
+        spectra = spectra.reshape(-1, self.width**2)
+        gram = scipy.fft.irfft(spectra, self.size, axis=0)[: self.n]
         zero = np.zeros((self.count, 1, self.width))
         head = np.concatenate([zero, np.cumsum(deviations[:, :-1], axis=1)], axis=1)
         tail = np.concatenate([zero, np.cumsum(deviations[:, :0:-1], axis=1)], axis=1)
-        return np.ascontiguousarray(-(head + tail).transpose(1, 0, 2))
+        edges = -(head + tail).transpose(1, 0, 2).reshape(self.n, -1)
+        return np.ascontiguousarray(np.concatenate([gram, edges], axis=1))
 
     def lagged_sums(self, coefficients: np.ndarray, lags: int) -> np.ndarray:
         """R(l) = sum_e sum_i x_e[i] x_e[i+l] of x = Z c for l < ``lags``, shape (B, lags).
 
         With x = m_e + d (m_e = mu_e' c the series' mean):
         R(l) = (n - l) sum_e m_e^2 + sum_e m_e c' S_e(l) + c' G_D(l) c, with the
-        deviations' edge sums S and lagged Gram tensor G_D.
+        deviations' edge sums S and lagged Gram tensor G_D (:attr:`_lag_basis`):
+        one product of (c c', m_e c) with them.
         """
         batch = len(coefficients)
         mean = coefficients @ self.means.T  # (B, E)
-        outer = (coefficients[:, :, None] * coefficients[:, None, :]).reshape(batch, -1)
-        edges = np.einsum("lek,bk->ble", self.edge_sums[:lags], coefficients)
-        return (
-            (self.n - np.arange(lags)) * np.sum(mean**2, axis=-1, keepdims=True)
-            + np.einsum("be,ble->bl", mean, edges)
-            + outer @ self.deviation_gram[:lags].T
+        features = np.concatenate(
+            [
+                (coefficients[:, :, None] * coefficients[:, None, :]).reshape(batch, -1),
+                (mean[:, :, None] * coefficients[:, None, :]).reshape(batch, -1),
+            ],
+            axis=1,
         )
+        level = (self.n - np.arange(lags)) * np.sum(mean**2, axis=-1, keepdims=True)
+        return level + features @ self._lag_basis[:lags].T
+
+    def edge_spectra(self, m: int, length: int) -> np.ndarray:
+        """Spectra on ``length`` points of each series' first m regressors and last m reversed.
+
+        Shape (2E, length // 2 + 1, K); the last few (m, length) are kept.
+        """
+        key = (m, length)
+        cache = self._edge_spectra
+        if key not in cache:
+            if len(cache) >= _EDGE_SPECTRA_KEPT:
+                cache.pop(next(iter(cache)))
+            segments = np.concatenate(
+                [self.regressors[:, :m], self.regressors[:, self.n - m :][:, ::-1]], axis=0
+            )
+            cache[key] = scipy.fft.rfft(segments, length, axis=1)
+        return cache[key]
+
+    @cached_property
+    def _edge_spectra(self) -> dict[tuple[int, int], np.ndarray]:
+        return {}
 
 
 def spectral_forms(
@@ -430,15 +453,13 @@ def _boundary_energy(
     The tail sum_{k>=r} a_k x_{k-r} and the rows of L(a~)' x are both lag-r
     correlations of the m taps a (r = 1..m-1, from their spectrum on
     >= 2m points) with the first m samples and with the reversed last m
-    samples of each series, for each of the J coefficient vectors (B, J, K).
+    samples of each series, for each of the J coefficient vectors (B, J, K):
+    the segments' spectra are the regressors' (:meth:`ResidualBlock.edge_spectra`)
+    times c.
     """
-    n = block.n
+    batch, forms, width = coefficients.shape
     length = 2 * (taps_spectrum.shape[1] - 1)  # even
-    segments = np.concatenate(
-        [block.regressors[:, :m], block.regressors[:, n - m :][:, ::-1]], axis=0
-    )
-    edges = np.einsum("smk,bjk->bjsm", segments, coefficients)  # (B, J, 2E, m)
-    correlation = scipy.fft.irfft(
-        taps_spectrum[:, None, None, :] * scipy.fft.rfft(edges, length).conj(), length
-    )
+    spectra = block.edge_spectra(m, length) @ coefficients.reshape(-1, width).T  # (2E, F, BJ)
+    spectra = spectra.transpose(2, 0, 1).reshape(batch, forms, -1, spectra.shape[1])
+    correlation = scipy.fft.irfft(taps_spectrum[:, None, None, :] * spectra.conj(), length)
     return np.sum(correlation[..., 1:m] ** 2, axis=(2, 3))

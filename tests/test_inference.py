@@ -5,13 +5,19 @@ import os
 import warnings
 from dataclasses import replace
 
+import emcee
 import numpy as np
 import pytest
 import scipy.optimize
 import scipy.stats
 
 from bayes_jackal import DataError, InputError, inference, load_profile
-from bayes_jackal.chains import _burn_in_and_thinning, run_chain
+from bayes_jackal.chains import (
+    _burn_in_and_thinning,
+    autocorrelation_time,
+    effective_sizes,
+    run_chain,
+)
 from bayes_jackal.defaults import BRIDGE_MIN_DRAWS, MIN_EVIDENCE_STEPS
 from bayes_jackal.evidence import bridge_sampling
 from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
@@ -167,6 +173,56 @@ def test_a_run_that_hits_the_step_cap_warns_and_says_so(v2_run, tmp_path):
             "r_hat",
         }
     assert {"corr_d_lat_d_long", "autocorr_time", "n_steps"} <= set(summary)
+
+
+def test_the_autocorrelation_time_is_emcees_estimator():
+    # The reference: emcee's own integrated_time, one walker at a time, on
+    # chains of AR(1) walkers (tau (1 + r) / (1 - r): 1, 3, 19) with a
+    # stuck walker's NaN left as emcee leaves it.
+    rng = np.random.default_rng(3)
+    chain = np.zeros((1500, 12, 3))
+    poles = np.array([0.0, 0.5, 0.9])
+    for step in range(1, len(chain)):
+        chain[step] = poles * chain[step - 1] + rng.standard_normal((12, 3))
+    for steps in (40, 333, 1500):
+        expected = emcee.autocorr.integrated_time(chain[:steps], tol=0)
+        np.testing.assert_allclose(autocorrelation_time(chain[:steps]), expected, rtol=1e-10)
+    stuck = chain.copy()
+    stuck[:, 0, 1] = 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # emcee divides by the stuck 0
+        expected = emcee.autocorr.integrated_time(stuck, tol=0)
+    np.testing.assert_allclose(autocorrelation_time(stuck), expected, rtol=1e-10)
+
+
+def test_the_chain_stops_on_the_ess_once_longer_than_the_tau_multiple():
+    # A standard normal in two dimensions with 4 walkers: at 50 tau they hold
+    # ~4 x 50 = 200 independent draws, so the ESS of 400 decides (measured:
+    # 320 steps with the 50-tau rule alone, 920 with both).
+    prior = Prior(("a", "b"), np.full(2, 1e-3), np.full(2, 1e3), np.array([True, True]))
+
+    def log_posterior(z):
+        return -0.5 * np.sum(np.atleast_2d(z) ** 2, axis=-1)
+
+    log_posterior.prior = prior
+
+    def chain(max_steps):
+        return run_chain(
+            log_posterior,
+            lambda rng, walkers: 0.1 * rng.standard_normal((walkers, 2)),
+            settings=SamplerSettings(walkers=4, max_steps=max_steps, check_every=10),
+            seed=1,
+        )
+
+    diagnostics = chain(5000).diagnostics
+    steps, tau = diagnostics["n_steps"], max(diagnostics["autocorr_time"].values())
+    assert diagnostics["converged"] and steps > 100 * tau
+    # One check earlier the ESS of the kept draws was still short of 400.
+    with pytest.warns(ConvergenceWarning, match=r"effective sample size of [ab] is \d+ after"):
+        assert not chain(steps - 10).diagnostics["converged"]
+    # The ESS of a chain of independent draws is its number of draws.
+    draws = np.random.default_rng(4).standard_normal((1000, 8, 2))
+    np.testing.assert_allclose(effective_sizes(draws), 8000, rtol=0.1)
 
 
 def test_the_thinning_leaves_bridge_sampling_its_draws_whatever_tau():

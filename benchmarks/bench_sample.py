@@ -1,0 +1,126 @@
+"""Benchmark: ``sample`` on the thesis-like 38 s run against a baseline commit (issue 25).
+
+Run by hand: ``python benchmarks/bench_sample.py [--baseline REF] [--repeats 3]
+[--workdir DIR]``.
+
+The run is ``bench_long_runs.make_run``'s 38 s at 72 Hz (truth d_lat 110,
+d_long 30 N s/m, Gaussian process noise of sigma_h 0.047 s). The command is
+``sample`` with default flags (yaw, vx and vy; Gaussian family; the ``fast``
+engine) and one seed, in a fresh process each time: once with this checkout,
+once with the package at ``REF`` (default ``a59609c``, the last commit before
+issue 25's changes) checked out into a temporary git worktree and run by the
+same interpreter. The two alternate, ``--repeats`` times each, so that both
+see the same machine. It prints, per run, the wall time, the process' CPU
+time, the peak resident memory, the chain's steps and whether it converged;
+then the median ratio baseline / this (issue 25's target: at least 4, and
+this under 10 s), and each parameter's posterior mean and 94 % HDI under
+both, with the difference of the means in Monte Carlo standard errors
+(sd / sqrt(ess_bulk) of each, combined).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from bench_long_runs import make_run
+
+#: Runs the console entry point of the package found first on sys.path[1] (or
+#: the installed one) and prints [exit code, wall s, CPU s, peak RSS MB, stdout].
+_TIMER = (
+    "import resource, subprocess, sys, time, json; start = time.perf_counter(); "
+    "done = subprocess.run(sys.argv[2:], stdout=subprocess.PIPE, text=True, "
+    "env=dict(__import__('os').environ, PYTHONPATH=sys.argv[1])); "
+    "usage = resource.getrusage(resource.RUSAGE_CHILDREN); "
+    "print(json.dumps([done.returncode, time.perf_counter() - start, "
+    "usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024, done.stdout]))"
+)
+_CONSOLE = "from bayes_jackal.cli import console; console()"
+
+
+def run(source: Path, arguments: list[str]) -> dict:
+    """``bayes-jackal <arguments> --json`` with the package in ``source``, timed."""
+    command = [sys.executable, "-c", _TIMER, str(source), sys.executable, "-c", _CONSOLE]
+    timed = subprocess.run(
+        [*command, *arguments, "--json"], capture_output=True, text=True, check=True
+    )
+    code, seconds, cpu, peak, output = json.loads(timed.stdout)
+    if code != 0:
+        raise RuntimeError(f"{source}: {' '.join(arguments)} exited {code}")
+    return {"seconds": seconds, "cpu": cpu, "peak_mb": peak, "summary": json.loads(output)}
+
+
+def sample(source: Path, path: Path, out: Path) -> dict:
+    """A fresh ``sample`` of ``path`` (seed 1) to ``out``; no stored chain resumes."""
+    for stale in out.parent.glob(f"{out.stem}.*"):
+        stale.unlink()
+    return run(source, ["sample", str(path), "--out", str(out), "--seed", "1", "--no-progress"])
+
+
+def describe(label: str, result: dict) -> str:
+    summary = result["summary"]
+    return (
+        f"{label:<10s} {result['seconds']:6.1f} s wall {result['cpu']:6.1f} s CPU "
+        f"{result['peak_mb']:6.0f} MB  {summary['n_steps']:>6} steps "
+        f"converged={summary['converged']}"
+    )
+
+
+def compare_posteriors(baseline: dict, current: dict) -> None:
+    """Mean and 94 % HDI of each parameter under both, and the means' difference in MCSE."""
+    print(f"{'parameter':<14s} {'baseline mean [HDI]':>34s} {'this mean [HDI]':>34s}  z")
+    worst = 0.0
+    for name, old in baseline.items():
+        new = current.get(name)
+        if not isinstance(old, dict) or not isinstance(new, dict) or "ess_bulk" not in old:
+            continue
+        error = (old["sd"] ** 2 / old["ess_bulk"] + new["sd"] ** 2 / new["ess_bulk"]) ** 0.5
+        z = (new["mean"] - old["mean"]) / error
+        worst = max(worst, abs(z))
+        cells = [
+            f"{row['mean']:.4g} [{row['hdi_3%']:.4g}, {row['hdi_97%']:.4g}]" for row in (old, new)
+        ]
+        print(f"{name:<14s} {cells[0]:>34s} {cells[1]:>34s} {z:5.1f}")
+    print(f"largest |z|: {worst:.1f} (Monte Carlo error alone: ~N(0, 1) per parameter)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", default="a59609c", help="git ref of the baseline")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--workdir", type=Path, default=None)
+    args = parser.parse_args()
+    folder = args.workdir or Path(tempfile.mkdtemp(prefix="bench_sample_"))
+    folder.mkdir(parents=True, exist_ok=True)
+    here = Path(__file__).resolve().parents[1]
+    base = folder / "baseline"
+    if not base.exists():
+        subprocess.run(
+            ["git", "-C", str(here), "worktree", "add", "--detach", str(base), args.baseline],
+            check=True,
+            capture_output=True,
+        )
+    path = make_run(folder, 38.0)
+    print(f"sample of {path.name} (files in {folder}); baseline {args.baseline}")
+    results: dict[str, list[dict]] = {"baseline": [], "this": []}
+    for _ in range(args.repeats):
+        for label, source in (("baseline", base), ("this", here)):
+            result = sample(source, path, folder / f"{label}-posterior.nc")
+            results[label].append(result)
+            print(describe(label, result))
+    ratio = statistics.median(
+        old["seconds"] / new["seconds"]
+        for old, new in zip(results["baseline"], results["this"], strict=True)
+    )
+    this = statistics.median(result["seconds"] for result in results["this"])
+    print(f"median baseline / this: {ratio:.2f} (target >= 4); this: {this:.1f} s (target < 10)")
+    compare_posteriors(results["baseline"][0]["summary"], results["this"][0]["summary"])
+
+
+if __name__ == "__main__":
+    main()
