@@ -139,7 +139,10 @@ def run_demo(
         Show the chains' progress on stderr.
     state_estimation : bool
         Score the filters on each run with the prior fitted to the other run
-        (two more posteriors, ~70 s; :func:`~bayes_jackal.workflow.analyse_logs`).
+        (:func:`~bayes_jackal.workflow.analyse_logs`). Of two runs each is
+        half the data, too much for the pooled posterior's PSIS reweighting
+        (Pareto k-hat above 0.7), so each is usually refit: two more
+        posteriors, ~70 s.
 
     Returns
     -------

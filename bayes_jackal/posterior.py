@@ -8,8 +8,8 @@ experiments). Its metadata (attributes of ``posterior``) and the names in
 the data groups are owned by :mod:`bayes_jackal.posterior_format` (re-exported):
 :func:`posterior_metadata` gives them typed (the robot, priors, parameter
 layout, experiments, noise groups, convergence, and the results stored
-later by :func:`store_comparison` and :func:`store_criticism`). No other
-module parses them.
+later by :func:`store_comparison`, :func:`store_criticism` and
+:func:`store_reweighting`). No other module parses them.
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ from .posterior_format import (
     posterior_metadata,
     store_comparison,
     store_criticism,
+    store_reweighting,
 )
 from .robot import RobotProfile
 
@@ -79,6 +80,7 @@ __all__ = [
     "save_posterior",
     "store_comparison",
     "store_criticism",
+    "store_reweighting",
     "summarize",
     "thinned_draws",
     "thinned_indices",

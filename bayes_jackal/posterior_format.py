@@ -10,7 +10,8 @@ groups (:func:`observed_data`, :func:`observed_residuals`);
 re-exports its public names. :func:`posterior_metadata` gives them typed
 (the records of :mod:`bayes_jackal.posterior_records`);
 :func:`store_comparison` and :func:`store_criticism` add the results
-computed later.
+computed later, :func:`store_reweighting` the record of a posterior made by
+reweighting another's draws.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ __all__ = [
     "posterior_metadata",
     "store_comparison",
     "store_criticism",
+    "store_reweighting",
 ]
 
 #: The format this version writes (docs/design.md §7).
@@ -527,6 +529,7 @@ def posterior_metadata(idata: az.InferenceData) -> PosteriorMetadata:
             convergence_messages=tuple(_attribute(attrs, "convergence_messages", ())),
             task=_attribute(attrs, "task", None),
             criticism=_attribute(attrs, "criticism", None),
+            reweighting=_attribute(attrs, "reweighting", None),
         )
     except DataError:
         raise
@@ -601,3 +604,34 @@ def store_criticism(idata: az.InferenceData, criticism: dict) -> None:
     []
     """
     idata.posterior.attrs["criticism"] = json.dumps(criticism)
+
+
+def store_reweighting(idata: az.InferenceData, record: dict) -> None:
+    """Mark a posterior as a reweighting of another's draws (read back as ``reweighting``).
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        The reweighted posterior (:mod:`bayes_jackal.leave_one_out` writes
+        one per run left out).
+    record : dict
+        JSON-ready: ``method``, ``of``, ``experiments``, ``left_out``,
+        ``pareto_k``, ``weights_ess``, ``draws``, ``relative_efficiency``,
+        ``task`` (:attr:`PosteriorMetadata.reweighting`).
+
+    Examples
+    --------
+    A record kept in a posterior, and read back. The 20-step chain is short on
+    purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior_format import posterior_metadata, store_reweighting
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> posterior_metadata(posterior).reweighting is None  # sampled
+    True
+    >>> store_reweighting(posterior, {"method": "psis", "pareto_k": 0.21})
+    >>> posterior_metadata(posterior).reweighting
+    {'method': 'psis', 'pareto_k': 0.21}
+    """
+    idata.posterior.attrs["reweighting"] = json.dumps(record)

@@ -154,6 +154,13 @@ class PosteriorMetadata:
         What defined a comparison's result (:func:`store_comparison`).
     criticism : dict or None
         :func:`bayes_jackal.criticism.criticise`'s result (:func:`store_criticism`).
+    reweighting : dict or None
+        For a posterior made by reweighting another's draws instead of
+        sampling (:func:`store_reweighting`): ``method`` (``psis``), ``of``
+        (the posterior reweighted), its ``experiments``, the ``left_out``
+        run, ``pareto_k``, ``weights_ess``, ``draws``,
+        ``relative_efficiency`` and ``task`` (what defined it, for reuse).
+        None for a sampled posterior.
 
     Examples
     --------
@@ -190,6 +197,7 @@ class PosteriorMetadata:
     convergence_messages: tuple[str, ...] = ()
     task: dict | None = None
     criticism: dict | None = None
+    reweighting: dict | None = None
 
     @property
     def family(self) -> str:

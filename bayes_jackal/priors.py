@@ -21,7 +21,7 @@ import numpy as np
 import scipy.stats
 
 from .likelihood import ResidualLikelihood
-from .parameters import prior_overrides, prior_range
+from .parameters import ParameterLayout, prior_overrides, prior_range
 from .robot import RobotProfile
 
 __all__ = ["LogPosterior", "Prior"]
@@ -92,7 +92,16 @@ class Prior:
         unknown key is an :class:`InputError` naming the keys allowed. Every
         noise family's width takes the ``sigma_h`` range.
         """
-        layout = likelihood.layout
+        return cls.for_layout(likelihood.layout, robot, overrides)
+
+    @classmethod
+    def for_layout(
+        cls,
+        layout: ParameterLayout,
+        robot: RobotProfile,
+        overrides: Mapping[str, Sequence[float]] | None = None,
+    ) -> Prior:
+        """Priors of every parameter of ``layout``: as :meth:`for_likelihood`."""
         ranges = {**robot.priors, **prior_overrides(overrides)}
         keys = [layout.prior_key(base) for base in layout.bases]
         low, high = np.array([prior_range(key, ranges[key]) for key in keys]).T

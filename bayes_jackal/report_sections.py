@@ -13,7 +13,9 @@ table per data set. :func:`bayes_jackal.report.render_report` assembles
 them into the page; these are its parts, not an API of their own.
 :func:`state_estimation_section` is the analysis' section on the filters
 its prior drives, on runs left out of the prior
-(:mod:`bayes_jackal.leave_one_out`), which ``analyse`` adds.
+(:mod:`bayes_jackal.leave_one_out`), with how each posterior without a run
+was made (PSIS reweighting with its Pareto k-hat, or a refit), which
+``analyse`` adds.
 """
 
 from __future__ import annotations
@@ -21,20 +23,18 @@ from __future__ import annotations
 import html
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import estimate_plots, plots
 from .comparison_result import colour_verdict
 from .criticism import KIND_MEANINGS
+from .leave_one_out import LeaveOneOut
 from .physics import CHANNELS, discrete_matrices
 from .posterior import HDI_PROB, az, posterior_metadata, summarize
 from .report_figures import ReportFigures
+from .reweighting import PARETO_K_THRESHOLD
 from .state_estimation import score_rows
-
-if TYPE_CHECKING:
-    from .leave_one_out import LeaveOneOut
 
 # The page's parts are for :mod:`bayes_jackal.report` only; its table serves every report.
 __all__ = ["html_table"]
@@ -550,6 +550,41 @@ def state_estimation_highlight(result: LeaveOneOut) -> str | None:
     )
 
 
+def _left_out_posteriors(result: LeaveOneOut) -> str:
+    """How each posterior without a run was made: PSIS diagnostics, and which runs were refit."""
+    threshold = f"{PARETO_K_THRESHOLD:g}"
+    rows = [
+        [
+            run,
+            "PSIS reweighting" if record["method"] == "psis" else "refit",
+            record["pareto_k"],
+            record["weights_ess"],
+            record["draws"],
+            record["refit_reason"] or "-",
+        ]
+        for run, record in result.runs.items()
+    ]
+    refit = [run for run, record in result.runs.items() if record["method"] == "refit"]
+    source = html.escape(result.pooled) if result.pooled else "none was given"
+    return (
+        "<h3>The posterior without each run</h3><p>Each is the analysis' pooled posterior "
+        f"of every run (<code>{source}</code>) reweighted by Pareto-smoothed importance "
+        "sampling (PSIS): each draw weighted by the inverse of the left-out run's likelihood, "
+        "the largest weights smoothed by a generalised Pareto fit, the draws resampled with "
+        f"them. The fit's shape k-hat says whether the weights can be trusted: at most "
+        f"{threshold}, they can (Vehtari et al. 2024; arviz's threshold); above {threshold}, "
+        "the run moves the posterior further than the pooled draws reach, and its posterior "
+        "is sampled again from the other runs (refit). The weights' ESS, 1 / sum of their "
+        "squares, is how many independent draws they are worth. "
+        + (f"Refit: {html.escape(', '.join(refit))}." if refit else "No run needed a refit.")
+        + "</p>"
+        + html_table(
+            ["left out", "posterior", "Pareto k-hat", "weights ESS", "pooled draws", "why refit"],
+            rows,
+        )
+    )
+
+
 def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str:
     """The section "State estimation with this prior": the left-out runs' scores, a figure.
 
@@ -559,7 +594,7 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
     parts = [
         "<section><h2>State estimation with this prior</h2><p>Does the identified noise "
         "model help estimation, on data the prior has not seen? Each run is left out in "
-        f"turn: the {family}-noise posterior is fitted to the other runs, its Active "
+        f"turn: the {family}-noise posterior given the other runs (below: how), its Active "
         "Inference prior is exported (as the analysis' <code>prior.json</code> is), and "
         "the filters driven by that prior estimate the states of the run left out. "
         "<b>kalman</b> assumes white process noise (the baseline); <b>kalman-coloured</b> "
@@ -584,6 +619,7 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
     if result.skipped:
         parts.append(f"<p>Not run: {html.escape(result.skipped)}.</p></section>")
         return "".join(parts)
+    parts.append(_left_out_posteriors(result))
     problems = [f"leaving out {run}: {reason}" for run, reason in result.failed.items()]
     for run, record in result.runs.items():
         problems += [f"{run}: {filter_name} could not run: {reason}"

@@ -22,9 +22,11 @@ folder:
   :func:`bayes_jackal.export.allowed_orders`; 0 for white noise): the
   prior follows the model the data support best;
 - ``state_estimation/`` and ``state_estimation.json``: with two or more
-  runs, each run's filters driven by the prior of the best family fitted to
-  the other runs, scored (:mod:`bayes_jackal.leave_one_out`: its files and
-  cost, N more posteriors; ``state_estimation=False`` skips it);
+  runs, each run's filters driven by the prior of the best family given the
+  other runs, scored (:mod:`bayes_jackal.leave_one_out`: its files and
+  cost). The posterior without each run is the best family's pooled
+  posterior reweighted by PSIS, or, where its Pareto k-hat is above 0.7,
+  a new posterior on the other runs; ``state_estimation=False`` skips it;
 - ``report.html``: the report of every family's posterior, best first,
   with the section "State estimation with this prior".
 
@@ -347,11 +349,12 @@ def analyse_logs(
     window, max_gap, labels, read_options
         As in :func:`ingest_logs`.
     state_estimation : bool
-        With two or more runs, fit the best family to every run but one and
-        score the filters on the one left out, for each run
-        (:func:`bayes_jackal.leave_one_out.leave_one_out`, with this
-        analysis' sampler settings, seed, priors, likelihood options and
-        executor): N more posteriors. False skips it.
+        With two or more runs, take the best family's posterior given every
+        run but one and score the filters on the one left out, for each run
+        (:func:`bayes_jackal.leave_one_out.leave_one_out`): the pooled
+        posterior reweighted by PSIS, or refit with this analysis' sampler
+        settings, seed, priors, likelihood options and executor where the
+        reweighting's Pareto k-hat is above 0.7. False skips it.
     say : callable
         Receives the progress and summary lines.
 
@@ -365,7 +368,8 @@ def analyse_logs(
         summary), ``warnings`` (objects with ``kind`` and ``message``: a
         family's chain that did not converge, then every family's
         model-criticism warnings, with its ``family``, then each left-out
-        run's chain that did not converge, with its ``left_out``),
+        run's chain that did not converge (for a reweighting, the pooled
+        chain's), with its ``left_out``),
         ``state_estimation`` (``state_estimation.json``:
         :meth:`~bayes_jackal.leave_one_out.LeaveOneOut.to_dict`) and
         ``files`` (report, prior, posterior, state_estimation (None when
@@ -487,9 +491,13 @@ def analyse_logs(
         export_prior(idata, order=None, source=str(paths_by_family[best])), folder / "prior.json"
     )
     if state_estimation:
-        left_out = leave_one_out(experiments, robot, best, folder, settings=settings, seed=seed,
-                                 prior_overrides=prior_overrides, likelihood_options=options,
-                                 executor=executor, say=say)  # fmt: skip
+        # Each run's posterior without it: the best family's pooled posterior reweighted
+        # (PSIS), or refit where the reweighting is unreliable.
+        left_out = leave_one_out(experiments, robot, best, folder, pooled=idata,
+                                 pooled_source=str(paths_by_family[best]), settings=settings,
+                                 seed=seed, prior_overrides=prior_overrides,
+                                 likelihood_options=options, executor=executor,
+                                 say=say)  # fmt: skip
     else:
         left_out = LeaveOneOut(best, skipped="turned off (--no-state-estimation)")
     say("writing the report (figures as PNG and SVG)...")

@@ -2,30 +2,54 @@
 
 One analysis of two short simulated runs (8 s, white noise on the yaw
 channel, chains capped at 100 steps: the files and their links are checked
-here, not the statistics) serves every test; the reruns reuse its saved
-posteriors, so they sample nothing.
+here, not the statistics) serves most tests; of two runs each is half the
+data, so the pooled posterior's PSIS reweighting is unreliable (Pareto
+k-hat above 0.7) and each run is refit. The reruns reuse its saved
+posteriors, so they sample nothing. The PSIS reweighting itself is checked
+against closed forms (conjugate Gaussian toys) and, on four runs whose
+chains converge, against a direct refit.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import json
 import shutil
+import warnings
 
 import numpy as np
 import pytest
+import scipy.stats
 
 from bayes_jackal.cli import main
+from bayes_jackal.cli.output import state_estimation_text
 from bayes_jackal.cli.parser import build_parser
+from bayes_jackal.comparison import compare_families, compare_groups
 from bayes_jackal.defaults import STATE_ESTIMATION
 from bayes_jackal.demo import run_demo
 from bayes_jackal.errors import InputError
 from bayes_jackal.estimate_plots import SHOWN_SECONDS, plot_state_estimates, shown_window
 from bayes_jackal.executors import SerialExecutor
 from bayes_jackal.experiment import read_netcdf, write_netcdf
-from bayes_jackal.inference import SamplerSettings
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
 from bayes_jackal.kalman import KALMAN_FILTERS, StateEstimate
 from bayes_jackal.leave_one_out import FOLDER, SUMMARY, leave_one_out
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.posterior import (
+    load_posterior,
+    parameter_draws,
+    posterior_metadata,
+    save_posterior,
+)
+from bayes_jackal.priors import LogPosterior, Prior
+from bayes_jackal.report_sections import state_estimation_section
+from bayes_jackal.reweighting import (
+    PARETO_K_THRESHOLD,
+    PooledPosterior,
+    conditional_log_density,
+    psis_weights,
+)
 from bayes_jackal.robot import load_profile
 from bayes_jackal.simulate import Series, simulate_experiment
 from bayes_jackal.state_estimation import FILTERS
@@ -84,6 +108,13 @@ def test_each_run_is_filtered_with_the_prior_of_exactly_the_others(analysis):
         assert (out / FOLDER / "posteriors" / f"{run}.nc").exists()
     assert json.loads((out / SUMMARY).read_text()) == state
     assert result["files"]["state_estimation"] == str(out / SUMMARY)
+    # Each run is half the data: the pooled posterior's PSIS weights are unreliable,
+    # so each run's posterior is refit, and the JSON says so with k-hat and why.
+    assert state["pooled"] == str(out / "posteriors" / "white.nc")
+    for record in state["runs"].values():
+        assert record["method"] == "refit" and record["pareto_k"] > PARETO_K_THRESHOLD
+        assert record["refit_reason"].startswith(f"Pareto k-hat {record['pareto_k']:.3f} > 0.7")
+        assert record["draws"] > 0 and record["weights_ess"] < record["draws"]
     # The left-out chains' convergence is reported with the run left out.
     left_out = [w["left_out"] for w in result["warnings"] if "left_out" in w]
     assert left_out == list(RUNS)
@@ -96,7 +127,8 @@ def test_the_report_has_the_section_its_table_and_figure(analysis):
     # independently from the scores: a consistent NIS per run and channel.
     summary = report[report.index('<section class="summary">') :]
     summary = summary[: summary.index("</section>")]
-    runs = result["state_estimation"]["runs"].values()
+    runs_by_name = result["state_estimation"]["runs"]
+    runs = runs_by_name.values()
     for name in FILTERS:
         nis = [record["scores"][name]["nis"]["yaw"] for record in runs]
         consistent = sum(value["consistent"] for value in nis)
@@ -104,8 +136,15 @@ def test_the_report_has_the_section_its_table_and_figure(analysis):
     section = report[report.index("<h2>State estimation with this prior</h2>") :]
     section = section[: section.index("</section>")]
     assert "normalised innovation squared" in section
-    assert section.count("<tr><td>") == len(RUNS) * len(FILTERS)  # one row per run, filter
+    # One row per run and filter, and one per run of how its posterior was made.
+    assert section.count("<tr><td>") == len(RUNS) * len(FILTERS) + len(RUNS)
     assert "<tr><td>b</td><td>a</td><td>kalman-coloured</td><td>yaw</td>" in section
+    # How each posterior without a run was made: k-hat per run, and which were refit.
+    assert "<h3>The posterior without each run</h3>" in section
+    assert "Refit: a, b." in section
+    for run, record in runs_by_name.items():
+        row = f"<tr><td>{run}</td><td>refit</td><td>{record['pareto_k']:.4g}</td>"
+        assert row in section
     # One figure per run left out (issue 24, item 12: only the first had one).
     assert section.count("data:image/png;base64,") == len(RUNS)
     for run in RUNS:
@@ -120,18 +159,26 @@ def test_a_failing_run_does_not_stop_the_others(analysis, tmp_path):
     (tmp_path / FOLDER / "a.csv").mkdir()
     lines = []
     experiments = [read_netcdf(path) for path in analysis[0]]
+    pooled = out / "posteriors" / "white.nc"
     again = leave_one_out(
         experiments,
         ROBOT,
         "white",
         tmp_path,
+        pooled=load_posterior(pooled),
+        pooled_source=str(pooled),
         settings=SETTINGS,
         seed=1,
         likelihood_options=OPTIONS,
         say=lines.append,
     )
+    # Each run's PSIS reweighting is refused, and say tells which and why.
+    for run in RUNS:
+        [line] = [line for line in lines if line.startswith(f"  leaving out {run}: Pareto k-hat")]
+        assert "> 0.7: the PSIS reweighting of the pooled posterior is unreliable" in line
+        assert line.endswith("; refitting it on the other runs")
     assert list(again.failed) == ["a"] and "a.csv: cannot write" in again.failed["a"]
-    assert list(again.runs) == ["b"]
+    assert list(again.runs) == ["b"] and again.runs["b"]["method"] == "refit"
     assert again.runs["b"]["scores"] == result["state_estimation"]["runs"]["b"]["scores"]
     assert sum(line.startswith("  reusing white") for line in lines) == len(RUNS)
     assert json.loads((tmp_path / SUMMARY).read_text())["failed"] == again.failed
@@ -154,6 +201,22 @@ def test_no_state_estimation_skips_it(analysis, tmp_path, capsys):
     report = (tmp_path / "out" / "report.html").read_text()
     assert "State estimation with this prior</h2>" in report
     assert "Not run: turned off (--no-state-estimation)." in report
+
+
+def test_the_cli_says_how_each_posterior_without_a_run_was_made(analysis):
+    # What analyse prints of the state estimation (cli.output.analysis_text calls it).
+    _, out, result = analysis
+    lines: list[str] = []
+    state_estimation_text(result["state_estimation"], lines.append)
+    text = "\n".join(lines)
+    pooled = out / "posteriors" / "white.nc"
+    assert (
+        f"posteriors without each run: {pooled} reweighted by PSIS, refit where Pareto k-hat "
+        "> 0.7: a, b refit"
+    ) in text
+    for run, record in result["state_estimation"]["runs"].items():
+        k_hat = f"Pareto k-hat {record['pareto_k']:.3f} > 0.7"
+        assert f"{run}: posterior without it by refit: {k_hat}" in text
 
 
 def test_one_run_has_nothing_to_leave_out(analysis, tmp_path):
@@ -186,3 +249,245 @@ def test_analyse_and_demo_read_the_flags_default_from_the_library():
     analyse = build_parser().parse_args(["analyse", "x.bag", "--out", "o"])
     assert analyse.state_estimation is default is demo is STATE_ESTIMATION
     assert build_parser().parse_args(["demo", "--no-state-estimation"]).state_estimation is False
+
+
+# -- PSIS: the posterior without a run from the pooled posterior's draws
+
+
+def _gaussian_draws(mean: np.ndarray, covariance: np.ndarray, count: int, seed: int):
+    """``count`` independent draws of N(mean, covariance), shape (count, len(mean))."""
+    return np.random.default_rng(seed).multivariate_normal(mean, covariance, size=count)
+
+
+def _monte_carlo_tolerance(sd: float, ess: float) -> tuple[float, float]:
+    """Four Monte Carlo standard errors of a weighted mean and of a weighted variance.
+
+    With an effective sample size ``ess`` (the weights' 1 / sum(w^2); the toys'
+    draws are independent), a mean's error is sd / sqrt(ess) and a Gaussian's
+    variance's is var sqrt(2 / ess); four of them fail a correct estimate with
+    probability ~1e-4 where the weights have a finite variance (k-hat < 0.5;
+    above, the variance's error is heavier-tailed than this). The seeds are
+    fixed: measured, the first toy misses by 0.4 and 0.4 errors (k-hat 0.27),
+    the second by 1.5 and 2.6 (k-hat 0.57), while leaving the run out moves the
+    mean by 34.
+    """
+    return 4 * sd / np.sqrt(ess), 4 * sd**2 * np.sqrt(2 / ess)
+
+
+def test_psis_gives_the_closed_form_posterior_without_a_run():
+    # Conjugate toy: y_j ~ N(theta, s_j^2), theta ~ N(0, 3^2). Run 3 is an
+    # outlier; without it the posterior moves by ~0.8 sd.
+    y = np.array([0.1, -0.2, 0.3, 1.4, 0.0])
+    s = np.array([0.3, 0.4, 0.3, 0.5, 0.35])
+    precision = 1 / 3.0**2 + np.sum(1 / s**2)
+    mean = np.sum(y / s**2) / precision
+    theta = _gaussian_draws(np.array([mean]), np.array([[1 / precision]]), 4000, 3)[:, 0]
+    left = 3
+    others = np.arange(len(y)) != left
+    loo_precision = 1 / 3.0**2 + np.sum(1 / s[others] ** 2)
+    loo_mean, loo_sd = np.sum(y[others] / s[others] ** 2) / loo_precision, loo_precision**-0.5
+
+    log_ratios = -scipy.stats.norm.logpdf(y[left], theta, s[left])
+    weights, pareto_k, ess = psis_weights(log_ratios)
+
+    assert pareto_k <= PARETO_K_THRESHOLD and weights.sum() == pytest.approx(1.0)
+    mean_tolerance, variance_tolerance = _monte_carlo_tolerance(loo_sd, ess)
+    assert abs(mean - loo_mean) > 4 * mean_tolerance  # the test can tell
+    assert weights @ theta == pytest.approx(loo_mean, abs=mean_tolerance)
+    variance = weights @ (theta - weights @ theta) ** 2
+    assert variance == pytest.approx(loo_sd**2, abs=variance_tolerance)
+
+
+def test_psis_integrates_a_left_out_runs_own_parameters_out():
+    # Noise per run, as a toy: y_j ~ N(theta + phi_j, 0.2^2), phi_j ~ N(0, 1) the
+    # run's own parameter, theta ~ N(0, 3^2) shared. Without run i, theta's
+    # posterior has phi_i integrated over its prior: y_j ~ N(theta, 0.2^2 + 1).
+    y = np.array([0.5, -0.3, 0.8, 2.5])
+    sigma, tau, s = 0.2, 3.0, 1.0
+    n = len(y)
+    design = np.hstack([np.ones((n, 1)), np.eye(n)])  # y = design @ (theta, phi)
+    precision = np.diag([1 / tau**2] + [1 / s**2] * n) + design.T @ design / sigma**2
+    covariance = np.linalg.inv(precision)
+    draws = _gaussian_draws(covariance @ design.T @ y / sigma**2, covariance, 8000, 5)
+    left = 3
+    theta, phi = draws[:, 0], draws[:, 1 + left]
+    others = np.arange(n) != left
+    loo_precision = 1 / tau**2 + np.sum(others) / (sigma**2 + s**2)
+    loo_mean = np.sum(y[others]) / (sigma**2 + s**2) / loo_precision
+    loo_sd = loo_precision**-0.5
+
+    log_likelihood = scipy.stats.norm.logpdf(y[left], theta + phi, sigma)
+    box = np.array([-20.0]), np.array([20.0])
+    log_q = conditional_log_density(theta[:, None], phi[:, None], *box)
+    log_prior = scipy.stats.norm.logpdf(phi, 0.0, s)
+    weights, pareto_k, ess = psis_weights(-log_likelihood + log_q - log_prior)
+
+    assert pareto_k <= PARETO_K_THRESHOLD
+    mean_tolerance, variance_tolerance = _monte_carlo_tolerance(loo_sd, ess)
+    assert abs(draws[:, 0].mean() - loo_mean) > 4 * mean_tolerance
+    assert weights @ theta == pytest.approx(loo_mean, abs=mean_tolerance)
+    variance = weights @ (theta - weights @ theta) ** 2
+    assert variance == pytest.approx(loo_sd**2, abs=variance_tolerance)
+    # Without q the joint weights are the harmonic-mean estimate of the
+    # integral: k-hat ~ 1 / (1 + sigma^2 / s^2) = 0.96, and PSIS would refuse them.
+    assert psis_weights(-log_likelihood)[1] > PARETO_K_THRESHOLD
+
+
+def test_psis_weights_refuse_what_they_cannot_weigh():
+    with pytest.raises(InputError, match="finite vector"):
+        psis_weights(np.array([0.0, np.inf, 1.0]))
+    with pytest.raises(InputError, match="reff"):
+        psis_weights(np.zeros(10), reff=0.0)
+    with pytest.raises(InputError, match="inside the box"):
+        conditional_log_density(np.zeros((50, 1)), np.full((50, 1), 3.0), [0.0], [1.0])
+
+
+#: Four short runs of the yaw channel: leaving one out moves the posterior by
+#: up to ~15 Monte Carlo errors, and PSIS reweights most (k-hat 0.55-0.70).
+FOUR = ("a", "b", "c", "d")
+#: Converged chains (within 1,300-1,500 steps on these runs).
+CONVERGED = SamplerSettings(max_steps=2000, progress=False)
+
+
+@pytest.fixture(scope="module")
+def four_runs(tmp_path_factory) -> tuple:
+    """(runs, pooled posterior, its file, analysis folder, result, say lines) on four runs."""
+    folder = tmp_path_factory.mktemp("psis")
+    children = np.random.default_rng(14).spawn(len(FOUR))
+    runs = [
+        simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=rng, name=name)
+        for name, rng in zip(FOUR, children, strict=True)
+    ]
+    comparison = compare_families(
+        runs, ROBOT, ("white",), CONVERGED, seed=1, executor=SerialExecutor(), **OPTIONS
+    )
+    pooled = comparison.posteriors["white"]
+    source = save_posterior(pooled, folder / "white.nc")
+    lines: list[str] = []
+    result = leave_one_out(
+        runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
+        settings=CONVERGED, seed=1, likelihood_options=OPTIONS, executor=SerialExecutor(),
+        say=lines.append,
+    )  # fmt: skip
+    return runs, pooled, source, folder, result, lines
+
+
+def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
+    runs, pooled, source, _, result, lines = four_runs
+    assert result.failed == {} and list(result.runs) == list(FOUR)
+    reweighted = [run for run, record in result.runs.items() if record["method"] == "psis"]
+    assert len(reweighted) >= 3
+    left = "b"
+    record = result.runs[left]
+    assert record["method"] == "psis" and record["pareto_k"] <= PARETO_K_THRESHOLD
+    assert (
+        record["refit_reason"] is None
+        and record["draws"] == pooled.posterior.sizes["chain"] * pooled.posterior.sizes["draw"]
+    )
+    assert f"  leaving out {left}: PSIS reweighting of the pooled posterior (Pareto k-hat" in (
+        "\n".join(lines)
+    )
+    idata = load_posterior(record["files"]["posterior"])
+    metadata = posterior_metadata(idata)
+    others = [name for name in FOUR if name != left]
+    assert [e.name for e in metadata.experiments] == record["trained_on"] == others
+    stored = metadata.reweighting
+    assert stored["method"] == "psis" and stored["of"] == str(source)
+    assert stored["left_out"] == left and stored["pareto_k"] == record["pareto_k"]
+    assert stored["weights_ess"] == record["weights_ess"]
+    # The independent reference: the chain sampled on the other three runs (another seed).
+    reference = compare_families(
+        [run for run in runs if run.name != left], ROBOT, ("white",), CONVERGED, seed=8,
+        executor=SerialExecutor(), **OPTIONS,
+    ).posteriors["white"]  # fmt: skip
+    logs = {
+        name: np.log(parameter_draws(posterior)[0]).reshape(-1, 4)
+        for name, posterior in (("psis", idata), ("refit", reference), ("pooled", pooled))
+    }
+    # Tolerance: four Monte Carlo standard errors of the difference of the two
+    # means. The reweighting's: the weights' ESS times the chain's relative
+    # efficiency, plus the resampling's 1 / draws; the refit's: its chain's
+    # autocorrelation ESS per parameter.
+    refit_ess = np.array(list(posterior_metadata(reference).convergence.ess_autocorr.values()))
+    psis_ess = record["weights_ess"] * record["relative_efficiency"]
+    sd = logs["refit"].std(axis=0)
+    error = sd * np.sqrt(1 / psis_ess + 1 / len(logs["psis"]) + 1 / refit_ess)
+    gap = np.abs(logs["psis"].mean(axis=0) - logs["refit"].mean(axis=0))
+    assert np.all(gap < 4 * error), gap / error
+    # ... where the pooled posterior (the run not left out) is far off: the test can tell.
+    assert np.max(np.abs(logs["pooled"].mean(axis=0) - logs["refit"].mean(axis=0)) / error) > 8
+
+
+def test_a_rerun_reuses_the_reweightings_and_the_json_and_report_carry_k_hat(four_runs, tmp_path):
+    runs, pooled, source, folder, result, _ = four_runs
+    state = json.loads((folder / SUMMARY).read_text())
+    assert state == result.to_dict() and state["pooled"] == str(source)
+    assert state["pareto_k_threshold"] == PARETO_K_THRESHOLD
+    for run, record in state["runs"].items():
+        assert record["pareto_k"] == result.runs[run]["pareto_k"]
+        assert (record["method"] == "psis") == (record["pareto_k"] <= PARETO_K_THRESHOLD)
+    lines: list[str] = []
+    again = leave_one_out(
+        runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
+        settings=CONVERGED, seed=1, likelihood_options=OPTIONS, say=lines.append,
+    )  # fmt: skip
+    reweighted = [run for run, record in result.runs.items() if record["method"] == "psis"]
+    reused = [line for line in lines if "reusing the PSIS reweighting" in line]
+    assert len(reused) == len(reweighted)
+    refit = [run for run in FOUR if run not in reweighted]
+    assert sum(line.startswith("  reusing white") for line in lines) == len(refit)
+    assert {run: record["scores"] for run, record in again.runs.items()} == {
+        run: record["scores"] for run, record in result.runs.items()
+    }
+    # The report's table of how each posterior was made, k-hat per run.
+    section = state_estimation_section(dataclasses.replace(result, estimates={}), figures=None)
+    assert "<h3>The posterior without each run</h3>" in section
+    assert f"(<code>{source}</code>) reweighted by Pareto-smoothed" in section
+    for run, record in result.runs.items():
+        kind = "PSIS reweighting" if record["method"] == "psis" else "refit"
+        assert f"<tr><td>{run}</td><td>{kind}</td><td>{record['pareto_k']:.4g}</td>" in section
+
+
+def test_a_reweighting_with_noise_per_run_keeps_the_other_runs_and_their_log_posterior():
+    # Three 8 s runs, each with its own noise; the chain is short (100 steps): the
+    # columns and log densities are checked here, with the draws' weights set equal.
+    children = np.random.default_rng(7).spawn(3)
+    runs = [
+        simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=rng, name=name)
+        for name, rng in zip("abc", children, strict=True)
+    ]
+    options = {"channels": ("yaw",), "shared_noise": False}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        [(_, comparison)] = compare_groups(
+            {0: runs}, ROBOT, families=("white",), settings=SETTINGS, seed=1,
+            likelihood_options=options,
+        )  # fmt: skip
+    pooled = PooledPosterior(comparison.posteriors["white"], runs, ROBOT, "white", options)
+    theta = pooled.theta
+    weights = pooled.weights(runs[1])
+    # Run b's log-likelihood at each draw, against the stored total less a and c's.
+    others = ResidualLikelihood([runs[0], runs[2]], ROBOT, family="white", **options)
+    layout = pooled.layout
+    columns = [layout.names.index(name) for name in ("d_lat", "d_long")] + [
+        layout.names.index(f"{base}[{run}]") for run in "ac" for base in ("sigma_c", "sigma_n")
+    ]
+    total = comparison.posteriors["white"].sample_stats["log_likelihood_total"]
+    total = total.transpose("draw", "chain").values.reshape(-1)
+    expected = total - others(theta[:, columns])
+    assert np.allclose(weights.log_likelihood, expected, rtol=0, atol=1e-6)
+    # The posterior without b: a and c's layout, and their log posterior at each draw.
+    equal = dataclasses.replace(weights, weights=np.full(pooled.count, 1 / pooled.count))
+    idata = pooled.posterior_without("b", equal, np.random.default_rng(0), {"method": "psis"})
+    metadata = posterior_metadata(idata)
+    assert metadata.layout.names == (
+        "d_lat", "d_long", "sigma_c[a]", "sigma_n[a]", "sigma_c[c]", "sigma_n[c]"
+    )  # fmt: skip
+    assert metadata.reweighting == {"method": "psis"}
+    draws, lp = parameter_draws(idata)
+    z = np.log(draws.reshape(-1, 6))
+    log_posterior = LogPosterior(others, Prior.for_likelihood(others, ROBOT))
+    assert np.allclose(lp.reshape(-1), log_posterior(z), rtol=0, atol=1e-6)
+    # Each resampled draw is a pooled draw's columns.
+    rows = {tuple(row) for row in np.round(np.log(theta[:, columns]), 12)}
+    assert {tuple(row) for row in np.round(z, 12)} <= rows

@@ -10,6 +10,7 @@ from .._files import json_text
 from ..criticism import KIND_MEANINGS
 from ..errors import InputError, describe
 from ..gridsearch import GridResult
+from ..leave_one_out import method_text
 from ..state_estimation import score_rows
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
@@ -207,8 +208,16 @@ def state_estimation_text(state: dict, say: Callable[[str], None]) -> None:
         say(f"State estimation on runs left out of the prior: not run, {state['skipped']}.")
         return
     say(f"\nState estimation with the {state['family']} prior fitted to the other runs:")
+    refit = [run for run, record in state["runs"].items() if record["method"] == "refit"]
+    if state["pooled"] is not None:
+        say(
+            f"posteriors without each run: {state['pooled']} reweighted by PSIS, refit where "
+            f"Pareto k-hat > {state['pareto_k_threshold']:g}: "
+            + (f"{', '.join(refit)} refit" if refit else "none refit")
+        )
     for run, record in state["runs"].items():
         trained = ", ".join(record["trained_on"])
+        say(f"{run}: posterior without it by {method_text(record)}")
         filter_table(f"{run} (prior from {trained})", record["scores"], say)
         for name, reason in record["filters_failed"].items():
             print(f"bayes-jackal: WARNING: {run}: {name} could not run: {reason}", file=sys.stderr)

@@ -254,7 +254,8 @@ def _add_state_estimation(parser: argparse.ArgumentParser) -> None:
         action=argparse.BooleanOptionalAction,
         default=STATE_ESTIMATION,
         help="with two or more runs, score the filters on each run left out of the best "
-        "family's prior fitted to the others: one more posterior per run "
+        "family's prior fitted to the others: the pooled posterior reweighted by PSIS, one "
+        "more posterior per run whose Pareto k-hat is above 0.7 "
         f"(default: {'on' if STATE_ESTIMATION else 'off'})",
     )
 
