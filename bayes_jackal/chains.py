@@ -1,6 +1,8 @@
 """Running an emcee chain to convergence: stored step by step, resumed, kept after burn-in.
 
-The ensemble moves with differential evolution until the answer is known:
+The ensemble moves with differential evolution, and with independent
+draws from the posterior's Laplace approximation where the start gives one
+(:mod:`bayes_jackal.moves`), until the answer is known:
 the chain is longer than 50 integrated autocorrelation times (emcee's
 advice, so that tau itself is estimated reliably) and every parameter has
 an effective sample size of at least 400 in the bulk and in the tails
@@ -39,6 +41,7 @@ from .defaults import (
     WALKERS,
 )
 from .errors import InputError, OutputError
+from .moves import LaplaceApproximation, Start, ensemble_moves
 from .outputs import OutputLock, refuse_link
 from .progress import Progress
 from .sampler_warnings import ConvergenceWarning
@@ -149,14 +152,6 @@ class SamplerSettings:
         if walkers < 2 * ndim:
             raise InputError(f"need at least {2 * ndim} walkers, got {walkers}", field="walkers")
         return walkers + walkers % 2
-
-
-def _moves() -> list:
-    """Differential-evolution moves with snooker updates (emcee's recommendation for
-    curved targets): along the damping ridge the noise parameters bend with the
-    damping scale, and these cut the autocorrelation time ~3x against the
-    stretch move (measured: tau 88 vs 247 steps on a thesis-like experiment)."""
-    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
 
 
 class BufferedHDFBackend(emcee.backends.HDFBackend):
@@ -524,7 +519,10 @@ def run_chain(
         :class:`~bayes_jackal.priors.LogPosterior` or one of the same shape).
     initial : callable
         ``initial(rng, walkers)``: the walkers' starting points (walkers, k),
-        drawn with ``rng``; called only when the chain starts afresh.
+        drawn with ``rng``, or a :class:`~bayes_jackal.moves.Start` that
+        also gives the Laplace approximation the independence moves propose
+        from (:func:`~bayes_jackal.moves.ensemble_moves`; kept in the chain
+        file); called only when the chain starts afresh.
     settings : SamplerSettings
     seed : int or list of int, optional
         Seeds ``initial`` and emcee's moves (numpy's seed: an entropy list
@@ -578,17 +576,26 @@ def run_chain(
             ndim,
             settings.check_every,
         )
-        sampler = emcee.EnsembleSampler(
-            walkers, ndim, log_posterior, vectorize=True, backend=backend, moves=_moves()
-        )
         if backend.iteration == 0:
-            points = initial(rng, walkers)
+            begun = initial(rng, walkers)
+            begun = begun if isinstance(begun, Start) else Start(np.asarray(begun))
             moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
-            start = emcee.State(points, random_state=moves_state)
+            start = emcee.State(begun.walkers, random_state=moves_state)
+            approximation = begun.approximation
+            _store_approximation(backend, approximation)
         else:
-            start = sampler.get_last_sample()
+            start = backend.get_last_sample()
+            approximation = _stored_approximation(backend)
             if say is not None:
                 say(f"resuming {chain_file} at step {backend.iteration}")
+        sampler = emcee.EnsembleSampler(
+            walkers,
+            ndim,
+            log_posterior,
+            vectorize=True,
+            backend=backend,
+            moves=ensemble_moves(approximation),
+        )
         try:
             shortfall, tau = _run_until_converged(sampler, start, settings, tuple(names))
         finally:
@@ -603,6 +610,28 @@ def run_chain(
                 stacklevel=3,
             )
         return _kept(sampler, names, tau, shortfall is None, settings, seed)
+
+
+def _store_approximation(backend, approximation: LaplaceApproximation | None) -> None:
+    """Keep the moves' approximation in a chain file, so that a resumed chain moves alike."""
+    if approximation is None or not isinstance(backend, BufferedHDFBackend):
+        return
+    with backend.writing(), backend.open("a") as stored:
+        stored[backend.name].attrs["laplace_centre"] = approximation.centre
+        stored[backend.name].attrs["laplace_covariance"] = approximation.covariance
+
+
+def _stored_approximation(backend) -> LaplaceApproximation | None:
+    """The approximation a stored chain's moves used (None: differential evolution alone)."""
+    if not isinstance(backend, BufferedHDFBackend):
+        return None
+    with backend.open("r") as stored:
+        attrs = stored[backend.name].attrs
+        if "laplace_centre" not in attrs:
+            return None
+        return LaplaceApproximation(
+            np.array(attrs["laplace_centre"]), np.array(attrs["laplace_covariance"])
+        )
 
 
 def _burn_in_and_thinning(steps: int, tau: np.ndarray) -> tuple[int, int]:

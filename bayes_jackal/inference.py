@@ -26,6 +26,7 @@ from . import interrupt
 from .chains import BufferedHDFBackend, SamplerSettings, run_chain
 from .likelihood import ResidualLikelihood
 from .map_search import find_map, laplace_walkers
+from .moves import Start
 from .pose_track import POSE_FIELDS
 from .posterior import az, build_inference_data
 from .priors import LogPosterior, Prior
@@ -170,13 +171,13 @@ def sample_posterior(
     >>> sorted(posterior.groups())
     ['constant_data', 'observed_data', 'posterior', 'sample_stats']
     >>> dict(posterior.posterior.sizes)
-    {'chain': 32, 'draw': 15, 'state': 3, 'wheel': 2}
+    {'chain': 32, 'draw': 10, 'state': 3, 'wheel': 2}
     """
     settings = settings or SamplerSettings()
     prior = Prior.for_likelihood(likelihood, likelihood.robot, prior_overrides)
     log_posterior = LogPosterior(likelihood, prior)
 
-    def initial(rng: np.random.Generator, walkers: int) -> np.ndarray:
+    def initial(rng: np.random.Generator, walkers: int) -> Start:
         centre = find_map(log_posterior, rng, settings.design_points)
         interrupt.check()  # a signal swallowed in the search (scipy's Cython code)
         return laplace_walkers(log_posterior, centre, walkers, rng)

@@ -16,6 +16,12 @@ import numpy as np
 import scipy.optimize
 
 from .errors import InputError
+from .moves import (
+    MIN_PROPOSAL_EFFICIENCY,
+    LaplaceApproximation,
+    Start,
+    proposal_efficiency,
+)
 from .noise_profile import profile_starts
 from .priors import LogPosterior, Prior
 
@@ -24,6 +30,10 @@ __all__ = ["climb", "find_map", "laplace_walkers", "scan_posterior"]
 
 #: Local searches of :func:`find_map`, from the best points of the profile.
 _MAP_STARTS = 4
+#: Points of a kernel width's coarse sweep over its prior range (log width).
+SWEEP_POINTS = 64
+#: Points of its refinement around the coarse best.
+SWEEP_REFINE = 32
 
 
 def find_map(
@@ -246,29 +256,49 @@ def _sweep_widths(
     z: np.ndarray,
     prior: Prior,
     width_columns: Sequence[int],
-    points: int = 256,
 ) -> np.ndarray:
     """Move each kernel width to the best of a grid over its prior range, the rest held.
 
     A kernel width can have separated optima: the moving-average family's
     likelihood in its width has local maxima at about half and 1.5 times
     the best width, hundreds of nats lower, and a local search started in
-    their basins stays there. A line scan of each width finds the best basin.
+    their basins stays there. A line scan of each width finds the best
+    basin: :data:`SWEEP_POINTS` over the prior's range of log width, then
+    :data:`SWEEP_REFINE` within two of their steps of the best (a quarter
+    of the evaluations of one fine grid, most of them saved at the wide
+    widths, whose long predictors cost the most).
     """
     for column in width_columns:
-        candidates = np.repeat(z[None], points + 1, axis=0)
-        candidates[1:, column] = np.linspace(prior.z_low[column], prior.z_high[column], points)
-        z = candidates[np.argmax(function(candidates))]
+        low, high = prior.z_low[column], prior.z_high[column]
+        coarse = np.linspace(low, high, SWEEP_POINTS)
+        z = _best_on_line(function, z, column, coarse)
+        reach = 2 * (coarse[1] - coarse[0])
+        fine = np.linspace(max(low, z[column] - reach), min(high, z[column] + reach), SWEEP_REFINE)
+        z = _best_on_line(function, z, column, fine)
     return z
+
+
+def _best_on_line(
+    function: LogPosterior, z: np.ndarray, column: int, values: np.ndarray
+) -> np.ndarray:
+    """The best of ``z`` and ``z`` with ``column`` set to each of ``values``."""
+    candidates = np.repeat(z[None], len(values) + 1, axis=0)
+    candidates[1:, column] = values
+    return candidates[np.argmax(function(candidates))]
 
 
 def laplace_walkers(
     log_posterior: LogPosterior, centre: np.ndarray, walkers: int, rng: np.random.Generator
-) -> np.ndarray:
+) -> Start:
     """Walkers from the Laplace approximation at ``centre``, kept inside the prior.
 
-    A MAP on the prior's boundary (the damping ridge can run into it) has no
-    Laplace approximation; the walkers then start in a small ball.
+    The approximation goes with them, for the chain's independence moves
+    (:mod:`bayes_jackal.moves`), where importance sampling from their
+    proposal is efficient enough
+    (:func:`~bayes_jackal.moves.proposal_efficiency`). A MAP on the prior's
+    boundary (the damping ridge can run into it) has no Laplace approximation; the walkers then
+    start in a small ball, and the chain moves by differential evolution
+    alone.
 
     Examples
     --------
@@ -285,11 +315,18 @@ def laplace_walkers(
     >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw",))
     >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
     >>> centre = np.log([110.0, 30.0, 0.047, 0.01, 0.005])
-    >>> walkers = laplace_walkers(log_posterior, centre, 12, np.random.default_rng(1))
-    >>> walkers.shape
+    >>> start = laplace_walkers(log_posterior, centre, 12, np.random.default_rng(1))
+    >>> start.walkers.shape
     (12, 5)
-    >>> inside = log_posterior.prior.inside(walkers)
-    >>> bool(inside.all() and np.isfinite(log_posterior(walkers)).all())
+
+    Away from the MAP the Hessian is not the posterior's shape: importance
+    sampling from it is inefficient, and the chain would move by
+    differential evolution alone:
+
+    >>> start.approximation is None
+    True
+    >>> inside = log_posterior.prior.inside(start.walkers)
+    >>> bool(inside.all() and np.isfinite(log_posterior(start.walkers)).all())
     True
     """
     prior = log_posterior.prior
@@ -309,17 +346,24 @@ def laplace_walkers(
     hessian[rows, cols] = values @ np.array([1, -1, -1, 1]) / (4 * step[rows] * step[cols])
     hessian[cols, rows] = hessian[rows, cols]
     ball = np.diag((1e-3 * span) ** 2)
-    covariance = ball
+    approximation = None
     if np.all(np.isfinite(hessian)):
         try:
             covariance = np.linalg.inv(-hessian)
             np.linalg.cholesky(covariance)
+            approximation = LaplaceApproximation(centre, covariance)
         except np.linalg.LinAlgError:
-            covariance = ball
+            pass
+    covariance = ball if approximation is None else approximation.covariance
     points = rng.multivariate_normal(centre, 0.25 * covariance, size=8 * walkers)
     points = points[prior.inside(points)]
     points = points[np.isfinite(log_posterior(points))]
-    if len(points) < walkers:
+    if len(points) < walkers:  # the approximation is not the posterior's
+        approximation = None
         points = rng.multivariate_normal(centre, ball, size=8 * walkers)
         points = points[prior.inside(points)]
-    return points[:walkers]
+    if approximation is not None and (
+        proposal_efficiency(log_posterior, approximation, rng) < MIN_PROPOSAL_EFFICIENCY
+    ):
+        approximation = None  # far from Gaussian: independence moves would rarely be taken
+    return Start(points[:walkers], approximation)

@@ -42,6 +42,7 @@ from .evidence import Evidence, bridge_sampling
 from .executors import Executor, SerialExecutor
 from .kernels import FAMILIES
 from .map_search import climb, laplace_walkers, scan_posterior
+from .moves import Start
 from .noise_series import NoiseSeries
 from .parameters import WIDTH_PRIOR, prior_overrides, prior_range, width_keys
 from .posterior import HDI_PROB, az
@@ -182,7 +183,7 @@ def series_prior_overrides(
 
 def _start(
     log_posterior: LogPosterior, design_points: int
-) -> Callable[[np.random.Generator, int], np.ndarray]:
+) -> Callable[[np.random.Generator, int], Start]:
     """The walkers' start: the best of a design over the prior, climbed, then its Laplace ball.
 
     The design and the climb (:func:`~bayes_jackal.map_search.climb`: local
@@ -194,7 +195,7 @@ def _start(
     scan = scan_posterior(log_posterior)
     widths = [log_posterior.likelihood.width_name] if log_posterior.likelihood.width_name else []
 
-    def initial(rng: np.random.Generator, walkers: int) -> np.ndarray:
+    def initial(rng: np.random.Generator, walkers: int) -> Start:
         design = log_posterior.prior.draw(design_points, rng)
         best = design[np.argsort(scan(design))[::-1][:MAP_STARTS]]
         centre = climb(log_posterior, best, widths=widths)
