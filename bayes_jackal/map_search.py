@@ -175,8 +175,12 @@ def climb(
     e.g. the Whittle profile's widest width for a triangular kernel, from
     which a local search ends in a corner of the prior). Sweeps then move
     the best end point out of a local optimum's basin and a search starts
-    again from there, at most three times; the result is polished on
-    ``log_posterior`` itself. :func:`find_map` climbs from the best points
+    again from there, at most three times. With another engine than
+    ``fast`` the result is polished on ``log_posterior`` itself; with
+    ``fast`` the scan is ``log_posterior`` wherever it is finite, and a
+    polish would only spend the exact time-domain fallback on the line
+    searches' trial points (a second each on a run's pose channels).
+    :func:`find_map` climbs from the best points
     of the profile likelihood, a noise series' fit from the best of a
     design over its prior.
 
@@ -230,6 +234,8 @@ def climb(
         if np.array_equal(swept, best.x):
             break
         best = _best_local(scan, swept[None])
+    if log_posterior.likelihood.engine == "fast":
+        return best.x
     polished = _best_local(log_posterior, best.x[None])
     return polished.x if np.isfinite(polished.fun) else best.x
 

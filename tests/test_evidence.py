@@ -290,7 +290,7 @@ def test_white_noise_is_never_called_coloured(seed):
 
 def test_families_in_parallel_processes_give_the_same_result():
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=1)
-    quick = SamplerSettings(max_steps=300, design_points=256)
+    quick = SamplerSettings(max_steps=100, design_points=256)
     results = []
     for processes in (1, 2):
         with warnings.catch_warnings(record=True) as caught:
