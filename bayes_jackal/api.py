@@ -374,12 +374,12 @@ def sample(
 
     Examples
     --------
-    A quick chain of 200 steps, far from converged (a ConvergenceWarning);
+    A quick chain of 20 steps, far from converged (a ConvergenceWarning);
     real use takes the default step cap:
 
     >>> import bayes_jackal as bj
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=200, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> sorted(posterior.posterior.data_vars)[:4]
     ['Ad', 'Bd', 'd_lat', 'd_long']
     >>> summary = bj.summarize(posterior)
@@ -460,13 +460,13 @@ def compare(
 
     Examples
     --------
-    Two families on a quick budget (200 steps, far from converged: real use
-    takes the default step cap):
+    Two families on a quick budget (20 steps, the fewest bridge sampling
+    takes are 16; far from converged: real use takes the default step cap):
 
     >>> import bayes_jackal as bj
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> comparison = bj.compare(
-    ...     [run], families=("white", "exponential"), channels=["yaw"], max_steps=200, seed=1
+    ...     [run], families=("white", "exponential"), channels=["yaw"], max_steps=20, seed=1
     ... )
     >>> sorted(comparison.posteriors), comparison.best in comparison.posteriors
     (['exponential', 'white'], True)

@@ -279,7 +279,7 @@ def compare_groups(
     Examples
     --------
     One comparison per run, here of white noise alone (a real campaign
-    compares several families) on chains kept short on purpose (100 steps):
+    compares several families) on chains kept short on purpose (20 steps):
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.comparison import compare_groups
@@ -289,7 +289,7 @@ def compare_groups(
     ...     for seed, name in enumerate(["v1_01", "v1_02"], start=1)
     ... }
     >>> for key, comparison in compare_groups(
-    ...     runs, robot, families=["white"], settings=bj.SamplerSettings(max_steps=100), seed=1,
+    ...     runs, robot, families=["white"], settings=bj.SamplerSettings(max_steps=20), seed=1,
     ...     likelihood_options={"channels": ["yaw"]},
     ... ):
     ...     print(key, comparison.experiments, list(comparison.evidence))
@@ -477,7 +477,7 @@ def compare_families(
 
     Examples
     --------
-    Two families on a chain budget kept short on purpose (100 steps, far
+    Two families on a chain budget kept short on purpose (20 steps, far
     from converged), so that the example is quick:
 
     >>> import bayes_jackal as bj
@@ -485,7 +485,7 @@ def compare_families(
     >>> robot = bj.load_profile()
     >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
     >>> comparison = compare_families(
-    ...     [run], robot, ("white", "exponential"), bj.SamplerSettings(max_steps=100), seed=1,
+    ...     [run], robot, ("white", "exponential"), bj.SamplerSettings(max_steps=20), seed=1,
     ...     channels=["yaw"],
     ... )
     >>> list(comparison.evidence), comparison.best

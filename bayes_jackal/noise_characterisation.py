@@ -496,16 +496,19 @@ def characterise_noise(
 
     Examples
     --------
-    Gaussian-coloured noise of width 3 samples over a white floor:
+    Gaussian-coloured noise of width 3 samples over a white floor, on a
+    quick budget (chains of 100 steps; real use takes the default cap):
 
     >>> import numpy as np
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.kernels import get_family
     >>> rng = np.random.default_rng(2)
     >>> taps = get_family("gaussian").taps(0.03, 0.01)
-    >>> coloured = np.convolve(rng.standard_normal(2000), taps, "same")
-    >>> values = coloured + 0.3 * rng.standard_normal(2000)
-    >>> result = bj.characterise_noise(values, dt=0.01, families=["white", "gaussian"], seed=1)
+    >>> coloured = np.convolve(rng.standard_normal(600), taps, "same")
+    >>> values = coloured + 0.3 * rng.standard_normal(600)
+    >>> quick = bj.SamplerSettings(max_steps=100)
+    >>> result = bj.characterise_noise(values, dt=0.01, families=["white", "gaussian"], seed=1,
+    ...                                settings=quick)
     >>> result.best, result.verdict()[0]
     ('gaussian', 'coloured')
     """

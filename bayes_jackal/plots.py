@@ -291,13 +291,13 @@ def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.plots import plot_sigma_h
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="gaussian", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="gaussian", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, ax = plot_sigma_h(posterior)
     >>> [text.get_text() for text in ax.get_legend().get_texts()]
     ['posterior', 'thesis v1: 0.051 s', 'thesis v2: 0.041 s', 'thesis all 15: 0.047 s',

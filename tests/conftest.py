@@ -11,11 +11,40 @@ profile. Tests that pass on these runs pass on data the package did not
 generate.
 
 Also shared: ``thesis_discrete_model`` (the same model's (Ad, Bd), for
-checks of residuals and model curves) and ``simulated`` (two small runs
-written by ``bayes-jackal simulate``, for the tests of the command line).
+checks of residuals and model curves), ``simulated`` (two small runs
+written by ``bayes-jackal simulate``, for the tests of the command line),
+``compared`` (one ``bayes-jackal compare`` of the first, for the tests of
+its output and of the report's evidence table) and ``yaw_vx_posterior`` (a
+short chain's posterior, for the tests of the export and of the report).
+The last three are computed once per test session (per xdist worker); the
+tests only read the first two's files (checked when the session ends) and
+each module gets a copy of the posterior.
 """
 
 from __future__ import annotations
+
+import os
+
+# One BLAS/OpenMP thread per test process, set before numpy is first imported
+# (pytest imports this file before any test module, in each xdist worker too,
+# and the CLI's subprocesses inherit it). `pytest -n 2` runs a process per
+# core: OpenBLAS's own two threads in each oversubscribed a 2-core machine
+# and its spinning threads starved each other (a 120-step chain: 1.7 s with
+# one thread, 18 s with two, two chains at once). CI's slow pass says so on
+# its command line; executors.single_threaded_children does it for workers.
+# An explicit setting in the environment is kept.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import contextlib
+import copy
+import hashlib
+import io
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,7 +53,10 @@ import scipy.signal
 
 from bayes_jackal.cli import main
 from bayes_jackal.experiment import Experiment
-from bayes_jackal.robot import RobotProfile
+from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
+from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal.robot import RobotProfile, load_profile
+from bayes_jackal.simulate import simulate_experiment
 
 #: Sample rate of the Jackal's IMU [Hz] and length of a v1 run [s] (ch. 7-3-1).
 THESIS_RATE = 72.0
@@ -165,13 +197,93 @@ def thesis_discrete_model():
     )
 
 
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory) -> list[str]:
-    """Two simulated NetCDF experiments (v1_01, v2_01) written by the CLI, once per module.
+def _digests(folder: Path) -> dict[str, str]:
+    """sha256 of every file under ``folder``, by relative path."""
+    return {
+        str(path.relative_to(folder)): hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in sorted(folder.rglob("*"))
+        if path.is_file()
+    }
 
+
+@pytest.fixture(scope="session")
+def simulated(tmp_path_factory) -> Iterator[list[str]]:
+    """Two simulated NetCDF experiments (v1_01, v2_01) written by the CLI, once per session.
+
+    Shared by every test that asks for it: a test that would write into
+    their folder copies them first (the session's end checks that none did).
     tests/test_bags.py and tests/test_criticism.py define their own
     ``simulated`` (one Experiment in memory), which overrides this one there.
     """
     folder = tmp_path_factory.mktemp("simulated")
     assert main(["simulate", "--out", str(folder), "--seed", "1", "--v1", "1", "--v2", "1"]) == 0
-    return [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
+    before = _digests(folder)
+    yield [str(folder / "v1_01.nc"), str(folder / "v2_01.nc")]
+    assert _digests(folder) == before, f"a test changed the shared runs in {folder}"
+
+
+@dataclass(frozen=True)
+class Compared:
+    """What ``bayes-jackal compare ... --out FOLDER --json`` returned, printed and wrote."""
+
+    code: int
+    out: str
+    err: str
+    folder: Path
+
+
+#: The flags of ``compared``: yaw alone (three channels take ~3x the time),
+#: the two default families, a short chain (300 steps, not converged).
+QUICK_COMPARE = ["--channels", "yaw", "--families", "white,gaussian", "--max-steps", "300"]
+QUICK_COMPARE += ["--seed", "2", "--no-progress"]
+
+
+@pytest.fixture(scope="session")
+def compared(simulated, tmp_path_factory) -> Iterator[Compared]:
+    """``compare`` of the simulated v1_01 with QUICK_COMPARE, ``--out`` and ``--json``.
+
+    Run once per session, with the command's default processes, for the
+    tests of compare's output (tests/test_cli.py) and of the report's
+    evidence table (tests/test_report.py); they only read its folder.
+    """
+    folder = tmp_path_factory.mktemp("compared") / "compare"
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["compare", simulated[0], *QUICK_COMPARE, "--out", str(folder), "--json"])
+    before = _digests(folder)
+    yield Compared(code, out.getvalue(), err.getvalue(), folder)
+    assert _digests(folder) == before, f"a test changed the shared comparison in {folder}"
+
+
+def _posterior_digest(idata) -> str:
+    """sha256 of a posterior's draws and attributes (what a test could change in place)."""
+    digest = hashlib.sha256(repr(sorted(idata.posterior.attrs.items())).encode())
+    for name, values in sorted(idata.posterior.data_vars.items()):
+        digest.update(name.encode())
+        digest.update(np.ascontiguousarray(values.values).tobytes())
+    return digest.hexdigest()
+
+
+@pytest.fixture(scope="session")
+def _yaw_vx_sampled():
+    """The chain of ``yaw_vx_posterior``, sampled once per session and never handed out."""
+    run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=3)
+    likelihood = ResidualLikelihood([run], load_profile(), channels=("yaw", "vx"))
+    settings = SamplerSettings(max_steps=120, check_every=40, design_points=256)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        idata = sample_posterior(likelihood, settings, seed=1)
+    before = _posterior_digest(idata)
+    yield idata
+    assert _posterior_digest(idata) == before, "the session's yaw_vx chain was changed"
+
+
+@pytest.fixture(scope="module")
+def yaw_vx_posterior(_yaw_vx_sampled):
+    """A short chain (120 steps, not converged) on yaw and vx of a simulated v2 run (seed 3).
+
+    For tests/test_export.py and tests/test_report.py: sampled once per
+    session, each module gets a copy of its own (export_prior caches the
+    criticism in the posterior's attributes, which another module must not see).
+    """
+    return copy.deepcopy(_yaw_vx_sampled)

@@ -19,6 +19,7 @@ and a short timeout, so a check made only after the work fails the case.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import os
 import re
@@ -120,11 +121,19 @@ def nc_edit(edit: Callable) -> Builder:
 
 
 def _nc_edit(lib: Library, path: Path, edit: Callable) -> None:
+    # A deep copy of the library's experiment as read once (the edits return
+    # new datasets; the copy keeps the cached one safe from any that would not).
+    dataset = edit(_nc_source(lib.nc).copy(deep=True))
+    dataset.to_netcdf(path, engine="h5netcdf")
+
+
+@functools.cache
+def _nc_source(path: Path):
+    """The experiment file at ``path`` read into memory, once per session."""
     import xarray as xr
 
-    with xr.open_dataset(lib.nc, engine="h5netcdf") as source:
-        dataset = edit(source.load())
-    dataset.to_netcdf(path, engine="h5netcdf")
+    with xr.open_dataset(path, engine="h5netcdf") as source:
+        return source.load()
 
 
 def nc_scaled(variable: str, factor: float) -> Builder:

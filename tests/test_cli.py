@@ -396,7 +396,8 @@ def test_ingest_topic_override(tmp_path, capsys):
     assert main(["ingest", bag, "--out", str(tmp_path / "c"), "--topic", "imu", "/imu/data"]) == 0
 
 
-#: Yaw alone keeps these mechanics tests quick (three channels: ~3x the time).
+#: Yaw alone keeps these mechanics tests quick (three channels: ~3x the time);
+#: the flags of the session's ``compared`` (tests/conftest.py) too.
 QUICK_COMPARE = [
     "--channels",
     "yaw",
@@ -410,14 +411,13 @@ QUICK_COMPARE = [
 ]
 
 
-def test_compare_prints_the_contract_json_and_keeps_posteriors(simulated, tmp_path, capsys):
-    folder = tmp_path / "compare"
-    code = main(["compare", simulated[0], *QUICK_COMPARE, "--out", str(folder), "--json"])
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
-    payload = json.loads(captured.out)
+def test_compare_prints_the_contract_json_and_keeps_posteriors(compared):
+    # The session's comparison of v1_01 (QUICK_COMPARE, --out, --json; tests/conftest.py).
+    folder = compared.folder
+    assert compared.code == 0, compared.err
+    payload = json.loads(compared.out)
     assert set(payload["families"]) == {"white", "gaussian"}
-    assert payload["channels"] == ["yaw"] and "channels yaw (bridge" in captured.err
+    assert payload["channels"] == ["yaw"] and "channels yaw (bridge" in compared.err
     for row in payload["families"].values():
         assert {"log_evidence", "log_evidence_err", "log_bayes_factor_vs_white"} <= set(row)
         assert np.isfinite(row["log_evidence"]) and row["log_evidence_err"] > 0
@@ -433,12 +433,14 @@ def test_compare_prints_the_contract_json_and_keeps_posteriors(simulated, tmp_pa
     # The simulated runs carry Gaussian-coloured noise (sigma_h = 0.047 s):
     # even a short chain puts gaussian hundreds of nats ahead of white.
     assert payload["verdict"] == "coloured"
-    assert "Verdict: coloured" in captured.err
+    assert "Verdict: coloured" in compared.err
     assert (folder / "v1_01.gaussian.nc").is_file() and (folder / "v1_01.compare.json").is_file()
 
 
 def test_compare_several_experiments_without_pooling(simulated, capsys):
-    code = main(["compare", *simulated, *QUICK_COMPARE, "--families", "white", "--json"])
+    # In this process: several groups on worker processes are tests/test_comparison.py's.
+    quick = [*QUICK_COMPARE, "--families", "white", "--processes", "1"]
+    code = main(["compare", *simulated, *quick, "--json"])
     payload = json.loads(capsys.readouterr().out)
     assert code == 0
     assert set(payload["experiments"]) == {"v1_01", "v2_01"}
@@ -860,12 +862,15 @@ def test_parser_defaults_are_the_librarys():
 
 def test_compare_ranks_every_registered_family_by_default(simulated, capsys):
     # No --families: the registry at the call, whatever it holds (here two
-    # families, to keep the test quick), not a list fixed at import.
+    # families, to keep the test quick), not a list fixed at import; 20
+    # steps (more than bridge sampling's 16) and in this process, as only the
+    # order is checked.
     registry = dict(FAMILIES)  # restored in place and in order: seeds follow the order
     try:
         FAMILIES.clear()
         FAMILIES.update({name: registry[name] for name in ("white", "exponential")})
-        quick = ["--channels", "yaw", "--max-steps", "100", "--seed", "2", "--no-progress"]
+        quick = ["--channels", "yaw", "--max-steps", "20", "--seed", "2", "--no-progress"]
+        quick += ["--processes", "1"]
         assert main(["compare", simulated[0], *quick, "--json"]) == 0
     finally:
         FAMILIES.clear()

@@ -1,7 +1,8 @@
 """Families compared on several groups at once: the same numbers as one group at a time.
 
-The runs are tiny (simulated v2 runs of 26 s, yaw channel, 200 steps): the
-point is the bookkeeping of many (group, family) jobs, not the posterior.
+The runs are tiny (simulated v2 runs of 26 s, yaw channel, 60 steps: more
+than the 16 that bridge sampling needs, MIN_EVIDENCE_STEPS): the point is
+the bookkeeping of many (group, family) jobs, not the posterior.
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ from bayes_jackal.simulate import simulate_experiment
 
 ROBOT = load_profile()
 FAMILIES = ("white", "exponential")
-SETTINGS = SamplerSettings(max_steps=200, progress=False)
+SETTINGS = SamplerSettings(max_steps=60, progress=False)
 OPTIONS = {"channels": ("yaw",)}
 #: Flags of a quick comparison, the families in this process one after the other.
-QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "200"]
+QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "60"]
 QUICK += ["--channels", "yaw", "--no-progress", "--json", "--processes", "1"]
 
 
@@ -43,7 +44,7 @@ def test_every_group_equals_its_comparison_alone(runs):
     """All jobs at once in two processes, against each group alone in this process."""
     finished = []
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)  # 200 steps do not converge
+        warnings.simplefilter("ignore", ConvergenceWarning)  # 60 steps do not converge
         together = dict(
             compare_groups(
                 runs,
@@ -160,7 +161,7 @@ def test_a_warning_raised_while_sampling_is_kept_once_and_carried_back(runs, ove
         *_, kept = run((0, "white"))
     kept = pickle.loads(pickle.dumps(kept))  # as it comes back from a worker process
     assert kept.other == [(RuntimeWarning, "overflow encountered in exp")]
-    [message] = kept.convergence  # 200 steps do not converge; kept apart, as before
+    [message] = kept.convergence  # 60 steps do not converge; kept apart, as before
     assert message.startswith("NOT CONVERGED")
 
 
@@ -169,7 +170,7 @@ def test_a_warning_raised_while_sampling_reaches_the_user_once(
     runs, tmp_path, capsys, overflowing_sampler, command
 ):
     path = str(write_netcdf(runs["run1"][0], tmp_path / "run1.nc"))
-    argv = [command, path, "--seed", "3", "--max-steps", "200", "--channels", "yaw"]
+    argv = [command, path, "--seed", "3", "--max-steps", "60", "--channels", "yaw"]
     out = tmp_path / ("out" if command == "compare" else "out.nc")  # a folder, a posterior
     argv += ["--no-progress", "--out", str(out)]
     argv += ["--families", "white", "--processes", "1"] if command == "compare" else []

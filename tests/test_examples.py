@@ -23,16 +23,30 @@ def run_example(script: Path, out: Path) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.fixture(scope="module")
+def example_run(tmp_path_factory):
+    """``example_run(script) -> (result, out)``: each example run once per module."""
+    done = {}
+
+    def run(script: Path) -> tuple[subprocess.CompletedProcess, Path]:
+        if script not in done:
+            out = tmp_path_factory.mktemp(script.stem)
+            done[script] = (run_example(script, out), out)
+        return done[script]
+
+    return run
+
+
 @pytest.mark.parametrize("script", sorted(EXAMPLES.glob("*.py")), ids=lambda p: p.name)
-def test_example_runs(script, tmp_path):
-    result = run_example(script, tmp_path)
+def test_example_runs(script, example_run):
+    result, out = example_run(script)
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr
-    assert any(tmp_path.iterdir()), "the example wrote nothing"
+    assert any(out.iterdir()), "the example wrote nothing"
 
 
-def test_thesis_example_prints_table_6_1(tmp_path):
-    result = run_example(EXAMPLES / "thesis_chapters_5_6.py", tmp_path)
+def test_thesis_example_prints_table_6_1(example_run):
+    result, _ = example_run(EXAMPLES / "thesis_chapters_5_6.py")
     assert "table 6-1 zoh  : 0.0000 0.0144 0.0274 0.0392" in result.stdout
 
 

@@ -115,13 +115,8 @@ def test_orders_a_family_cannot_give_are_refused(family, order, pattern):
         temporal_covariance(family, 0.1, order)
 
 
-@pytest.fixture(scope="module")
-def yaw_vx_posterior():
-    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
-    likelihood = ResidualLikelihood([run], ROBOT, channels=("yaw", "vx"))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        return sample_posterior(likelihood, SHORT, seed=1)
+# yaw_vx_posterior: tests/conftest.py's (a 120-step chain on yaw and vx of a
+# simulated v2 run, seed 3, as SHORT here).
 
 
 def test_exported_precision_is_the_draw_average_of_kronecker_products(yaw_vx_posterior):

@@ -63,6 +63,7 @@ def test_gaussian_coloured_noise_is_found_and_its_width_recovered():
     assert max(summary["acf_least_squares"].values()) < 0.03
 
 
+@pytest.mark.slow  # ~7 s of one core (a 3000-step chain): CI's slow pass (`pytest -m slow`)
 def test_white_noise_is_not_called_coloured():
     # The verdict needs ln B - 2 se > 3 for colour: on white noise the
     # coloured family's extra parameters cost evidence (Occam), so the

@@ -8,22 +8,16 @@ import json
 import re
 import shutil
 import subprocess
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from bayes_jackal import load_profile, plots
+from bayes_jackal import plots
 from bayes_jackal.cli import main
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
 from bayes_jackal.posterior import load_posterior, save_posterior
 from bayes_jackal.report_sections import _criticism_table
-from bayes_jackal.simulate import simulate_experiment
 
-ROBOT = load_profile()
-SHORT = SamplerSettings(max_steps=160, check_every=40, design_points=256)
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 #: Flags for headless Chromium as root in a sandbox without network.
 CHROMIUM_FLAGS = [
@@ -42,17 +36,15 @@ CHROMIUM_FLAGS = [
 
 
 @pytest.fixture(scope="module")
-def posteriors(tmp_path_factory) -> dict[str, Path]:
-    """A short (unconverged) yaw+vx posterior, and the same marked converged."""
+def posteriors(yaw_vx_posterior, tmp_path_factory) -> dict[str, Path]:
+    """A short (unconverged: 120 steps) yaw+vx posterior, and the same marked converged.
+
+    This module's copy of ``yaw_vx_posterior`` (tests/conftest.py), saved, then marked.
+    """
     folder = tmp_path_factory.mktemp("posteriors")
-    run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=3)
-    likelihood = ResidualLikelihood([run], ROBOT, channels=("yaw", "vx"))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        idata = sample_posterior(likelihood, SHORT, seed=1)
-    short = save_posterior(idata, folder / "short.nc")
-    idata.posterior.attrs["converged"] = 1
-    return {"short": short, "converged": save_posterior(idata, folder / "converged.nc")}
+    short = save_posterior(yaw_vx_posterior, folder / "short.nc")
+    yaw_vx_posterior.posterior.attrs["converged"] = 1
+    return {"short": short, "converged": save_posterior(yaw_vx_posterior, folder / "converged.nc")}
 
 
 def test_the_envelope_holds_each_bins_min_and_max(monkeypatch):
@@ -121,23 +113,20 @@ def test_an_unconverged_posterior_says_so_at_the_top_in_red(posteriors, tmp_path
     assert banner < text.index("<section>")
     # The summary above it says so too, and that its numbers are preliminary.
     summary = text[text.index('<section class="summary">') : banner]
-    assert "NOT CONVERGED after 160 steps" in summary and "preliminary" in summary
+    assert "NOT CONVERGED after 120 steps" in summary and "preliminary" in summary
     assert re.search(r"\.not-converged \{ color: #b00020", text)
     assert not list((tmp_path / "report_figures").glob("*.svg"))
 
 
-def test_an_evidence_table_appears_for_compared_families(posteriors, tmp_path):
-    # compare --out stores each family's evidence in its posterior's attributes.
-    simulated = tmp_path / "runs"
-    assert (
-        main(["simulate", "--out", str(simulated), "--seed", "2", "--v1", "0", "--v2", "1"]) == 0
-    )
-    folder = tmp_path / "compare"
-    arguments = ["--families", "white,gaussian", "--max-steps", "300", "--no-progress"]
-    assert main(["compare", str(simulated / "v2_01.nc"), *arguments, "--out", str(folder)]) == 0
+def test_an_evidence_table_appears_for_compared_families(compared, tmp_path):
+    # compare --out stores each family's evidence in its posterior's attributes:
+    # the session's comparison of a simulated v1 run, white and gaussian on yaw
+    # (tests/conftest.py), read here, the report written elsewhere.
+    folder = compared.folder
+    assert compared.code == 0, compared.err
     code, text = _report([folder], tmp_path / "report.html", "--formats", "png")
     assert code == 0
-    evidence = json.loads((folder / "v2_01.compare.json").read_text())
+    evidence = json.loads((folder / "v1_01.compare.json").read_text())
     assert "<h2>Evidence</h2>" in text
     assert f"<td>{evidence['families']['gaussian']['log_evidence']:.2f}</td>" in text
     # White noise cannot produce the residuals' colour: the criticism says so.
@@ -149,7 +138,7 @@ def test_an_evidence_table_appears_for_compared_families(posteriors, tmp_path):
     summary = summary[: summary.index("</section>")]
     assert text.index('<section class="summary">') < text.index("<h2>Evidence</h2>")
     best = evidence["best"]
-    assert f"<code>{best}.nc</code>" in summary.replace("v2_01.", "")
+    assert f"<code>{best}.nc</code>" in summary.replace("v1_01.", "")
     assert html.escape(evidence["verdict_text"]) in summary
     row = evidence["families"][best]
     assert "<b>Damping</b>: d_lat = " in summary and "their ratio d_lat/d_long = " in summary
