@@ -30,6 +30,7 @@ from collections.abc import Iterator
 __all__ = [
     "Interrupted",
     "blocked",
+    "cause",
     "check",
     "deferred",
     "install",
@@ -236,6 +237,36 @@ def restore(previous: dict) -> None:
     sys.excepthook = previous.pop("excepthook", sys.excepthook)
     for signum, handler in previous.items():
         signal.signal(signum, handler)
+
+
+def cause(exc: BaseException) -> Interrupted | None:
+    """The stop behind ``exc``, where a signal was turned into another exception.
+
+    A signal landing while a C extension initialises (scipy's HiGHS
+    module, during the imports) comes out as its ``ImportError:
+    initialization failed``, raised from the :class:`Interrupted`: the
+    chain of causes and contexts says it was a stop, not a failure.
+
+    Examples
+    --------
+    >>> import signal
+    >>> from bayes_jackal.interrupt import Interrupted, cause
+    >>> try:
+    ...     try:
+    ...         raise Interrupted(signal.SIGINT)
+    ...     except Interrupted as stop:
+    ...         raise ImportError("initialization failed") from stop
+    ... except ImportError as exc:
+    ...     print(cause(exc), cause(ValueError("x")))
+    SIGINT None
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, Interrupted):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def check() -> None:

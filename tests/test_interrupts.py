@@ -372,6 +372,37 @@ def test_a_signal_during_the_imports_gives_one_line(experiment, tmp_path):
     assert len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.parametrize("where", ["parsing", "command"])
+def test_a_signal_an_extension_turns_into_an_import_error_is_a_stop(
+    where, monkeypatch, tmp_path, capsys
+):
+    # CI: SIGINT landed while scipy's HiGHS extension initialised (imported by
+    # the parser's family check), which raised "ImportError: initialization
+    # failed" from the stop: exit 1 and a traceback. The same chain of
+    # exceptions, raised where the parser and where a command import.
+    from bayes_jackal.cli import commands, main, parser_types
+
+    def failing_import(*args, **kwargs):
+        try:
+            raise interrupt.Interrupted(signal.SIGINT)
+        except interrupt.Interrupted as stop:
+            raise ImportError("initialization failed") from stop
+
+    if where == "parsing":
+        monkeypatch.setattr(parser_types, "registered_families", failing_import)
+    else:
+        monkeypatch.setattr(commands, "cmd_simulate", failing_import)
+    argv = ["sample", str(tmp_path / "a.nc"), "--family", "white"]
+    if where == "command":
+        argv = ["simulate", "--out", str(tmp_path / "runs"), "--v1", "1", "--v2", "0"]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [
+        "bayes-jackal: interrupted by SIGINT; what had finished is kept, and the same "
+        "command resumes"
+    ]
+
+
 def _results(folder: Path, out: str) -> dict:
     """Every posterior array under ``folder``, and the command's JSON (evidence included)."""
     arrays = {}

@@ -59,20 +59,30 @@ def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
         interrupt.check()  # a stop that landed where it could not be raised
         return code
     except interrupt.Interrupted as exc:
-        print(
-            f"bayes-jackal: interrupted by {exc}; what had finished is kept, "
-            "and the same command resumes",
-            file=sys.stderr,
-        )
-        gc.freeze()  # the exit's collection of every object loaded would take ~1 s more
-        return exc.exit_code
+        return _interrupted(exc)
     except KeyboardInterrupt:
         print("bayes-jackal: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # a stop another exception carries (an extension's import)
+        stop = interrupt.cause(exc)
+        if stop is None:
+            raise
+        return _interrupted(stop)
     finally:
         if _exiting:
             previous = dict.fromkeys(interrupt.SIGNALS, signal.SIG_IGN)
         interrupt.restore(previous)
+
+
+def _interrupted(stop: BaseException) -> int:
+    """Say the run was stopped by a signal; its exit code (128 + the signal)."""
+    print(
+        f"bayes-jackal: interrupted by {stop}; what had finished is kept, "
+        "and the same command resumes",
+        file=sys.stderr,
+    )
+    gc.freeze()  # the exit's collection of every object loaded would take ~1 s more
+    return stop.exit_code
 
 
 def _run(argv: list[str] | None) -> int:
@@ -109,6 +119,8 @@ def _run(argv: list[str] | None) -> int:
     except InputError as exc:  # names its file, field and value
         return print_failure(exc, debug=args.debug)
     except Exception as exc:  # one line naming the input (exit 1); --debug: the traceback
+        if (stop := interrupt.cause(exc)) is not None:
+            raise stop from None  # a signal an extension's import turned into its error
         source = getattr(exc, "input_source", None) or ", ".join(command_inputs(args))
         return print_failure(exc, source, debug=args.debug)
 
