@@ -46,7 +46,14 @@ from .outputs import OutputLock, refuse_link
 from .progress import Progress
 from .sampler_warnings import ConvergenceWarning
 
-__all__ = ["BufferedHDFBackend", "Chain", "SamplerSettings", "autocorrelation_time", "run_chain"]
+__all__ = [
+    "BufferedHDFBackend",
+    "Chain",
+    "SamplerSettings",
+    "autocorrelation_time",
+    "effective_sizes",
+    "run_chain",
+]
 
 
 @dataclass(frozen=True)
@@ -345,11 +352,10 @@ def autocorrelation_time(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
     An AR(1) chain of coefficient 0.5 has tau = (1 + 0.5) / (1 - 0.5) = 3:
 
     >>> import numpy as np
+    >>> import scipy.signal
     >>> from bayes_jackal.chains import autocorrelation_time
-    >>> rng = np.random.default_rng(1)
-    >>> chain = np.zeros((20000, 8, 1))
-    >>> for step in range(1, len(chain)):
-    ...     chain[step] = 0.5 * chain[step - 1] + rng.standard_normal((8, 1))
+    >>> noise = np.random.default_rng(1).standard_normal((20000, 8, 1))
+    >>> chain = scipy.signal.lfilter([1.0], [1.0, -0.5], noise, axis=0)
     >>> round(float(autocorrelation_time(chain)[0]), 1)
     3.0
     """
@@ -376,6 +382,16 @@ def effective_sizes(draws: np.ndarray) -> np.ndarray:
     """arviz's bulk and tail effective sample sizes of each parameter, shape (2, k).
 
     ``draws`` (steps, walkers, k), the walkers taken as chains.
+
+    Examples
+    --------
+    Independent draws: as many effective draws as draws, in the bulk and the tails:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.chains import effective_sizes
+    >>> sizes = effective_sizes(np.random.default_rng(4).standard_normal((1000, 8, 2)))
+    >>> sizes.shape, bool(np.all(np.abs(sizes / 8000 - 1) < 0.1))
+    ((2, 2), True)
     """
     dataset = xr.Dataset({"z": (("chain", "draw", "parameter"), np.swapaxes(draws, 0, 1))})
     return np.array([az.ess(dataset, method=method)["z"].values for method in ("bulk", "tail")])

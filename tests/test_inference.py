@@ -9,6 +9,7 @@ import emcee
 import numpy as np
 import pytest
 import scipy.optimize
+import scipy.signal
 import scipy.stats
 
 from bayes_jackal import DataError, InputError, inference, load_profile
@@ -181,11 +182,12 @@ def test_the_autocorrelation_time_is_emcees_estimator():
     # The reference: emcee's own integrated_time, one walker at a time, on
     # chains of AR(1) walkers (tau (1 + r) / (1 - r): 1, 3, 19) with a
     # stuck walker's NaN left as emcee leaves it.
-    rng = np.random.default_rng(3)
-    chain = np.zeros((1500, 12, 3))
-    poles = np.array([0.0, 0.5, 0.9])
-    for step in range(1, len(chain)):
-        chain[step] = poles * chain[step - 1] + rng.standard_normal((12, 3))
+    noise = np.random.default_rng(3).standard_normal((1500, 12, 3))
+    chain = np.stack(
+        [scipy.signal.lfilter([1.0], [1.0, -pole], noise[..., k], axis=0)
+         for k, pole in enumerate([0.0, 0.5, 0.9])],
+        axis=-1,
+    )  # fmt: skip
     for steps in (40, 333, 1500):
         expected = emcee.autocorr.integrated_time(chain[:steps], tol=0)
         np.testing.assert_allclose(autocorrelation_time(chain[:steps]), expected, rtol=1e-10)
