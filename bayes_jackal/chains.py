@@ -373,11 +373,6 @@ def autocorrelation_time(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
     return tau
 
 
-def _autocorr(sampler: emcee.EnsembleSampler, steps: int) -> np.ndarray:
-    """Integrated autocorrelation time of the chain's first ``steps`` steps [steps]."""
-    return autocorrelation_time(sampler.get_chain()[:steps])
-
-
 def effective_sizes(draws: np.ndarray) -> np.ndarray:
     """arviz's bulk and tail effective sample sizes of each parameter, shape (2, k).
 
@@ -398,9 +393,10 @@ def effective_sizes(draws: np.ndarray) -> np.ndarray:
 
 
 def _shortfall(
-    sampler: emcee.EnsembleSampler, tau: np.ndarray, steps: int, settings, names: tuple
+    chain: np.ndarray, tau: np.ndarray, settings: SamplerSettings, names: tuple
 ) -> str | None:
-    """What the chain's first ``steps`` steps lack by the stopping rule (module text), or None."""
+    """What ``chain`` (steps, walkers, k) of ``tau`` lacks by the stopping rule, or None."""
+    steps = len(chain)
     if not np.all(tau * settings.autocorr_multiple < steps):
         return (
             f"{steps} steps are fewer than {settings.autocorr_multiple:g} autocorrelation "
@@ -409,7 +405,7 @@ def _shortfall(
     if not settings.min_ess:
         return None
     discard, _ = _burn_in_and_thinning(steps, tau)
-    sizes = effective_sizes(sampler.get_chain()[discard:steps])
+    sizes = effective_sizes(chain[discard:])
     if np.all(sizes >= settings.min_ess):
         return None
     kind, k = np.unravel_index(np.argmin(np.nan_to_num(sizes, nan=-1.0)), sizes.shape)
@@ -443,7 +439,8 @@ def _replay(sampler: emcee.EnsembleSampler, settings: SamplerSettings, names: tu
     last = sampler.iteration - sampler.iteration % settings.check_every
     if not last:
         return False
-    return _shortfall(sampler, _autocorr(sampler, last), last, settings, names) is None
+    chain = sampler.get_chain()[:last]
+    return _shortfall(chain, autocorrelation_time(chain), settings, names) is None
 
 
 def _run_until_converged(
@@ -473,17 +470,19 @@ def _run_until_converged(
                 progress.update()
                 if sampler.iteration % settings.check_every:
                     continue
-                tau = _autocorr(sampler, sampler.iteration)
+                chain = sampler.get_chain()
+                tau = autocorrelation_time(chain)
                 progress.update(0, tau=f"{np.max(tau):.0f}")
                 progress.expect(
                     _expected_steps(tau, sampler.iteration, sampler.nwalkers, settings)
                 )
-                if _shortfall(sampler, tau, sampler.iteration, settings, names) is None:
+                if _shortfall(chain, tau, settings, names) is None:
                     return None, tau
-    tau = _autocorr(sampler, sampler.iteration)
+    chain = sampler.get_chain()
+    tau = autocorrelation_time(chain)
     if converged:
         return None, tau
-    return _shortfall(sampler, tau, sampler.iteration, settings, names), tau
+    return _shortfall(chain, tau, settings, names), tau
 
 
 @dataclass(frozen=True)
