@@ -32,6 +32,7 @@ import xarray as xr
 
 from . import interrupt
 from ._files import atomic_path, check_space
+from ._threads import one_blas_thread
 from .defaults import (
     AUTOCORR_MULTIPLE,
     BRIDGE_MIN_DRAWS,
@@ -515,6 +516,7 @@ class Chain:
     diagnostics: dict
 
 
+@one_blas_thread()
 def run_chain(
     log_posterior: Callable[[np.ndarray], np.ndarray],
     initial: Callable[[np.random.Generator, int], np.ndarray],
@@ -577,7 +579,8 @@ def run_chain(
     >>> chain.diagnostics["converged"], bool(np.all(np.abs(z.std(axis=0) - 1) < 0.1))
     (True, True)
     """
-    names = log_posterior.prior.names
+    prior = log_posterior.prior
+    names = prior.names
     ndim = len(names)
     walkers = settings.n_walkers(ndim)
     rng = np.random.default_rng(seed)
@@ -609,7 +612,7 @@ def run_chain(
             log_posterior,
             vectorize=True,
             backend=backend,
-            moves=ensemble_moves(approximation),
+            moves=ensemble_moves(approximation, box=(prior.z_low, prior.z_high)),
         )
         try:
             shortfall, tau = _run_until_converged(sampler, start, settings, tuple(names))

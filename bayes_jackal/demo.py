@@ -142,7 +142,7 @@ def run_demo(
         (:func:`~bayes_jackal.workflow.analyse_logs`). Of two runs each is
         half the data, too much for the pooled posterior's PSIS reweighting
         (Pareto k-hat above 0.7), so each is usually refit: two more
-        posteriors, ~70 s.
+        posteriors, side by side, ~20 s on 2 cores.
 
     Returns
     -------
@@ -151,7 +151,7 @@ def run_demo(
 
     Examples
     --------
-    The demo takes about 3 minutes on 2 cores, so its call is not run here
+    The demo takes about a minute on 2 cores, so its call is not run here
     (``tests/test_workflow.py`` runs it and checks the truth is recovered):
 
     >>> import tempfile

@@ -352,7 +352,7 @@ def leave_one_out(
     >>> scores = result.runs["a"]["scores"]
     >>> band = scores["kalman-coloured"]["nis"]["yaw"]["band"]  # with the parameters' spread
     >>> [round(x, 3) for x in band], result.runs["a"]["converged"]
-    ([0.831, 1.198], False)
+    ([0.796, 1.252], False)
     """
     source = None if pooled is None else pooled_source or "<memory>"
     result = LeaveOneOut(family, pooled=source)

@@ -62,6 +62,7 @@ import scipy.fft
 
 from . import spectral
 from ._chunks import chunks
+from ._threads import one_blas_thread
 from .defaults import (
     DEFAULT_CHANNEL_ORDER,
     ENGINE,
@@ -429,7 +430,11 @@ class ResidualLikelihood:
         -------
         ndarray, shape (B,)
         """
-        theta = np.atleast_2d(np.asarray(theta, float))
+        with one_blas_thread():  # many small factorisations (bayes_jackal._threads)
+            return self._loglike(np.atleast_2d(np.asarray(theta, float)))
+
+    def _loglike(self, theta: np.ndarray) -> np.ndarray:
+        """:meth:`__call__` on a 2-d ``theta``."""
         total = np.zeros(len(theta))
         coefficients: dict[tuple[str, float, str], tuple[np.ndarray, np.ndarray]] = {}
         for block in self.blocks:

@@ -15,11 +15,14 @@ from dataclasses import replace
 import numpy as np
 import scipy.optimize
 
+from ._threads import one_blas_thread
 from .errors import InputError
 from .moves import (
+    MIN_MATCHED_EFFICIENCY,
     MIN_PROPOSAL_EFFICIENCY,
     LaplaceApproximation,
     Start,
+    moment_matched,
     proposal_efficiency,
 )
 from .noise_profile import profile_starts
@@ -36,6 +39,7 @@ SWEEP_POINTS = 64
 SWEEP_REFINE = 32
 
 
+@one_blas_thread()
 def find_map(
     log_posterior: LogPosterior, rng: np.random.Generator, design_points: int = 1024
 ) -> np.ndarray:
@@ -163,6 +167,7 @@ def scan_posterior(log_posterior: LogPosterior) -> LogPosterior:
     return LogPosterior(scan, log_posterior.prior)
 
 
+@one_blas_thread()
 def climb(
     log_posterior: LogPosterior, starts: np.ndarray, *, widths: Sequence[str] = ()
 ) -> np.ndarray:
@@ -301,10 +306,14 @@ def laplace_walkers(
     The approximation goes with them, for the chain's independence moves
     (:mod:`bayes_jackal.moves`), where importance sampling from their
     proposal is efficient enough
-    (:func:`~bayes_jackal.moves.proposal_efficiency`). A MAP on the prior's
-    boundary (the damping ridge can run into it) has no Laplace approximation; the walkers then
-    start in a small ball, and the chain moves by differential evolution
-    alone.
+    (:func:`~bayes_jackal.moves.proposal_efficiency`). Where it is not
+    (a MAP on the prior's boundary: the damping ridge or a kernel width can
+    run into it; a Hessian that is not positive definite, regularised to
+    at most a quarter of each prior range), the approximation is moved to
+    the posterior's mean and covariance by importance sampling
+    (:func:`~bayes_jackal.moves.moment_matched`). Where that fails too, the
+    walkers start in a small ball, and the chain moves by differential
+    evolution alone.
 
     Examples
     --------
@@ -326,10 +335,14 @@ def laplace_walkers(
     (12, 5)
 
     Away from the MAP the Hessian is not the posterior's shape: importance
-    sampling from it is inefficient, and the chain would move by
-    differential evolution alone:
+    sampling from it is inefficient, so the approximation is moved to the
+    posterior's moments, from which it is efficient (measured 0.48):
 
-    >>> start.approximation is None
+    >>> from bayes_jackal.moves import MIN_PROPOSAL_EFFICIENCY, proposal_efficiency
+    >>> efficiency = proposal_efficiency(
+    ...     log_posterior, start.approximation, np.random.default_rng(2)
+    ... )
+    >>> bool(efficiency > MIN_PROPOSAL_EFFICIENCY)
     True
     >>> inside = log_posterior.prior.inside(start.walkers)
     >>> bool(inside.all() and np.isfinite(log_posterior(start.walkers)).all())
@@ -339,8 +352,37 @@ def laplace_walkers(
     span = prior.z_high - prior.z_low
     step = 1e-4 * span
     centre = np.clip(centre, prior.z_low + 10 * step, prior.z_high - 10 * step)
+    gradient, hessian = _derivatives(log_posterior, centre, step)
+    approximation, exact = _hessian_approximation(centre, gradient, hessian, span)
+    points = None
+    if exact:
+        points = _walkers_inside(log_posterior, approximation, walkers, rng)
+        if points is not None and (
+            proposal_efficiency(log_posterior, approximation, rng) >= MIN_PROPOSAL_EFFICIENCY
+        ):
+            return Start(points, approximation)
+    if approximation is not None:  # not the posterior's shape: its moments, by importance sampling
+        matched = moment_matched(log_posterior, approximation, rng)
+        if matched is not None and (
+            proposal_efficiency(log_posterior, matched, rng) >= MIN_MATCHED_EFFICIENCY
+        ):
+            drawn = _walkers_inside(log_posterior, matched, walkers, rng)
+            if drawn is not None:
+                return Start(drawn, matched)
+    if points is None:  # no approximation of the posterior: a small ball
+        ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
+        points = ball[prior.inside(ball)][:walkers]
+    return Start(points, None)  # differential evolution alone
+
+
+def _derivatives(
+    log_posterior: LogPosterior, centre: np.ndarray, step: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Central-difference gradient and Hessian at ``centre``, one vectorised call over the stencil.
+
+    The gradient comes from the Hessian's diagonal points, ``centre`` +- 2 ``step``.
+    """
     ndim = len(centre)
-    # Central-difference Hessian from one vectorised call over the stencil.
     rows, cols = np.triu_indices(ndim)
     signs = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
     offsets = np.zeros((len(rows), 4, ndim))
@@ -351,25 +393,53 @@ def laplace_walkers(
     hessian = np.zeros((ndim, ndim))
     hessian[rows, cols] = values @ np.array([1, -1, -1, 1]) / (4 * step[rows] * step[cols])
     hessian[cols, rows] = hessian[rows, cols]
-    ball = np.diag((1e-3 * span) ** 2)
-    approximation = None
-    if np.all(np.isfinite(hessian)):
+    diagonal = values[rows == cols]
+    return (diagonal[:, 0] - diagonal[:, 3]) / (4 * step), hessian
+
+
+def _hessian_approximation(
+    centre: np.ndarray, gradient: np.ndarray, hessian: np.ndarray, span: np.ndarray
+) -> tuple[LaplaceApproximation | None, bool]:
+    """The Laplace approximation at ``centre``, and whether it is exact (not regularised).
+
+    Where the negative Hessian is not positive definite, or has a direction
+    wider than a quarter of the prior (a MAP on the prior's boundary, a
+    direction the likelihood does not see), each of its
+    eigenvalues, in units of a quarter of each prior range, is raised to
+    the squared gradient along its direction (the log-density of an
+    exponential tail of scale 1 / |g| falls by |g| per unit), and to at
+    least 1: no direction wider than a quarter of the prior. None where
+    they are not finite.
+    """
+    if not (np.all(np.isfinite(hessian)) and np.all(np.isfinite(gradient))):
+        return None, False
+    quarter = np.outer(span, span) / 16.0
+    values, vectors = np.linalg.eigh(-hessian * quarter)
+    if np.all(values >= 1.0):
         try:
             covariance = np.linalg.inv(-hessian)
             np.linalg.cholesky(covariance)
-            approximation = LaplaceApproximation(centre, covariance)
+            return LaplaceApproximation(centre, covariance), True
         except np.linalg.LinAlgError:
             pass
-    covariance = ball if approximation is None else approximation.covariance
-    points = rng.multivariate_normal(centre, 0.25 * covariance, size=8 * walkers)
-    points = points[prior.inside(points)]
+    slopes = (gradient * np.sqrt(np.diag(quarter))) @ vectors
+    values = np.maximum(np.maximum(values, slopes**2), 1.0)
+    return LaplaceApproximation(centre, (vectors / values) @ vectors.T * quarter), False
+
+
+def _walkers_inside(
+    log_posterior: LogPosterior,
+    approximation: LaplaceApproximation,
+    walkers: int,
+    rng: np.random.Generator,
+) -> np.ndarray | None:
+    """``walkers`` draws from half the approximation's width, inside the prior and finite.
+
+    None when fewer than ``walkers`` of 8 times as many draws are.
+    """
+    points = rng.multivariate_normal(
+        approximation.centre, 0.25 * approximation.covariance, size=8 * walkers
+    )
+    points = points[log_posterior.prior.inside(points)]
     points = points[np.isfinite(log_posterior(points))]
-    if len(points) < walkers:  # the approximation is not the posterior's
-        approximation = None
-        points = rng.multivariate_normal(centre, ball, size=8 * walkers)
-        points = points[prior.inside(points)]
-    if approximation is not None and (
-        proposal_efficiency(log_posterior, approximation, rng) < MIN_PROPOSAL_EFFICIENCY
-    ):
-        approximation = None  # far from Gaussian: independence moves would rarely be taken
-    return Start(points[:walkers], approximation)
+    return points[:walkers] if len(points) >= walkers else None

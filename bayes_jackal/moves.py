@@ -30,10 +30,13 @@ import numpy as np
 
 __all__ = [
     "INDEPENDENCE_WEIGHT",
+    "MIN_MATCHED_EFFICIENCY",
+    "MIN_PROPOSAL_EFFICIENCY",
     "IndependenceMove",
     "LaplaceApproximation",
     "Start",
     "ensemble_moves",
+    "moment_matched",
     "proposal_efficiency",
 ]
 
@@ -50,6 +53,15 @@ EFFICIENCY_DRAWS = 500
 #: channels, where they cut tau 5x; 0.02 on four 8 s runs of the yaw channel,
 #: a MAP near the prior's bound, where they were rarely accepted and doubled tau.
 MIN_PROPOSAL_EFFICIENCY = 0.1
+#: The same for an approximation by importance sampling (:func:`moment_matched`),
+#: whose efficiency varies more between draws: measured 0.07-0.29 on one
+#: Gaussian-family posterior piled at two bounds, where independence moves
+#: (accepted 20 % of the time) made the chain longer (9,600 steps, 5,900 without).
+MIN_MATCHED_EFFICIENCY = 0.25
+#: Draws again of the independence moves' proposals outside the prior (:class:`IndependenceMove`).
+REDRAWS = 10
+#: Rounds of :func:`moment_matched`, each of :data:`EFFICIENCY_DRAWS` draws.
+MOMENT_ROUNDS = 4
 #: Of differential evolution's share, the snooker updates' (emcee's advice
 #: for curved targets: 0.8 DE, 0.2 snooker).
 SNOOKER_SHARE = 0.2
@@ -102,12 +114,21 @@ class Start:
 
 
 class IndependenceMove(emcee.moves.MHMove):
-    """Metropolis-Hastings with independent draws from a multivariate t.
+    """Metropolis-Hastings with independent draws from a multivariate t, truncated to a box.
+
+    Draws outside the box (the prior's, in z) are drawn again, up to
+    :data:`REDRAWS` times: the proposal is the t truncated to the box,
+    whose density inside is the t's up to a constant, so the
+    Metropolis-Hastings factor is the t's. A posterior piled against a
+    bound (a kernel width at its prior's end) would otherwise lose half of
+    the proposals per such parameter outside the prior.
 
     Parameters
     ----------
     approximation : LaplaceApproximation
         The t's centre and, times ``scale``^2, its scale matrix.
+    box : tuple of ndarray, optional
+        (low, high) bounds of z; None: no truncation.
     dof : float
     scale : float
 
@@ -128,12 +149,13 @@ class IndependenceMove(emcee.moves.MHMove):
         self,
         approximation: LaplaceApproximation,
         *,
+        box: tuple[np.ndarray, np.ndarray] | None = None,
         dof: float = PROPOSAL_DOF,
         scale: float = PROPOSAL_SCALE,
     ):
         self.centre = np.asarray(approximation.centre, float)
         self.factor = scale * np.linalg.cholesky(approximation.covariance)
-        self.dof = dof
+        self.box, self.dof = box, dof
         super().__init__(self._propose)
 
     def log_density(self, z: np.ndarray) -> np.ndarray:
@@ -144,15 +166,30 @@ class IndependenceMove(emcee.moves.MHMove):
 
     def _propose(self, z: np.ndarray, random: np.random.RandomState):
         """Draws for every walker of ``z``, and log q(old) - log q(new) (emcee's factors)."""
-        count, k = z.shape
-        normal = random.randn(count, k)
-        mixing = random.chisquare(self.dof, size=count) / self.dof
-        new = self.centre + (normal / np.sqrt(mixing)[:, None]) @ self.factor.T
+        new = self._draw(len(z), random)
+        if self.box is not None:
+            for _ in range(REDRAWS):
+                outside = np.flatnonzero(np.any((new <= self.box[0]) | (new >= self.box[1]), 1))
+                if not len(outside):
+                    break
+                new[outside] = self._draw(len(outside), random)
         return new, self.log_density(z) - self.log_density(new)
 
+    def _draw(self, count: int, random: np.random.RandomState) -> np.ndarray:
+        """``count`` draws from the t."""
+        normal = random.randn(count, len(self.centre))
+        mixing = random.chisquare(self.dof, size=count) / self.dof
+        return self.centre + (normal / np.sqrt(mixing)[:, None]) @ self.factor.T
 
-def ensemble_moves(approximation: LaplaceApproximation | None) -> list:
+
+def ensemble_moves(
+    approximation: LaplaceApproximation | None,
+    box: tuple[np.ndarray, np.ndarray] | None = None,
+) -> list:
     """emcee's (move, weight) list: differential evolution, with independence moves if possible.
+
+    ``box``: (low, high) of z, the prior's, to which the independence
+    moves' proposal is truncated (:class:`IndependenceMove`).
 
     Differential evolution with snooker updates alone where there is no
     approximation (emcee's recommendation for curved targets: along the
@@ -185,7 +222,7 @@ def ensemble_moves(approximation: LaplaceApproximation | None) -> list:
         (emcee.moves.DESnookerMove(), evolution * SNOOKER_SHARE),
     ]
     if approximation is not None:
-        moves.append((IndependenceMove(approximation), INDEPENDENCE_WEIGHT))
+        moves.append((IndependenceMove(approximation, box=box), INDEPENDENCE_WEIGHT))
     return moves
 
 
@@ -197,9 +234,11 @@ def proposal_efficiency(
 ) -> float:
     """The effective fraction of importance-sampling draws from the independence moves' t.
 
-    The normalised ESS, 1 / (draws sum w^2), of the self-normalised weights
-    p / q of ``draws`` draws from the t: near 1 where the approximation is
-    the posterior, near 0 where the independence moves would rarely be
+    The normalised ESS, 1 / (n sum w^2), of the self-normalised weights
+    p / q of ``draws`` draws from the t, n of them where the posterior is
+    finite (the efficiency of the t truncated to the prior, as the
+    independence moves draw it): near 1 where the approximation is the
+    posterior, near 0 where the independence moves would rarely be
     accepted (:data:`MIN_PROPOSAL_EFFICIENCY`).
 
     Examples
@@ -220,11 +259,83 @@ def proposal_efficiency(
     >>> proposal_efficiency(shifted, approximation, rng) < 0.1
     True
     """
+    _, weights, finite = _importance_draws(log_posterior, approximation, rng, draws)
+    return float(1.0 / np.sum(weights**2) / finite) if finite else 0.0
+
+
+def moment_matched(
+    log_posterior: Callable[[np.ndarray], np.ndarray],
+    approximation: LaplaceApproximation,
+    rng: np.random.Generator,
+    draws: int = EFFICIENCY_DRAWS,
+) -> LaplaceApproximation | None:
+    """An approximation moved to the posterior's mean and covariance by importance sampling.
+
+    Where the Laplace approximation fails (a MAP on the prior's boundary: a
+    kernel width piled at its bound, the damping against its floor; or a
+    Hessian that is not the posterior's shape), each of
+    :data:`MOMENT_ROUNDS` rounds draws ``draws`` points from the t around
+    the current approximation and replaces it by their self-normalised
+    importance-weighted mean and covariance (adaptive importance
+    sampling, as in population Monte Carlo). A truncated posterior's
+    moments are those of the mass inside the prior, which the independence
+    moves then propose from. Measured on eight 48 s runs at 10 Hz (yaw,
+    noise 2.5 times wider than the 1 s prior bound of the width): the
+    Gaussian family's chain took 5,900 steps without and ... with.
+
+    Returns
+    -------
+    LaplaceApproximation or None
+        None when a round's weights rest on fewer effective draws than
+        twice the dimension (too few for a covariance).
+
+    Examples
+    --------
+    A standard normal truncated to z > 0 from a start far too wide at the
+    boundary: the matched moments are the half-normal's, mean sqrt(2/pi) =
+    0.798 and variance 1 - 2/pi = 0.363 (within the Monte Carlo error of
+    5,000 draws a round, about 0.01):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.moves import LaplaceApproximation, moment_matched
+    >>> def half_normal(z):
+    ...     return np.where(z[:, 0] > 0, -0.5 * z[:, 0] ** 2, -np.inf)
+    >>> start = LaplaceApproximation(np.zeros(1), np.eye(1) * 9.0)
+    >>> matched = moment_matched(half_normal, start, np.random.default_rng(1), draws=5000)
+    >>> round(float(matched.centre[0]), 2), round(float(matched.covariance[0, 0]), 2)
+    (0.79, 0.36)
+    """
+    k = len(approximation.centre)
+    for _ in range(MOMENT_ROUNDS):
+        z, weights, finite = _importance_draws(log_posterior, approximation, rng, draws)
+        if not finite or 1.0 / np.sum(weights**2) < 2 * k:
+            return None
+        centre = weights @ z
+        deviations = z - centre
+        covariance = (weights[:, None] * deviations).T @ deviations
+        try:
+            np.linalg.cholesky(covariance)
+        except np.linalg.LinAlgError:
+            return None
+        approximation = LaplaceApproximation(centre, covariance)
+    return approximation
+
+
+def _importance_draws(
+    log_posterior: Callable[[np.ndarray], np.ndarray],
+    approximation: LaplaceApproximation,
+    rng: np.random.Generator,
+    draws: int,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """``draws`` points from the independence moves' t, their normalised weights p / q,
+    and how many have a finite log-posterior (the weights are zero where none has).
+    """
     move = IndependenceMove(approximation)
     random = np.random.RandomState(int(rng.integers(2**32)))
     z, _ = move.get_proposal(np.zeros((draws, len(approximation.centre))), random)
     log_weights = log_posterior(z) - move.log_density(z)
-    if not np.any(np.isfinite(log_weights)):
-        return 0.0
+    finite = int(np.count_nonzero(np.isfinite(log_weights)))
+    if not finite:
+        return z, np.zeros(draws), 0
     weights = np.exp(log_weights - np.max(log_weights))
-    return float(np.sum(weights) ** 2 / np.sum(weights**2) / draws)
+    return z, weights / np.sum(weights), finite

@@ -43,6 +43,7 @@ from .executors import Executor, SerialExecutor
 from .kernels import FAMILIES
 from .map_search import climb, laplace_walkers, scan_posterior
 from .moves import Start
+from .noise_profile import series_profile
 from .noise_series import NoiseSeries
 from .parameters import WIDTH_PRIOR, prior_overrides, prior_range, width_keys
 from .posterior import HDI_PROB, az
@@ -71,8 +72,10 @@ RECORD_FRACTION = 0.1
 SD_RANGE = (1e-3, 10.0)
 #: Keys of a series' prior overrides (the width also under ``width`` or a family's width name).
 SERIES_PRIOR_KEYS = (WIDTH_PRIOR, "sigma_c", "sigma_n", WHITE_SD)
-#: Local searches from the best design points.
+#: Candidates of the MAP search: the Whittle profile's best local maxima along the width.
 MAP_STARTS = 4
+#: The MAP search's climb sweeps the width within this factor of its start's.
+CLIMB_REACH = 2.0
 
 
 def series_prior(
@@ -181,24 +184,49 @@ def series_prior_overrides(
     return ranges
 
 
-def _start(
-    log_posterior: LogPosterior, design_points: int
-) -> Callable[[np.random.Generator, int], Start]:
-    """The walkers' start: the best of a design over the prior, climbed, then its Laplace ball.
+def _start(log_posterior: LogPosterior) -> Callable[[np.random.Generator, int], Start]:
+    """The walkers' start: the Whittle profile's best basin, climbed, then its Laplace ball.
 
-    The design and the climb (:func:`~bayes_jackal.map_search.climb`: local
-    searches and sweeps of the width out of its local optima, such as the
-    moving-average family's at half the true width) use the quick scan
-    (:func:`~bayes_jackal.map_search.scan_posterior`: long-memory sets are
-    -inf there); the polish and the walkers' ball use the full likelihood.
+    The Whittle likelihood profiled over the sds
+    (:func:`~bayes_jackal.noise_profile.series_profile`, ~0.1 s whatever
+    the prior's widths) gives the local maxima along the width; the
+    :data:`MAP_STARTS` best are scored on the quick scan of the exact
+    likelihood (:func:`~bayes_jackal.map_search.scan_posterior`), and on the
+    likelihood itself where the scan is -inf (long memory) and the
+    profile ranks them above the best scored one. The best is climbed
+    (:func:`~bayes_jackal.map_search.climb`: local searches and sweeps of
+    the width out of its local optima, such as the moving-average family's
+    at half and 1.5 times the true width) within :data:`CLIMB_REACH` of its
+    width: the scan's sets of long memory (the widest widths of a sweep
+    over the whole prior, each up to a second on 10,000 samples) are not
+    evaluated. A climb ending on that range's bound, inside the prior,
+    goes on over the whole prior. The walkers' ball and the polish use the
+    full likelihood.
     """
-    scan = scan_posterior(log_posterior)
-    widths = [log_posterior.likelihood.width_name] if log_posterior.likelihood.width_name else []
+    likelihood, prior = log_posterior.likelihood, log_posterior.prior
+    width = likelihood.width_name
 
     def initial(rng: np.random.Generator, walkers: int) -> Start:
-        design = log_posterior.prior.draw(design_points, rng)
-        best = design[np.argsort(scan(design))[::-1][:MAP_STARTS]]
-        centre = climb(log_posterior, best, widths=widths)
+        theta, profile = series_profile(likelihood, prior.low, prior.high, starts=MAP_STARTS)
+        z = np.log(theta)
+        value = scan_posterior(log_posterior)(z)
+        finite = np.isfinite(value)
+        # Long memory, which the scan skips, ranked above the best scored candidate.
+        unscored = ~finite & (profile > np.max(profile[finite], initial=-np.inf))
+        if unscored.any():
+            value[unscored] = log_posterior(z[unscored])
+        best = z[np.argmax(value)]
+        if width is None:
+            return laplace_walkers(log_posterior, climb(log_posterior, best[None]), walkers, rng)
+        reach = np.log(CLIMB_REACH)
+        low, high = prior.z_low.copy(), prior.z_high.copy()
+        low[0], high[0] = max(low[0], best[0] - reach), min(high[0], best[0] + reach)
+        local = LogPosterior(likelihood, replace(prior, low=np.exp(low), high=np.exp(high)))
+        centre = climb(local, best[None], widths=[width])
+        below = np.isclose(centre[0], low[0]) and low[0] > prior.z_low[0]
+        above = np.isclose(centre[0], high[0]) and high[0] < prior.z_high[0]
+        if below or above:  # the basin goes on past the climb's range
+            centre = climb(log_posterior, centre[None])
         return laplace_walkers(log_posterior, centre, walkers, rng)
 
     return initial
@@ -342,7 +370,7 @@ def fit_family(
     # The chain and the bridge draw from streams of their own: same seed, same answer.
     chain_seed, bridge_seed = (None, None) if seed is None else ([seed, key], [seed, key, 1])
     with keep_warnings() as kept:  # kept in the fit: a worker process's would be lost
-        chain = run_chain(log_posterior, _start(log_posterior, settings.design_points),
+        chain = run_chain(log_posterior, _start(log_posterior),
                           settings=settings, seed=chain_seed)  # fmt: skip
         evidence = bridge_sampling(log_posterior, chain.samples, chain.log_prob,
                                    rng=np.random.default_rng(bridge_seed))  # fmt: skip
@@ -530,7 +558,9 @@ def characterise_noise(
     prior_overrides = series_prior_overrides(prior_overrides)  # refused before any sampling
     executor = executor or SerialExecutor()
     job = _FitJob(series, settings, seed, engine, prior_overrides, executor.slots(len(families)))
-    with executor.run(job, list(enumerate(families))) as finished:
+    # White noise, one parameter and the cheapest fit, last: it fills a worker's idle end.
+    jobs = sorted(enumerate(families), key=lambda position_family: position_family[1] == "white")
+    with executor.run(job, jobs) as finished:
         fits = dict(finished)
     return NoiseCharacterisation(
         series=series,

@@ -272,7 +272,7 @@ def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> draws, lp = parameter_draws(posterior)
     >>> draws.shape, lp.shape  # (draws, walkers, P): d_lat, d_long, sigma_c, sigma_n
-    ((15, 32, 4), (15, 32))
+    ((17, 32, 4), (17, 32))
     """
     posterior = idata.posterior
     layout = posterior_layout(idata)

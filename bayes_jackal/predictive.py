@@ -159,7 +159,7 @@ def predictive_statistics(
     >>> sd = {"sd": lambda series: series.std(axis=1)}
     >>> replicated = predictive_statistics(posterior, 0, "yaw", sd, count=20, rng=1)["sd"]
     >>> observed = observed_residuals(posterior, 0, "yaw").std()
-    >>> replicated.shape, round(float(replicated.mean() / observed), 2)
+    >>> replicated.shape, round(float(replicated.mean() / observed), 1)
     ((20,), 1.0)
     """
     metadata = posterior_metadata(idata)

@@ -43,7 +43,21 @@ digits in y'T^-1 y - (1'T^-1 y)^2 / (1'T^-1 1). Two engines give them:
   (:func:`~bayes_jackal.toeplitz.fallback_loglike`: the banded Cholesky
   factor, or the recursion stopped at converged partial
   autocorrelations), as :class:`~bayes_jackal.likelihood.ResidualLikelihood`
-  does.
+  does; the exponential family's take its tridiagonal form instead, below.
+
+The exponential family is an AR(1) process, phi = exp(-dt / tau), whose
+correlation matrix Phi (Phi_ij = phi^|i-j|) has a tridiagonal inverse,
+Phi^-1 = K / a with a = 1 - phi^2 and K = tridiag(-phi; 1, 1 + phi^2, ...,
+1 + phi^2, 1; -phi). With T = sigma_c^2 Phi + sigma_n^2 I and the
+tridiagonal N = a sigma_c^2 I + sigma_n^2 K = a Phi^-1 T,
+
+    T^-1 x = N^-1 K x,    log det T = log det N - log a,
+
+O(n) per set by LAPACK's tridiagonal factorisation (dpttrf, dpttrs), exact
+(:meth:`SeriesLikelihood._tridiagonal_forms`). Its long time constants
+(tau of tens of samples and more under a weak coloured part, on white
+noise) are those no spectral grid certifies: the recursion cost them 15 ms
+a set on 1,000 samples, and 0.3 s on 10,000.
 """
 
 from __future__ import annotations
@@ -53,12 +67,13 @@ from dataclasses import dataclass
 from functools import cached_property, partial
 
 import numpy as np
+import scipy.linalg
 
 from ._chunks import chunks
 from .defaults import FAMILY, SERIES_ENGINES
 from .errors import DataError, InputError
 from .experiment import check_finite, numeric_array
-from .kernels import Family, get_family
+from .kernels import Exponential, Family, get_family
 from .likelihood import residual_autocovariance
 from .spectral import CHUNK_ELEMENTS, ResidualBlock, evaluate_on_grids, spectral_forms
 from .stamps import positive_number
@@ -267,7 +282,9 @@ class SeriesLikelihood:
             pending = evaluate_on_grids(
                 self.block, autocovariance, coefficients, spectral_forms, forms
             )
-            if len(pending):
+            if len(pending) and isinstance(self._family, Exponential):
+                forms[pending] = self._tridiagonal_forms(noise[:, pending])
+            elif len(pending):
                 density = partial(fallback_loglike, recursion=self.fallback)
                 forms[pending] = self._recursion(noise[:, pending], density)
         log_det, yy, ones, both = forms.T
@@ -291,6 +308,41 @@ class SeriesLikelihood:
         """Autocovariance at lags 0..lags-1 of (width, sigma_c, sigma_n) columns, (B, lags)."""
         alpha = np.zeros(noise.shape[1])
         return residual_autocovariance(self._family, *noise, alpha, self.dt, lags, "diagonal")
+
+    def _tridiagonal_forms(self, noise: np.ndarray) -> np.ndarray:
+        """log det T and x'T^-1 x of x = y, 1, y + 1 for the exponential family, shape (B, 4).
+
+        The tridiagonal form of the module docstring, exact in O(n) per set;
+        NaN where N is not positive definite. K x is computed as
+        (1 - phi)^2 x - phi (second difference of x), its ends as
+        (1 - phi) x - phi (first difference): no cancellation as phi -> 1.
+        """
+        width, sigma_c, sigma_n = noise
+        y = self.block.regressors[0, :, 0]
+        x = np.column_stack([y, np.ones(self.n), y + 1.0])
+        second = np.zeros_like(x)
+        second[1:-1] = x[:-2] - 2.0 * x[1:-1] + x[2:]
+        second[[0, -1]] = x[[1, -2]] - x[[0, -1]]
+        ends = np.zeros((self.n, 1))
+        ends[[0, -1]] = 1.0
+        q = -np.expm1(-self.dt / width)  # 1 - phi, accurate for long tau
+        phi, a = 1.0 - q, q * (2.0 - q)  # a = 1 - phi^2
+        forms = np.full((len(q), 4), np.nan)
+        for row, (p, c, w, step, scale) in enumerate(
+            zip(phi, sigma_c**2, sigma_n**2, q, a, strict=True)
+        ):
+            gain = np.where(ends[:, 0] > 0, step, step * step)
+            kx = gain[:, None] * x - p * second
+            diagonal = scale * c + w * (gain + 2.0 * p - p * ends[:, 0])
+            d, e, info = scipy.linalg.lapack.dpttrf(diagonal, np.full(self.n - 1, -w * p))
+            if info != 0:
+                continue
+            solved, info = scipy.linalg.lapack.dpttrs(d, e, kx)
+            if info != 0:
+                continue
+            forms[row, 0] = np.sum(np.log(d)) - np.log(scale)
+            forms[row, 1:] = np.sum(x * solved, axis=0)
+        return forms
 
     def _recursion(
         self,

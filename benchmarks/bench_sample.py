@@ -43,16 +43,41 @@ _TIMER = (
 _CONSOLE = "from bayes_jackal.cli import console; console()"
 
 
-def run(source: Path, arguments: list[str]) -> dict:
-    """``bayes-jackal <arguments> --json`` with the package in ``source``, timed."""
+def baseline_worktree(folder: Path, ref: str) -> Path:
+    """The package at ``ref`` checked out into ``folder/baseline`` (kept for reruns)."""
+    base = folder / "baseline"
+    if not base.exists():
+        here = Path(__file__).resolve().parents[1]
+        subprocess.run(
+            ["git", "-C", str(here), "worktree", "add", "--detach", str(base), ref],
+            check=True,
+            capture_output=True,
+        )
+    return base
+
+
+def timed_console(source: Path, arguments: list[str]) -> dict:
+    """``bayes-jackal <arguments> --json`` with the package in ``source``, timed.
+
+    Returns the wall and CPU time [s] of the command and its workers, the
+    peak RSS [MB] of the largest of them and the JSON document it printed.
+    """
     command = [sys.executable, "-c", _TIMER, str(source), sys.executable, "-c", _CONSOLE]
+    # In ``source``: ``python -c`` puts the working directory before PYTHONPATH,
+    # so from another checkout's root the "baseline" would be that checkout.
     timed = subprocess.run(
-        [*command, *arguments, "--json"], capture_output=True, text=True, check=True
+        [*command, *arguments, "--json"], capture_output=True, text=True, check=True, cwd=source
     )
     code, seconds, cpu, peak, output = json.loads(timed.stdout)
     if code != 0:
         raise RuntimeError(f"{source}: {' '.join(arguments)} exited {code}")
-    return {"seconds": seconds, "cpu": cpu, "peak_mb": peak, "summary": json.loads(output)}
+    return {"seconds": seconds, "cpu": cpu, "peak_mb": peak, "output": json.loads(output)}
+
+
+def run(source: Path, arguments: list[str]) -> dict:
+    """:func:`timed_console`, its JSON document as ``summary``."""
+    result = timed_console(source, arguments)
+    return {**result, "summary": result.pop("output")}
 
 
 def sample(source: Path, path: Path, out: Path) -> dict:
@@ -95,16 +120,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workdir", type=Path, default=None)
     args = parser.parse_args()
-    folder = args.workdir or Path(tempfile.mkdtemp(prefix="bench_sample_"))
+    folder = (args.workdir or Path(tempfile.mkdtemp(prefix="bench_sample_"))).resolve()
     folder.mkdir(parents=True, exist_ok=True)
     here = Path(__file__).resolve().parents[1]
-    base = folder / "baseline"
-    if not base.exists():
-        subprocess.run(
-            ["git", "-C", str(here), "worktree", "add", "--detach", str(base), args.baseline],
-            check=True,
-            capture_output=True,
-        )
+    base = baseline_worktree(folder, args.baseline)
     path = make_run(folder, 38.0)
     print(f"sample of {path.name} (files in {folder}); baseline {args.baseline}")
     results: dict[str, list[dict]] = {"baseline": [], "this": []}

@@ -59,3 +59,17 @@ def strict_json(text: str) -> object:
         raise ValueError(f"not valid JSON: {name}")
 
     return json.loads(text, parse_constant=refuse)
+
+
+def stored_steps(chain: Path) -> int:
+    """Steps stored in a chain file while it is written (0 where it cannot be read yet).
+
+    Read without HDF5's file lock, which would make the sampler's next write fail.
+    """
+    import h5py
+
+    try:
+        with h5py.File(chain, "r", locking=False) as stored:
+            return int(stored["mcmc"].attrs["iteration"])
+    except (OSError, KeyError):
+        return 0

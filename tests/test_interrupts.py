@@ -14,7 +14,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import emcee
-import h5py
 import numpy as np
 import pytest
 import xarray as xr
@@ -24,6 +23,7 @@ from cli_helpers import (
     STOP_WALL_SECONDS,
     children_cpu_seconds,
     process_cpu_seconds,
+    stored_steps,
 )
 
 from bayes_jackal import interrupt
@@ -299,18 +299,6 @@ def _interrupt(
     return process.returncode, children_cpu_seconds() - before - at_signal, out, err + rest
 
 
-def _stored_steps(chain: Path) -> int:
-    """Steps stored in a chain file while it is written (0 where it cannot be read yet).
-
-    Read without HDF5's file lock, which would make the sampler's next write fail.
-    """
-    try:
-        with h5py.File(chain, "r", locking=False) as stored:
-            return int(stored["mcmc"].attrs["iteration"])
-    except (OSError, KeyError):
-        return 0
-
-
 def _assert_clean_stop(code, cpu_after, out, err, signum):
     assert code == 128 + signum, err
     assert cpu_after < STOP_CPU_SECONDS
@@ -356,9 +344,9 @@ def test_sample_stops_cleanly_inside_emcee_and_says_it_resumes(experiment, tmp_p
     chain = tmp_path / "p.chain.h5"
     args = ["sample", experiment, "--out", str(tmp_path / "p.nc"), "--seed", "3"]
     args += ["--no-progress", "--json", "--max-steps", "20000"]
-    result = _interrupt(args, 0.0, signal.SIGINT, until=lambda: _stored_steps(chain) > 0)
+    result = _interrupt(args, 0.0, signal.SIGINT, until=lambda: stored_steps(chain) > 0)
     _assert_clean_stop(*result, signal.SIGINT)
-    steps = _stored_steps(chain)
+    steps = stored_steps(chain)
     assert steps > 0  # stopped inside emcee
     code, cpu_after, out, err = _interrupt(args, 0.0, signal.SIGTERM, after="resuming")
     _assert_clean_stop(code, cpu_after, out, err, signal.SIGTERM)

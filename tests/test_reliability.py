@@ -37,6 +37,7 @@ from cli_helpers import (
     STOP_WALL_SECONDS,
     children_cpu_seconds,
     process_cpu_seconds,
+    stored_steps,
     strict_json,
 )
 from reliability_cases import CASES, Case, Library, mat, words_missing
@@ -265,14 +266,20 @@ def _check(
     exit=None,
     words=None,
 ) -> None:
-    """What every case must satisfy, and the case's own checks."""
+    """What every case must satisfy, and the case's own checks.
+
+    A rerun's ``words`` (it resumed, it reused a family) are looked for on
+    both streams: a run's progress lines go to stdout, or to stderr with
+    ``--json``.
+    """
     argv = shlex.split(case.argv)
     expected = case.exit if exit is None else exit
     expected = expected if isinstance(expected, tuple) else (expected,)
     said = f"\n--- stderr ---\n{result.stderr[-3000:]}\n--- stdout ---\n{result.stdout[-1500:]}"
     assert result.code in expected, f"exit {result.code}, expected {expected}{said}"
-    missing = words_missing(case, result.stderr, words)
-    assert not missing, f"stderr lacks {missing}{said}"
+    told = result.stderr if words is None else result.stderr + result.stdout
+    missing = words_missing(case, told, words)
+    assert not missing, f"the command did not say {missing}{said}"
     if "--debug" not in argv:
         assert "Traceback" not in result.stderr, f"a traceback reached the user{said}"
     if "--json" in argv:
@@ -305,12 +312,24 @@ def _check(
 
 
 def _wait_for(folder: Path, pattern: str, process, timeout: float) -> bool:
+    """Until a file matches ``pattern``; a chain file (``*.chain.h5``) once it holds steps.
+
+    A chain file is made before the MAP search: a signal then would leave
+    nothing to resume.
+    """
+
+    def there() -> bool:
+        found = list(folder.glob(pattern))
+        if pattern.endswith(".chain.h5"):
+            return any(stored_steps(path) > 0 for path in found)
+        return bool(found)
+
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and process.poll() is None:
-        if list(folder.glob(pattern)):
+        if there():
             return True
         time.sleep(0.05)
-    return bool(list(folder.glob(pattern)))
+    return there()
 
 
 def _run_signal(case: Case, folder: Path, inputs: dict, cli) -> None:

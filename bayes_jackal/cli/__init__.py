@@ -103,6 +103,7 @@ def _run(argv: list[str] | None) -> int:
         from .output import EXIT_BAD_INPUT
 
         return EXIT_BAD_INPUT
+    from .._threads import one_blas_thread
     from ..errors import InputError
 
     # The command's module and its imports, numpy and the rest.
@@ -113,8 +114,9 @@ def _run(argv: list[str] | None) -> int:
     interrupt.check()  # a signal swallowed during the imports (code that cannot raise)
     command = getattr(commands, f"cmd_{args.command.replace('-', '_')}")
     try:
-        # Warnings on stderr; outputs checked, inputs protected, main output locked.
-        with _warnings_shown(debug=args.debug), guarded(args):
+        # Warnings on stderr; outputs checked, inputs protected, main output locked;
+        # one BLAS thread for the package's small linear algebra (bayes_jackal._threads).
+        with _warnings_shown(debug=args.debug), guarded(args), one_blas_thread():
             return command(args)
     except InputError as exc:  # names its file, field and value
         return print_failure(exc, debug=args.debug)
