@@ -281,7 +281,8 @@ def moment_matched(
     moments are those of the mass inside the prior, which the independence
     moves then propose from. Measured on eight 48 s runs at 10 Hz (yaw,
     noise 2.5 times wider than the 1 s prior bound of the width): the
-    Gaussian family's chain took 5,900 steps without and ... with.
+    exponential and triangular families' chains took 400 steps with it,
+    2,000-2,600 without (``benchmarks/bench_family_balance.py``).
 
     Returns
     -------
