@@ -18,7 +18,9 @@ its output and of the report's evidence table) and ``yaw_vx_posterior`` (a
 short chain's posterior, for the tests of the export and of the report).
 The last three are computed once per test session (per xdist worker); the
 tests only read the first two's files (checked when the session ends) and
-each module gets a copy of the posterior.
+each module gets a copy of the posterior. ``cli`` runs the command line in
+a child forked from a process that has the package imported
+(tests/cli_helpers.py), for the reliability suite and the write-error tests.
 """
 
 from __future__ import annotations
@@ -39,24 +41,46 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import contextlib
 import copy
+import gc
 import hashlib
 import io
+import time
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
-import scipy.linalg
-import scipy.signal
+from cli_helpers import EXEC_ALL, Result, Zygote, finish, start
 
 from bayes_jackal.cli import main
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.robot import RobotProfile, load_profile
-from bayes_jackal.simulate import simulate_experiment
+
+# The rest is imported where it is used: xdist's controller process loads this
+# file too, and has no use for scipy and the package (~1.5 s before the
+# workers start).
+if TYPE_CHECKING:
+    from bayes_jackal.experiment import Experiment
+    from bayes_jackal.robot import RobotProfile
+
+
+def pytest_collection_finish(session):
+    """Keep the garbage collector off what the imports made, in each test process.
+
+    The test modules import the package and its libraries (numpy, scipy,
+    xarray, arviz, matplotlib, dask): millions of objects that live as long as
+    the process. Python's full collections traversed them all, ~0.3 s each and
+    a few dozen times per worker (a tenth of the suite's CPU time). Frozen
+    after collection, they are skipped; collections of the young generation
+    come every 7,000 allocations instead of 700, which also makes fewer full
+    ones. Garbage is still collected, later (tests that need it at once call
+    gc.collect()).
+    """
+    gc.collect()
+    gc.freeze()
+    gc.set_threshold(7000, 10, 10)
+
 
 #: Sample rate of the Jackal's IMU [Hz] and length of a v1 run [s] (ch. 7-3-1).
 THESIS_RATE = 72.0
@@ -84,6 +108,8 @@ def thesis_matrices(robot: RobotProfile, d_lat: float, d_long: float):
 
 def zero_order_hold(A: np.ndarray, B: np.ndarray, dt: float):
     """(Ad, Bd) from expm([[A, B], [0, 0]] dt) (the input held over each step)."""
+    import scipy.linalg
+
     n, k = B.shape
     block = np.zeros((n + k, n + k))
     block[:n, :n], block[:n, n:] = A, B
@@ -133,6 +159,10 @@ def simulate_thesis_like(
         package's simulator (d_lat, d_long, width, sigma_h, sigma_c and
         sigma_n per channel).
     """
+    import scipy.signal
+
+    from bayes_jackal.experiment import Experiment
+
     dt = 1.0 / THESIS_RATE
     burn = round(BURN_IN / dt)
     n = round(THESIS_DURATION / dt) + 1 + burn
@@ -267,6 +297,11 @@ def _posterior_digest(idata) -> str:
 @pytest.fixture(scope="session")
 def _yaw_vx_sampled():
     """The chain of ``yaw_vx_posterior``, sampled once per session and never handed out."""
+    from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
+    from bayes_jackal.likelihood import ResidualLikelihood
+    from bayes_jackal.robot import load_profile
+    from bayes_jackal.simulate import simulate_experiment
+
     run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=3)
     likelihood = ResidualLikelihood([run], load_profile(), channels=("yaw", "vx"))
     settings = SamplerSettings(max_steps=120, check_every=40, design_points=256)
@@ -287,3 +322,31 @@ def yaw_vx_posterior(_yaw_vx_sampled):
     criticism in the posterior's attributes, which another module must not see).
     """
     return copy.deepcopy(_yaw_vx_sampled)
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """Run the CLI in a forked child: ``cli(argv, cwd, fsize=0, timeout=90, setup="")``.
+
+    Returns a :class:`cli_helpers.Result`. One :class:`cli_helpers.Zygote` per
+    session (per xdist worker), started at first use;
+    ``BAYES_JACKAL_RELIABILITY_EXEC=1`` runs each command in a fresh
+    interpreter instead. stdout and stderr go to files beside ``cwd``
+    (``<cwd>.stdout``, ``<cwd>.stderr``); ``fsize`` sets RLIMIT_FSIZE [bytes];
+    ``setup`` is Python code the child runs before the command.
+    """
+    zygote = None if EXEC_ALL else Zygote()
+
+    def run(
+        argv: list[str], cwd: Path, *, fsize: int = 0, timeout: float = 90.0, setup: str = ""
+    ) -> Result:
+        if zygote is None:
+            process = start(argv, cwd, fsize=fsize, setup=setup)
+            result = finish(process, timeout)
+            result.seconds = time.monotonic() - process.started
+            return result
+        return zygote.run(argv, cwd, fsize=fsize, timeout=timeout, setup=setup)
+
+    yield run
+    if zygote is not None:
+        zygote.close()

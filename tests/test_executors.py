@@ -37,6 +37,15 @@ FAMILIES = ("white", "exponential")
 BIN = Path(sys.executable).parent
 #: A port nothing listens on: 1 is reserved (tcpmux) and unused on test machines.
 DEAD_ADDRESS = "tcp://127.0.0.1:1"
+#: Run first by the ``cli`` fixture's child (tests/conftest.py): the Dask check's
+#: timeout at 1 s instead of DaskExecutor's default 5 s (which the CLI uses), for
+#: the refusals that wait it out: unreachable, or no Dask handshake. They are
+#: refused all the same, 4 s sooner; a command that waited for ever would still
+#: meet the fixture's timeout, and be killed.
+SHORT_TIMEOUT = (
+    "from bayes_jackal.executors import DaskExecutor\n"
+    "DaskExecutor.__init__.__kwdefaults__['timeout'] = 1.0"
+)
 #: One simulated v2 run (26 s at 72 Hz), and flags of a quick comparison.
 TINY_RUN = ["--v1", "0", "--v2", "1", "--seed", "1"]
 QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "200"]
@@ -160,16 +169,13 @@ def test_compare_on_a_dask_scheduler_through_the_console_script(tmp_path):
     assert json.loads(rerun.stdout)["families"] == result["families"]
 
 
-def test_unreachable_scheduler_is_bad_input_named_fast(tmp_path):
+def test_unreachable_scheduler_is_bad_input_named_fast(tmp_path, cli):
     start = time.perf_counter()
-    done = subprocess.run(
-        [BIN / "bayes-jackal", "compare", tmp_path / "missing.nc", "--scheduler", DEAD_ADDRESS],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert done.returncode == 2
+    argv = ["compare", str(tmp_path / "missing.nc"), "--scheduler", DEAD_ADDRESS]
+    done = cli(argv, tmp_path, timeout=60, setup=SHORT_TIMEOUT)
+    assert done.code == 2, done.stderr
     assert DEAD_ADDRESS in done.stderr and "dask scheduler" in done.stderr
+    assert "within 1 s" in done.stderr  # the shortened timeout, waited out
     assert time.perf_counter() - start < 30
 
 
@@ -186,7 +192,7 @@ def _listening(port: int, seconds: float = 30.0) -> None:
 
 
 @pytest.mark.parametrize("command", ["sample", "analyse"])
-def test_a_port_that_is_not_a_scheduler_is_refused_not_waited_on(tmp_path, command):
+def test_a_port_that_is_not_a_scheduler_is_refused_not_waited_on(tmp_path, cli, command):
     """Issue 24, item 2: a web server on the port hung ``sample`` and ``analyse`` for ever."""
     out = "p.nc" if command == "sample" else "out"
     port = _free_port()
@@ -194,17 +200,14 @@ def test_a_port_that_is_not_a_scheduler_is_refused_not_waited_on(tmp_path, comma
     try:
         _listening(port)
         address = f"tcp://127.0.0.1:{port}"
-        done = subprocess.run(
-            [BIN / "bayes-jackal", command, "missing.nc", "--out", out, "--scheduler", address],
-            cwd=tmp_path,
-            capture_output=True,
-            text=True,
-            timeout=120,  # the Dask check's 5 s timeout, far from this on any load
-        )
+        argv = [command, "missing.nc", "--out", out, "--scheduler", address]
+        # The Dask check's 1 s timeout, far from this on any load.
+        done = cli(argv, tmp_path, timeout=120, setup=SHORT_TIMEOUT)
     finally:
         _stop(server)
-    assert done.returncode == 2, done.stderr
+    assert done.code == 2, done.stderr
     assert address in done.stderr and "no Dask handshake" in done.stderr
+    assert "within 1 s" in done.stderr
 
 
 @pytest.mark.parametrize("address", ["not-an-address", "bogus://"])

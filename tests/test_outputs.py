@@ -1,10 +1,12 @@
 """Outputs never replace inputs, one run per output, write errors and a full disk (issue 11).
 
 Through the real command line: in-process (:func:`bayes_jackal.cli.main`)
-where one process is enough, in subprocesses for a second run, a file-size
-limit (RLIMIT_FSIZE, SIGXFSZ ignored: the portable simulated write error) and
-a real full file system (a 1 MB tmpfs in a private mount namespace, where
-``unshare -rm`` works; skipped with the reason elsewhere).
+where one process is enough, in another process for a second run and a
+file-size limit (RLIMIT_FSIZE, SIGXFSZ ignored: the portable simulated write
+error), forked by the ``cli`` fixture (tests/conftest.py) from a process that
+has the package imported, and in a fresh interpreter on a real full file
+system (a 1 MB tmpfs in a private mount namespace, where ``unshare -rm``
+works; skipped with the reason elsewhere).
 """
 
 from __future__ import annotations
@@ -12,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import resource
 import shlex
 import shutil
 import signal
@@ -39,19 +40,6 @@ from bayes_jackal.outputs import (
 
 #: A cheap chain: white noise, 200 steps (two flushes of 100).
 CHEAP = ["--family", "white", "--max-steps", "200", "--no-progress", "--seed", "1"]
-
-
-def _run(*args, cwd, preexec_fn=None, timeout=300) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    return subprocess.run(
-        [*CLI, *map(str, args)],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        env=env,
-        preexec_fn=preexec_fn,
-        timeout=timeout,
-    )
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +134,7 @@ def test_a_computed_name_never_replaces_an_input(tmp_path):
 
 
 def test_sample_creates_the_output_folder_and_a_second_run_is_refused_naming_the_holder(
-    runs, tmp_path
+    runs, tmp_path, cli
 ):
     out = tmp_path / "new" / "dir" / "p.nc"
     assert main(["sample", str(runs / "v1_01.nc"), "--out", str(out), *CHEAP]) == 0
@@ -157,13 +145,13 @@ def test_sample_creates_the_output_folder_and_a_second_run_is_refused_naming_the
         holder = json.loads(held.lock_file.read_text())
         assert holder["pid"] == os.getpid()
         started = time.perf_counter()
-        result = _run("sample", runs / "v1_01.nc", "--out", out, *CHEAP, cwd=tmp_path)
+        result = cli(["sample", str(runs / "v1_01.nc"), "--out", str(out), *CHEAP], tmp_path)
         seconds = time.perf_counter() - started
         with pytest.raises(OutputLockedError, match=f"pid {os.getpid()} on "):
             OutputLock(out).__enter__()
-    assert result.returncode == 2, result.stderr
+    assert result.code == 2, result.stderr
     assert f"is in use by another run (pid {os.getpid()} on " in result.stderr
-    assert seconds < 30.0  # at once: the imports, no MAP search, no step
+    assert seconds < 30.0  # at once: no MAP search, no step
     assert (chain.read_bytes(), out.read_bytes()) == before  # never spliced
 
 
@@ -196,38 +184,27 @@ def test_a_killed_holder_never_blocks_the_next_run(tmp_path):
 # --------------------------------------------------------------------------- write errors
 
 
-def _file_size_limit(limit: int):
-    """preexec_fn: RLIMIT_FSIZE of ``limit`` bytes, SIGXFSZ ignored (writes fail with EFBIG)."""
-
-    def apply() -> None:
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
-
-    return apply
-
-
-def test_a_write_error_names_the_users_path_and_leaves_nothing(runs, tmp_path):
+def test_a_write_error_names_the_users_path_and_leaves_nothing(runs, tmp_path, cli):
     grid = ["--d-lat", "100", "120", "10", "--d-long", "20", "40", "10"]
     plot = tmp_path / "out" / "grid.svg"
-    result = _run(
-        "grid", runs / "v1_01.nc", *grid, "--plot", plot,
-        cwd=tmp_path, preexec_fn=_file_size_limit(4096),
-    )  # fmt: skip
-    assert result.returncode == 1, result.stderr
+    result = cli(
+        ["grid", str(runs / "v1_01.nc"), *grid, "--plot", str(plot)], tmp_path, fsize=4096
+    )
+    assert result.code == 1, result.stderr
     assert f"{plot}: cannot write: file too large" in result.stderr
     assert ".part" not in result.stderr and "Traceback" not in result.stderr
     assert not (tmp_path / "out").exists()  # made for the plot, left empty: removed
 
 
-def test_a_file_size_limit_leaves_the_chain_resumable(runs, tmp_path):
+def test_a_file_size_limit_leaves_the_chain_resumable(runs, tmp_path, capsys, cli):
     out = tmp_path / "p.nc"
     chain = out.with_suffix(".chain.h5")
-    args = ["sample", runs / "v1_01.nc", "--out", out, *CHEAP]
+    args = ["sample", str(runs / "v1_01.nc"), "--out", str(out), *CHEAP]
     # 800 kB: the first flush (100 steps) needs 0.61 MB with the margins (32 walkers, 8
     # parameters, chunks of 128 steps: 0.27 MB, + 25 % + 0.26 MB); the second does not fit
     # beside the 0.32 MB file.
-    limited = _run(*args, cwd=tmp_path, preexec_fn=_file_size_limit(800_000))
-    assert limited.returncode == 1, limited.stderr
+    limited = cli(args, tmp_path, fsize=800_000)
+    assert limited.code == 1, limited.stderr
     assert f"{chain}: cannot write: file too large for the file-size limit" in limited.stderr
     assert "resumes: free some space and run the same command again" in limited.stderr
     assert ".part" not in limited.stderr and not out.exists() and _hidden(tmp_path) == []
@@ -235,8 +212,12 @@ def test_a_file_size_limit_leaves_the_chain_resumable(runs, tmp_path):
         kept = int(stored["mcmc"].attrs["iteration"])
         prefix = stored["mcmc/chain"][:kept]
     assert kept == 100
-    resumed = _run(*args, cwd=tmp_path)
-    assert resumed.returncode == 0, resumed.stderr
+    # Resumed without the limit, in this process.
+    capsys.readouterr()
+    code = main(args)
+    said = capsys.readouterr()
+    assert code == 0, said.err
+    assert f"resuming {chain} at step 100" in said.out + said.err
     with h5py.File(chain, "r") as stored:
         assert stored["mcmc"].attrs["iteration"] == 200
         np.testing.assert_array_equal(stored["mcmc/chain"][:kept], prefix)

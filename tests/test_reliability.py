@@ -7,211 +7,62 @@ left, and stdout empty or strict JSON (no NaN, no Infinity) with ``--json``.
 
 Starting Python and importing the package takes ~2 s, more than most cases
 need, so plain cases run in a child forked from a "zygote": a Python process
-started once per test session (per xdist worker) that has imported
-``bayes_jackal.cli``. Each child chdirs to the case's folder, points fds 0-2
-at /dev/null and files, and exits through ``console(argv)``: the same
-entry point as the console script and ``python -m bayes_jackal.cli``. Signal,
-lock-holder and full-disk cases, and everything when
-``BAYES_JACKAL_RELIABILITY_EXEC=1``, exec a fresh interpreter instead.
+started once per test session (per xdist worker) that has imported the
+package and the libraries its commands load (tests/cli_helpers.py, through
+the ``cli`` fixture of tests/conftest.py). Each child chdirs to the case's
+folder, points fds 0-2 at /dev/null and files, and runs ``console(argv)``:
+the same entry point as the console script and ``python -m
+bayes_jackal.cli``. It then exits as the interpreter would (threads joined,
+atexit functions run, streams flushed) but without the teardown that frees
+every object (most of a plain case's CPU time, spent copying the zygote's
+pages). Signal, lock-holder and full-disk cases, and everything when
+``BAYES_JACKAL_RELIABILITY_EXEC=1``, exec a fresh interpreter instead, where
+the interpreter's whole exit is checked too.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
-import json
 import os
-import select
 import shlex
 import shutil
 import signal
 import subprocess
-import sys
+import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from cli_helpers import CLI as MODULE
 from cli_helpers import (
+    ENV,
     STOP_CPU_SECONDS,
     STOP_WALL_SECONDS,
+    Result,
     children_cpu_seconds,
+    finish,
     process_cpu_seconds,
+    start,
     stored_steps,
     strict_json,
 )
 from reliability_cases import CASES, Case, Library, mat, words_missing
 
-ENV = os.environ | {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-EXEC_ALL = os.environ.get("BAYES_JACKAL_RELIABILITY_EXEC") == "1"
-SCRIPT = [str(Path(sys.executable).with_name("bayes-jackal"))]
 INTERRUPT_LINE = r"interrupt|signal|sigint|sigterm|stopp|terminat"
-
-#: Modules the zygote imports before it forks (the CLI imports them on first use).
-WARM = (
-    "bayes_jackal.cli.parser",
-    "bayes_jackal.cli.commands",
-    "bayes_jackal.cli.paths",
-    "bayes_jackal.interrupt",
-    "bayes_jackal.bags",
-    "matplotlib.pyplot",
-    "h5netcdf",
-    "h5py",
-    "emcee",
-)
-ZYGOTE = (
-    f"WARM = {WARM!r}\n"
-    + r"""
-import gc, importlib, json, os, resource, signal, sys
-from bayes_jackal.cli import console
-for name in WARM:  # what a run imports lazily, imported once here
-    try:
-        importlib.import_module(name)
-    except ImportError:
-        pass
-gc.freeze()  # the children's collections skip what the zygote loaded
-os.write(1, b"ready\n")
-while True:
-    line = sys.stdin.readline()
-    if not line:
-        os._exit(0)
-    request = json.loads(line)
-    pid = os.fork()
-    if pid == 0:
-        break
-    os.write(1, f"{pid}\n".encode())
-    _, status = os.waitpid(pid, 0)
-    os.write(1, f"{os.waitstatus_to_exitcode(status)}\n".encode())
-os.setpgid(0, 0)
-os.chdir(request["cwd"])
-for fd, name, mode in ((0, os.devnull, os.O_RDONLY), (1, request["stdout"], os.O_WRONLY),
-                       (2, request["stderr"], os.O_WRONLY)):
-    handle = os.open(name, mode | (os.O_CREAT | os.O_TRUNC if fd else 0), 0o644)
-    os.dup2(handle, fd)
-    os.close(handle)
-if request["fsize"]:
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (request["fsize"], request["fsize"]))
-sys.argv = ["bayes-jackal", *request["argv"]]
-console(request["argv"])
-"""
-)
-
-
-@dataclass
-class Result:
-    code: int
-    stdout: str
-    stderr: str
-    seconds: float
-
-
-class Zygote:
-    """A Python process with the CLI imported that forks one child per command."""
-
-    def __init__(self):
-        self.process = subprocess.Popen(
-            [sys.executable, "-c", ZYGOTE], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=ENV
-        )
-        self.buffer = b""
-        assert self._line(120) == "ready"
-
-    def _line(self, timeout: float) -> str:
-        deadline = time.monotonic() + timeout
-        fd = self.process.stdout.fileno()
-        while b"\n" not in self.buffer:
-            left = deadline - time.monotonic()
-            if left <= 0 or not select.select([fd], [], [], left)[0]:
-                raise TimeoutError
-            chunk = os.read(fd, 4096)
-            if not chunk:
-                raise RuntimeError("the zygote died")
-            self.buffer += chunk
-        line, self.buffer = self.buffer.split(b"\n", 1)
-        return line.decode()
-
-    def run(self, argv: list[str], cwd: Path, *, fsize: int, timeout: float) -> Result:
-        out, err = cwd.parent / f"{cwd.name}.stdout", cwd.parent / f"{cwd.name}.stderr"
-        request = {"argv": argv, "cwd": str(cwd), "stdout": str(out), "stderr": str(err)}
-        self.process.stdin.write((json.dumps(request | {"fsize": fsize}) + "\n").encode())
-        self.process.stdin.flush()
-        start = time.monotonic()
-        pid = int(self._line(30))
-        try:
-            code = int(self._line(timeout))
-        except TimeoutError:
-            os.killpg(pid, signal.SIGKILL)
-            code = int(self._line(30))
-            err.write_text(err.read_text() + f"\n[test: killed after the {timeout:g} s timeout]")
-        return Result(code, out.read_text(), err.read_text(), time.monotonic() - start)
-
-    def close(self):
-        self.process.stdin.close()
-        self.process.wait(10)
-        self.process.stdout.close()
-
-
-def _limit_fsize(limit: int):
-    def preexec():
-        import resource
-
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-    return preexec if limit else None
-
-
-def start(argv: list[str], cwd: Path, *, script: bool = False, fsize: int = 0):
-    """A fresh interpreter running the CLI, in its own process group (like a shell job)."""
-    out, err = cwd.parent / f"{cwd.name}.stdout", cwd.parent / f"{cwd.name}.stderr"
-    with out.open("wb") as stdout, err.open("wb") as stderr:
-        process = subprocess.Popen(
-            (SCRIPT if script else MODULE) + argv,
-            cwd=cwd,
-            stdin=subprocess.DEVNULL,
-            stdout=stdout,
-            stderr=stderr,
-            env=ENV,
-            start_new_session=True,
-            preexec_fn=_limit_fsize(fsize),
-        )
-    process.outputs = (out, err)
-    process.started = time.monotonic()
-    return process
-
-
-def finish(process, timeout: float) -> Result:
-    try:
-        process.wait(timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(process.pid, signal.SIGKILL)
-        process.wait()
-    out, err = process.outputs
-    return Result(process.returncode, out.read_text(), err.read_text(), 0.0)
-
-
-@pytest.fixture(scope="session")
-def cli():
-    """Run the CLI: ``cli(argv, cwd, fsize=0, timeout=90) -> Result``."""
-    zygote = None if EXEC_ALL else Zygote()
-
-    def run(argv: list[str], cwd: Path, *, fsize: int = 0, timeout: float = 90.0) -> Result:
-        if zygote is None:
-            process = start(argv, cwd, fsize=fsize)
-            result = finish(process, timeout)
-            result.seconds = time.monotonic() - process.started
-            return result
-        return zygote.run(argv, cwd, fsize=fsize, timeout=timeout)
-
-    yield run
-    if zygote is not None:
-        zygote.close()
 
 
 @pytest.fixture(scope="session")
 def library(cli, tmp_path_factory) -> Library:
-    """One tiny simulated run as .nc, .csv, .mat, .bag, .mcap, and two short posteriors."""
-    root = tmp_path_factory.mktemp("library")
+    """One tiny simulated run as .nc, .csv, .mat, .bag, .mcap, and two short posteriors.
+
+    Built once per test run: under xdist by the first worker that needs it, in
+    the run's temporary folder that the workers share (another waits on a lock
+    meanwhile, then reads it). The cases only copy from it.
+    """
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    root = shared / "reliability-library"
     commands = [
         "simulate --out runs --seed 1 --v1 1 --v2 0 --bag ros2",
         "simulate --out csv --seed 1 --v1 1 --v2 0 --format csv --bag ros1",
@@ -220,11 +71,21 @@ def library(cli, tmp_path_factory) -> Library:
         "sample runs/v1_01.nc --out post/white.nc --family white --channels yaw "
         "--max-steps 200 --walkers 32 --seed 1 --no-progress",
     ]
-    for command in commands:
-        result = cli(shlex.split(command), root)
-        if result.code != 0:
-            pytest.fail(f"could not build the library ({command}): {result.stderr}")
-    lib = Library(
+    with (shared / "reliability-library.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not root.exists():
+            building = Path(tempfile.mkdtemp(prefix="reliability-library-", dir=shared))
+            for command in commands:
+                result = cli(shlex.split(command), building)
+                if result.code != 0:
+                    pytest.fail(f"could not build the library ({command}): {result.stderr}")
+            mat()(_library(building), _library(building).mat)
+            building.rename(root)
+    return _library(root)
+
+
+def _library(root: Path) -> Library:
+    return Library(
         root=root,
         nc=root / "runs/v1_01.nc",
         csv=root / "csv/v1_01.csv",
@@ -234,8 +95,6 @@ def library(cli, tmp_path_factory) -> Library:
         posterior=root / "post/gaussian.nc",
         white_posterior=root / "post/white.nc",
     )
-    mat()(lib, lib.mat)
-    return lib
 
 
 def _snapshot(folder: Path, mutable: tuple[str, ...]) -> dict[Path, tuple]:
