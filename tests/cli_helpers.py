@@ -14,15 +14,18 @@ wall time it does (CI once saw a stop of 0.05 s CPU take 3 s on a busy
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import pkgutil
 import resource
 import select
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -220,6 +223,28 @@ class Zygote:
         self.process.stdin.close()
         self.process.wait(10)
         self.process.stdout.close()
+
+
+def built_once(tmp_path_factory, name: str, build: Callable[[Path], None]) -> Path:
+    """The folder ``name`` that ``build(folder)`` fills, once per test run.
+
+    Under xdist the first worker that asks builds it, in the run's temporary
+    folder that the workers share; another waits on a lock meanwhile, then
+    reads it. A folder is used once its build has returned (a marker file
+    says so); one left by a build that failed is built again. It is built
+    where it stays, so paths written into its files remain valid.
+    """
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    folder, done = shared / name, shared / f"{name}.done"
+    with (shared / f"{name}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            build(folder)
+            done.touch()
+    return folder
 
 
 def _limit_fsize(limit: int):

@@ -16,8 +16,9 @@ written by ``bayes-jackal simulate``, for the tests of the command line),
 ``compared`` (one ``bayes-jackal compare`` of the first, for the tests of
 its output and of the report's evidence table) and ``yaw_vx_posterior`` (a
 short chain's posterior, for the tests of the export and of the report).
-The last three are computed once per test session (per xdist worker); the
-tests only read the first two's files (checked when the session ends) and
+The last three are computed once per test session (per xdist worker;
+``compared`` once per run, shared by the workers); the tests only read the
+first two's files (checked when the session ends) and
 each module gets a copy of the posterior. ``cli`` runs the command line in
 a child forked from a process that has the package imported
 (tests/cli_helpers.py), for the reliability suite and the write-error tests.
@@ -44,6 +45,7 @@ import copy
 import gc
 import hashlib
 import io
+import json
 import time
 import warnings
 from collections.abc import Iterator
@@ -53,7 +55,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
-from cli_helpers import EXEC_ALL, Result, Zygote, finish, start
+from cli_helpers import EXEC_ALL, Result, Zygote, built_once, finish, start
 
 from bayes_jackal.cli import main
 
@@ -272,16 +274,35 @@ QUICK_COMPARE += ["--seed", "2", "--no-progress"]
 def compared(simulated, tmp_path_factory) -> Iterator[Compared]:
     """``compare`` of the simulated v1_01 with QUICK_COMPARE, ``--out`` and ``--json``.
 
-    Run once per session, with the command's default processes, for the
+    Run once per test run, with the command's default processes, for the
     tests of compare's output (tests/test_cli.py) and of the report's
-    evidence table (tests/test_report.py); they only read its folder.
+    evidence table (tests/test_report.py); they only read its folder. Under
+    xdist the first worker that needs it runs it (``built_once``; the
+    workers' ``simulated`` runs are the same: same seed), and keeps its exit
+    code, stdout and stderr beside the folder for the other.
     """
-    folder = tmp_path_factory.mktemp("compared") / "compare"
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["compare", simulated[0], *QUICK_COMPARE, "--out", str(folder), "--json"])
+
+    def build(shared: Path) -> None:
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(
+                [
+                    "compare",
+                    simulated[0],
+                    *QUICK_COMPARE,
+                    "--out",
+                    str(shared / "compare"),
+                    "--json",
+                ]
+            )
+        printed = {"code": code, "out": out.getvalue(), "err": err.getvalue()}
+        (shared / "printed.json").write_text(json.dumps(printed))
+
+    shared = built_once(tmp_path_factory, "compared", build)
+    printed = json.loads((shared / "printed.json").read_text())
+    folder = shared / "compare"
     before = _digests(folder)
-    yield Compared(code, out.getvalue(), err.getvalue(), folder)
+    yield Compared(printed["code"], printed["out"], printed["err"], folder)
     assert _digests(folder) == before, f"a test changed the shared comparison in {folder}"
 
 

@@ -17,7 +17,7 @@ from cli_helpers import strict_json
 
 from bayes_jackal.bag_writer import write_bag
 from bayes_jackal.cli import build_parser, main
-from bayes_jackal.experiment import Experiment, read_netcdf
+from bayes_jackal.experiment import Experiment, read_netcdf, write_netcdf
 from bayes_jackal.filter_models import filter_models
 from bayes_jackal.gridsearch import grid_search
 from bayes_jackal.kernels import FAMILIES
@@ -26,7 +26,7 @@ from bayes_jackal.posterior import load_posterior
 from bayes_jackal.posterior_format import posterior_layout
 from bayes_jackal.residual_analysis import analyse
 from bayes_jackal.robot import default_profile_path, load_profile
-from bayes_jackal.simulate import SERIES, NoiseSettings, simulate_experiment
+from bayes_jackal.simulate import SERIES, NoiseSettings, Series, simulate_experiment
 from bayes_jackal.tables import read_csv, write_csv
 
 SMALL = ["--v1", "1", "--v2", "1"]
@@ -231,9 +231,30 @@ def test_grid_experiment_file_given_as_profile(simulated, capsys):
 QUICK_SAMPLE = ["--max-steps", "80", "--seed", "3", "--no-progress"]
 
 
-def test_sample_writes_a_posterior_and_prints_the_contract_json(simulated, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def short_runs(tmp_path_factory) -> list[str]:
+    """Two 8 s runs at the v1 and v2 commands, named as ``simulated``'s (v1_01, v2_01).
+
+    For the tests of what ``sample`` prints and writes: its JSON's keys, its
+    files, its warning that 80 steps did not converge (the chains' tau was
+    4 to 5 steps on these runs, with one channel or three, and convergence
+    needs 50 tau: 200 steps or more), none of which depends on a run's
+    length (the two tests took 5.8 s on the 38 s and 26 s runs, 4.3 s on
+    these).
+    """
+    folder = tmp_path_factory.mktemp("short_runs")
+    robot = load_profile()
+    paths = []
+    for seed, (name, series) in enumerate(SERIES.items(), start=1):
+        short = Series(series.v, series.w, 8.0)
+        run = simulate_experiment(robot, 110.0, 30.0, short, rng=seed, name=f"{name}_01")
+        paths.append(str(write_netcdf(run, folder / f"{name}_01.nc")))
+    return paths
+
+
+def test_sample_writes_a_posterior_and_prints_the_contract_json(short_runs, tmp_path, capsys):
     out = tmp_path / "posterior.nc"
-    code = main(["sample", simulated[0], "--out", str(out), *QUICK_SAMPLE, "--json"])
+    code = main(["sample", short_runs[0], "--out", str(out), *QUICK_SAMPLE, "--json"])
     captured = capsys.readouterr()
     assert code == 0
     payload = json.loads(captured.out)
@@ -289,17 +310,17 @@ def test_sample_defaults_to_the_library_engine(simulated, tmp_path):
     assert args.engine == "fast" == ResidualLikelihood.__dataclass_fields__["engine"].default
 
 
-def test_sample_without_pooling_writes_one_posterior_per_experiment(simulated, tmp_path, capsys):
+def test_sample_without_pooling_writes_one_posterior_per_experiment(short_runs, tmp_path, capsys):
     out = tmp_path / "post.nc"
     yaw = ["--channels", "yaw"]  # narrowed: quicker, and checks the flag
-    code = main(["sample", *simulated, "--out", str(out), *QUICK_SAMPLE, *yaw, "--json"])
+    code = main(["sample", *short_runs, "--out", str(out), *QUICK_SAMPLE, *yaw, "--json"])
     payload = json.loads(capsys.readouterr().out)
     assert code == 0
     assert set(payload["experiments"]) == {"v1_01", "v2_01"}
     assert payload["experiments"]["v1_01"]["channels"] == ["yaw"]
     assert (tmp_path / "post.v1_01.nc").is_file() and (tmp_path / "post.v2_01.nc").is_file()
     code = main(
-        ["sample", *simulated, "--out", str(out), "--pooled", *QUICK_SAMPLE, *yaw, "--json"]
+        ["sample", *short_runs, "--out", str(out), "--pooled", *QUICK_SAMPLE, *yaw, "--json"]
     )
     pooled = json.loads(capsys.readouterr().out)
     assert code == 0 and "d_lat" in pooled and out.is_file()

@@ -22,14 +22,12 @@ the interpreter's whole exit is checked too.
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import os
 import shlex
 import shutil
 import signal
 import subprocess
-import tempfile
 import time
 from pathlib import Path
 
@@ -40,6 +38,7 @@ from cli_helpers import (
     STOP_CPU_SECONDS,
     STOP_WALL_SECONDS,
     Result,
+    built_once,
     children_cpu_seconds,
     finish,
     process_cpu_seconds,
@@ -60,9 +59,6 @@ def library(cli, tmp_path_factory) -> Library:
     the run's temporary folder that the workers share (another waits on a lock
     meanwhile, then reads it). The cases only copy from it.
     """
-    base = tmp_path_factory.getbasetemp()
-    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    root = shared / "reliability-library"
     commands = [
         "simulate --out runs --seed 1 --v1 1 --v2 0 --bag ros2",
         "simulate --out csv --seed 1 --v1 1 --v2 0 --format csv --bag ros1",
@@ -71,16 +67,15 @@ def library(cli, tmp_path_factory) -> Library:
         "sample runs/v1_01.nc --out post/white.nc --family white --channels yaw "
         "--max-steps 200 --walkers 32 --seed 1 --no-progress",
     ]
-    with (shared / "reliability-library.lock").open("w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
-        if not root.exists():
-            building = Path(tempfile.mkdtemp(prefix="reliability-library-", dir=shared))
-            for command in commands:
-                result = cli(shlex.split(command), building)
-                if result.code != 0:
-                    pytest.fail(f"could not build the library ({command}): {result.stderr}")
-            mat()(_library(building), _library(building).mat)
-            building.rename(root)
+
+    def build(folder: Path) -> None:
+        for command in commands:
+            result = cli(shlex.split(command), folder)
+            if result.code != 0:
+                pytest.fail(f"could not build the library ({command}): {result.stderr}")
+        mat()(_library(folder), _library(folder).mat)
+
+    root = built_once(tmp_path_factory, "reliability-library", build)
     return _library(root)
 
 
