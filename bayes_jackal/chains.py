@@ -1,8 +1,9 @@
 """Running an emcee chain to convergence: stored step by step, resumed, kept after burn-in.
 
 The ensemble moves with differential evolution, and with independent
-draws from the posterior's Laplace approximation where the start gives one
-(:mod:`bayes_jackal.moves`), until the answer is known:
+draws from an approximation of the posterior where the start gives one
+(its Laplace approximation, moments or a mixture along its ridge:
+:mod:`bayes_jackal.moves`), until the answer is known:
 the chain is longer than 50 integrated autocorrelation times (emcee's
 advice, so that tau itself is estimated reliably) and every parameter has
 an effective sample size of at least 400 in the bulk and in the tails
@@ -42,7 +43,13 @@ from .defaults import (
     WALKERS,
 )
 from .errors import InputError, OutputError
-from .moves import LaplaceApproximation, Start, ensemble_moves
+from .moves import (
+    Approximation,
+    LaplaceApproximation,
+    MixtureApproximation,
+    Start,
+    ensemble_moves,
+)
 from .outputs import OutputLock, refuse_link
 from .progress import Progress
 from .sampler_warnings import ConvergenceWarning
@@ -630,21 +637,39 @@ def run_chain(
         return _kept(sampler, names, tau, shortfall is None, settings, seed)
 
 
-def _store_approximation(backend, approximation: LaplaceApproximation | None) -> None:
-    """Keep the moves' approximation in a chain file, so that a resumed chain moves alike."""
+def _store_approximation(backend, approximation: Approximation | None) -> None:
+    """Keep the moves' approximation in a chain file, so that a resumed chain moves alike.
+
+    A Laplace approximation as ``laplace_centre`` and ``laplace_covariance``
+    attributes of the chain's group, a mixture as ``mixture_weights``,
+    ``mixture_centres`` and ``mixture_covariances``.
+    """
     if approximation is None or not isinstance(backend, BufferedHDFBackend):
         return
     with backend.writing(), backend.open("a") as stored:
-        stored[backend.name].attrs["laplace_centre"] = approximation.centre
-        stored[backend.name].attrs["laplace_covariance"] = approximation.covariance
+        attrs = stored[backend.name].attrs
+        if isinstance(approximation, MixtureApproximation):
+            attrs["mixture_weights"] = approximation.weights
+            attrs["mixture_centres"] = approximation.centres
+            attrs["mixture_covariances"] = approximation.covariances
+        else:
+            attrs["laplace_centre"] = approximation.centre
+            attrs["laplace_covariance"] = approximation.covariance
 
 
-def _stored_approximation(backend) -> LaplaceApproximation | None:
+def _stored_approximation(backend) -> Approximation | None:
     """The approximation a stored chain's moves used (None: differential evolution alone)."""
     if not isinstance(backend, BufferedHDFBackend):
         return None
     with backend.open("r") as stored:
         attrs = stored[backend.name].attrs
+        if "mixture_weights" in attrs:
+            return MixtureApproximation(
+                *(
+                    np.array(attrs[f"mixture_{key}"])
+                    for key in ("weights", "centres", "covariances")
+                )
+            )
         if "laplace_centre" not in attrs:
             return None
         return LaplaceApproximation(

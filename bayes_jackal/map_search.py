@@ -3,13 +3,15 @@
 The MAP search starts from the likelihood profiled over each noise group
 (:mod:`bayes_jackal.noise_profile`), climbs with bounded quasi-Newton
 searches and line scans of the kernel widths, and the walkers are drawn from
-the Laplace approximation at the MAP. The priors and the log-posterior live
-in :mod:`bayes_jackal.priors`, the sampler in :mod:`bayes_jackal.inference`.
+the Laplace approximation at the MAP, or, where the posterior is not that
+shape, from its moments or a mixture along its ridge (:func:`ridge_mixture`).
+The priors and the log-posterior live in :mod:`bayes_jackal.priors`, the
+sampler in :mod:`bayes_jackal.inference`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -20,15 +22,18 @@ from .errors import InputError
 from .moves import (
     MIN_MATCHED_EFFICIENCY,
     MIN_PROPOSAL_EFFICIENCY,
+    Approximation,
     LaplaceApproximation,
+    MixtureApproximation,
     Start,
+    as_mixture,
     moment_matched,
     proposal_efficiency,
 )
 from .noise_profile import profile_starts
 from .priors import LogPosterior, Prior
 
-__all__ = ["climb", "find_map", "laplace_walkers", "scan_posterior"]
+__all__ = ["climb", "find_map", "laplace_walkers", "ridge_mixture", "scan_posterior"]
 
 
 #: Local searches of :func:`find_map`, from the best points of the profile.
@@ -37,6 +42,10 @@ _MAP_STARTS = 4
 SWEEP_POINTS = 64
 #: Points of its refinement around the coarse best.
 SWEEP_REFINE = 32
+#: Cells of the grid along a curved posterior's widest parameter (:func:`ridge_mixture`).
+RIDGE_CELLS = 16
+#: How far below the highest cell's conditional maximum [nats] a cell still gets a component.
+RIDGE_DEPTH = 30.0
 
 
 @one_blas_thread()
@@ -124,7 +133,7 @@ def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimi
         # L-BFGS-B treats the NaN as a failed step and backs off.
         with np.errstate(invalid="ignore"):
             return scipy.optimize.minimize(
-                _with_gradient(log_posterior, prior), start, method="L-BFGS-B", jac=True,
+                _with_gradient(log_posterior, prior.z_high), start, method="L-BFGS-B", jac=True,
                 bounds=bounds,
             )  # fmt: skip
 
@@ -245,17 +254,17 @@ def climb(
     return polished.x if np.isfinite(polished.fun) else best.x
 
 
-def _with_gradient(function: LogPosterior, prior: Prior):
+def _with_gradient(function: Callable[[np.ndarray], np.ndarray], z_high: np.ndarray):
     """-function(z) and its forward-difference gradient from one vectorised call.
 
     The P + 1 points are evaluated as one batch (about half the cost of
-    P + 1 single calls); steps point into the prior box, as scipy's own
-    finite differences do at a bound.
+    P + 1 single calls); steps point into the box below ``z_high``, as
+    scipy's own finite differences do at a bound.
     """
 
     def negative(z: np.ndarray) -> tuple[float, np.ndarray]:
         step = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(z))
-        step = np.where(z + step > prior.z_high, -step, step)
+        step = np.where(z + step > z_high, -step, step)
         values = -function(np.vstack([z, z + np.diag(step)]))
         return values[0], (values[1:] - values[0]) / step
 
@@ -311,9 +320,11 @@ def laplace_walkers(
     run into it; a Hessian that is not positive definite, regularised to
     at most a quarter of each prior range), the approximation is moved to
     the posterior's mean and covariance by importance sampling
-    (:func:`~bayes_jackal.moves.moment_matched`). Where that fails too, the
-    walkers start in a small ball, and the chain moves by differential
-    evolution alone.
+    (:func:`~bayes_jackal.moves.moment_matched`). Where no single t fits (a
+    curved ridge: the damping's scale unidentified, the noise bending along
+    it), the approximation is a mixture along the ridge
+    (:func:`ridge_mixture`). Where that fails too, the walkers start in a
+    small ball, and the chain moves by differential evolution alone.
 
     Examples
     --------
@@ -363,12 +374,13 @@ def laplace_walkers(
             return Start(points, approximation)
     if approximation is not None:  # not the posterior's shape: its moments, by importance sampling
         matched = moment_matched(log_posterior, approximation, rng)
-        if matched is not None and (
-            proposal_efficiency(log_posterior, matched, rng) >= MIN_MATCHED_EFFICIENCY
-        ):
-            drawn = _walkers_inside(log_posterior, matched, walkers, rng)
-            if drawn is not None:
-                return Start(drawn, matched)
+        start = _efficient_start(log_posterior, matched, walkers, rng)
+        if start is None:  # a curved posterior, which no single t fits: a mixture along its ridge
+            widest = approximation if matched is None else matched
+            mixture = ridge_mixture(log_posterior, approximation.centre, widest.covariance)
+            start = _efficient_start(log_posterior, mixture, walkers, rng)
+        if start is not None:
+            return start
     if points is None:  # no approximation of the posterior: a small ball
         ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
         points = ball[prior.inside(ball)][:walkers]
@@ -413,33 +425,217 @@ def _hessian_approximation(
     """
     if not (np.all(np.isfinite(hessian)) and np.all(np.isfinite(gradient))):
         return None, False
-    quarter = np.outer(span, span) / 16.0
-    values, vectors = np.linalg.eigh(-hessian * quarter)
-    if np.all(values >= 1.0):
+    if np.all(np.linalg.eigvalsh(-hessian * np.outer(span, span) / 16.0) >= 1.0):
         try:
             covariance = np.linalg.inv(-hessian)
             np.linalg.cholesky(covariance)
             return LaplaceApproximation(centre, covariance), True
         except np.linalg.LinAlgError:
             pass
+    return LaplaceApproximation(centre, _bounded_covariance(gradient, hessian, span)), False
+
+
+def _bounded_covariance(gradient: np.ndarray, hessian: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """The inverse negative Hessian, each eigenvalue raised to the squared slope along it and to 1.
+
+    In units of a quarter of each prior range (``span``): a direction in
+    which the log-density falls by |g| per unit is an exponential tail of
+    scale 1 / |g| (a parameter piled against its bound), whatever the
+    curvature says; none is wider than a quarter of the prior.
+    """
+    quarter = np.outer(span, span) / 16.0
+    values, vectors = np.linalg.eigh(-hessian * quarter)
     slopes = (gradient * np.sqrt(np.diag(quarter))) @ vectors
     values = np.maximum(np.maximum(values, slopes**2), 1.0)
-    return LaplaceApproximation(centre, (vectors / values) @ vectors.T * quarter), False
+    return (vectors / values) @ vectors.T * quarter
+
+
+def _efficient_start(
+    log_posterior: LogPosterior,
+    approximation: Approximation | None,
+    walkers: int,
+    rng: np.random.Generator,
+) -> Start | None:
+    """Walkers from ``approximation`` where importance sampling from it is efficient enough.
+
+    None without an approximation, or below :data:`~bayes_jackal.moves.MIN_MATCHED_EFFICIENCY`.
+    """
+    if approximation is None or (
+        proposal_efficiency(log_posterior, approximation, rng) < MIN_MATCHED_EFFICIENCY
+    ):
+        return None
+    drawn = _walkers_inside(log_posterior, approximation, walkers, rng)
+    return None if drawn is None else Start(drawn, approximation)
 
 
 def _walkers_inside(
     log_posterior: LogPosterior,
-    approximation: LaplaceApproximation,
+    approximation: Approximation,
     walkers: int,
     rng: np.random.Generator,
 ) -> np.ndarray | None:
     """``walkers`` draws from half the approximation's width, inside the prior and finite.
 
-    None when fewer than ``walkers`` of 8 times as many draws are.
+    A mixture's draws come from its components by weight. None when fewer
+    than ``walkers`` of 8 times as many draws are.
     """
-    points = rng.multivariate_normal(
-        approximation.centre, 0.25 * approximation.covariance, size=8 * walkers
-    )
+    mixture, count = as_mixture(approximation), 8 * walkers
+    if len(mixture.weights) == 1:
+        points = rng.multivariate_normal(
+            mixture.centres[0], 0.25 * mixture.covariances[0], size=count
+        )
+    else:
+        chosen = rng.choice(len(mixture.weights), size=count, p=mixture.weights)
+        normal = rng.standard_normal((count, mixture.centres.shape[1]))
+        factors = np.linalg.cholesky(mixture.covariances)[chosen]
+        points = mixture.centres[chosen] + 0.5 * np.einsum("nij,nj->ni", factors, normal)
     points = points[log_posterior.prior.inside(points)]
     points = points[np.isfinite(log_posterior(points))]
     return points[:walkers] if len(points) >= walkers else None
+
+
+def ridge_mixture(
+    log_posterior: LogPosterior, centre: np.ndarray, covariance: np.ndarray
+) -> MixtureApproximation | None:
+    """A mixture of Gaussians along the posterior's ridge: its profile over its widest parameter.
+
+    Where the damping's scale is not identified (one channel, short runs
+    at a low rate), the posterior is a ridge along it, and the noise
+    parameters bend with the scale (a banana). No single Gaussian fits it;
+    differential evolution crawls along it (tau of 130 steps on eight 48 s
+    runs at 10 Hz, yaw, the Gaussian family: 6,600 steps, 10 times the other
+    families' time). The parameter along which ``approximation`` is widest
+    (in units of its prior range) is cut into :data:`RIDGE_CELLS` cells;
+    in each, the log-posterior is maximised over the other parameters
+    (bounded quasi-Newton, started from the neighbouring cell's maximum,
+    outwards from the MAP's cell). Each cell within :data:`RIDGE_DEPTH`
+    nats of the best gives a component: centred at the cell's maximum, a
+    cell's width along the path's tangent, and across it the inverse
+    negative Hessian of the other parameters (an exponential tail's scale
+    along a direction in which the posterior is piled against its bound),
+    weighted by its Laplace mass (the maximum's height and the covariance's
+    volume). The independence moves then propose from the mixture
+    (:class:`~bayes_jackal.moves.IndependenceMove`).
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+    centre : ndarray, shape (k,)
+        Where the path starts (the MAP), in z.
+    covariance : ndarray, shape (k, k)
+        An approximation's covariance (the moments by importance sampling,
+        which have spread along the ridge), which picks the widest parameter.
+
+    Returns
+    -------
+    MixtureApproximation or None
+        None where fewer than two cells have a finite maximum.
+
+    Examples
+    --------
+    A banana in two log-uniform parameters: z2 = 0.5 z1^2 within 0.05, z1
+    uniform over [-2, 2]. A Gaussian at z1 = -1.8 (a MAP at the end of the
+    ridge) covers none of it; the mixture follows it, and importance
+    sampling from it is efficient:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.map_search import ridge_mixture
+    >>> from bayes_jackal.moves import proposal_efficiency
+    >>> from bayes_jackal.priors import LogPosterior, Prior
+    >>> def banana(theta):
+    ...     z = np.log(theta)
+    ...     return -0.5 * ((z[:, 1] - 0.5 * z[:, 0] ** 2) / 0.05) ** 2
+    >>> prior = Prior(("a", "b"), np.exp([-2.0, -1.0]), np.exp([2.0, 3.0]), np.full(2, True))
+    >>> log_posterior = LogPosterior(banana, prior)
+    >>> mixture = ridge_mixture(log_posterior, np.array([-1.8, 1.62]), np.diag([0.5, 0.01]))
+    >>> len(mixture.weights), np.round(mixture.centres[[0, -1]], 2).tolist()
+    (16, [[-1.88, 1.76], [1.88, 1.76]])
+    >>> bool(proposal_efficiency(log_posterior, mixture, np.random.default_rng(1)) > 0.5)
+    True
+    """
+    prior = log_posterior.prior
+    span = prior.z_high - prior.z_low
+    scaled = covariance / np.outer(span, span)
+    axis = int(np.argmax(np.abs(np.linalg.eigh(scaled)[1][:, -1])))
+    width = span[axis] / RIDGE_CELLS
+    cells = prior.z_low[axis] + width * (np.arange(RIDGE_CELLS) + 0.5)
+    path, heights = _conditional_maxima(log_posterior, centre, axis, cells)
+    finite = np.flatnonzero(np.isfinite(heights))
+    if len(finite) < 2:
+        return None
+    tangents = np.gradient(path[finite], cells[finite], axis=0)
+    kept = heights[finite] > np.max(heights[finite]) - RIDGE_DEPTH
+    components = [
+        _cell_component(log_posterior, point, tangent, axis, width)
+        for point, tangent in zip(path[finite][kept], tangents[kept], strict=True)
+    ]
+    log_volumes = np.array([volume for _, volume in components])
+    log_masses = heights[finite][kept] + log_volumes
+    weights = np.exp(log_masses - np.max(log_masses))
+    return MixtureApproximation(
+        weights / np.sum(weights),
+        path[finite][kept],
+        np.array([covariance for covariance, _ in components]),
+    )
+
+
+def _conditional_maxima(
+    log_posterior: LogPosterior, centre: np.ndarray, axis: int, cells: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each cell's maximum over the parameters but ``axis`` (fixed at the cell), and its height.
+
+    Each search starts from the neighbouring cell's maximum, outwards from
+    the cell nearest ``centre``.
+    """
+    path = np.repeat(centre[None], len(cells), axis=0)
+    path[:, axis] = cells
+    heights = np.full(len(cells), -np.inf)
+    first = int(np.argmin(np.abs(cells - centre[axis])))
+    for index in [*range(first, len(cells)), *range(first - 1, -1, -1)]:
+        neighbour = index - 1 if index > first else index + 1 if index < first else index
+        start = centre.copy() if index == first else path[neighbour].copy()
+        start[axis] = cells[index]
+        path[index], heights[index] = _conditional_maximum(log_posterior, start, axis)
+    return path, heights
+
+
+def _conditional_maximum(
+    log_posterior: LogPosterior, start: np.ndarray, axis: int
+) -> tuple[np.ndarray, float]:
+    """The maximum over every parameter but ``axis`` from ``start`` (L-BFGS-B in the prior box)."""
+    prior = log_posterior.prior
+    others = np.flatnonzero(np.arange(len(start)) != axis)
+
+    def conditional(u: np.ndarray) -> np.ndarray:
+        points = np.repeat(start[None], len(u), axis=0)
+        points[:, others] = u
+        return log_posterior(points)
+
+    low, high = prior.z_low[others], prior.z_high[others]
+    with np.errstate(invalid="ignore"):  # differences beside a -inf region, as in _best_local
+        result = scipy.optimize.minimize(
+            _with_gradient(conditional, high), np.clip(start[others], low, high),
+            method="L-BFGS-B", jac=True, bounds=list(zip(low, high, strict=True)),
+        )  # fmt: skip
+    point = start.copy()
+    point[others] = result.x
+    height = -float(result.fun)
+    return point, height if np.isfinite(height) else -np.inf
+
+
+def _cell_component(
+    log_posterior: LogPosterior, point: np.ndarray, tangent: np.ndarray, axis: int, width: float
+) -> tuple[np.ndarray, float]:
+    """A cell's covariance (its width along ``tangent``, the bounded inverse Hessian across)
+    and the log-volume of the part across (half the log-determinant).
+    """
+    prior = log_posterior.prior
+    span = prior.z_high - prior.z_low
+    step = 1e-4 * span
+    inside = np.clip(point, prior.z_low + 10 * step, prior.z_high - 10 * step)
+    gradient, hessian = _derivatives(log_posterior, inside, step)
+    others = np.flatnonzero(np.arange(len(point)) != axis)
+    across = _bounded_covariance(gradient[others], hessian[np.ix_(others, others)], span[others])
+    covariance = width**2 * np.outer(tangent, tangent)
+    covariance[np.ix_(others, others)] += across
+    return covariance, 0.5 * float(np.linalg.slogdet(across)[1])

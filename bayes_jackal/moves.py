@@ -18,6 +18,12 @@ too small after 3,500 steps (d_lat 13.6 against 15.9 N s/m by importance
 sampling from the same t, 40,000 draws), though tau said it had converged.
 A proposal far from the posterior costs at most the steps its share takes
 from differential evolution.
+
+Where the posterior is a curved ridge (the damping's scale unidentified,
+with the noise parameters bending along it), no single t fits it: the
+proposal is then a mixture of t's along the ridge
+(:class:`MixtureApproximation`, built by
+:func:`bayes_jackal.map_search.ridge_mixture`).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from dataclasses import dataclass
 
 import emcee
 import numpy as np
+from scipy.special import logsumexp
 
 __all__ = [
     "INDEPENDENCE_WEIGHT",
@@ -34,7 +41,9 @@ __all__ = [
     "MIN_PROPOSAL_EFFICIENCY",
     "IndependenceMove",
     "LaplaceApproximation",
+    "MixtureApproximation",
     "Start",
+    "as_mixture",
     "ensemble_moves",
     "moment_matched",
     "proposal_efficiency",
@@ -91,15 +100,63 @@ class LaplaceApproximation:
 
 
 @dataclass(frozen=True)
+class MixtureApproximation:
+    """A mixture of Gaussians approximating a curved posterior, in the sampler's coordinates.
+
+    Attributes
+    ----------
+    weights : ndarray, shape (m,)
+        The components' probabilities (summing to 1).
+    centres : ndarray, shape (m, k)
+    covariances : ndarray, shape (m, k, k)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.moves import MixtureApproximation
+    >>> mixture = MixtureApproximation(
+    ...     np.array([0.5, 0.5]), np.array([[-1.0, 0.0], [1.0, 1.0]]), np.stack([np.eye(2)] * 2)
+    ... )
+    >>> mixture.centres.shape, float(mixture.weights.sum())
+    ((2, 2), 1.0)
+    """
+
+    weights: np.ndarray
+    centres: np.ndarray
+    covariances: np.ndarray
+
+
+#: What the independence moves propose from.
+Approximation = LaplaceApproximation | MixtureApproximation
+
+
+def as_mixture(approximation: Approximation) -> MixtureApproximation:
+    """``approximation`` as a mixture (one component for a :class:`LaplaceApproximation`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.moves import LaplaceApproximation, as_mixture
+    >>> as_mixture(LaplaceApproximation(np.zeros(2), np.eye(2))).covariances.shape
+    (1, 2, 2)
+    """
+    if isinstance(approximation, MixtureApproximation):
+        return approximation
+    return MixtureApproximation(
+        np.ones(1), approximation.centre[None], approximation.covariance[None]
+    )
+
+
+@dataclass(frozen=True)
 class Start:
     """Where a chain starts: its walkers, and the approximation its moves may propose from.
 
     Attributes
     ----------
     walkers : ndarray, shape (walkers, k)
-    approximation : LaplaceApproximation or None
-        None: differential evolution alone (no Laplace approximation, e.g.
-        a MAP on the prior's boundary).
+    approximation : LaplaceApproximation, MixtureApproximation or None
+        None: differential evolution alone (no approximation of the
+        posterior was efficient enough).
 
     Examples
     --------
@@ -110,11 +167,12 @@ class Start:
     """
 
     walkers: np.ndarray
-    approximation: LaplaceApproximation | None = None
+    approximation: Approximation | None = None
 
 
 class IndependenceMove(emcee.moves.MHMove):
-    """Metropolis-Hastings with independent draws from a multivariate t, truncated to a box.
+    """Metropolis-Hastings with independent draws from a multivariate t (or a mixture of t's),
+    truncated to a box.
 
     Draws outside the box (the prior's, in z) are drawn again, up to
     :data:`REDRAWS` times: the proposal is the t truncated to the box,
@@ -125,8 +183,9 @@ class IndependenceMove(emcee.moves.MHMove):
 
     Parameters
     ----------
-    approximation : LaplaceApproximation
-        The t's centre and, times ``scale``^2, its scale matrix.
+    approximation : LaplaceApproximation or MixtureApproximation
+        The t's centre and, times ``scale``^2, its scale matrix; for a
+        mixture, each component's, drawn with its weight.
     box : tuple of ndarray, optional
         (low, high) bounds of z; None: no truncation.
     dof : float
@@ -147,22 +206,31 @@ class IndependenceMove(emcee.moves.MHMove):
 
     def __init__(
         self,
-        approximation: LaplaceApproximation,
+        approximation: Approximation,
         *,
         box: tuple[np.ndarray, np.ndarray] | None = None,
         dof: float = PROPOSAL_DOF,
         scale: float = PROPOSAL_SCALE,
     ):
-        self.centre = np.asarray(approximation.centre, float)
-        self.factor = scale * np.linalg.cholesky(approximation.covariance)
+        mixture = as_mixture(approximation)
+        self.weights = np.asarray(mixture.weights, float)
+        self.centres = np.asarray(mixture.centres, float)
+        self.factors = scale * np.linalg.cholesky(mixture.covariances)
+        # log(weight / det(factor)), up to the constant that makes the largest 0
+        log_norms = np.log(self.weights) - np.sum(
+            np.log(np.diagonal(self.factors, axis1=1, axis2=2)), axis=1
+        )
+        self.log_norms = log_norms - np.max(log_norms)
         self.box, self.dof = box, dof
         super().__init__(self._propose)
 
     def log_density(self, z: np.ndarray) -> np.ndarray:
-        """The t's log-density at each row of ``z``, up to a constant."""
-        whitened = np.linalg.solve(self.factor, (z - self.centre).T)
-        k = len(self.centre)
-        return -0.5 * (self.dof + k) * np.log1p(np.sum(whitened**2, axis=0) / self.dof)
+        """The t's (the mixture's) log-density at each row of ``z``, up to a constant."""
+        deviations = (z[None] - self.centres[:, None]).transpose(0, 2, 1)
+        whitened = np.linalg.solve(self.factors, deviations)
+        k = self.centres.shape[1]
+        terms = -0.5 * (self.dof + k) * np.log1p(np.sum(whitened**2, axis=1) / self.dof)
+        return logsumexp(self.log_norms[:, None] + terms, axis=0)
 
     def _propose(self, z: np.ndarray, random: np.random.RandomState):
         """Draws for every walker of ``z``, and log q(old) - log q(new) (emcee's factors)."""
@@ -176,14 +244,19 @@ class IndependenceMove(emcee.moves.MHMove):
         return new, self.log_density(z) - self.log_density(new)
 
     def _draw(self, count: int, random: np.random.RandomState) -> np.ndarray:
-        """``count`` draws from the t."""
-        normal = random.randn(count, len(self.centre))
+        """``count`` draws from the t (each from a component drawn by weight)."""
+        components = len(self.weights)
+        chosen = random.choice(components, size=count, p=self.weights) if components > 1 else 0
+        normal = random.randn(count, self.centres.shape[1])
         mixing = random.chisquare(self.dof, size=count) / self.dof
-        return self.centre + (normal / np.sqrt(mixing)[:, None]) @ self.factor.T
+        scaled = normal / np.sqrt(mixing)[:, None]
+        if components == 1:
+            return self.centres[0] + scaled @ self.factors[0].T
+        return self.centres[chosen] + np.einsum("nij,nj->ni", self.factors[chosen], scaled)
 
 
 def ensemble_moves(
-    approximation: LaplaceApproximation | None,
+    approximation: Approximation | None,
     box: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list:
     """emcee's (move, weight) list: differential evolution, with independence moves if possible.
@@ -228,7 +301,7 @@ def ensemble_moves(
 
 def proposal_efficiency(
     log_posterior: Callable[[np.ndarray], np.ndarray],
-    approximation: LaplaceApproximation,
+    approximation: Approximation,
     rng: np.random.Generator,
     draws: int = EFFICIENCY_DRAWS,
 ) -> float:
@@ -324,7 +397,7 @@ def moment_matched(
 
 def _importance_draws(
     log_posterior: Callable[[np.ndarray], np.ndarray],
-    approximation: LaplaceApproximation,
+    approximation: Approximation,
     rng: np.random.Generator,
     draws: int,
 ) -> tuple[np.ndarray, np.ndarray, int]:
@@ -333,7 +406,7 @@ def _importance_draws(
     """
     move = IndependenceMove(approximation)
     random = np.random.RandomState(int(rng.integers(2**32)))
-    z, _ = move.get_proposal(np.zeros((draws, len(approximation.centre))), random)
+    z, _ = move.get_proposal(np.zeros((draws, move.centres.shape[1])), random)
     log_weights = log_posterior(z) - move.log_density(z)
     finite = int(np.count_nonzero(np.isfinite(log_weights)))
     if not finite:
