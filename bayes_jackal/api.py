@@ -439,7 +439,7 @@ def compare(
         Cross-check each evidence by nested sampling (slow; ``--nested``,
         ``pip install 'bayes-jackal[evidence]'``).
     processes : int
-        Families sampled at once, each in its own spawned process; a script
+        Families sampled at once, each in its own worker process; a script
         that asks for more than 1 needs an ``if __name__ == "__main__":``
         guard. The numbers do not depend on it.
     executor : Executor, optional

@@ -2,14 +2,17 @@
 
 An :class:`Executor` runs picklable jobs and yields their results as they
 finish: :class:`SerialExecutor` in this process, one after the other;
-:class:`ProcessExecutor` in spawned local processes (:func:`in_processes`);
+:class:`ProcessExecutor` in local processes (:func:`in_processes`);
 :class:`DaskExecutor` as tasks of a Dask distributed cluster (``dask
 scheduler`` and ``dask worker``; optional extra ``bayes-jackal[cluster]``).
 A job carries everything its result depends on, its seed included, so the
 results do not depend on the executor.
 
-:func:`in_processes` runs picklable jobs in spawned processes and yields
-their results as they finish. The workers ignore SIGINT (a terminal's
+:func:`in_processes` runs picklable jobs in worker processes and yields
+their results as they finish. The workers are forked from a server process
+that imported the package once (multiprocessing's "forkserver": a fresh
+interpreter each, as "spawn" started them, spent 2-3 s of CPU importing
+it). The workers ignore SIGINT (a terminal's
 Ctrl-C reaches the whole process group; the main process stops them) and
 die quietly on SIGTERM; on any exception in the main process, an interrupt
 included, the workers it started are terminated at once.
@@ -21,11 +24,12 @@ import asyncio
 import concurrent.futures
 import contextlib
 import multiprocessing
-import os
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from typing import Any, TypeVar
+
+import threadpoolctl
 
 from . import interrupt
 from .errors import InputError
@@ -37,55 +41,43 @@ __all__ = [
     "SerialExecutor",
     "executor_for",
     "in_processes",
-    "single_threaded_children",
 ]
 
 T = TypeVar("T")
 R = TypeVar("R")
 
-#: Thread counts of the numerical libraries, read once when a process loads them.
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 #: How long to try to reach a Dask scheduler [s].
 DEFAULT_TIMEOUT = 5.0
+#: What the worker processes' server imports once, before it forks each worker
+#: (:func:`in_processes`): a spawned worker imported the package itself, 2-3 s
+#: of CPU each.
+WORKER_MODULES = ["bayes_jackal.api"]
 
 
-@contextlib.contextmanager
-def single_threaded_children() -> Iterator[None]:
-    """One BLAS/OpenMP thread in the processes started meanwhile (they inherit os.environ).
+def _start_worker(single_threaded: bool) -> None:
+    """A worker's initializer: quiet on signals and, with ``single_threaded``, one BLAS thread.
 
     A process per core with threaded BLAS in each oversubscribes the cores:
-    five families on 2 cores took 85 s that way and 48 s with one thread each.
-    (The demo's two families, one 4x slower, took 74 s threaded and 83 s not.)
-
-    Examples
-    --------
-    >>> import os
-    >>> from bayes_jackal.executors import single_threaded_children
-    >>> with single_threaded_children():
-    ...     os.environ["OPENBLAS_NUM_THREADS"]
-    '1'
+    five families on 2 cores took 85 s that way and 48 s with one thread
+    each. (The demo's two families, one 4x slower, took 74 s threaded and
+    83 s not.)
     """
-    saved = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
-    os.environ.update(dict.fromkeys(_THREAD_VARIABLES, "1"))
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
+    interrupt.quiet_worker()
+    if single_threaded:
+        threadpoolctl.threadpool_limits(limits=1)
 
 
 @contextlib.contextmanager
 def in_processes(
     work: Callable[[T], R], jobs: Sequence[T], *, workers: int, single_threaded: bool = False
 ) -> Iterator[Iterator[R]]:
-    """Results of ``work(job)`` as they finish, from ``workers`` spawned processes.
+    """Results of ``work(job)`` as they finish, from ``workers`` worker processes.
 
     ``work`` must be picklable (a module-level function or a dataclass
-    instance). ``single_threaded``: one BLAS/OpenMP thread in each worker
-    (:func:`single_threaded_children`), for more jobs than cores.
+    instance). The workers are forked from a server process that has
+    imported :data:`WORKER_MODULES` (started at the first call, kept while
+    this process lives). ``single_threaded``: one BLAS/OpenMP thread in
+    each worker, for more jobs than cores.
 
     The workers ignore SIGINT and die quietly on SIGTERM
     (:func:`bayes_jackal.interrupt.quiet_worker`); on any exception here,
@@ -93,7 +85,7 @@ def in_processes(
 
     Examples
     --------
-    Three jobs in two spawned processes (``abs`` is picklable); the workers are
+    Three jobs in two worker processes (``abs`` is picklable); the workers are
     gone when the block ends:
 
     >>> import multiprocessing
@@ -105,14 +97,14 @@ def in_processes(
     >>> set(multiprocessing.active_children()) <= before
     True
     """
-    context = multiprocessing.get_context("spawn")
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(WORKER_MODULES)
     before = set(multiprocessing.active_children())
     with concurrent.futures.ProcessPoolExecutor(
-        workers, mp_context=context, initializer=interrupt.quiet_worker
+        workers, mp_context=context, initializer=_start_worker, initargs=(single_threaded,)
     ) as pool:
         try:
-            threads = single_threaded_children() if single_threaded else contextlib.nullcontext()
-            with threads, interrupt.blocked():  # a signal waits until the workers handle it
+            with interrupt.blocked():  # a signal waits until the workers handle it
                 futures = [pool.submit(work, job) for job in jobs]
             yield (future.result() for future in concurrent.futures.as_completed(futures))
         except BaseException:
@@ -185,7 +177,7 @@ class SerialExecutor(Executor):
 
 
 class ProcessExecutor(Executor):
-    """Jobs in spawned local processes, at most ``processes`` at once (:func:`in_processes`).
+    """Jobs in local worker processes, at most ``processes`` at once (:func:`in_processes`).
 
     One process, or a single job, runs in this process. With more jobs than
     processes every worker gets one BLAS thread (every core stays busy);

@@ -34,7 +34,7 @@ import os
 # core: OpenBLAS's own two threads in each oversubscribed a 2-core machine
 # and its spinning threads starved each other (a 120-step chain: 1.7 s with
 # one thread, 18 s with two, two chains at once). CI's slow pass says so on
-# its command line; executors.single_threaded_children does it for workers.
+# its command line; executors.in_processes does it for workers (threadpoolctl).
 # An explicit setting in the environment is kept.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

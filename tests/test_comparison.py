@@ -75,7 +75,7 @@ def test_every_group_equals_its_comparison_alone(runs):
         assert comparison.experiments == alone[key].experiments == [runs[key][0].name]
         for family, evidence in alone[key].evidence.items():
             # The same chain (below, exactly); the workers run one BLAS thread
-            # (executors.single_threaded_children), this process the machine's, and
+            # (executors.in_processes), this process the machine's, and
             # BLAS rounds differently with the thread count: the error
             # differed by 2e-17 (equal with OMP/OPENBLAS_NUM_THREADS=1 here).
             assert comparison.evidence[family].log_evidence == evidence.log_evidence

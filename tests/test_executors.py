@@ -234,3 +234,25 @@ def test_dask_executor_without_the_extra_names_it(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
     with pytest.raises(InputError, match=r"pip install 'bayes-jackal\[cluster\]'"):
         DaskExecutor(DEAD_ADDRESS)
+
+
+def test_workers_run_one_blas_thread_for_more_jobs_than_cores():
+    # In a fresh interpreter whose BLAS has two threads (this suite's
+    # processes have one): the workers forked from the server process keep
+    # its two, unless they are single-threaded (more jobs than processes).
+    job = (
+        "sorted({pool['num_threads'] for pool in __import__('threadpoolctl').threadpool_info()"
+        " if pool['user_api'] == 'blas'})"
+    )
+    code = (
+        "from bayes_jackal.executors import in_processes\n"
+        "for single in (False, True):\n"
+        f"    with in_processes(eval, [{job!r}] * 2, workers=2, single_threaded=single) as done:\n"
+        "        print(single, sorted(map(tuple, done)))\n"
+    )
+    threads = dict.fromkeys(("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"), "2")
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=os.environ | threads, capture_output=True, text=True,
+        timeout=120, check=True,
+    )  # fmt: skip
+    assert done.stdout.splitlines() == ["False [(2,), (2,)]", "True [(1,), (1,)]"]
