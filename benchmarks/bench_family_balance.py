@@ -30,7 +30,8 @@ from pathlib import Path
 
 import numpy as np
 from bench_long_runs import make_run
-from bench_sample import baseline_worktree, run
+from bench_sample import run
+from timing import baseline_worktree
 
 import bayes_jackal as bj
 from bayes_jackal.experiment import write_netcdf

@@ -25,15 +25,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import shutil
 import statistics
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
+from timing import timed_console
 
 from bayes_jackal import load_profile
 from bayes_jackal.experiment import write_netcdf
@@ -44,15 +42,6 @@ from bayes_jackal.simulate import Series, simulate_experiment
 ROBOT = load_profile()
 TRUTH = {"d_lat": 110.0, "d_long": 30.0, "sigma_h": 0.047}
 TRUTH_SD = {"sigma_c": (0.005, 0.005, 0.01), "sigma_n": (0.003, 0.003, 0.005)}
-#: Runs one command and prints its wall time and the largest descendant's
-#: peak RSS (RUSAGE_CHILDREN's ru_maxrss, in kB on Linux).
-_TIMER = (
-    "import resource, subprocess, sys, time, json; start = time.perf_counter(); "
-    "done = subprocess.run(sys.argv[1:], stdout=subprocess.PIPE, text=True); "
-    "print(json.dumps([done.returncode, time.perf_counter() - start, "
-    "resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, done.stdout]))"
-)
-COMMAND = [str(Path(sys.executable).with_name("bayes-jackal"))]
 
 
 def make_run(folder: Path, seconds: float, rate: float = 72.0) -> Path:
@@ -66,13 +55,9 @@ def make_run(folder: Path, seconds: float, rate: float = 72.0) -> Path:
 
 
 def run(arguments: list[str]) -> dict:
-    """Time one command in a fresh process: its JSON output, time [s] and peak RSS [MB]."""
-    command = [sys.executable, "-c", _TIMER, *COMMAND, *arguments, "--json"]
-    timed = subprocess.run(command, capture_output=True, text=True, check=True)
-    code, seconds, peak, output = json.loads(timed.stdout)
-    if code != 0:
-        raise RuntimeError(f"{' '.join(arguments)} exited {code}")
-    return {"seconds": seconds, "peak_mb": peak, "summary": json.loads(output)}
+    """One command in a fresh process: its JSON output, time and CPU [s], peak RSS [MB]."""
+    result = timed_console(Path(__file__).resolve().parents[1], arguments)
+    return {**result, "summary": result.pop("output")}
 
 
 def sample(path: Path, folder: Path, seed: int, *extra: str) -> dict:

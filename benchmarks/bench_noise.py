@@ -52,7 +52,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from bench_sample import baseline_worktree, timed_console
+from timing import baseline_worktree, timed_console
 
 from bayes_jackal.kernels import FAMILIES, get_family
 

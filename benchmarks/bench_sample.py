@@ -21,57 +21,12 @@ both, with the difference of the means in Monte Carlo standard errors
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 from bench_long_runs import make_run
-
-#: Runs the console entry point of the package found first on sys.path[1] (or
-#: the installed one) and prints [exit code, wall s, CPU s, peak RSS MB, stdout].
-_TIMER = (
-    "import resource, subprocess, sys, time, json; start = time.perf_counter(); "
-    "done = subprocess.run(sys.argv[2:], stdout=subprocess.PIPE, text=True, "
-    "env=dict(__import__('os').environ, PYTHONPATH=sys.argv[1])); "
-    "usage = resource.getrusage(resource.RUSAGE_CHILDREN); "
-    "print(json.dumps([done.returncode, time.perf_counter() - start, "
-    "usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024, done.stdout]))"
-)
-_CONSOLE = "from bayes_jackal.cli import console; console()"
-
-
-def baseline_worktree(folder: Path, ref: str) -> Path:
-    """The package at ``ref`` checked out into ``folder/baseline`` (kept for reruns)."""
-    base = folder / "baseline"
-    if not base.exists():
-        here = Path(__file__).resolve().parents[1]
-        subprocess.run(
-            ["git", "-C", str(here), "worktree", "add", "--detach", str(base), ref],
-            check=True,
-            capture_output=True,
-        )
-    return base
-
-
-def timed_console(source: Path, arguments: list[str]) -> dict:
-    """``bayes-jackal <arguments> --json`` with the package in ``source``, timed.
-
-    Returns the wall and CPU time [s] of the command and its workers, the
-    peak RSS [MB] of the largest of them and the JSON document it printed.
-    """
-    command = [sys.executable, "-c", _TIMER, str(source), sys.executable, "-c", _CONSOLE]
-    # In ``source``: ``python -c`` puts the working directory before PYTHONPATH,
-    # so from another checkout's root the "baseline" would be that checkout.
-    timed = subprocess.run(
-        [*command, *arguments, "--json"], capture_output=True, text=True, check=True, cwd=source
-    )
-    code, seconds, cpu, peak, output = json.loads(timed.stdout)
-    if code != 0:
-        raise RuntimeError(f"{source}: {' '.join(arguments)} exited {code}")
-    return {"seconds": seconds, "cpu": cpu, "peak_mb": peak, "output": json.loads(output)}
+from timing import baseline_worktree, timed_console
 
 
 def run(source: Path, arguments: list[str]) -> dict:
