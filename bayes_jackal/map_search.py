@@ -504,7 +504,7 @@ def ridge_mixture(
     parameters bend with the scale (a banana). No single Gaussian fits it;
     differential evolution crawls along it (tau of 130 steps on eight 48 s
     runs at 10 Hz, yaw, the Gaussian family: 6,600 steps, 10 times the other
-    families' time). The parameter along which ``approximation`` is widest
+    families' time). The parameter along which ``covariance`` is widest
     (in units of its prior range) is cut into :data:`RIDGE_CELLS` cells;
     in each, the log-posterior is maximised over the other parameters
     (bounded quasi-Newton, started from the neighbouring cell's maximum,

@@ -171,8 +171,7 @@ class Start:
 
 
 class IndependenceMove(emcee.moves.MHMove):
-    """Metropolis-Hastings with independent draws from a multivariate t (or a mixture of t's),
-    truncated to a box.
+    """Metropolis-Hastings with independent draws from a t or a mixture of t's, truncated to a box.
 
     Draws outside the box (the prior's, in z) are drawn again, up to
     :data:`REDRAWS` times: the proposal is the t truncated to the box,
