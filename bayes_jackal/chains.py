@@ -63,6 +63,9 @@ __all__ = [
     "run_chain",
 ]
 
+#: A mixture approximation's fields, each a dataset ``mixture_<field>`` of a chain file.
+MIXTURE_FIELDS = ("weights", "centres", "covariances")
+
 
 @dataclass(frozen=True)
 class SamplerSettings:
@@ -641,20 +644,21 @@ def _store_approximation(backend, approximation: Approximation | None) -> None:
     """Keep the moves' approximation in a chain file, so that a resumed chain moves alike.
 
     A Laplace approximation as ``laplace_centre`` and ``laplace_covariance``
-    attributes of the chain's group, a mixture as ``mixture_weights``,
-    ``mixture_centres`` and ``mixture_covariances``.
+    attributes of the chain's group; a mixture as its datasets
+    ``mixture_weights``, ``mixture_centres`` and ``mixture_covariances``
+    (16 covariances of 23 parameters would pass HDF5's 64 KiB limit of an
+    attribute).
     """
     if approximation is None or not isinstance(backend, BufferedHDFBackend):
         return
     with backend.writing(), backend.open("a") as stored:
-        attrs = stored[backend.name].attrs
+        group = stored[backend.name]
         if isinstance(approximation, MixtureApproximation):
-            attrs["mixture_weights"] = approximation.weights
-            attrs["mixture_centres"] = approximation.centres
-            attrs["mixture_covariances"] = approximation.covariances
+            for key in MIXTURE_FIELDS:
+                group.create_dataset(f"mixture_{key}", data=getattr(approximation, key))
         else:
-            attrs["laplace_centre"] = approximation.centre
-            attrs["laplace_covariance"] = approximation.covariance
+            group.attrs["laplace_centre"] = approximation.centre
+            group.attrs["laplace_covariance"] = approximation.covariance
 
 
 def _stored_approximation(backend) -> Approximation | None:
@@ -662,18 +666,13 @@ def _stored_approximation(backend) -> Approximation | None:
     if not isinstance(backend, BufferedHDFBackend):
         return None
     with backend.open("r") as stored:
-        attrs = stored[backend.name].attrs
-        if "mixture_weights" in attrs:
-            return MixtureApproximation(
-                *(
-                    np.array(attrs[f"mixture_{key}"])
-                    for key in ("weights", "centres", "covariances")
-                )
-            )
-        if "laplace_centre" not in attrs:
+        group = stored[backend.name]
+        if "mixture_weights" in group:
+            return MixtureApproximation(*(group[f"mixture_{key}"][()] for key in MIXTURE_FIELDS))
+        if "laplace_centre" not in group.attrs:
             return None
         return LaplaceApproximation(
-            np.array(attrs["laplace_centre"]), np.array(attrs["laplace_covariance"])
+            np.array(group.attrs["laplace_centre"]), np.array(group.attrs["laplace_covariance"])
         )
 
 

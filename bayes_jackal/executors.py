@@ -23,10 +23,14 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import contextlib
+import functools
 import multiprocessing
+import subprocess
+import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
+from pathlib import Path
 from typing import Any, TypeVar
 
 import threadpoolctl
@@ -54,6 +58,29 @@ DEFAULT_TIMEOUT = 5.0
 WORKER_MODULES = ["bayes_jackal.api"]
 
 
+@functools.cache
+def _worker_context() -> multiprocessing.context.BaseContext:
+    """The "forkserver" context preloading :data:`WORKER_MODULES`, or "spawn".
+
+    The fork server is a fresh interpreter with this process's environment
+    and working folder, which imports the package before a worker gets
+    this process's ``sys.path`` (Python 3.11): where a fresh interpreter
+    would find another copy of the package (``sys.path`` changed at run
+    time), the workers would run it. There each worker is spawned and
+    imports the package from this process's ``sys.path``, as before.
+    """
+    finder = f"import importlib.util; print(importlib.util.find_spec({__package__!r}).origin)"
+    found = subprocess.run(
+        [sys.executable, "-c", finder], capture_output=True, text=True, check=False
+    ).stdout.strip()
+    here = sys.modules[__package__].__file__
+    if not found or not here or Path(found).resolve() != Path(here).resolve():
+        return multiprocessing.get_context("spawn")
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(WORKER_MODULES)
+    return context
+
+
 def _start_worker(single_threaded: bool) -> None:
     """A worker's initializer: quiet on signals and, with ``single_threaded``, one BLAS thread.
 
@@ -76,7 +103,8 @@ def in_processes(
     ``work`` must be picklable (a module-level function or a dataclass
     instance). The workers are forked from a server process that has
     imported :data:`WORKER_MODULES` (started at the first call, kept while
-    this process lives). ``single_threaded``: one BLAS/OpenMP thread in
+    this process lives), or spawned where that server would import another
+    copy of the package than this process's. ``single_threaded``: one BLAS/OpenMP thread in
     each worker, for more jobs than cores.
 
     The workers ignore SIGINT and die quietly on SIGTERM
@@ -97,8 +125,7 @@ def in_processes(
     >>> set(multiprocessing.active_children()) <= before
     True
     """
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(WORKER_MODULES)
+    context = _worker_context()
     before = set(multiprocessing.active_children())
     with concurrent.futures.ProcessPoolExecutor(
         workers, mp_context=context, initializer=_start_worker, initargs=(single_threaded,)

@@ -460,9 +460,12 @@ def _efficient_start(
 
     None without an approximation, or below :data:`~bayes_jackal.moves.MIN_MATCHED_EFFICIENCY`.
     """
-    if approximation is None or (
-        proposal_efficiency(log_posterior, approximation, rng) < MIN_MATCHED_EFFICIENCY
-    ):
+    try:
+        if approximation is None or (
+            proposal_efficiency(log_posterior, approximation, rng) < MIN_MATCHED_EFFICIENCY
+        ):
+            return None
+    except np.linalg.LinAlgError:  # a covariance that is not positive definite
         return None
     drawn = _walkers_inside(log_posterior, approximation, walkers, rng)
     return None if drawn is None else Start(drawn, approximation)
@@ -565,17 +568,21 @@ def ridge_mixture(
         return None
     tangents = np.gradient(path[finite], cells[finite], axis=0)
     kept = heights[finite] > np.max(heights[finite]) - RIDGE_DEPTH
+    cells_kept = zip(path[finite][kept], tangents[kept], heights[finite][kept], strict=True)
     components = [
-        _cell_component(log_posterior, point, tangent, axis, width)
-        for point, tangent in zip(path[finite][kept], tangents[kept], strict=True)
+        (point, component[0], height + component[1])
+        for point, tangent, height in cells_kept
+        if (component := _cell_component(log_posterior, point, tangent, axis, width))
     ]
-    log_volumes = np.array([volume for _, volume in components])
-    log_masses = heights[finite][kept] + log_volumes
+    if not components:
+        return None
+    log_masses = np.array([log_mass for _, _, log_mass in components])
     weights = np.exp(log_masses - np.max(log_masses))
+    used = weights > 1e-12  # a component of no weight would never be drawn
     return MixtureApproximation(
-        weights / np.sum(weights),
-        path[finite][kept],
-        np.array([covariance for covariance, _ in components]),
+        weights[used] / np.sum(weights[used]),
+        np.array([point for point, _, _ in components])[used],
+        np.array([covariance for _, covariance, _ in components])[used],
     )
 
 
@@ -625,17 +632,25 @@ def _conditional_maximum(
 
 def _cell_component(
     log_posterior: LogPosterior, point: np.ndarray, tangent: np.ndarray, axis: int, width: float
-) -> tuple[np.ndarray, float]:
+) -> tuple[np.ndarray, float] | None:
     """A cell's covariance (its width along ``tangent``, the bounded inverse Hessian across)
     and the log-volume of the part across (half the log-determinant).
+
+    None where the derivatives are not finite (the maximum against a region
+    where the posterior is -inf) or the covariance is not positive definite.
     """
     prior = log_posterior.prior
     span = prior.z_high - prior.z_low
     step = 1e-4 * span
     inside = np.clip(point, prior.z_low + 10 * step, prior.z_high - 10 * step)
     gradient, hessian = _derivatives(log_posterior, inside, step)
+    if not (np.all(np.isfinite(gradient)) and np.all(np.isfinite(hessian))):
+        return None
     others = np.flatnonzero(np.arange(len(point)) != axis)
     across = _bounded_covariance(gradient[others], hessian[np.ix_(others, others)], span[others])
     covariance = width**2 * np.outer(tangent, tangent)
     covariance[np.ix_(others, others)] += across
-    return covariance, 0.5 * float(np.linalg.slogdet(across)[1])
+    sign, log_determinant = np.linalg.slogdet(across)
+    if sign <= 0 or not np.all(np.isfinite(covariance)):
+        return None
+    return covariance, 0.5 * float(log_determinant)

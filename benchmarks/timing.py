@@ -21,7 +21,8 @@ from pathlib import Path
 #: inherits it), so that their CPU counts too.
 _TIMER = """
 import ctypes, json, os, resource, subprocess, sys, time
-ctypes.CDLL(None).prctl(36, 1, 0, 0, 0)  # PR_SET_CHILD_SUBREAPER (Linux)
+if ctypes.CDLL(None).prctl(36, 1, 0, 0, 0) != 0:  # PR_SET_CHILD_SUBREAPER (Linux)
+    raise OSError("cannot become a child subreaper: the workers' CPU would not count")
 start = time.perf_counter()
 done = subprocess.run(
     sys.argv[2:], stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=sys.argv[1])

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import bayes_jackal
 from bayes_jackal import load_profile
 from bayes_jackal.comparison import compare_families
 from bayes_jackal.errors import InputError
@@ -256,3 +258,22 @@ def test_workers_run_one_blas_thread_for_more_jobs_than_cores():
         timeout=120, check=True,
     )  # fmt: skip
     assert done.stdout.splitlines() == ["False [(2,), (2,)]", "True [(1,), (1,)]"]
+
+
+def test_workers_run_the_package_this_process_imported(tmp_path):
+    # A copy of the package found first on a sys.path changed at run time: a
+    # fork server would have imported the installed one before the workers
+    # got this sys.path; the workers must run the copy, as this process does.
+    shutil.copytree(Path(bayes_jackal.__file__).parent, tmp_path / "bayes_jackal")
+    code = (
+        f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
+        "import bayes_jackal\n"
+        "from bayes_jackal.executors import in_processes\n"
+        "job = \"__import__('bayes_jackal').__file__\"\n"
+        "with in_processes(eval, [job] * 2, workers=2) as done:\n"
+        "    print(sorted(set(done)) == [bayes_jackal.__file__], bayes_jackal.__file__)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert done.stdout.split() == ["True", str(tmp_path / "bayes_jackal" / "__init__.py")]

@@ -195,12 +195,15 @@ def test_a_mixture_density_is_its_weighted_sum_of_t_densities():
 
 
 def test_a_chain_file_keeps_a_mixture_for_the_resumed_chain(tmp_path):
+    # 16 components of 30 parameters: 115 kB of covariances, more than an
+    # HDF5 attribute holds (64 kB), e.g. eight runs' noise per experiment.
+    rng = np.random.default_rng(1)
+    factors = rng.standard_normal((16, 30, 30))
     mixture = MixtureApproximation(
-        np.array([0.25, 0.75]), np.array([[0.0, 1.0], [2.0, 3.0]]),
-        np.array([np.eye(2), 2 * np.eye(2)]),
-    )  # fmt: skip
+        np.full(16, 1 / 16), rng.standard_normal((16, 30)), factors @ factors.transpose(0, 2, 1)
+    )
     backend = BufferedHDFBackend(str(tmp_path / "chain.h5"), flush_every=100)
-    backend.reset(4, 2)
+    backend.reset(64, 30)
     _store_approximation(backend, mixture)
     kept = _stored_approximation(backend)
     assert isinstance(kept, MixtureApproximation)
