@@ -370,16 +370,10 @@ def _binned_periodogram(block: ResidualBlock, points: int) -> tuple[np.ndarray, 
     weights : ndarray, shape (points // 2 + 1,)
         Multiplicity of each bin among the n Fourier frequencies.
     """
-    n = block.n
-    if points == n:
-        return block.periodogram, frequency_weights(n)
-    multiplicity = frequency_weights(n)
-    bins = np.rint(np.arange(n // 2 + 1) * points / n).astype(int)
-    weights = np.bincount(bins, multiplicity, points // 2 + 1)
-    sums = [
-        np.bincount(bins, multiplicity * column, len(weights)) for column in block.periodogram.T
-    ]
-    return np.column_stack(sums) / weights[:, None], weights
+    multiplicity, bins = _frequency_bins(block.n, points)
+    if points == block.n:  # the periodogram itself
+        return block.periodogram, multiplicity
+    return _bin(block.periodogram.T, multiplicity, bins).T, np.bincount(bins, multiplicity)
 
 
 def series_profile(
@@ -442,7 +436,8 @@ def series_profile(
     family = get_family(likelihood.family)
     n = likelihood.n
     points = min(n, PROFILE_FREQUENCIES)
-    multiplicity, bins = _series_frequencies(n, points)
+    multiplicity, bins = _frequency_bins(n, points)
+    multiplicity[0] = 0.0  # the mean's: the likelihood integrates it out
     weights = np.bincount(bins, multiplicity)
     periodogram = np.abs(scipy.fft.rfft(likelihood.values - likelihood.centre)) ** 2 / n
     periodogram = _bin(periodogram[None], multiplicity, bins)[0]
@@ -512,22 +507,27 @@ def series_profile(
     return np.clip(theta, low, high), top[order]
 
 
-def _series_frequencies(n: int, points: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each of a series' n // 2 + 1 rfft frequencies' multiplicity (frequency 0's zero) and bin.
+def _frequency_bins(n: int, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each of a series' n // 2 + 1 rfft frequencies' multiplicity and bin.
 
     The bins are the nearest of the rfft frequencies of ``points`` points
     (each its own where points = n).
     """
-    multiplicity = frequency_weights(n)
-    multiplicity[0] = 0.0  # the mean's: the likelihood integrates it out
-    return multiplicity, np.rint(np.arange(n // 2 + 1) * points / n).astype(int)
+    return frequency_weights(n), np.rint(np.arange(n // 2 + 1) * points / n).astype(int)
 
 
 def _bin(values: np.ndarray, multiplicity: np.ndarray, bins: np.ndarray) -> np.ndarray:
-    """Rows of values at the rfft frequencies averaged over each bin, weighted by multiplicity."""
+    """Rows of values at the rfft frequencies averaged over each bin, weighted by multiplicity.
+
+    One bincount over every row (each row's bins offset by its index): the
+    sums of a row's bin add in the same order as a bincount of that row.
+    """
     size = bins[-1] + 1
     if size == len(bins):  # a bin per frequency
         return values
+    offsets = size * np.arange(len(values))[:, None]
+    sums = np.bincount(
+        (bins + offsets).ravel(), (multiplicity * values).ravel(), size * len(values)
+    )
     weights = np.bincount(bins, multiplicity, size)
-    sums = np.stack([np.bincount(bins, multiplicity * row, size) for row in values])
-    return sums / np.where(weights > 0, weights, 1.0)
+    return sums.reshape(len(values), size) / np.where(weights > 0, weights, 1.0)
