@@ -8,7 +8,7 @@ Run by hand (needs the extra ``cluster``: ``pip install -e '.[cluster]'``)::
 Each run is a simulated thesis-like v1 experiment (38 s at 72 Hz, yaw
 channel, its own noise seed); each is compared over the families, the
 whole campaign submitted at once, one task per (run, family)
-(:func:`bayes_jackal.comparison.compare_groups`), so that every worker
+(:func:`bayes_jackal.inference.compare_groups`), so that every worker
 stays busy until the last tasks. Three ways, in this order, on the same
 campaign and seed:
 
@@ -37,11 +37,17 @@ import time
 import warnings
 
 from bayes_jackal import load_profile
-from bayes_jackal.comparison import compare_groups
-from bayes_jackal.executors import DaskExecutor, Executor, ProcessExecutor, SerialExecutor
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.comparison import compare_groups
+from bayes_jackal.inference.executors import (
+    DaskExecutor,
+    Executor,
+    ProcessExecutor,
+    SerialExecutor,
+)
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.model.kernels import FAMILIES
 
 ROBOT = load_profile()
 

@@ -19,12 +19,12 @@ import os
 import time
 
 from bayes_jackal import load_profile
-from bayes_jackal.comparison import compare_families
-from bayes_jackal.evidence import nested_sampling
-from bayes_jackal.inference import sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.priors import Prior
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal.inference.comparison import compare_families
+from bayes_jackal.inference.evidence import nested_sampling
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.likelihood.priors import Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 
 ROBOT = load_profile()
 

@@ -28,11 +28,11 @@ import time
 import numpy as np
 
 from bayes_jackal import load_profile
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.physics import channel_coefficients
-from bayes_jackal.spectral import spectral_loglike
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.likelihood.spectral import spectral_loglike
+from bayes_jackal.model.kernels import FAMILIES
+from bayes_jackal.model.physics import channel_coefficients
 
 ROBOT = load_profile()
 TRUTH = np.array([110.0, 30.0, 0.047, 0.01, 0.005])

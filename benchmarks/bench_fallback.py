@@ -8,7 +8,7 @@ spectral nulls no spectral grid certifies, tests/test_evidence.py) and
 parameter sets around the truth, it prints:
 
 - ``fallback``: the time-domain density the ``fast`` engine now uses for
-  sets no grid certifies (:func:`bayes_jackal.toeplitz.fallback_loglike`:
+  sets no grid certifies (:func:`bayes_jackal.likelihood.fallback_loglike`:
   here the banded Cholesky factor, O(N p^2));
 - ``recursion``: what it used before, the Durbin-Levinson recursion stopped
   at partial autocorrelations below 1e-13 (runs to ~N for these sets:
@@ -29,12 +29,19 @@ import time
 import numpy as np
 
 from bayes_jackal import load_profile
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.physics import channel_coefficients
-from bayes_jackal.spectral import evaluate_on_grids, spectral_loglike
-from bayes_jackal.toeplitz import FAST_TOLERANCE, fallback_loglike, toeplitz_loglike
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.likelihood.spectral import (
+    evaluate_on_grids,
+    spectral_loglike,
+)
+from bayes_jackal.likelihood.toeplitz import (
+    FAST_TOLERANCE,
+    fallback_loglike,
+    toeplitz_loglike,
+)
+from bayes_jackal.model.kernels import FAMILIES
+from bayes_jackal.model.physics import channel_coefficients
 
 ROBOT = load_profile()
 TRUTH = np.array([110.0, 30.0, 0.15, 0.01, 0.001])

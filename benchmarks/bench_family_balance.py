@@ -34,8 +34,8 @@ from bench_sample import run
 from timing import baseline_worktree
 
 import bayes_jackal as bj
-from bayes_jackal.experiment import write_netcdf
-from bayes_jackal.simulate import NoiseSettings, Series, simulate_experiment
+from bayes_jackal.io.experiment import write_netcdf
+from bayes_jackal.io.simulate import NoiseSettings, Series, simulate_experiment
 
 FAMILIES = ("white", "exponential", "gaussian", "triangular", "moving-average")
 

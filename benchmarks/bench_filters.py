@@ -40,8 +40,8 @@ import warnings
 import numpy as np
 
 import bayes_jackal as bj
-from bayes_jackal.kalman import KALMAN_FILTERS
-from bayes_jackal.simulate import Series
+from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS
+from bayes_jackal.io.simulate import Series
 
 ROBOT = bj.load_profile()
 #: The generalised filter's embedding orders; the prior's is the first.

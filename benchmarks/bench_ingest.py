@@ -16,10 +16,10 @@ from pathlib import Path
 from rosbags.highlevel import AnyReader
 
 from bayes_jackal import load_profile
-from bayes_jackal.bag_reading import typestore
-from bayes_jackal.bag_writer import write_bag
-from bayes_jackal.bags import read_bag
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.io.bag_reading import typestore
+from bayes_jackal.io.bag_writer import write_bag
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.io.simulate import Series, simulate_experiment
 
 DURATION = 600.0
 

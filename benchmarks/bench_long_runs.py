@@ -34,10 +34,11 @@ import numpy as np
 from timing import timed_console
 
 from bayes_jackal import load_profile
-from bayes_jackal.experiment import write_netcdf
-from bayes_jackal.inference import chain_path
-from bayes_jackal.posterior import load_posterior, posterior_metadata
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.inference.sampling import chain_path
+from bayes_jackal.io.experiment import write_netcdf
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.posterior.file_format import posterior_metadata
+from bayes_jackal.posterior.inference_data import load_posterior
 
 ROBOT = load_profile()
 TRUTH = {"d_lat": 110.0, "d_long": 30.0, "sigma_h": 0.047}

@@ -17,7 +17,7 @@ so that its peak resident memory (``VmHWM`` of ``/proc/self/status``: a
 high-water mark never resets) is that step's alone:
 
 - ``load``: read the file and rebuild its likelihood, the floor of every step;
-- ``criticise``: :func:`bayes_jackal.criticism.criticise` (the
+- ``criticise``: :func:`bayes_jackal.posterior.criticise` (the
   posterior-predictive p-values of 200 replicated series per channel);
 - ``predictive``: the autocorrelation and spectrum figures of every channel
   with their posterior-predictive bands, rendered to PNG;
@@ -73,11 +73,14 @@ def _truth_vector(names: list[str], truth: dict) -> np.ndarray:
 def build(seconds: float, engine: str | None, out: Path) -> None:
     """Simulate a run of ``seconds``, build its posterior from a synthetic chain, save it."""
     from bayes_jackal import load_profile
-    from bayes_jackal.inference import SamplerSettings
-    from bayes_jackal.likelihood import ResidualLikelihood
-    from bayes_jackal.posterior import build_inference_data, save_posterior
-    from bayes_jackal.priors import Prior
-    from bayes_jackal.simulate import Series, simulate_experiment
+    from bayes_jackal.inference.chains import SamplerSettings
+    from bayes_jackal.io.simulate import Series, simulate_experiment
+    from bayes_jackal.likelihood.priors import Prior
+    from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+    from bayes_jackal.posterior.inference_data import (
+        build_inference_data,
+        save_posterior,
+    )
 
     robot = load_profile()
     experiment = simulate_experiment(robot, 110, 30, Series(0.3, np.deg2rad(22.5), seconds), rng=1)
@@ -111,10 +114,11 @@ def _render(draw) -> None:
 
 def run_step(step: str, path: Path) -> None:
     """One post-processing step on the posterior file ``path``."""
-    from bayes_jackal import plots
-    from bayes_jackal.criticism import criticise
-    from bayes_jackal.posterior import load_posterior, posterior_likelihood, posterior_metadata
-    from bayes_jackal.report import write_report
+    from bayes_jackal.posterior.criticism import criticise
+    from bayes_jackal.posterior.file_format import posterior_metadata
+    from bayes_jackal.posterior.inference_data import load_posterior, posterior_likelihood
+    from bayes_jackal.report import plots
+    from bayes_jackal.report.page import write_report
 
     idata = load_posterior(path)
     channels = posterior_metadata(idata).channels

@@ -30,7 +30,7 @@ two alternate, ``--repeats`` times each, so that both see the same
 machine. It prints each run's wall time, CPU time and the peak resident
 memory of its largest process, then the median ratios baseline / this.
 
-Then each family alone (:func:`bayes_jackal.noise_characterisation.fit_family`,
+Then each family alone (:func:`bayes_jackal.noise.fit_family`,
 default settings, seed 1), one after the other in one fresh process per
 checkout: its wall and CPU time, chain steps, likelihood evaluations (rows
 of parameter sets), log evidence and posterior; the largest family's time
@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 from timing import baseline_worktree, timed_console
 
-from bayes_jackal.kernels import FAMILIES, get_family
+from bayes_jackal.model.kernels import FAMILIES, get_family
 
 DT = 0.01  # [s]
 #: Each family alone, timed, its likelihood's rows counted; prints one JSON object.
@@ -63,8 +63,8 @@ import json, sys, time
 import numpy as np
 import bayes_jackal
 from bayes_jackal import series_likelihood
-from bayes_jackal.noise_characterisation import fit_family
-from bayes_jackal.noise_series import NoiseSeries
+from bayes_jackal.noise.characterisation import fit_family
+from bayes_jackal.noise.series import NoiseSeries
 
 rows = [0]
 evaluate = series_likelihood.SeriesLikelihood.__call__

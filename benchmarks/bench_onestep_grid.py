@@ -16,9 +16,9 @@ import control
 import numpy as np
 
 from bayes_jackal import load_profile
-from bayes_jackal.gridsearch import damping_grid, grid_search
-from bayes_jackal.physics import continuous_matrices, one_step_residuals
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.model.physics import continuous_matrices, one_step_residuals
+from bayes_jackal.thesis.gridsearch import damping_grid, grid_search
 
 SAMPLES = 2700
 

@@ -29,10 +29,10 @@ import warnings
 import numpy as np
 
 import bayes_jackal as bj
-from bayes_jackal.bags import read_bag
-from bayes_jackal.demo import demo_folder
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.priors import Prior
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.likelihood.priors import Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.workflow.demo import demo_folder
 
 ROBOT = bj.load_profile()
 

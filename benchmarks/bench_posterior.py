@@ -17,11 +17,12 @@ import time
 import numpy as np
 
 from bayes_jackal import load_profile
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.inference import SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import summarize
-from bayes_jackal.simulate import simulate_experiment, simulate_series
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.io.simulate import simulate_experiment, simulate_series
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
 TRUTH = np.array([110.0, 30.0, 0.047, 0.01, 0.005])

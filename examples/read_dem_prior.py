@@ -34,10 +34,12 @@ def make_prior(out: Path, quick: bool) -> Path:
     import warnings
 
     from bayes_jackal import load_profile
-    from bayes_jackal.export import export_prior, write_prior
-    from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-    from bayes_jackal.likelihood import ResidualLikelihood
-    from bayes_jackal.simulate import simulate_experiment
+    from bayes_jackal.dem.export import export_prior, write_prior
+    from bayes_jackal.inference.chains import SamplerSettings
+    from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+    from bayes_jackal.inference.sampling import sample_posterior
+    from bayes_jackal.io.simulate import simulate_experiment
+    from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 
     robot = load_profile()
     run = simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)

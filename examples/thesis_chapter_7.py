@@ -17,11 +17,15 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bayes_jackal import load_profile
-from bayes_jackal.kernels import get_family
-from bayes_jackal.residual_analysis import analyse, fit_sigma_h
-from bayes_jackal.residuals import channel_residuals
-from bayes_jackal.series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
-from bayes_jackal.simulate import NoiseSettings, simulate_series
+from bayes_jackal.io.simulate import NoiseSettings, simulate_series
+from bayes_jackal.likelihood.residuals import channel_residuals
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.posterior.series_statistics import (
+    autocorrelation_bounds,
+    sample_autocorrelation,
+    spectrum,
+)
+from bayes_jackal.thesis.residual_analysis import analyse, fit_sigma_h
 
 THESIS_TABLE_7_1 = {"v1": 0.051, "v2": 0.041, "all": 0.047}
 

@@ -15,10 +15,15 @@ from pathlib import Path
 import numpy as np
 
 from bayes_jackal import load_profile
-from bayes_jackal.gridsearch import damping_grid, grid_search
-from bayes_jackal.physics import continuous_matrices, discrete_matrices, simulate, wheel_speeds
-from bayes_jackal.plots import plot_grid
-from bayes_jackal.simulate import simulate_series
+from bayes_jackal.io.simulate import simulate_series
+from bayes_jackal.model.physics import (
+    continuous_matrices,
+    discrete_matrices,
+    simulate,
+    wheel_speeds,
+)
+from bayes_jackal.report.grid_plots import plot_grid
+from bayes_jackal.thesis.gridsearch import damping_grid, grid_search
 
 
 def main() -> None:

@@ -1,7 +1,7 @@
 """Shared fixtures: a thesis-like simulator written independently of the package.
 
 ``simulate_thesis_like`` builds experiments the way a reader of the thesis
-would, without bayes_jackal.simulate, .physics or .kernels: the linear model
+would, without bayes_jackal.io.simulate, .physics or .kernels: the linear model
 x' = A x + B u (eq. 4-32) discretised by its own matrix exponential, the
 Gaussian filter of eq. 7-5 with its own normalisation and +-3 sigma_h
 truncation applied by numpy.convolve, wheel speeds of a steady circle with a
@@ -63,8 +63,8 @@ from bayes_jackal.cli import main
 # file too, and has no use for scipy and the package (~1.5 s before the
 # workers start).
 if TYPE_CHECKING:
-    from bayes_jackal.experiment import Experiment
-    from bayes_jackal.robot import RobotProfile
+    from bayes_jackal.io.experiment import Experiment
+    from bayes_jackal.model.robot import RobotProfile
 
 
 def pytest_collection_finish(session):
@@ -163,7 +163,7 @@ def simulate_thesis_like(
     """
     import scipy.signal
 
-    from bayes_jackal.experiment import Experiment
+    from bayes_jackal.io.experiment import Experiment
 
     dt = 1.0 / THESIS_RATE
     burn = round(BURN_IN / dt)
@@ -318,10 +318,12 @@ def _posterior_digest(idata) -> str:
 @pytest.fixture(scope="session")
 def _yaw_vx_sampled():
     """The chain of ``yaw_vx_posterior``, sampled once per session and never handed out."""
-    from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-    from bayes_jackal.likelihood import ResidualLikelihood
-    from bayes_jackal.robot import load_profile
-    from bayes_jackal.simulate import simulate_experiment
+    from bayes_jackal.inference.chains import SamplerSettings
+    from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+    from bayes_jackal.inference.sampling import sample_posterior
+    from bayes_jackal.io.simulate import simulate_experiment
+    from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+    from bayes_jackal.model.robot import load_profile
 
     run = simulate_experiment(load_profile(), 110.0, 30.0, "v2", rng=3)
     likelihood = ResidualLikelihood([run], load_profile(), channels=("yaw", "vx"))

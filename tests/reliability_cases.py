@@ -356,8 +356,8 @@ def _exported_prior(lib: Library) -> Path:
     """``export-prior`` of the library's posterior, made once per session in its folder."""
     path = lib.root / "prior.json"
     if not path.exists():
-        from bayes_jackal.export import export_prior, write_prior
-        from bayes_jackal.posterior import load_posterior
+        from bayes_jackal.dem.export import export_prior, write_prior
+        from bayes_jackal.posterior.inference_data import load_posterior
 
         prior = export_prior(load_posterior(lib.posterior), order=2, source=str(lib.posterior))
         write_prior(prior, path)
@@ -577,7 +577,7 @@ ACCEPTED = [
     ("csv-stamps-swapped", csv_rows(shuffled_pairs)),
     ("csv-stamps-repeated", csv_rows(repeated_rows)),
     ("csv-without-vx-vy", csv_columns(lambda h: [0, 1, 2, 3])),
-    # A long dropout splits the series; the longest piece is kept (bayes_jackal.stamps, rule 3).
+    # A long dropout splits the series; the longest piece is kept (bayes_jackal.io.stamps, rule 3).
     ("csv-dropout", csv_rows(hole)),
 ]
 

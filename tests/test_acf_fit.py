@@ -19,7 +19,7 @@ The tolerance 1e-6 relative is far above both optimisers' convergence
 convention (a lag count off by one moves the widths above by 1-40 %).
 
 The thesis' fit is on a 1 ms grid, and the package's filter weights its
-edge taps (:mod:`bayes_jackal.kernels`) where eq. 7-5 truncates hard, so
+edge taps (:mod:`bayes_jackal.model.kernels`) where eq. 7-5 truncates hard, so
 the two grid fits may differ by one grid step (1e-3 s), and no more.
 """
 
@@ -30,8 +30,13 @@ import pytest
 import scipy.optimize
 from conftest import thesis_gaussian_filter
 
-from bayes_jackal.acf_fit import LEAST_SQUARES_LAGS, THESIS_LAGS, acf_least_squares, thesis_fit
-from bayes_jackal.errors import InputError
+from bayes_jackal._runtime.errors import InputError
+from bayes_jackal.thesis.acf_fit import (
+    LEAST_SQUARES_LAGS,
+    THESIS_LAGS,
+    acf_least_squares,
+    thesis_fit,
+)
 
 DT = 1 / 120
 #: Relative agreement of the package's least-squares widths with curve_fit's.

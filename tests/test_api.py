@@ -14,15 +14,16 @@ import pytest
 import scipy.io
 
 import bayes_jackal as bj
-from bayes_jackal import api
-from bayes_jackal.bags import read_bag
-from bayes_jackal.cli import build_parser, main
-from bayes_jackal.demo import demo_folder
-from bayes_jackal.experiment import read_netcdf, write_netcdf
-from bayes_jackal.inference import sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.report import _labelled
-from bayes_jackal.tables import read_csv, read_mat
+from bayes_jackal.cli import main
+from bayes_jackal.cli.parser import build_parser
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.io.experiment import read_netcdf, write_netcdf
+from bayes_jackal.io.tables import read_csv, read_mat
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.report.page import _labelled
+from bayes_jackal.workflow import api
+from bayes_jackal.workflow.demo import demo_folder
 
 #: A quick white-noise chain on the yaw channel (far from converged: 80 steps).
 QUICK = {"family": "white", "channels": ["yaw"], "max_steps": 80, "seed": 3}
@@ -65,7 +66,7 @@ def test_import_stays_lazy():
 def test_every_public_name_resolves():
     for name in bj.__all__:
         assert getattr(bj, name) is not None, name
-    assert bj.sample is api.sample and bj.export_prior.__module__ == "bayes_jackal.export"
+    assert bj.sample is api.sample and bj.export_prior.__module__ == "bayes_jackal.dem.export"
 
 
 @pytest.mark.parametrize("name", FUNCTIONS)

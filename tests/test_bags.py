@@ -36,19 +36,19 @@ import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
-from bayes_jackal.bag_reading import typestore
-from bayes_jackal.bag_writer import (
+from bayes_jackal._runtime.errors import DataError, InputError
+from bayes_jackal.io.bag_reading import typestore
+from bayes_jackal.io.bag_writer import (
     BagMessage,
     bag_messages,
     pose_path,
     write_bag,
     write_messages,
 )
-from bayes_jackal.bags import read_bag
-from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.experiment import read_netcdf, write_netcdf
-from bayes_jackal.robot import load_profile
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.io.experiment import read_netcdf, write_netcdf
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.model.robot import load_profile
 
 ROBOT = load_profile()
 IMU = ROBOT.topics["imu"]

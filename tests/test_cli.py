@@ -15,19 +15,20 @@ import pytest
 import xarray as xr
 from cli_helpers import strict_json
 
-from bayes_jackal.bag_writer import write_bag
-from bayes_jackal.cli import build_parser, main
-from bayes_jackal.experiment import Experiment, read_netcdf, write_netcdf
-from bayes_jackal.filter_models import filter_models
-from bayes_jackal.gridsearch import grid_search
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import load_posterior
-from bayes_jackal.posterior_format import posterior_layout
-from bayes_jackal.residual_analysis import analyse
-from bayes_jackal.robot import default_profile_path, load_profile
-from bayes_jackal.simulate import SERIES, NoiseSettings, Series, simulate_experiment
-from bayes_jackal.tables import read_csv, write_csv
+from bayes_jackal.cli import main
+from bayes_jackal.cli.parser import build_parser
+from bayes_jackal.filters.state_space import filter_models
+from bayes_jackal.io.bag_writer import write_bag
+from bayes_jackal.io.experiment import Experiment, read_netcdf, write_netcdf
+from bayes_jackal.io.simulate import SERIES, NoiseSettings, Series, simulate_experiment
+from bayes_jackal.io.tables import read_csv, write_csv
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.kernels import FAMILIES
+from bayes_jackal.model.robot import default_profile_path, load_profile
+from bayes_jackal.posterior.file_format import posterior_layout
+from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.thesis.gridsearch import grid_search
+from bayes_jackal.thesis.residual_analysis import analyse
 
 SMALL = ["--v1", "1", "--v2", "1"]
 GRID = ["--d-lat", "50", "200", "10", "--d-long", "10", "60", "5"]
@@ -776,7 +777,7 @@ def test_bad_numeric_flags_are_refused_before_any_work(
 
 
 def test_every_json_output_maps_non_finite_numbers_to_null(tmp_path, capsys):
-    from bayes_jackal._files import json_text, write_json
+    from bayes_jackal._runtime.files import json_text, write_json
     from bayes_jackal.cli.output import Reporter
 
     payload = {
@@ -838,7 +839,7 @@ def test_a_bad_bag_among_experiments_is_named_and_the_others_done(
 
 def test_help_loads_no_numerical_library():
     # Every --help answers at once (issue 13: < 0.5 s): the parser takes the
-    # library's names and defaults from bayes_jackal.defaults, and a command's
+    # library's names and defaults from bayes_jackal._runtime.defaults, and a command's
     # modules are imported only when it runs. Checked without timing.
     script = """
 import argparse, contextlib, io, sys

@@ -18,11 +18,13 @@ import pytest
 
 from bayes_jackal import load_profile
 from bayes_jackal.cli import main
-from bayes_jackal.comparison import _FamilyRun, compare_families, compare_groups
-from bayes_jackal.executors import ProcessExecutor, SerialExecutor
-from bayes_jackal.experiment import write_netcdf
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.comparison import _FamilyRun, compare_families, compare_groups
+from bayes_jackal.inference.executors import ProcessExecutor, SerialExecutor
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.experiment import write_netcdf
+from bayes_jackal.io.simulate import Series, simulate_experiment
 
 ROBOT = load_profile()
 #: The v2 command (0.4 m/s, 30 deg/s) for 8 s instead of its 26 s.
@@ -156,7 +158,7 @@ def overflowing_sampler(monkeypatch):
             np.exp(np.array([1000.0]))  # numpy: "overflow encountered in exp"
         return sample_posterior(*args, **kwargs)
 
-    monkeypatch.setattr("bayes_jackal.comparison.sample_posterior", overflowing)
+    monkeypatch.setattr("bayes_jackal.inference.comparison.sample_posterior", overflowing)
     monkeypatch.setattr("bayes_jackal.cli.commands.sample_posterior", overflowing)
 
 

@@ -12,17 +12,29 @@ import scipy.signal
 import scipy.stats
 from synthetic_posteriors import posterior_at
 
-from bayes_jackal import criticism, load_profile, predictive
+from bayes_jackal import load_profile
+from bayes_jackal._runtime.arviz_quiet import az
 from bayes_jackal.cli import main
-from bayes_jackal.comparison import Comparison
-from bayes_jackal.criticism import (
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.comparison_result import Comparison
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.experiment import Experiment, detect_steady, write_netcdf
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.likelihood.residual_likelihood import (
+    ResidualLikelihood,
+    sample_stationary,
+)
+from bayes_jackal.likelihood.residuals import channel_residuals
+from bayes_jackal.posterior import criticism, predictive
+from bayes_jackal.posterior.criticism import (
     BOUNDARY_DENSITY,
     PRIOR_SHIFT,
     criticise,
     damping_scale,
     predictive_acf,
 )
-from bayes_jackal.criticism_statistics import (
+from bayes_jackal.posterior.criticism_statistics import (
     acf_statistics,
     boundary_density,
     cross_correlation,
@@ -31,20 +43,14 @@ from bayes_jackal.criticism_statistics import (
     simultaneous_threshold,
     steadiness,
 )
-from bayes_jackal.evidence import Evidence
-from bayes_jackal.experiment import Experiment, detect_steady, write_netcdf
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood, sample_stationary
-from bayes_jackal.posterior import (
-    az,
+from bayes_jackal.posterior.file_format import posterior_metadata
+from bayes_jackal.posterior.inference_data import (
     model_autocovariance,
     posterior_likelihood,
-    posterior_metadata,
-    summarize,
     thinned_draws,
 )
-from bayes_jackal.residuals import channel_residuals
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.posterior.records import Evidence
+from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
 #: Short chains: the checks need a posterior near the fit, not a converged one.

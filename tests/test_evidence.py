@@ -10,18 +10,20 @@ import pytest
 import scipy.special
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.comparison import Comparison, compare_families
-from bayes_jackal.evidence import (
-    Evidence,
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.comparison import compare_families
+from bayes_jackal.inference.comparison_result import Comparison
+from bayes_jackal.inference.evidence import (
     bridge_sampling,
     evidence_strength,
     integrated_time,
     nested_sampling,
 )
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.priors import LogPosterior, Prior
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.likelihood.priors import LogPosterior, Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.posterior.records import Evidence
 
 ROBOT = load_profile()
 #: The yaw channel alone: these tests' statistics were tuned on it (the

@@ -25,11 +25,12 @@ import pytest
 
 import bayes_jackal
 from bayes_jackal import load_profile
-from bayes_jackal.comparison import compare_families
-from bayes_jackal.errors import InputError
-from bayes_jackal.executors import DaskExecutor, ProcessExecutor, SerialExecutor
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal._runtime.errors import InputError
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.comparison import compare_families
+from bayes_jackal.inference.executors import DaskExecutor, ProcessExecutor, SerialExecutor
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.io.simulate import simulate_experiment
 
 distributed = pytest.importorskip("distributed")
 
@@ -45,7 +46,7 @@ DEAD_ADDRESS = "tcp://127.0.0.1:1"
 #: refused all the same, 4 s sooner; a command that waited for ever would still
 #: meet the fixture's timeout, and be killed.
 SHORT_TIMEOUT = (
-    "from bayes_jackal.executors import DaskExecutor\n"
+    "from bayes_jackal.inference.executors import DaskExecutor\n"
     "DaskExecutor.__init__.__kwdefaults__['timeout'] = 1.0"
 )
 #: One simulated v2 run (26 s at 72 Hz), and flags of a quick comparison.
@@ -247,7 +248,7 @@ def test_workers_run_one_blas_thread_for_more_jobs_than_cores():
         " if pool['user_api'] == 'blas'})"
     )
     code = (
-        "from bayes_jackal.executors import in_processes\n"
+        "from bayes_jackal.inference.executors import in_processes\n"
         "for single in (False, True):\n"
         f"    with in_processes(eval, [{job!r}] * 2, workers=2, single_threaded=single) as done:\n"
         "        print(single, sorted(map(tuple, done)))\n"
@@ -268,7 +269,7 @@ def test_workers_run_the_package_this_process_imported(tmp_path):
     code = (
         f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
         "import bayes_jackal\n"
-        "from bayes_jackal.executors import in_processes\n"
+        "from bayes_jackal.inference.executors import in_processes\n"
         "job = \"__import__('bayes_jackal').__file__\"\n"
         "with in_processes(eval, [job] * 2, workers=2) as done:\n"
         "    print(sorted(set(done)) == [bayes_jackal.__file__], bayes_jackal.__file__)\n"

@@ -14,16 +14,11 @@ import pytest
 import scipy.io
 import xarray as xr
 
-from bayes_jackal.api import load_experiments
+from bayes_jackal._runtime.errors import DataError, InputError
 from bayes_jackal.cli import main
-from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.experiment import Experiment, read_netcdf, write_netcdf
-from bayes_jackal.tables import (
-    load_experiment,
-    read_csv,
-    read_mat,
-    write_csv,
-)
+from bayes_jackal.io.experiment import Experiment, read_netcdf, write_netcdf
+from bayes_jackal.io.tables import load_experiment, read_csv, read_mat, write_csv
+from bayes_jackal.workflow.api import load_experiments
 
 DT = 0.1
 N = 40
@@ -78,7 +73,7 @@ def test_read_csv_any_column_order_and_extra_columns(tmp_path):
     rows = [f"{i},{5 - i},{0.02 * i},{DT * i:.1f},{10 + i},{0.3 * i}" for i in range(5)]
     path.write_text(csv_text("note, omega_l ,vy,t,omega_r,yaw_rate", rows))
     experiment = read_csv(path)
-    # The reader returns the uniform clock t0 + k dt (bayes_jackal.stamps).
+    # The reader returns the uniform clock t0 + k dt (bayes_jackal.io.stamps).
     np.testing.assert_array_equal(experiment.t, DT * np.arange(5))
     np.testing.assert_array_equal(experiment.omega_l, 5.0 - np.arange(5))
     np.testing.assert_array_equal(experiment.omega_r, 10.0 + np.arange(5))
@@ -404,7 +399,7 @@ def test_written_files_get_the_umask_permissions_not_owner_only(tmp_path):
     assert stat.S_IMODE(path.stat().st_mode) == 0o644
 
 
-# --- stamps repaired by the readers (rules: bayes_jackal.stamps) -------------
+# --- stamps repaired by the readers (rules: bayes_jackal.io.stamps) -------------
 
 
 def test_csv_repeated_stamp_and_dropout_are_repaired_and_listed(tmp_path):

@@ -14,22 +14,24 @@ from synthetic_posteriors import posterior_at
 
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.cli import main
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.export import (
+from bayes_jackal.dem.consumer_keys import operating_point
+from bayes_jackal.dem.export import (
     MAX_CONDITION,
-    PRIOR_FORMAT,
     allowed_orders,
     autocorrelation_derivatives,
     export_prior,
     temporal_covariance,
 )
-from bayes_jackal.export_consumers import operating_point
-from bayes_jackal.filter_models import channel_model, filter_models
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.physics import continuous_matrices, discrete_matrices
-from bayes_jackal.posterior import save_posterior
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal.dem.prior_fields import PRIOR_FORMAT
+from bayes_jackal.filters.state_space import channel_model, filter_models
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.physics import continuous_matrices, discrete_matrices
+from bayes_jackal.posterior.inference_data import save_posterior
 
 ROBOT = load_profile()
 SHORT = SamplerSettings(max_steps=120, check_every=40, design_points=256)

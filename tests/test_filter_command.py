@@ -15,7 +15,7 @@ from test_cli import assert_bad_input
 
 import bayes_jackal as bj
 from bayes_jackal.cli import main
-from bayes_jackal.experiment import write_netcdf
+from bayes_jackal.io.experiment import write_netcdf
 
 ROBOT = bj.load_profile()
 HEADER = (

@@ -13,12 +13,12 @@ from synthetic_posteriors import posterior_at
 from test_kalman import truth_prior
 
 from bayes_jackal import load_profile
-from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.export import export_prior
-from bayes_jackal.filter_models import channel_model, check_prior, filter_models
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.prior_fields import check_prior_fields
-from bayes_jackal.simulate import simulate_experiment
+from bayes_jackal._runtime.errors import DataError, InputError
+from bayes_jackal.dem.export import export_prior
+from bayes_jackal.dem.prior_fields import check_prior_fields
+from bayes_jackal.filters.state_space import channel_model, check_prior, filter_models
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.model.kernels import FAMILIES
 
 ROBOT = load_profile()
 DT = ROBOT.dt
@@ -222,7 +222,7 @@ def test_a_field_of_the_wrong_type_is_refused_by_name(run, path, value, words):
 
 def test_a_prior_within_one_percent_of_the_rate_is_accepted(run):
     # The experiment's mean step may differ from the prior's by rounding or
-    # resampling; within RATE_TOLERANCE (1 %) the prior applies, beyond it not.
+    # resampling; within PRIOR_RATE_TOLERANCE (1 %) the prior applies, beyond it not.
     assert check_prior({**truth_prior(), "dt": DT * 1.009}, run) == ("yaw", "vx", "vy")
     with pytest.raises(InputError, match=r"70\.59 Hz"):
         check_prior({**truth_prior(), "dt": DT * 1.02}, run)

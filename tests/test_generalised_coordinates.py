@@ -7,7 +7,7 @@ import pytest
 import scipy.linalg
 
 from bayes_jackal import InputError
-from bayes_jackal.generalised_coordinates import (
+from bayes_jackal.filters.generalised_coordinates import (
     embed,
     shift_operator,
     taylor_step,

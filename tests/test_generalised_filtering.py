@@ -11,12 +11,12 @@ import scipy.special
 from synthetic_posteriors import posterior_at
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.export import export_prior, temporal_covariance
-from bayes_jackal.generalised_coordinates import white_sensor_precision
-from bayes_jackal.generalised_filtering import d_step, generalised_filter
-from bayes_jackal.generalised_filtering import process_precision as process_precision_of
-from bayes_jackal.physics import continuous_matrices, discrete_matrices
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.dem.export import export_prior, temporal_covariance
+from bayes_jackal.filters.generalised import d_step, generalised_filter
+from bayes_jackal.filters.generalised import process_precision as process_precision_of
+from bayes_jackal.filters.generalised_coordinates import white_sensor_precision
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.model.physics import continuous_matrices, discrete_matrices
 
 ROBOT = load_profile()
 A, B = continuous_matrices(ROBOT, 110.0, 30.0)

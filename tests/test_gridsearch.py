@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.gridsearch import damping_grid, grid_search, onestep_mse, simulation_mse
-from bayes_jackal.physics import continuous_matrices, one_step_residuals, simulate
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.model.physics import continuous_matrices, one_step_residuals, simulate
+from bayes_jackal.thesis.gridsearch import damping_grid, grid_search, onestep_mse, simulation_mse
 
 ROBOT = load_profile()
 #: "Small noise". The one-step least-squares bias from coloured noise scales

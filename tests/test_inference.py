@@ -12,23 +12,27 @@ import scipy.optimize
 import scipy.signal
 import scipy.stats
 
-from bayes_jackal import DataError, InputError, inference, load_profile
-from bayes_jackal.chains import (
+from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal._runtime.defaults import BRIDGE_MIN_DRAWS, MIN_EVIDENCE_STEPS
+from bayes_jackal.inference import sampling as inference
+from bayes_jackal.inference.chains import (
+    SamplerSettings,
     _burn_in_and_thinning,
     autocorrelation_time,
     effective_sizes,
     run_chain,
 )
-from bayes_jackal.defaults import BRIDGE_MIN_DRAWS, MIN_EVIDENCE_STEPS
-from bayes_jackal.evidence import bridge_sampling
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.map_search import find_map, laplace_walkers
-from bayes_jackal.moves import IndependenceMove
-from bayes_jackal.noise_profile import profile_starts
-from bayes_jackal.posterior import load_posterior, parameter_draws, save_posterior, summarize
-from bayes_jackal.priors import LogPosterior, Prior
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.inference.evidence import bridge_sampling
+from bayes_jackal.inference.map_search import find_map, laplace_walkers
+from bayes_jackal.inference.moves import IndependenceMove
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.inference.starts import profile_starts
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.likelihood.priors import LogPosterior, Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.posterior.inference_data import load_posterior, parameter_draws, save_posterior
+from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
 #: A short run for the mechanics tests: far from converged, on purpose.
@@ -261,7 +265,7 @@ def test_the_thinning_leaves_bridge_sampling_its_draws_whatever_tau():
 
 
 def test_loading_something_that_is_not_a_posterior_fails_clearly(tmp_path, v2_run):
-    from bayes_jackal.experiment import write_netcdf
+    from bayes_jackal.io.experiment import write_netcdf
 
     experiment_file = write_netcdf(v2_run, tmp_path / "run.nc")
     with pytest.raises(DataError, match="not a bayes_jackal posterior"):

@@ -28,9 +28,13 @@ from cli_helpers import (
     stored_steps,
 )
 
-from bayes_jackal import interrupt
-from bayes_jackal.chains import BufferedHDFBackend, SamplerSettings, _run_until_converged
+from bayes_jackal._runtime import interrupt
 from bayes_jackal.cli import main
+from bayes_jackal.inference.chains import (
+    BufferedHDFBackend,
+    SamplerSettings,
+    _run_until_converged,
+)
 
 #: The console script's entry point, run in a fresh interpreter.
 #: One experiment, short chains, two families: the cheapest runs of every command.
@@ -316,7 +320,7 @@ _KILLED_WHILE_CREATING = """
 import os, signal, sys
 from pathlib import Path
 import h5py
-from bayes_jackal.chains import _backend
+from bayes_jackal.inference.chains import _backend
 create_dataset = h5py.Group.create_dataset
 def dying(self, *args, **kwargs):  # the first dataset written, then a hard kill
     create_dataset(self, *args, **kwargs)

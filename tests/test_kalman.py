@@ -9,11 +9,11 @@ import pytest
 import scipy.linalg
 
 from bayes_jackal import load_profile
-from bayes_jackal.filter_models import channel_model
-from bayes_jackal.kalman import KALMAN_FILTERS, kalman, kalman_filter
-from bayes_jackal.kernels import get_family
-from bayes_jackal.physics import channel_coefficients, discrete_matrices
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS, kalman, kalman_filter
+from bayes_jackal.filters.state_space import channel_model
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.model.physics import channel_coefficients, discrete_matrices
 
 ROBOT = load_profile()
 DT = ROBOT.dt

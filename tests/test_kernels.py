@@ -7,13 +7,12 @@ import pytest
 
 import bayes_jackal as bj
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.export import autocorrelation_derivatives
-from bayes_jackal.inference import ConvergenceWarning
-from bayes_jackal.kernels import FAMILIES, Family, gaussian_kernel, get_family
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.priors import Prior
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment
-from bayes_jackal.toeplitz import bandwidth
+from bayes_jackal.dem.export import autocorrelation_derivatives
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.likelihood.priors import Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.kernels import FAMILIES, Family, bandwidth, gaussian_kernel, get_family
 
 DT = 1.0 / 72.0
 #: Widths [s] below one sample, at a whole Gaussian tap count (3 w / dt = 10) and between.

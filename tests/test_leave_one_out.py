@@ -22,38 +22,39 @@ import numpy as np
 import pytest
 import scipy.stats
 
+from bayes_jackal._runtime.defaults import STATE_ESTIMATION
+from bayes_jackal._runtime.errors import InputError
 from bayes_jackal.cli import main
 from bayes_jackal.cli.output import state_estimation_text
 from bayes_jackal.cli.parser import build_parser
-from bayes_jackal.comparison import compare_families, compare_groups
-from bayes_jackal.defaults import STATE_ESTIMATION
-from bayes_jackal.demo import run_demo
-from bayes_jackal.errors import InputError
-from bayes_jackal.estimate_plots import SHOWN_SECONDS, plot_state_estimates, shown_window
-from bayes_jackal.executors import SerialExecutor
-from bayes_jackal.experiment import read_netcdf, write_netcdf
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings
-from bayes_jackal.kalman import KALMAN_FILTERS, StateEstimate
-from bayes_jackal.leave_one_out import FOLDER, SUMMARY, leave_one_out, method_text
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import (
-    load_posterior,
-    parameter_draws,
-    posterior_metadata,
-    save_posterior,
-)
-from bayes_jackal.priors import LogPosterior, Prior
-from bayes_jackal.report_sections import state_estimation_section
-from bayes_jackal.reweighting import (
+from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS, StateEstimate
+from bayes_jackal.filters.left_out import FOLDER, SUMMARY, leave_one_out, method_text
+from bayes_jackal.filters.state_estimation import FILTERS
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.comparison import compare_families, compare_groups
+from bayes_jackal.inference.executors import SerialExecutor
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.io.experiment import read_netcdf, write_netcdf
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood.priors import LogPosterior, Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.robot import load_profile
+from bayes_jackal.posterior.file_format import posterior_metadata
+from bayes_jackal.posterior.inference_data import load_posterior, parameter_draws, save_posterior
+from bayes_jackal.posterior.reweighting import (
     PARETO_K_THRESHOLD,
     PooledPosterior,
     conditional_log_density,
     psis_weights,
 )
-from bayes_jackal.robot import load_profile
-from bayes_jackal.simulate import Series, simulate_experiment
-from bayes_jackal.state_estimation import FILTERS
-from bayes_jackal.workflow import analyse_logs
+from bayes_jackal.report.estimate_plots import (
+    SHOWN_SECONDS,
+    plot_state_estimates,
+    shown_window,
+)
+from bayes_jackal.report.sections import state_estimation_section
+from bayes_jackal.workflow.analysis import analyse_logs
+from bayes_jackal.workflow.demo import run_demo
 
 ROBOT = load_profile()
 RUNS = ("a", "b")

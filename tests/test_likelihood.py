@@ -8,21 +8,22 @@ import scipy.special
 import scipy.stats
 
 from bayes_jackal import DataError, InputError, load_profile
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.inference import sample_posterior
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.likelihood import (
-    ResidualLikelihood,
-    residual_autocovariance,
-    sample_stationary,
-    toeplitz_loglike,
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.inference.starts import _binned_periodogram
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.likelihood.measurements import residual_autocovariance
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood, sample_stationary
+from bayes_jackal.likelihood.residuals import channel_residuals
+from bayes_jackal.likelihood.toeplitz import toeplitz_loglike
+from bayes_jackal.likelihood.whittle import (
+    debiased_whittle_loglike,
+    expected_periodogram,
+    frequency_weights,
 )
-from bayes_jackal.noise_profile import _binned_periodogram
-from bayes_jackal.physics import channel_coefficients
-from bayes_jackal.posterior import summarize
-from bayes_jackal.residuals import channel_residuals
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
-from bayes_jackal.whittle import debiased_whittle_loglike, expected_periodogram, frequency_weights
+from bayes_jackal.model.kernels import FAMILIES
+from bayes_jackal.model.physics import channel_coefficients
+from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal import InputError
-from bayes_jackal.lti import lti_outputs, matrix_powers
+from bayes_jackal.filters.lti import lti_outputs, matrix_powers
 
 
 def _loop(transition, input_matrix, drive, start, outputs):

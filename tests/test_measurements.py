@@ -1,6 +1,6 @@
 """How channels were recorded: the pose channels' residual and its law, against references.
 
-The references are independent of bayes_jackal.measurements:
+The references are independent of bayes_jackal.likelihood.measurements:
 
 - the exact increment: the model dx/dt = a x + f with a held force f,
   augmented with the travel q (dq/dt = x) and discretised by one block
@@ -24,14 +24,18 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from bayes_jackal.errors import DataError
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.kernels import get_family
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.measurements import PoseMeasurement, RateMeasurement, pose_weights
-from bayes_jackal.physics import channel_coefficients, continuous_matrices
-from bayes_jackal.pose_track import PoseTrack
-from bayes_jackal.robot import load_profile
+from bayes_jackal._runtime.errors import DataError
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.io.pose_track import PoseTrack
+from bayes_jackal.likelihood.measurements import (
+    PoseMeasurement,
+    RateMeasurement,
+    pose_weights,
+)
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.model.physics import channel_coefficients, continuous_matrices
+from bayes_jackal.model.robot import load_profile
 
 ROBOT = load_profile()
 DT = 1 / 72
@@ -135,7 +139,7 @@ def test_the_fast_engine_equals_the_exact_one_on_pose_channels(family):
     base = np.array([centre[name.split("[")[0]] for name in names])
     theta = base * np.exp(0.3 * rng.standard_normal((6, len(names))))
     exact = dataclasses.replace(likelihood, engine="exact")(theta)
-    # 1e-6 nats: the fast engine's promise (bayes_jackal.likelihood).
+    # 1e-6 nats: the fast engine's promise (bayes_jackal.likelihood.residual_likelihood).
     np.testing.assert_allclose(likelihood(theta), exact, rtol=0, atol=1e-6)
 
 

@@ -17,9 +17,13 @@ import emcee
 import numpy as np
 import scipy.stats
 
-from bayes_jackal.chains import BufferedHDFBackend, _store_approximation, _stored_approximation
-from bayes_jackal.map_search import laplace_walkers
-from bayes_jackal.moves import (
+from bayes_jackal.inference.chains import (
+    BufferedHDFBackend,
+    _store_approximation,
+    _stored_approximation,
+)
+from bayes_jackal.inference.map_search import laplace_walkers
+from bayes_jackal.inference.moves import (
     MIN_MATCHED_EFFICIENCY,
     IndependenceMove,
     LaplaceApproximation,
@@ -28,7 +32,7 @@ from bayes_jackal.moves import (
     moment_matched,
     proposal_efficiency,
 )
-from bayes_jackal.priors import LogPosterior, Prior
+from bayes_jackal.likelihood.priors import LogPosterior, Prior
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 Each coloured family's noise, simulated here by the kernels of the thesis
 (ch. 7: the Gaussian filter of eq. 7-5; the first-order low-pass, the
 triangular and the moving-average filters it names as alternatives) and
-written in this file, independently of :mod:`bayes_jackal.kernels`, over a
+written in this file, independently of :mod:`bayes_jackal.model.kernels`, over a
 white floor, at widths from 0.6 to 20 samples: the true family must win
 (ln B - 3 se > 3 against every other family) and the true width must lie
 inside its 94 % HDI within the binomial tolerance over seeds. On white
@@ -26,8 +26,8 @@ import scipy.signal
 from calibration import least_inside, map_rows, seeds
 
 import bayes_jackal as bj
-from bayes_jackal.chains import SamplerSettings
-from bayes_jackal.defaults import NOISE_MAX_STEPS
+from bayes_jackal._runtime.defaults import NOISE_MAX_STEPS
+from bayes_jackal.inference.chains import SamplerSettings
 
 DT = 0.01  # [s]; the widths below are in samples
 SAMPLES = 4000

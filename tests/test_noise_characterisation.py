@@ -11,21 +11,21 @@ import pytest
 from cli_helpers import strict_json
 
 import bayes_jackal as bj
-from bayes_jackal.chains import SamplerSettings
+from bayes_jackal._runtime.defaults import MIN_EVIDENCE_STEPS
 from bayes_jackal.cli import main
-from bayes_jackal.defaults import MIN_EVIDENCE_STEPS
-from bayes_jackal.executors import ProcessExecutor
-from bayes_jackal.noise_characterisation import (
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.executors import ProcessExecutor
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.likelihood.priors import LogPosterior
+from bayes_jackal.likelihood.series_likelihood import SeriesLikelihood
+from bayes_jackal.model.robot import load_profile
+from bayes_jackal.noise.characterisation import (
     FamilyFit,
     NoiseCharacterisation,
     _start,
     fit_family,
     series_prior,
 )
-from bayes_jackal.priors import LogPosterior
-from bayes_jackal.robot import load_profile
-from bayes_jackal.series_likelihood import SeriesLikelihood
-from bayes_jackal.simulate import simulate_experiment
 
 SETTINGS = SamplerSettings(progress=False)
 DT = 0.01
@@ -289,9 +289,9 @@ def test_a_series_and_a_robot_take_the_same_names_of_the_width(monkeypatch):
     # parameters.width_keys is the one list of the width's names: a family
     # registered with a width name of its own (docs/families.md) adds it to
     # the overrides of a series and of a robot alike.
-    from bayes_jackal.kernels import FAMILIES
-    from bayes_jackal.noise_characterisation import series_prior_overrides
-    from bayes_jackal.parameters import prior_overrides, width_keys
+    from bayes_jackal.model.kernels import FAMILIES
+    from bayes_jackal.model.parameters import prior_overrides, width_keys
+    from bayes_jackal.noise.characterisation import series_prior_overrides
 
     class Duration(type(FAMILIES["moving-average"])):
         name = "boxcar"

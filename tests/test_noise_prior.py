@@ -8,14 +8,14 @@ import json
 import numpy as np
 import pytest
 
+from bayes_jackal._runtime.errors import InputError
 from bayes_jackal.cli import main
-from bayes_jackal.errors import InputError
-from bayes_jackal.evidence import Evidence
-from bayes_jackal.export import MAX_CONDITION, MAX_DRAWS, write_prior
-from bayes_jackal.kernels import get_family
-from bayes_jackal.noise_characterisation import FamilyFit, NoiseCharacterisation
-from bayes_jackal.noise_prior import NOISE_PRIOR_FORMAT, export_noise_prior
-from bayes_jackal.noise_series import NoiseSeries
+from bayes_jackal.dem.export import MAX_CONDITION, MAX_DRAWS, write_prior
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.noise.characterisation import FamilyFit, NoiseCharacterisation
+from bayes_jackal.noise.prior import NOISE_PRIOR_FORMAT, export_noise_prior
+from bayes_jackal.noise.series import NoiseSeries
+from bayes_jackal.posterior.records import Evidence
 
 DT = 0.01
 #: Posterior draws of the made-up fits: a width of 3 bins and sds spread by 20 %.

@@ -1,15 +1,18 @@
-"""The MAP search's start for a bare noise series (bayes_jackal.noise_profile.series_profile)."""
+"""The MAP search's start for a bare noise series (bayes_jackal.inference.series_profile)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bayes_jackal.kernels import FAMILIES, get_family
-from bayes_jackal.noise_characterisation import series_prior
-from bayes_jackal.noise_profile import series_profile
-from bayes_jackal.series_likelihood import SeriesLikelihood
-from bayes_jackal.whittle import expected_periodogram, frequency_weights
+from bayes_jackal.inference.starts import series_profile
+from bayes_jackal.likelihood.series_likelihood import SeriesLikelihood
+from bayes_jackal.likelihood.whittle import (
+    expected_periodogram,
+    frequency_weights,
+)
+from bayes_jackal.model.kernels import FAMILIES, get_family
+from bayes_jackal.noise.characterisation import series_prior
 
 DT = 0.01
 

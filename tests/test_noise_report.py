@@ -2,7 +2,7 @@
 
 The characterisations are built from chosen posterior draws (no sampling),
 so that what is drawn can be compared with closed forms: the family's
-autocorrelation (:mod:`bayes_jackal.kernels`) and the replicates' variance
+autocorrelation (:mod:`bayes_jackal.model.kernels`) and the replicates' variance
 sigma_c^2 + sigma_n^2. One small end-to-end run of ``bayes-jackal noise
 --out`` checks that the command writes the report.
 """
@@ -20,23 +20,26 @@ import pytest
 from matplotlib.figure import Figure
 from test_report import CHROMIUM, render
 
-from bayes_jackal import predictive
+from bayes_jackal._runtime.errors import InputError
 from bayes_jackal.cli import main
-from bayes_jackal.criticism import PREDICTIVE_DRAWS
-from bayes_jackal.errors import InputError
-from bayes_jackal.evidence import Evidence
-from bayes_jackal.kernels import FAMILIES, get_family
-from bayes_jackal.noise_characterisation import FamilyFit, NoiseCharacterisation
-from bayes_jackal.noise_plots import (
+from bayes_jackal.model.kernels import FAMILIES, get_family
+from bayes_jackal.noise.characterisation import FamilyFit, NoiseCharacterisation
+from bayes_jackal.noise.series import NoiseSeries
+from bayes_jackal.posterior import predictive
+from bayes_jackal.posterior.criticism import PREDICTIVE_DRAWS
+from bayes_jackal.posterior.records import Evidence
+from bayes_jackal.posterior.series_statistics import (
+    sample_autocorrelation,
+    spectrum,
+)
+from bayes_jackal.report.noise_page import NOISE_HEADER, noise_rows, write_noise_report
+from bayes_jackal.report.noise_plots import (
     noise_predictive_bands,
     plot_noise_autocorrelation,
     plot_noise_spectrum,
     plot_noise_widths,
     replicate_statistics,
 )
-from bayes_jackal.noise_report import NOISE_HEADER, noise_rows, write_noise_report
-from bayes_jackal.noise_series import NoiseSeries
-from bayes_jackal.series_statistics import sample_autocorrelation, spectrum
 
 matplotlib.use("Agg")
 

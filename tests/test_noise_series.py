@@ -2,7 +2,7 @@
 
 The series are small (80-500 samples); each read checks that the input's
 bytes are unchanged. The repairs are those of the experiments
-(:func:`bayes_jackal.stamps.uniform_clock`), so only that they happen and
+(:func:`bayes_jackal.io.uniform_clock`), so only that they happen and
 what the values become is checked here: one sample per stamp, in time
 order, the values kept exactly where no tick was filled.
 """
@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 import scipy.io
 
-from bayes_jackal.bag_reading import typestore
-from bayes_jackal.bag_writer import BagMessage, stamped_header, write_messages
-from bayes_jackal.bags import read_bag
-from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.noise_series import MIN_SERIES_SAMPLES, NoiseSeries, read_noise_series
-from bayes_jackal.robot import load_profile
-from bayes_jackal.workflow import read_log
+from bayes_jackal._runtime.errors import DataError, InputError
+from bayes_jackal.io.bag_reading import typestore
+from bayes_jackal.io.bag_writer import BagMessage, stamped_header, write_messages
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.model.robot import load_profile
+from bayes_jackal.noise.series import MIN_SERIES_SAMPLES, NoiseSeries, read_noise_series
+from bayes_jackal.workflow.analysis import read_log
 
 NS = 1_000_000_000
 EPOCH = 1_700_000_000 * NS
@@ -336,7 +336,10 @@ def test_a_folder_of_csv_files_is_not_taken_for_a_bag(tmp_path):
 def test_the_series_checks_are_those_of_the_likelihood():
     # One check serves NoiseSeries and SeriesLikelihood: the same words, each
     # with its own minimum length.
-    from bayes_jackal.series_likelihood import MIN_SAMPLES, SeriesLikelihood
+    from bayes_jackal.likelihood.series_likelihood import (
+        MIN_LIKELIHOOD_SAMPLES,
+        SeriesLikelihood,
+    )
 
     for values, dt in [(np.full(40, 0.5), 0.01), (np.r_[_noise(39), np.inf], 0.01),
                        (_noise(40), -1.0)]:  # fmt: skip
@@ -346,9 +349,12 @@ def test_the_series_checks_are_those_of_the_likelihood():
             SeriesLikelihood(values=values, dt=dt)
         assert type(from_series.value) is type(from_likelihood.value)
         assert str(from_series.value).removeprefix("<memory>: ") == str(from_likelihood.value)
-    assert len(SeriesLikelihood(values=_noise(MIN_SAMPLES), dt=0.01).values) == MIN_SAMPLES
-    with pytest.raises(DataError, match=f"only {MIN_SAMPLES} samples; .* at least 32"):
-        NoiseSeries(values=_noise(MIN_SAMPLES), dt=0.01)
+    assert (
+        len(SeriesLikelihood(values=_noise(MIN_LIKELIHOOD_SAMPLES), dt=0.01).values)
+        == MIN_LIKELIHOOD_SAMPLES
+    )
+    with pytest.raises(DataError, match=f"only {MIN_LIKELIHOOD_SAMPLES} samples; .* at least 32"):
+        NoiseSeries(values=_noise(MIN_LIKELIHOOD_SAMPLES), dt=0.01)
 
 
 def test_zero_header_stamps_take_the_receive_time(tmp_path):

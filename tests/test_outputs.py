@@ -27,16 +27,16 @@ import numpy as np
 import pytest
 from cli_helpers import CLI
 
-from bayes_jackal._files import write_json
-from bayes_jackal.cli import main
-from bayes_jackal.errors import InputError, OutputError
-from bayes_jackal.outputs import (
+from bayes_jackal._runtime.errors import InputError, OutputError
+from bayes_jackal._runtime.files import write_json
+from bayes_jackal._runtime.output_safety import (
     Output,
     OutputLock,
     OutputLockedError,
     check_outputs,
     protected,
 )
+from bayes_jackal.cli import main
 
 #: A cheap chain: white noise, 200 steps (two flushes of 100).
 CHEAP = ["--family", "white", "--max-steps", "200", "--no-progress", "--seed", "1"]
@@ -161,7 +161,7 @@ def test_a_killed_holder_never_blocks_the_next_run(tmp_path):
         [
             sys.executable,
             "-c",
-            "import sys, time; from bayes_jackal.outputs import OutputLock\n"
+            "import sys, time; from bayes_jackal._runtime.output_safety import OutputLock\n"
             f"with OutputLock({str(out)!r}):\n    print('held', flush=True); time.sleep(60)",
         ],
         stdout=subprocess.PIPE,

@@ -1,4 +1,4 @@
-"""The parameter layout and the validation of prior overrides (bayes_jackal.parameters)."""
+"""The parameter layout and the validation of prior overrides (bayes_jackal.model.parameters)."""
 
 from __future__ import annotations
 
@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.kernels import FAMILIES, Exponential
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.parameters import SHARED_GROUP, ParameterLayout, prior_overrides
-from bayes_jackal.priors import Prior
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood.priors import Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.kernels import FAMILIES, Exponential
+from bayes_jackal.model.parameters import SHARED_GROUP, ParameterLayout, prior_overrides
 
 ROBOT = load_profile()
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.physics import (
+from bayes_jackal.model.physics import (
     channel_coefficients,
     continuous_matrices,
     discrete_matrices,

@@ -1,4 +1,4 @@
-"""The figures of bayes_jackal.plots: their axes, and what they draw against numbers made here.
+"""The posterior and grid figures of bayes_jackal.report: their axes, and what they draw.
 
 Every public ``plot_*`` function takes an optional ``ax`` (or ``axes``),
 returns ``(fig, axes)``, draws onto the axes it is given, and builds its
@@ -27,10 +27,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from synthetic_posteriors import ROBOT, posterior_at
 
-from bayes_jackal import plots
-from bayes_jackal.errors import InputError
-from bayes_jackal.gridsearch import damping_grid, grid_search
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal import report as plots
+from bayes_jackal._runtime.errors import InputError
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.report.plots import MAX_POINTS
+from bayes_jackal.thesis.gridsearch import damping_grid, grid_search
 
 matplotlib.use("Agg")
 
@@ -123,8 +124,18 @@ def _line(ax, label: str):
     return line
 
 
+#: The report's modules of posterior and grid figures (the noise series' and the
+#: filters' figures are tested with their own).
+POSTERIOR_PLOTS = ("plots", "grid_plots", "predictive_plots")
+
+
 def test_every_public_plot_is_tested():
-    assert set(PLOTS) == {name for name in plots.__all__ if name.startswith("plot_")}
+    assert set(PLOTS) == {
+        name
+        for name in plots.__all__
+        if name.startswith("plot_")
+        and getattr(plots, name).__module__.rsplit(".", 1)[-1] in POSTERIOR_PLOTS
+    }
 
 
 def test_no_plot_goes_through_pyplot():
@@ -320,7 +331,7 @@ def long_idata():
     """A yaw posterior of a 70 s run: more residuals and samples than MAX_POINTS."""
     run = simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, np.deg2rad(22.5), 70.0), rng=5)
     idata = posterior_at([run], TRUTH[:5], channels=("yaw",), spread=0.05)
-    assert idata.observed_data["residual_yaw_0"].size > plots.MAX_POINTS
+    assert idata.observed_data["residual_yaw_0"].size > MAX_POINTS
     return idata
 
 
@@ -333,13 +344,13 @@ def test_a_long_run_is_drawn_as_an_envelope_of_at_most_max_points(long_idata):
     residuals = long_idata.observed_data["residual_yaw_0"].values
     assert all(len(line.get_xdata()) == 2 for line in ax.lines)  # only the zero line
     [envelope] = ax.collections
-    assert _distinct_x(envelope) <= plots.MAX_POINTS // 2
+    assert _distinct_x(envelope) <= MAX_POINTS // 2
     vertices = np.concatenate([path.vertices for path in envelope.get_paths()])
     assert vertices[:, 1].min() == residuals.min()
     assert vertices[:, 1].max() == residuals.max()
 
     _, axes = plots.plot_model_fit(long_idata)
     for ax in axes:
-        assert all(len(line.get_xdata()) <= plots.MAX_POINTS for line in ax.lines)
+        assert all(len(line.get_xdata()) <= MAX_POINTS for line in ax.lines)
         assert ax.collections
-        assert all(_distinct_x(c) <= plots.MAX_POINTS // 2 for c in ax.collections)
+        assert all(_distinct_x(c) <= MAX_POINTS // 2 for c in ax.collections)

@@ -61,7 +61,7 @@ least 90 % of the runs (the issue's bar), channel by channel: with the true
 parameters each channel's NIS is in its chi-square band with probability
 0.95, all three at once only 0.86 (measured at the truth over 20 left-out
 runs: 93 % of channels, 80 % of runs). The band allows for the identified
-parameters' uncertainty (:func:`bayes_jackal.state_estimation.nis_band`):
+parameters' uncertainty (:func:`bayes_jackal.filters.nis_band`):
 two runs leave sigma_c and sigma_p a few percent uncertain, which moves the
 NIS of a 38 s run by a log-sd of ~0.02 against the chi-square band's 0.027
 (measured over 8 posterior draws); the chi-square band alone held vx in
@@ -85,8 +85,8 @@ from calibration import least_inside, map_rows, seeds
 from mocap_simulator import POSE_JITTER, THESIS_COMMANDS, write_mocap_bag, write_mocap_pair
 
 import bayes_jackal as bj
-from bayes_jackal.bags import read_bag
-from bayes_jackal.state_estimation import DERIVED
+from bayes_jackal.filters.state_estimation import DERIVED
+from bayes_jackal.io.bags import read_bag
 
 ROBOT = bj.load_profile()
 #: (d_lat [N s/m], d_long [N s/m], sigma_h [s]) of each truth.

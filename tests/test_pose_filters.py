@@ -18,15 +18,15 @@ import numpy as np
 import pytest
 
 from bayes_jackal import load_profile
-from bayes_jackal.bag_writer import write_bag
-from bayes_jackal.bags import read_bag
-from bayes_jackal.filter_models import channel_model, filter_models, measured_series
-from bayes_jackal.generalised_filtering import generalised_filter
-from bayes_jackal.kalman import kalman, kalman_filter
-from bayes_jackal.kernels import get_family
-from bayes_jackal.physics import channel_coefficients, discrete_matrices
-from bayes_jackal.simulate import simulate_experiment
-from bayes_jackal.state_estimation import DERIVED, estimate_states, score_estimates
+from bayes_jackal.filters.generalised import generalised_filter
+from bayes_jackal.filters.kalman_filters import kalman, kalman_filter
+from bayes_jackal.filters.state_estimation import DERIVED, estimate_states, score_estimates
+from bayes_jackal.filters.state_space import channel_model, filter_models, measured_series
+from bayes_jackal.io.bag_writer import write_bag
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.model.physics import channel_coefficients, discrete_matrices
 
 ROBOT = load_profile()
 DT = ROBOT.dt

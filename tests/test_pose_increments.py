@@ -20,10 +20,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bayes_jackal.errors import DataError
-from bayes_jackal.experiment import Experiment, read_netcdf, write_netcdf
-from bayes_jackal.pose_increments import body_displacement, body_increments, tick_poses
-from bayes_jackal.pose_track import PoseTrack
+from bayes_jackal._runtime.errors import DataError
+from bayes_jackal.io.experiment import Experiment, read_netcdf, write_netcdf
+from bayes_jackal.io.pose_increments import body_displacement, body_increments, tick_poses
+from bayes_jackal.io.pose_track import PoseTrack
 
 SPEED, TURN, RADIUS = 0.3, 0.4, 0.75  # v [m/s], r [rad/s], v / r [m]
 

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import bayes_jackal as bj
-from bayes_jackal.bag_writer import SUBSTEPS, pose_path
-from bayes_jackal.criticism_inputs import derived_velocities
-from bayes_jackal.errors import DataError
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.simulate import Series
-from bayes_jackal.tables import read_csv, write_csv
+from bayes_jackal._runtime.errors import DataError
+from bayes_jackal.io.bag_writer import SUBSTEPS, pose_path
+from bayes_jackal.io.simulate import Series
+from bayes_jackal.io.tables import read_csv, write_csv
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.posterior.criticism_inputs import derived_velocities
 
 ROBOT = bj.load_profile()
 
@@ -73,7 +73,7 @@ def test_velocities_declared_derived_are_warned_of(run, tmp_path):
 
 
 def test_the_command_line_declares_velocities_for_every_reader():
-    from bayes_jackal.cli import build_parser
+    from bayes_jackal.cli.parser import build_parser
     from bayes_jackal.cli.reading import log_options
 
     for command in ("sample", "compare", "analyse", "grid", "residuals", "filter"):
@@ -95,8 +95,8 @@ def test_a_csv_of_an_experiment_with_poses_says_they_are_not_written(run, tmp_pa
 def test_simulate_writes_bags_with_the_pose_noise_asked_for(tmp_path, capsys):
     import json
 
-    from bayes_jackal.bags import read_bag
     from bayes_jackal.cli import main
+    from bayes_jackal.io.bags import read_bag
 
     code = main(["simulate", "--out", str(tmp_path), "--v1", "1", "--v2", "0", "--seed", "2",
                  "--bag", "ros1", "--pose-noise", "2e-4", "0", "--json"])  # fmt: skip

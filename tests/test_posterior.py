@@ -12,27 +12,28 @@ import pytest
 import xarray as xr
 
 from bayes_jackal import DataError, load_profile
-from bayes_jackal.evidence import Evidence
-from bayes_jackal.experiment import write_netcdf
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.physics import CHANNELS
-from bayes_jackal.posterior import (
+from bayes_jackal._runtime.defaults import CHANNELS
+from bayes_jackal.io.experiment import write_netcdf
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood.priors import Prior
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.posterior.file_format import (
     FORMAT,
     ROBOT_CONSTANTS,
-    Convergence,
-    build_inference_data,
     experiment_arrays,
+    posterior_metadata,
+    store_comparison,
+    store_criticism,
+)
+from bayes_jackal.posterior.inference_data import (
+    build_inference_data,
     load_posterior,
     parameter_draws,
     posterior_experiments,
-    posterior_metadata,
     save_posterior,
-    store_comparison,
-    store_criticism,
-    summarize,
 )
-from bayes_jackal.priors import Prior
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.posterior.records import Convergence, Evidence
+from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
 #: A posterior written by bayes_jackal 0.1.0 before the format had an owner,
@@ -43,7 +44,7 @@ OLD_SUMMARY = {
     ("sigma_c", "sd"): 0.00015590805711891196,
     ("ratio", "hdi_97%"): 3.6803520895780584,
 }
-#: Diagnostics as the sampler writes them (bayes_jackal.inference), every field set.
+#: Diagnostics as the sampler writes them (bayes_jackal.inference.sampling), every field set.
 WALKERS, DRAWS = 8, 6
 
 
@@ -240,9 +241,10 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     # vx, vy recorded as motion-capture poses: sigma_p is indexed by the pose
     # channels alone, sigma_n by yaw alone, and the file rebuilds the poses.
     from bayes_jackal import sample
-    from bayes_jackal.bag_writer import write_bag
-    from bayes_jackal.bags import read_bag
-    from bayes_jackal.posterior import model_autocovariance, observed_residuals
+    from bayes_jackal.io.bag_writer import write_bag
+    from bayes_jackal.io.bags import read_bag
+    from bayes_jackal.posterior.file_format import observed_residuals
+    from bayes_jackal.posterior.inference_data import model_autocovariance
 
     run = simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 10.0), rng=1, name="short")
     experiment = read_bag(write_bag(run, tmp_path / "short.bag", ROBOT, "ros1", rng=1), ROBOT)

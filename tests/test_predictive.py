@@ -6,23 +6,23 @@ import numpy as np
 import pytest
 from synthetic_posteriors import ROBOT, posterior_at
 
-from bayes_jackal import predictive
-from bayes_jackal._chunks import chunks
-from bayes_jackal.likelihood import sample_stationary
-from bayes_jackal.physics import simulate
-from bayes_jackal.posterior import (
+from bayes_jackal._runtime.chunks import chunks
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood.residual_likelihood import sample_stationary
+from bayes_jackal.model.physics import simulate
+from bayes_jackal.posterior import predictive
+from bayes_jackal.posterior.file_format import posterior_metadata
+from bayes_jackal.posterior.inference_data import (
     model_autocovariance,
     posterior_likelihood,
-    posterior_metadata,
     thinned_draws,
 )
-from bayes_jackal.predictive import (
+from bayes_jackal.posterior.predictive import (
     model_percentiles,
     predictive_series,
     predictive_statistics,
 )
-from bayes_jackal.series_statistics import sample_autocorrelation
-from bayes_jackal.simulate import Series, simulate_experiment
+from bayes_jackal.posterior.series_statistics import sample_autocorrelation
 
 #: Damping, then (sigma_h, sigma_c, sigma_n) of yaw: the simulator's truth.
 TRUTH = [110.0, 30.0, 0.047, 0.01, 0.005]

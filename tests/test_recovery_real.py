@@ -15,8 +15,9 @@ import scipy.stats
 
 from bayes_jackal import load_profile
 from bayes_jackal.cli import main
-from bayes_jackal.posterior import load_posterior, summarize
-from bayes_jackal.tables import write_csv
+from bayes_jackal.io.tables import write_csv
+from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
 #: (d_lat [N s/m], d_long [N s/m], sigma_h [s]) of the issue: the thesis'

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayes_jackal import plots
 from bayes_jackal.cli import main
-from bayes_jackal.posterior import load_posterior, save_posterior
-from bayes_jackal.report_sections import _criticism_table
+from bayes_jackal.posterior.inference_data import load_posterior, save_posterior
+from bayes_jackal.report import plots
+from bayes_jackal.report.sections import _criticism_table
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 #: Flags for headless Chromium as root in a sandbox without network.
@@ -264,7 +264,7 @@ def test_the_report_renders_in_chromium_with_every_figure_loaded(posteriors, tmp
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian package chromium is not installed")
 def test_the_browser_check_catches_a_broken_figure_and_a_script_error(tmp_path):
     # The check above can fail: a page with a missing image and a bad script.
-    from bayes_jackal.report import _SELF_CHECK
+    from bayes_jackal.report.page import _SELF_CHECK
 
     page = tmp_path / "broken.html"
     page.write_text(

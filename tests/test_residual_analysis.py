@@ -11,30 +11,26 @@ import numpy as np
 import pytest
 
 from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal._runtime.defaults import CHANNELS
 from bayes_jackal.cli import main
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.kernels import get_family
-from bayes_jackal.physics import (
-    CHANNELS,
-    channel_coefficients,
-    discrete_matrices,
-    one_step_residuals,
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.io.tables import read_csv, write_csv
+from bayes_jackal.likelihood.residuals import channel_residuals
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.model.physics import channel_coefficients, discrete_matrices, one_step_residuals
+from bayes_jackal.posterior.series_statistics import (
+    autocorrelation_bounds,
+    ljung_box,
+    sample_autocorrelation,
 )
-from bayes_jackal.residual_analysis import (
+from bayes_jackal.thesis.residual_analysis import (
     SIGMA_H_GRID,
     analyse,
     average_per_series,
     fit_sigma_h,
     sigma_h_table,
 )
-from bayes_jackal.residuals import channel_residuals
-from bayes_jackal.series_statistics import (
-    autocorrelation_bounds,
-    ljung_box,
-    sample_autocorrelation,
-)
-from bayes_jackal.simulate import NoiseSettings, simulate_experiment, simulate_series
-from bayes_jackal.tables import read_csv, write_csv
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
@@ -387,9 +383,9 @@ def test_pose_channels_are_analysed_on_their_derived_velocities(tmp_path):
     # residuals are those of the bag's derived vx under the rate model.
     import dataclasses
 
-    from bayes_jackal.bag_writer import write_bag
-    from bayes_jackal.bags import read_bag
-    from bayes_jackal.residuals import channel_residuals
+    from bayes_jackal.io.bag_writer import write_bag
+    from bayes_jackal.io.bags import read_bag
+    from bayes_jackal.likelihood.residuals import channel_residuals
 
     robot = load_profile()
     run = simulate_experiment(robot, 110.0, 30.0, "v2", rng=3)

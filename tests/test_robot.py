@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from bayes_jackal.errors import InputError, ProfileError
-from bayes_jackal.robot import RobotProfile, default_profile_path, load_profile
+from bayes_jackal._runtime.errors import InputError, ProfileError
+from bayes_jackal.model.robot import RobotProfile, default_profile_path, load_profile
 
 #: A valid profile as TOML sections of raw TOML values.
 VALID = {

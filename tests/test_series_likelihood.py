@@ -1,4 +1,4 @@
-"""The likelihood of a bare noise series (bayes_jackal.series_likelihood).
+"""The likelihood of a bare noise series (bayes_jackal.likelihood.series_likelihood).
 
 The ``exact`` engine is checked against a dense Gaussian density written
 here, with the mean integrated numerically; the ``fast`` engine against
@@ -14,11 +14,14 @@ import scipy.integrate
 import scipy.linalg
 import scipy.stats
 
-from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.kernels import FAMILIES, get_family
-from bayes_jackal.likelihood import residual_autocovariance
-from bayes_jackal.series_likelihood import MIN_SAMPLES, SeriesLikelihood
-from bayes_jackal.spectral import evaluate_on_grids, spectral_forms
+from bayes_jackal._runtime.errors import DataError, InputError
+from bayes_jackal.likelihood.measurements import residual_autocovariance
+from bayes_jackal.likelihood.series_likelihood import (
+    MIN_LIKELIHOOD_SAMPLES,
+    SeriesLikelihood,
+)
+from bayes_jackal.likelihood.spectral import evaluate_on_grids, spectral_forms
+from bayes_jackal.model.kernels import FAMILIES, get_family
 
 DT = 0.01
 #: fast == exact [nats] (module docstring).
@@ -197,7 +200,12 @@ def _bad(values=None, **options):
             "nan at sample 50",
         ),
         ({"values": np.full(100, 2.5)}, DataError, "values", "constant series"),
-        ({"values": np.arange(MIN_SAMPLES - 1.0)}, DataError, "values", f"only {MIN_SAMPLES - 1}"),
+        (
+            {"values": np.arange(MIN_LIKELIHOOD_SAMPLES - 1.0)},
+            DataError,
+            "values",
+            f"only {MIN_LIKELIHOOD_SAMPLES - 1}",
+        ),
         ({"values": np.ones((10, 10))}, DataError, "values", "(10, 10)"),
         ({"dt": 0.0}, InputError, "dt", "got 0.0"),
         ({"dt": float("nan")}, InputError, "dt", "got nan"),

@@ -6,8 +6,8 @@ import scipy.signal
 import scipy.stats
 
 from bayes_jackal import InputError
-from bayes_jackal.kernels import get_family
-from bayes_jackal.series_statistics import (
+from bayes_jackal.model.kernels import get_family
+from bayes_jackal.posterior.series_statistics import (
     MATLAB_LEVEL,
     autocorrelation_bounds,
     ljung_box,

@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal import InputError, load_profile
-from bayes_jackal.physics import discrete_matrices, one_step_residuals
-from bayes_jackal.simulate import (
+from bayes_jackal.io.simulate import (
     REST,
     SERIES,
     NoiseSettings,
@@ -13,6 +12,7 @@ from bayes_jackal.simulate import (
     simulate_experiment,
     simulate_series,
 )
+from bayes_jackal.model.physics import discrete_matrices, one_step_residuals
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0

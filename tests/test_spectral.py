@@ -1,4 +1,4 @@
-"""The ``fast`` engine (bayes_jackal.spectral) against the Durbin-Levinson reference.
+"""The ``fast`` engine (bayes_jackal.likelihood.spectral) against the Durbin-Levinson reference.
 
 The engine evaluates each parameter set on a short spectral grid when its
 spectral factor has converged there, else on the full grid, else by the
@@ -11,11 +11,12 @@ test_likelihood.py.
 import numpy as np
 import pytest
 
-from bayes_jackal import load_profile, spectral
-from bayes_jackal._chunks import chunks
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.kernels import FAMILIES
-from bayes_jackal.likelihood import ResidualLikelihood
+from bayes_jackal import load_profile
+from bayes_jackal._runtime.chunks import chunks
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.likelihood import spectral
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.kernels import FAMILIES
 
 ROBOT = load_profile()
 DT = 1.0 / 72.0
@@ -77,7 +78,7 @@ def _grids_used(monkeypatch, likelihood, theta) -> list[int]:
         used.extend([size] * int(converged.sum()))
         return values, converged
 
-    monkeypatch.setattr("bayes_jackal.likelihood.spectral_loglike", recording)
+    monkeypatch.setattr("bayes_jackal.likelihood.residual_likelihood.spectral_loglike", recording)
     likelihood(theta)
     return used
 

@@ -27,16 +27,17 @@ import warnings
 import numpy as np
 import pytest
 
+from bayes_jackal._runtime.errors import DataError, InputError
 from bayes_jackal.cli import main
-from bayes_jackal.errors import DataError, InputError
-from bayes_jackal.gridsearch import damping_grid, grid_search
-from bayes_jackal.inference import SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import load_posterior
-from bayes_jackal.robot import default_profile_path, load_profile
-from bayes_jackal.simulate import Series, simulate_experiment
-from bayes_jackal.stamps import GRID, ONE_PER_TICK, UNIFORM, sort_stamps, uniform_clock
-from bayes_jackal.tables import load_experiment, read_csv, write_csv
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.io.stamps import GRID, ONE_PER_TICK, UNIFORM, sort_stamps, uniform_clock
+from bayes_jackal.io.tables import load_experiment, read_csv, write_csv
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.robot import default_profile_path, load_profile
+from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.thesis.gridsearch import damping_grid, grid_search
 
 MS = 1e-3
 
@@ -447,10 +448,10 @@ def test_time_in_milliseconds_or_nanoseconds_is_refused(tmp_path, capsys, unit, 
 def test_a_bool_is_not_a_sample_time_or_a_rate(tmp_path):
     # float(True) is 1.0: dt=True read as 1 s would pass silently. Each user of
     # positive_number refuses it (numpy's bool too), naming the option.
-    from bayes_jackal.acf_fit import thesis_fit
-    from bayes_jackal.noise_series import read_noise_series
-    from bayes_jackal.series_likelihood import SeriesLikelihood
-    from bayes_jackal.series_statistics import spectrum
+    from bayes_jackal.likelihood.series_likelihood import SeriesLikelihood
+    from bayes_jackal.noise.series import read_noise_series
+    from bayes_jackal.posterior.series_statistics import spectrum
+    from bayes_jackal.thesis.acf_fit import thesis_fit
 
     values = np.random.default_rng(1).standard_normal(64)
     for check in (

@@ -9,8 +9,8 @@ from synthetic_posteriors import posterior_at
 
 import bayes_jackal as bj
 from bayes_jackal import InputError
-from bayes_jackal.kalman import StateEstimate
-from bayes_jackal.state_estimation import NIS_PROBABILITY, nis_band
+from bayes_jackal.filters.kalman_filters import StateEstimate
+from bayes_jackal.filters.state_estimation import NIS_PROBABILITY, nis_band
 
 ROBOT = bj.load_profile()
 #: The simulator's truth for the yaw channel: d_lat, d_long [N s/m], sigma_h [s],

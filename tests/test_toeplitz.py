@@ -1,4 +1,4 @@
-"""Time-domain Toeplitz densities (bayes_jackal.toeplitz) against dense references.
+"""Time-domain Toeplitz densities (bayes_jackal.likelihood.toeplitz) against dense references.
 
 The banded Cholesky is checked against the dense Gaussian density
 (numpy's Cholesky of the Toeplitz matrix built here), on the families'
@@ -15,18 +15,18 @@ import pytest
 import scipy.linalg
 
 from bayes_jackal import load_profile
-from bayes_jackal.experiment import Experiment
-from bayes_jackal.kernels import FAMILIES, get_family
-from bayes_jackal.likelihood import ResidualLikelihood, residual_autocovariance
-from bayes_jackal.series_likelihood import SeriesLikelihood
-from bayes_jackal.spectral import evaluate_on_grids, spectral_forms
-from bayes_jackal.toeplitz import (
+from bayes_jackal.io.experiment import Experiment
+from bayes_jackal.likelihood.measurements import residual_autocovariance
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.likelihood.series_likelihood import SeriesLikelihood
+from bayes_jackal.likelihood.spectral import evaluate_on_grids, spectral_forms
+from bayes_jackal.likelihood.toeplitz import (
     FALLBACK_BAND,
     banded_toeplitz_loglike,
-    bandwidth,
     fallback_loglike,
     toeplitz_loglike,
 )
+from bayes_jackal.model.kernels import FAMILIES, bandwidth, get_family
 
 DT = 1.0 / 72.0
 #: Banded == dense Cholesky [nats] (module docstring).

@@ -13,21 +13,23 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from bayes_jackal import progress as progress_module
-from bayes_jackal.bag_writer import write_bag
-from bayes_jackal.bags import read_bag
+from bayes_jackal._runtime import progress as progress_module
+from bayes_jackal._runtime.progress import Progress
 from bayes_jackal.cli import main
-from bayes_jackal.demo import demo_folder, demo_labels
-from bayes_jackal.executors import SerialExecutor
-from bayes_jackal.experiment import read_netcdf, write_netcdf
-from bayes_jackal.inference import ConvergenceWarning, SamplerSettings, sample_posterior
-from bayes_jackal.likelihood import ResidualLikelihood
-from bayes_jackal.posterior import load_posterior
-from bayes_jackal.progress import Progress
-from bayes_jackal.robot import load_profile
-from bayes_jackal.simulate import Series, simulate_experiment
-from bayes_jackal.tables import write_csv
-from bayes_jackal.workflow import analyse_logs, ingest_logs
+from bayes_jackal.inference.chains import SamplerSettings
+from bayes_jackal.inference.executors import SerialExecutor
+from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
+from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io.bag_writer import write_bag
+from bayes_jackal.io.bags import read_bag
+from bayes_jackal.io.experiment import read_netcdf, write_netcdf
+from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.io.tables import write_csv
+from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.model.robot import load_profile
+from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.workflow.analysis import analyse_logs, ingest_logs
+from bayes_jackal.workflow.demo import demo_folder, demo_labels
 
 ROBOT = load_profile()
 #: Cursor movement of a redrawn bar: carriage return or an ANSI escape sequence.

@@ -48,10 +48,10 @@ def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
 
     The signal handlers come first, then the imports: SIGINT or SIGTERM at
     any moment prints one line and exits 130 or 143
-    (:mod:`bayes_jackal.interrupt`). The previous handlers are restored on
+    (:mod:`bayes_jackal._runtime.interrupt`). The previous handlers are restored on
     return (``_exiting``, for :func:`console`: the signals are ignored).
     """
-    from .. import interrupt
+    from .._runtime import interrupt
 
     previous = interrupt.install()
     try:
@@ -92,7 +92,7 @@ def _run(argv: list[str] | None) -> int:
 
         print(f"bayes-jackal {__version__}")
         return 0
-    from .. import interrupt
+    from .._runtime import interrupt
     from .parser import build_parser
 
     try:  # the parser loads no numpy: --help answers at once
@@ -103,8 +103,8 @@ def _run(argv: list[str] | None) -> int:
         from .output import EXIT_BAD_INPUT
 
         return EXIT_BAD_INPUT
-    from .._threads import one_blas_thread
-    from ..errors import InputError
+    from .._runtime.errors import InputError
+    from .._runtime.threads import one_blas_thread
 
     # The command's module and its imports, numpy and the rest.
     commands = importlib.import_module(_MODULES.get(args.command, ".commands"), __name__)
@@ -115,7 +115,7 @@ def _run(argv: list[str] | None) -> int:
     command = getattr(commands, f"cmd_{args.command.replace('-', '_')}")
     try:
         # Warnings on stderr; outputs checked, inputs protected, main output locked;
-        # one BLAS thread for the package's small linear algebra (bayes_jackal._threads).
+        # one BLAS thread for the package's small linear algebra (bayes_jackal._runtime.threads).
         with _warnings_shown(debug=args.debug), guarded(args), one_blas_thread():
             return command(args)
     except InputError as exc:  # names its file, field and value

@@ -12,41 +12,39 @@ from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
-from .._files import write_json
-from ..api import likelihood_options
-from ..bag_writer import POSE_NOISE, bag_truth, write_bag
-from ..comparison import compare_groups
-from ..criticism import criticise
-from ..demo import DEMO_TRUTH, run_demo
-from ..errors import InputError, each_input
-from ..executors import Executor, executor_for
-from ..experiment import Experiment, write_netcdf
-from ..export import export_prior, read_prior, write_prior
-from ..gridsearch import damping_grid, grid_search
-from ..inference import (
-    ConvergenceWarning,
-    SamplerSettings,
-    chain_path,
-    keep_warnings,
-    sample_posterior,
-)
-from ..kernels import FAMILIES
-from ..likelihood import ResidualLikelihood, resolve_channels
-from ..parameters import prior_overrides
-from ..plots import save_grid_plot
-from ..posterior import load_posterior, save_posterior, summarize
-from ..report import read_posteriors, save_report
-from ..residual_analysis import analyse
-from ..robot import RobotProfile
-from ..simulate import NoiseSettings, simulate_series
-from ..state_estimation import (
+from .._runtime.defaults import POSE_NOISE
+from .._runtime.errors import InputError, each_input
+from .._runtime.files import write_json
+from ..dem.export import export_prior, read_prior, write_prior
+from ..filters.state_estimation import (
     estimate_columns,
     estimate_each,
     score_estimates,
     write_estimates,
 )
-from ..tables import write_csv
-from ..workflow import analyse_logs, ingest_logs
+from ..inference.chains import SamplerSettings
+from ..inference.comparison import compare_groups
+from ..inference.executors import Executor, executor_for
+from ..inference.sampler_warnings import ConvergenceWarning, keep_warnings
+from ..inference.sampling import chain_path, sample_posterior
+from ..io.bag_writer import bag_truth, write_bag
+from ..io.experiment import Experiment, write_netcdf
+from ..io.simulate import NoiseSettings, simulate_series
+from ..io.tables import write_csv
+from ..likelihood.residual_likelihood import ResidualLikelihood, resolve_channels
+from ..model.kernels import FAMILIES
+from ..model.parameters import prior_overrides
+from ..model.robot import RobotProfile
+from ..posterior.criticism import criticise
+from ..posterior.inference_data import load_posterior, save_posterior
+from ..posterior.summary import summarize
+from ..report.grid_plots import save_grid_plot
+from ..report.page import read_posteriors, save_report
+from ..thesis.gridsearch import damping_grid, grid_search
+from ..thesis.residual_analysis import analyse
+from ..workflow.analysis import analyse_logs, ingest_logs
+from ..workflow.api import likelihood_options
+from ..workflow.demo import DEMO_TRUTH, run_demo
 from .output import (
     EXIT_BAD_INPUT,
     EXIT_OK,
@@ -64,13 +62,7 @@ from .output import (
 )
 from .parser_types import prior_ranges
 from .paths import check_named_outputs, family_files, group_name, summary_file
-from .reading import (
-    each_experiment,
-    load_logs,
-    read_options,
-    robot_profile,
-    robot_with_topics,
-)
+from .reading import each_experiment, load_logs, read_options, robot_profile, robot_with_topics
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:

@@ -7,19 +7,19 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from .._files import write_json
-from ..chains import SamplerSettings
-from ..errors import InputError, each_input
-from ..executors import ProcessExecutor
-from ..export import write_prior
-from ..noise_characterisation import (
+from .._runtime.errors import InputError, each_input
+from .._runtime.files import write_json
+from ..dem.export import write_prior
+from ..inference.chains import SamplerSettings
+from ..inference.executors import ProcessExecutor
+from ..noise.characterisation import (
     NoiseCharacterisation,
     characterise_noise,
     series_prior_overrides,
 )
-from ..noise_prior import export_noise_prior
-from ..noise_report import NOISE_HEADER, NOISE_REPORT, noise_rows, write_noise_report
-from ..noise_series import read_noise_series
+from ..noise.prior import export_noise_prior
+from ..noise.series import read_noise_series
+from ..report.noise_page import NOISE_HEADER, NOISE_REPORT, noise_rows, write_noise_report
 from .output import Failures, Reporter, warn_not_converged
 from .parser_types import prior_ranges
 

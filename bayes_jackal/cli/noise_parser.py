@@ -1,7 +1,7 @@
 """The flags of ``bayes-jackal noise`` (a bare noise series), apart from the main parser.
 
 Like :mod:`.parser` it loads no numpy: the names and defaults are the
-library's, from :mod:`bayes_jackal.defaults`.
+library's, from :mod:`bayes_jackal._runtime.defaults`.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from ..defaults import (
+from .._runtime.defaults import (
     AUTO_ORDER,
     MAX_GAP_STEPS,
     MIN_EVIDENCE_STEPS,

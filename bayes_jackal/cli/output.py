@@ -6,12 +6,12 @@ import sys
 import traceback
 from collections.abc import Callable
 
-from .._files import json_text
-from ..criticism import KIND_MEANINGS
-from ..errors import InputError, describe
-from ..gridsearch import GridResult
-from ..leave_one_out import method_text
-from ..state_estimation import score_rows
+from .._runtime.errors import InputError, describe
+from .._runtime.files import json_text
+from ..filters.left_out import method_text
+from ..filters.state_estimation import score_rows
+from ..posterior.criticism import KIND_MEANINGS
+from ..thesis.gridsearch import GridResult
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -140,7 +140,7 @@ def print_criticism(findings: list[dict], *, where: str = "--json and the report
     with the count and where the others are (``compare``: per family), or
     each whole where only their text tells them apart. The
     last line says in a phrase what each kind means
-    (:data:`bayes_jackal.criticism.KIND_MEANINGS`) and ``where`` every
+    (:data:`bayes_jackal.posterior.KIND_MEANINGS`) and ``where`` every
     warning is given in full.
     """
     groups: dict[tuple[str, str], list[dict]] = {}
@@ -277,7 +277,7 @@ def family_warnings(findings: list[dict], comparison: dict, *, where: str) -> No
 def print_failure(exc: Exception, source: str | None = None, *, debug: bool = False) -> int:
     """One line on stderr naming ``source`` (with ``--debug``, the traceback first); the exit code.
 
-    Bad input (:class:`~bayes_jackal.errors.InputError`) reads ``bayes-jackal:
+    Bad input (:class:`~bayes_jackal._runtime.errors.InputError`) reads ``bayes-jackal:
     error: ...`` and gives 2; any other exception ``bayes-jackal: failed: Type:
     message (source)`` and 1.
     """
@@ -292,7 +292,7 @@ def print_failure(exc: Exception, source: str | None = None, *, debug: bool = Fa
 class Failures:
     """Reports each input that fails as it fails (:func:`print_failure`); the exit code.
 
-    Pass it as ``on_failure`` of :func:`~bayes_jackal.errors.each_input`.
+    Pass it as ``on_failure`` of :func:`~bayes_jackal._runtime.errors.each_input`.
     ``code`` is 0 while nothing failed, 2 when only bad inputs did, 1 when
     any input failed otherwise.
     """

@@ -1,7 +1,7 @@
 """The argument parser of ``bayes-jackal``: commands, flags and their defaults.
 
 It loads no numpy, so that every ``--help`` answers at once: the names and
-defaults are the library's own, from :mod:`bayes_jackal.defaults`, and
+defaults are the library's own, from :mod:`bayes_jackal._runtime.defaults`, and
 :func:`bayes_jackal.cli.main` imports the commands (:mod:`.commands`) only
 to run one, ``cmd_<command>``.
 """
@@ -12,7 +12,7 @@ import argparse
 import os
 
 from .. import __version__
-from ..defaults import (
+from .._runtime.defaults import (
     AUTO_ORDER,
     BAG_FORMATS,
     CHANNELS,
@@ -54,43 +54,27 @@ from ..defaults import (
     VELOCITIES,
     WALKERS,
 )
-from ..errors import InputError
+from .._runtime.errors import InputError
 from .noise_parser import add_noise_parser
 from .parser_types import add_prior_flag
-from .parser_types import (
-    channel_list as _channel_list,
-)
-from .parser_types import (
-    count as _count,
-)
-from .parser_types import (
-    family as _family,
-)
-from .parser_types import (
-    family_list as _family_list,
-)
-from .parser_types import (
-    finite as _finite,
-)
-from .parser_types import (
-    name_list as _name_list,
-)
-from .parser_types import (
-    natural as _natural,
-)
-from .parser_types import (
-    non_negative as _non_negative,
-)
-from .parser_types import (
-    positive as _positive,
-)
+from .parser_types import channel_list as _channel_list
+from .parser_types import count as _count
+from .parser_types import family as _family
+from .parser_types import family_list as _family_list
+from .parser_types import finite as _finite
+from .parser_types import name_list as _name_list
+from .parser_types import natural as _natural
+from .parser_types import non_negative as _non_negative
+from .parser_types import positive as _positive
 
 
 class _Grid(argparse.Action):
     """``--d-lat START STOP STEP``: checked by the grid's own rule (``damping_grid``)."""
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
-        from ..gridsearch import damping_grid  # imported with a grid given: the command runs
+        from ..thesis.gridsearch import (
+            damping_grid,  # imported with a grid given: the command runs
+        )
 
         try:
             damping_grid(*values, name=option_string)

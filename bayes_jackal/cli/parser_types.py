@@ -10,8 +10,8 @@ import argparse
 import math
 from collections.abc import Callable
 
-from ..defaults import CHANNELS
-from ..errors import InputError
+from .._runtime.defaults import CHANNELS
+from .._runtime.errors import InputError
 
 __all__ = [
     "bounded",
@@ -53,7 +53,7 @@ def registered_families() -> tuple[str, ...]:
     The registry is the one list of families (docs/families.md), and reading it
     loads numpy: so ``--help`` does not, and a family flag is checked here.
     """
-    from ..kernels import FAMILIES  # imported with a family given: the command runs
+    from ..model.kernels import FAMILIES  # imported with a family given: the command runs
 
     return tuple(FAMILIES)
 
@@ -120,7 +120,7 @@ def prior_ranges(items: list[list[str]]) -> dict[str, tuple[str, str]]:
     """``--prior NAME LOW HIGH`` items (sample, compare, analyse, noise) as {name: (low, high)}.
 
     A name given twice is refused (the last would silently win); the command
-    validates the ranges and names (:func:`bayes_jackal.parameters.prior_overrides`).
+    validates the ranges and names (:func:`bayes_jackal.model.prior_overrides`).
 
     Raises
     ------

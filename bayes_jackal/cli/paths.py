@@ -1,7 +1,7 @@
 """Each command's planned outputs and its inputs, from its arguments; checked before any work.
 
 :func:`guarded` runs a command under the guarantees of
-:mod:`bayes_jackal.outputs`: outputs checked and their folders created before
+:mod:`bayes_jackal._runtime.output_safety`: outputs checked and their folders created before
 any work, the inputs never replaced, and the command's main output (the
 first one listed here) locked for the whole run.
 """
@@ -13,9 +13,9 @@ import contextlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from ..experiment import Experiment
-from ..inference import chain_path
-from ..outputs import Output, OutputLock, check_outputs, protected, removed_if_empty
+from .._runtime.output_safety import Output, OutputLock, check_outputs, protected, removed_if_empty
+from ..inference.sampling import chain_path
+from ..io.experiment import Experiment
 
 #: Figure suffixes of ``grid --plot`` (matplotlib's formats the README names).
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")

@@ -1,0 +1,502 @@
+"""Noise-filter families compared by evidence, on one group of experiments or on many at once.
+
+:func:`compare_groups` samples one posterior per (group, family) and
+estimates its evidence by bridge sampling
+(:func:`~bayes_jackal.inference.bridge_sampling`), one job each on an
+executor (:mod:`bayes_jackal.inference.executors`): every job of every group is
+submitted at once, so a campaign of many runs keeps every worker of a
+cluster busy, and each group's :class:`Comparison` comes back as soon as its
+families are done. :func:`compare_families` is its case of one group. A
+job's chain is seeded by ``seed`` and its bridge's proposal draws by
+``[seed, the family's index in FAMILIES]``: its result depends on nothing
+else, not on the executor nor on the other groups or families. The result
+object, its Bayes factors and its verdict are
+:mod:`bayes_jackal.inference.comparison_result`'s (:class:`Comparison` is importable
+from here too).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+import numpy as np
+
+from .._runtime.arviz_quiet import az
+from .._runtime.errors import DataError, InputError
+from ..io.experiment import Experiment
+from ..likelihood.priors import LogPosterior, Prior
+from ..likelihood.residual_likelihood import ResidualLikelihood
+from ..model.kernels import FAMILIES
+from ..model.robot import RobotProfile
+from ..posterior.file_format import posterior_metadata, store_comparison
+from ..posterior.inference_data import load_posterior, parameter_draws
+from ..posterior.records import Evidence
+from .chains import SamplerSettings
+from .comparison_result import Comparison
+from .evidence import bridge_sampling, nested_sampling
+from .executors import Executor, ProcessExecutor, SerialExecutor
+from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
+from .sampling import run_identity, sample_posterior
+
+__all__ = ["compare_families", "compare_groups"]
+
+K = TypeVar("K", bound=Hashable)
+
+#: The order tasks are handed to the executor: the families that usually take
+#: longest first, so that the short ones fill the workers at the end (a
+#: family's numbers do not depend on it). The boxcar and triangular kernels'
+#: spectra have zeros (longer spectral grids) and their width posteriors mix
+#: slowest; white noise has no width. Measured on a 300 s run, 2 cores:
+#: moving-average 7,000 steps (tau 108), triangular 3,800, exponential 2,900,
+#: gaussian 2,800 and white 3,900 at half the cost per step; in this order
+#: the five took 152 s, in the order of FAMILIES 190 s.
+_LONGEST_FIRST = ("moving-average", "triangular", "exponential", "gaussian", "white")
+#: Sampler settings that only change the display, not a family's result.
+_DISPLAY_SETTINGS = ("progress", "progress_label", "progress_line")
+
+
+@dataclass(frozen=True)
+class _FamilyRun:
+    """Everything one family's posterior and evidence need (picklable for a process).
+
+    ``lines`` (progress lines shared by the jobs running at once) and
+    ``label`` (put before the family on its progress bar) only change the
+    display.
+    """
+
+    experiments: list[Experiment]
+    robot: RobotProfile
+    settings: SamplerSettings | None
+    seed: int | None
+    prior_overrides: dict | None
+    cross_check: bool
+    likelihood_options: dict
+    lines: int = 1
+    label: str = ""
+
+    def _model(self, family: str) -> tuple[ResidualLikelihood, Prior]:
+        likelihood = ResidualLikelihood(
+            self.experiments, self.robot, family=family, **self.likelihood_options
+        )
+        return likelihood, Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
+
+    def task(self, family: str) -> dict:
+        """Everything that defines ``family``'s result, part by part (JSON-ready).
+
+        The chain's identity (:func:`bayes_jackal.inference.run_identity`),
+        the sampler settings but the display, and the cross-check.
+        """
+        likelihood, prior = self._model(family)
+        settings = self.settings or SamplerSettings()
+        sampler = {
+            key: value
+            for key, value in dataclasses.asdict(settings).items()
+            if key not in _DISPLAY_SETTINGS
+        }
+        walkers = settings.n_walkers(len(prior.names))
+        identity = run_identity(likelihood, prior, walkers, self.seed)
+        task = identity | {"sampler": sampler, "cross_check": self.cross_check}
+        return json.loads(json.dumps(task))
+
+    def __call__(self, job: tuple[int, str]):
+        """(family, evidence, posterior, nested evidence or None, kept warnings).
+
+        ``job`` is (position, family): the position picks the progress line.
+        The result, kept in the posterior's attributes, is that of
+        :meth:`_stored`; the convergence messages are stored there, the
+        other warnings raised come back as :class:`KeptWarnings`.
+        """
+        position, family = job
+        with keep_warnings() as kept:
+            likelihood, prior = self._model(family)
+            # One labelled progress line per family (processes share the terminal).
+            settings = dataclasses.replace(
+                self.settings or SamplerSettings(),
+                progress_label=f"{self.label}{family:>14s}",
+                progress_line=position % self.lines,
+            )
+            idata = sample_posterior(
+                likelihood, settings, self.seed, prior_overrides=self.prior_overrides
+            )
+            draws, lp = parameter_draws(idata)
+            # Keyed on the family, not on which others are compared: results are reusable.
+            key = list(FAMILIES).index(family)
+            rng = np.random.default_rng(None if self.seed is None else [self.seed, key])
+            evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
+            nested = nested_sampling(likelihood, prior, rng) if self.cross_check else None
+        store_comparison(
+            idata,
+            evidence=evidence,
+            nested=nested,
+            messages=kept.convergence,
+            task=self.task(family),
+        )
+        return self._stored(family, idata, kept)
+
+    @staticmethod
+    def _stored(family: str, idata: az.InferenceData, kept: KeptWarnings | None = None):
+        """(family, evidence, posterior, nested or None, ``kept``) from the posterior's attrs."""
+        metadata = posterior_metadata(idata)
+        return family, metadata.evidence, idata, metadata.evidence_nested, kept or KeptWarnings()
+
+    def reuse(self, family: str, path: Path, say: Callable[[str], None]):
+        """The result saved in ``path`` when its task is this one's, else None (saying why)."""
+        if not path.exists():
+            return None
+        try:
+            idata = load_posterior(path)
+            stored = posterior_metadata(idata).task or {}
+        except (DataError, ValueError) as exc:
+            say(f"  recomputing {family}: {exc}")
+            return None
+        if not stored:
+            say(f"  recomputing {family}: {path} holds no record of its settings")
+            return None
+        task = self.task(family)
+        differ = [part for part in task if stored.get(part) != task[part]]
+        if differ:
+            say(f"  recomputing {family}: {path} was computed with other {', '.join(differ)}")
+            return None
+        say(f"  reusing {family} from {path}")
+        return self._stored(family, idata)
+
+
+@dataclass(frozen=True)
+class _FamilyJob:
+    """One (group, family) job of :func:`compare_groups` (picklable).
+
+    Called with (key, run, position, family); returns (key, the run's
+    result), or, with ``catch``, (key, the exception that stopped it), so
+    that one group's failure does not stop the others.
+    """
+
+    catch: bool
+
+    def __call__(self, job: tuple[K, _FamilyRun, int, str]) -> tuple[K, tuple | Exception]:
+        key, run, position, family = job
+        try:
+            return key, run((position, family))
+        except Exception as exc:
+            if not self.catch:
+                raise
+            return key, exc
+
+
+def compare_groups(
+    groups: Mapping[K, Sequence[Experiment]],
+    robot: RobotProfile,
+    *,
+    families: Sequence[str] = tuple(FAMILIES),
+    settings: SamplerSettings | None = None,
+    seed: int | None = None,
+    prior_overrides: dict | None = None,
+    likelihood_options: Mapping | None = None,
+    cross_check: bool = False,
+    executor: Executor | None = None,
+    reuse: Mapping[K, Mapping[str, str | Path]] | None = None,
+    on_family: Callable[[K, str, Evidence, az.InferenceData], None] | None = None,
+    on_failure: Callable[[K, Exception], None] | None = None,
+    say: Callable[[str], None] = lambda text: None,
+) -> Iterator[tuple[K, Comparison]]:
+    """Compare the families on several independent groups of experiments, all jobs at once.
+
+    Every (group, family) job is submitted to ``executor`` at once; a
+    group's comparison is yielded as soon as all its families are done.
+    Each group's result is that of :func:`compare_families` on it alone
+    with the same seed, whichever executor ran it.
+
+    Parameters
+    ----------
+    groups : mapping of key to list of Experiment
+        Each group is pooled into one likelihood (shared damping), e.g.
+        ``{path: [experiment]}`` for one comparison per run. The keys name
+        the groups in what is yielded and in the callbacks.
+    robot : RobotProfile
+    families : sequence of str
+        Names from :data:`bayes_jackal.model.FAMILIES`.
+    settings : SamplerSettings, optional
+        With progress on, each job's bar is labelled with its family
+        (and, with several groups, the group's experiments).
+    seed : int, optional
+        Seeds every chain and the bridges' proposal draws (the same for
+        every group).
+    prior_overrides : dict, optional
+        As in :func:`bayes_jackal.inference.sample_posterior`.
+    likelihood_options : mapping, optional
+        ``channels``, ``shared_noise``, ``shared_width``, ``sensor``, ``engine`` of
+        :class:`ResidualLikelihood`, for every group. Without ``channels``
+        each group sees every channel measured in all its experiments.
+    cross_check : bool
+        Also estimate each evidence by nested sampling (slow).
+    executor : Executor, optional
+        Where the jobs run (:mod:`bayes_jackal.inference.executors`): local processes
+        (``ProcessExecutor``), a Dask cluster (``DaskExecutor``; no progress
+        bars there). Default: this process, one job after the other.
+    reuse : mapping of key to mapping of str to path, optional
+        Per group, where its finished families were saved (family ->
+        posterior file), as in :func:`compare_families`: a family saved
+        with this very task is read back, not run, and ``on_family`` is not
+        called for it.
+    on_family : callable, optional
+        Called with (key, family, evidence, posterior) as each job
+        finishes, e.g. to save it at once.
+    on_failure : callable, optional
+        Called with (key, exception) when a group fails (a job raises, or
+        ``on_family`` does): the group is not yielded and the others go on.
+        Without it the exception propagates and the jobs still pending
+        are stopped.
+    say : callable
+        Told which families are reused, and why others are recomputed.
+
+    Yields
+    ------
+    key, Comparison
+        As each group is done (groups whose families were all reused
+        first). Before each, the convergence warnings of its chains are
+        issued as :class:`~bayes_jackal.inference.ConvergenceWarning`
+        (:meth:`Comparison.convergence_messages`).
+
+    Raises
+    ------
+    InputError
+        For families that are not distinct names of ``FAMILIES`` (at once,
+        before any job).
+
+    Examples
+    --------
+    One comparison per run, here of white noise alone (a real campaign
+    compares several families) on chains kept short on purpose (20 steps):
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import compare_groups
+    >>> robot = bj.load_profile()
+    >>> runs = {
+    ...     name: [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed, name=name)]
+    ...     for seed, name in enumerate(["v1_01", "v1_02"], start=1)
+    ... }
+    >>> for key, comparison in compare_groups(
+    ...     runs, robot, families=["white"], settings=bj.SamplerSettings(max_steps=20), seed=1,
+    ...     likelihood_options={"channels": ["yaw"]},
+    ... ):
+    ...     print(key, comparison.experiments, list(comparison.evidence))
+    v1_01 ['v1_01'] ['white']
+    v1_02 ['v1_02'] ['white']
+    """
+    unknown = [name for name in families if name not in FAMILIES]
+    if unknown or not families or len(set(families)) != len(families):
+        raise InputError(
+            f"families must be distinct names from {list(FAMILIES)}, got {list(families)}",
+            field="families",
+        )
+    (settings or SamplerSettings()).check_evidence_steps()
+    executor = executor or SerialExecutor()
+    if not executor.terminal:  # workers have no terminal
+        settings = dataclasses.replace(settings or SamplerSettings(), progress=False)
+    options = dict(likelihood_options or {})
+    runs = {
+        key: _FamilyRun(
+            list(group),
+            robot,
+            settings,
+            seed,
+            prior_overrides,
+            cross_check,
+            options,
+            label="" if len(groups) == 1 else "+".join(e.name for e in group) + " ",
+        )
+        for key, group in groups.items()
+    }
+    return _comparisons(runs, tuple(families), executor, reuse or {}, on_family, on_failure, say)
+
+
+def _comparisons(
+    runs: dict[K, _FamilyRun],
+    families: tuple[str, ...],
+    executor: Executor,
+    reuse: Mapping[K, Mapping[str, str | Path]],
+    on_family: Callable[[K, str, Evidence, az.InferenceData], None] | None,
+    on_failure: Callable[[K, Exception], None] | None,
+    say: Callable[[str], None],
+) -> Iterator[tuple[K, Comparison]]:
+    """The generator of :func:`compare_groups` (its arguments checked)."""
+    done: dict[K, dict[str, list]] = {
+        key: {} for key in runs
+    }  # family -> evidence, posterior, nested
+    failed: set[K] = set()
+
+    def fail(key, exc: Exception) -> None:
+        if on_failure is None:
+            raise exc
+        failed.add(key)
+        on_failure(key, exc)
+
+    for key, run in runs.items():
+        paths = reuse.get(key, {})
+        try:
+            for family in families:
+                reused = run.reuse(family, Path(paths[family]), say) if family in paths else None
+                if reused is not None:
+                    done[key][family] = reused[1:]
+        except Exception as exc:  # e.g. a channel its data lack
+            fail(key, exc)
+    pending = sorted(
+        (
+            (key, family)
+            for key in runs
+            if key not in failed
+            for family in families
+            if family not in done[key]
+        ),
+        # A family not measured here (added to FAMILIES later) goes first.
+        key=lambda job: _LONGEST_FIRST.index(job[1]) if job[1] in _LONGEST_FIRST else -1,
+    )
+    lines = executor.slots(len(pending))
+    runs = {key: dataclasses.replace(run, lines=lines) for key, run in runs.items()}
+    jobs = [(key, runs[key], position, family) for position, (key, family) in enumerate(pending)]
+    with executor.run(_FamilyJob(catch=on_failure is not None), jobs) as finished:
+        for key in runs:  # every family reused
+            if key not in failed and len(done[key]) == len(families):
+                yield key, _comparison(runs[key], families, done[key])
+        for key, outcome in finished:  # in the order they finish
+            if key in failed:
+                continue
+            if isinstance(outcome, Exception):
+                fail(key, outcome)
+                continue
+            family, *result = outcome
+            done[key][family] = result
+            result[3].issue(f"{runs[key].label}{family}: ")  # raised in a worker, shown here
+            try:
+                if on_family is not None:
+                    on_family(key, family, *result[:2])
+            except Exception as exc:
+                fail(key, exc)
+                continue
+            if len(done[key]) == len(families):
+                yield key, _comparison(runs[key], families, done[key])
+
+
+def _comparison(run: _FamilyRun, families: tuple[str, ...], results: dict) -> Comparison:
+    """A group's comparison, its families in order; its chains' convergence warnings issued."""
+    comparison = Comparison(
+        [e.name for e in run.experiments],
+        {family: results[family][0] for family in families},
+        {family: results[family][1] for family in families},
+        {family: results[family][2] for family in families if results[family][2] is not None},
+    )
+    for message in comparison.convergence_messages():
+        warnings.warn(ConvergenceWarning(message), stacklevel=3)
+    return comparison
+
+
+def compare_families(
+    experiments: list[Experiment],
+    robot: RobotProfile,
+    families: tuple[str, ...] = tuple(FAMILIES),
+    settings: SamplerSettings | None = None,
+    seed: int | None = None,
+    prior_overrides: dict | None = None,
+    on_family: Callable[[str, Evidence, az.InferenceData], None] | None = None,
+    cross_check: bool = False,
+    processes: int = 1,
+    reuse: Mapping[str, str | Path] | None = None,
+    say: Callable[[str], None] = lambda text: None,
+    *,
+    executor: Executor | None = None,
+    **likelihood_options,
+) -> Comparison:
+    """Sample each family's posterior and estimate its evidence by bridge sampling.
+
+    :func:`compare_groups` on one group.
+
+    Parameters
+    ----------
+    experiments : list of Experiment
+        Pooled into one likelihood (shared damping).
+    robot : RobotProfile
+    families : tuple of str
+        Names from :data:`bayes_jackal.model.FAMILIES`.
+    settings : SamplerSettings, optional
+        With progress on, each family's bar is labelled and, with several
+        processes, kept on a line of its own.
+    seed : int, optional
+        Seeds every family's chain and the bridge's proposal draws; the
+        results do not depend on ``processes`` nor on the executor.
+    prior_overrides : dict, optional
+        As in :func:`bayes_jackal.inference.sample_posterior`.
+    on_family : callable, optional
+        Called with (family, evidence, posterior) as each family finishes,
+        e.g. to save it at once.
+    cross_check : bool
+        Also estimate each evidence by
+        :func:`~bayes_jackal.inference.nested_sampling` (slow).
+    processes : int
+        Families sampled at once, each in its own process (one per core),
+        when no ``executor`` is given.
+    reuse : mapping of str to path, optional
+        Where finished families were saved (family -> posterior file, e.g.
+        by ``on_family`` in a run that was interrupted). A family whose
+        saved task (data, robot, family, likelihood options, priors,
+        sampler settings but the display, seed, cross-check) equals this
+        one's is read back, not recomputed, and ``on_family`` is not
+        called for it.
+    say : callable
+        Told which families are reused, and why others are recomputed.
+    executor : Executor, optional
+        Where the families run, one job each
+        (:mod:`bayes_jackal.inference.executors`), e.g. ``DaskExecutor("tcp://host:8786")``
+        for a Dask cluster (no progress bars there). Default:
+        ``ProcessExecutor(processes)``.
+    **likelihood_options
+        ``channels``, ``shared_noise``, ``shared_width``, ``sensor``, ``engine`` of
+        :class:`ResidualLikelihood`. Without ``channels`` (or with None)
+        every family sees every channel measured in all experiments
+        (:func:`~bayes_jackal.likelihood.resolve_channels`).
+
+    Returns
+    -------
+    Comparison
+        Each posterior carries in its attributes its evidence
+        (``evidence``, ``evidence_nested``), its ``task`` and its
+        ``convergence_messages``. Families that hit the step cap re-issue their
+        :class:`~bayes_jackal.inference.ConvergenceWarning` here.
+
+    Examples
+    --------
+    Two families on a chain budget kept short on purpose (20 steps, far
+    from converged), so that the example is quick:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import compare_families
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> comparison = compare_families(
+    ...     [run], robot, ("white", "exponential"), bj.SamplerSettings(max_steps=20), seed=1,
+    ...     channels=["yaw"],
+    ... )
+    >>> list(comparison.evidence), comparison.best
+    (['white', 'exponential'], 'exponential')
+    >>> comparison.verdict()[0]
+    'coloured'
+    """
+    [(_, comparison)] = compare_groups(
+        {0: experiments},
+        robot,
+        families=families,
+        settings=settings,
+        seed=seed,
+        prior_overrides=prior_overrides,
+        likelihood_options=likelihood_options,
+        cross_check=cross_check,
+        executor=executor or ProcessExecutor(processes),
+        reuse=None if reuse is None else {0: reuse},
+        on_family=None if on_family is None else lambda _, *finished: on_family(*finished),
+        say=say,
+    )
+    return comparison

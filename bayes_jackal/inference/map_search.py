@@ -1,0 +1,656 @@
+"""The start of the chain: the maximum a posteriori point and the walkers around it.
+
+The MAP search starts from the likelihood profiled over each noise group
+(:mod:`bayes_jackal.inference.starts`), climbs with bounded quasi-Newton
+searches and line scans of the kernel widths, and the walkers are drawn from
+the Laplace approximation at the MAP, or, where the posterior is not that
+shape, from its moments or a mixture along its ridge (:func:`ridge_mixture`).
+The priors and the log-posterior live in :mod:`bayes_jackal.likelihood.priors`, the
+sampler in :mod:`bayes_jackal.inference.sampling`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+import scipy.optimize
+
+from .._runtime.errors import InputError
+from .._runtime.threads import one_blas_thread
+from ..likelihood.priors import LogPosterior, Prior
+from .moves import (
+    MIN_MATCHED_EFFICIENCY,
+    MIN_PROPOSAL_EFFICIENCY,
+    Approximation,
+    LaplaceApproximation,
+    MixtureApproximation,
+    Start,
+    as_mixture,
+    moment_matched,
+    proposal_efficiency,
+)
+from .starts import profile_starts
+
+__all__ = ["climb", "find_map", "laplace_walkers", "ridge_mixture", "scan_posterior"]
+
+
+#: Local searches of :func:`find_map`, from the best points of the profile.
+_MAP_STARTS = 4
+#: Points of a kernel width's coarse sweep over its prior range (log width).
+SWEEP_POINTS = 64
+#: Points of its refinement around the coarse best.
+SWEEP_REFINE = 32
+#: Cells of the grid along a curved posterior's widest parameter (:func:`ridge_mixture`).
+RIDGE_CELLS = 16
+#: How far below the highest cell's conditional maximum [nats] a cell still gets a component.
+RIDGE_DEPTH = 30.0
+
+
+@one_blas_thread()
+def find_map(
+    log_posterior: LogPosterior, rng: np.random.Generator, design_points: int = 1024
+) -> np.ndarray:
+    """Maximum a posteriori point in sampling coordinates.
+
+    The likelihood is a sum over noise groups, each depending on the damping
+    and its own noise only, so its profile over each group's noise on a
+    design over the damping (:func:`bayes_jackal.inference.profile_starts`,
+    ``design_points / 16`` damping points) finds the basin where every
+    channel's noise is right at once, which a design over the whole prior
+    box does not. Its best points start the local searches and width
+    sweeps of :func:`climb`.
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+    rng : numpy.random.Generator
+        Scrambles the damping design: same seed, same result.
+    design_points : int
+        Sixteen times the size of the damping design (at least 16 points).
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        z = log(theta) of the MAP.
+
+    Raises
+    ------
+    InputError
+        When the log-posterior is -inf at every start.
+
+    Examples
+    --------
+    A simulated run (truth d_lat = 110, d_long = 30 N s/m, sigma_h =
+    0.047 s) on the yaw and vx channels; about a second:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.inference import find_map
+    >>> from bayes_jackal.likelihood import LogPosterior, Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw", "vx"))
+    >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
+    >>> z = find_map(log_posterior, np.random.default_rng(1), design_points=64)
+    >>> [f"{name} {value:.3g}" for name, value in zip(likelihood.parameter_names[:3], np.exp(z))]
+    ['d_lat 107', 'd_long 28.7', 'sigma_h[yaw] 0.0465']
+    """
+    prior = log_posterior.prior
+    # Noise far below the data's overflows the likelihood's terms: -inf, checked below.
+    with np.errstate(over="ignore", divide="ignore"):
+        theta, _ = profile_starts(
+            log_posterior.likelihood,
+            prior.low,
+            prior.high,
+            damping_points=max(16, design_points // 16),
+            starts=_MAP_STARTS,
+            rng=rng,
+        )
+        starts = np.log(theta)
+        finite = np.isfinite(log_posterior(starts))
+    if not finite.any():
+        raise InputError(
+            f"the log-posterior is -inf at every start of the MAP search (the best {len(starts)} "
+            "points of the profile likelihood): the priors exclude every parameter value the "
+            "data allow",
+            field="priors",
+        )
+    layout = log_posterior.likelihood.layout
+    widths = layout.names_of(layout.width_name) if layout.width_name else ()
+    return climb(log_posterior, starts, widths=widths)
+
+
+def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimize.OptimizeResult:
+    """The best of L-BFGS-B maximisations within the prior's box from each row of ``starts``."""
+    prior = log_posterior.prior
+    bounds = list(zip(prior.z_low, prior.z_high, strict=True))
+
+    def maximise(start: np.ndarray) -> scipy.optimize.OptimizeResult:
+        # Finite differences next to a -inf region subtract inf - inf there;
+        # L-BFGS-B treats the NaN as a failed step and backs off.
+        with np.errstate(invalid="ignore"):
+            return scipy.optimize.minimize(
+                _with_gradient(log_posterior, prior.z_high), start, method="L-BFGS-B", jac=True,
+                bounds=bounds,
+            )  # fmt: skip
+
+    return max((maximise(start) for start in starts), key=lambda result: -result.fun)
+
+
+def scan_posterior(log_posterior: LogPosterior) -> LogPosterior:
+    """The MAP search's quick scan of a log-posterior: the spectral engine, the scans' fallback.
+
+    The likelihood's ``fast`` engine with ``fallback=False``: of the sets no
+    spectral grid certifies, only those whose banded factor is cheap are
+    evaluated (:data:`bayes_jackal.likelihood.SCAN_WORK`); the rest (long
+    memory, e.g. a 1 s kernel over 1e-4 sensor noise, each the O(n^2)
+    recursion) are -inf. Exact wherever it is finite.
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+        Over a likelihood with ``engine`` and ``fallback`` fields.
+
+    Returns
+    -------
+    LogPosterior
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.inference import scan_posterior
+    >>> from bayes_jackal.likelihood import LogPosterior, Prior
+    >>> from bayes_jackal.likelihood import SeriesLikelihood
+    >>> values = np.random.default_rng(1).standard_normal(200)
+    >>> likelihood = SeriesLikelihood(values=values, dt=0.01, family="exponential",
+    ...                               engine="exact")
+    >>> prior = Prior(likelihood.names, np.full(3, 0.001), np.full(3, 10.0), np.ones(3, bool))
+    >>> scan = scan_posterior(LogPosterior(likelihood, prior)).likelihood
+    >>> scan.engine, scan.fallback
+    ('fast', False)
+    """
+    scan = replace(log_posterior.likelihood, engine="fast", fallback=False)
+    return LogPosterior(scan, log_posterior.prior)
+
+
+@one_blas_thread()
+def climb(
+    log_posterior: LogPosterior, starts: np.ndarray, *, widths: Sequence[str] = ()
+) -> np.ndarray:
+    """The best maximum reached from ``starts``, its kernel widths swept out of local optima.
+
+    Bounded quasi-Newton (L-BFGS-B) searches within the prior's box on the
+    quick scan of the posterior (:func:`scan_posterior`), from each start
+    and from each start with its kernel widths swept (:func:`_sweep_widths`:
+    a start's width can lie where its likelihood is far from the profile's,
+    e.g. the Whittle profile's widest width for a triangular kernel, from
+    which a local search ends in a corner of the prior). Sweeps then move
+    the best end point out of a local optimum's basin and a search starts
+    again from there, at most three times. With another engine than
+    ``fast`` the result is polished on ``log_posterior`` itself; with
+    ``fast`` the scan is ``log_posterior`` wherever it is finite, and a
+    polish would only spend the exact time-domain fallback on the line
+    searches' trial points (a second each on a run's pose channels).
+    :func:`find_map` climbs from the best points
+    of the profile likelihood, a noise series' fit from the best of a
+    design over its prior.
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+        Over a likelihood with ``engine`` and ``fallback`` fields.
+    starts : ndarray, shape (S, k)
+        Starts in z = log theta.
+    widths : sequence of str
+        The names of the kernel widths among the prior's parameters.
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        z of the maximum.
+
+    Examples
+    --------
+    A moving-average series of 8 samples: its likelihood in the width has
+    a local maximum near 5 samples. A search started there stays; the
+    sweep finds the best basin (0.2 s).
+
+    >>> import numpy as np
+    >>> from bayes_jackal.model import get_family
+    >>> from bayes_jackal.inference import climb
+    >>> from bayes_jackal.likelihood import LogPosterior, Prior
+    >>> from bayes_jackal.likelihood import SeriesLikelihood
+    >>> rng = np.random.default_rng(1)
+    >>> values = get_family("moving-average").noise(0.08, 0.01, 400, rng=rng)
+    >>> values += 0.3 * rng.standard_normal(400)
+    >>> likelihood = SeriesLikelihood(values=values, dt=0.01, family="moving-average")
+    >>> prior = Prior(likelihood.names, np.array([0.005, 0.01, 0.01]),
+    ...               np.array([0.4, 10.0, 10.0]), np.ones(3, bool))
+    >>> log_posterior = LogPosterior(likelihood, prior)
+    >>> start = np.log([[0.04, 1.0, 0.3]])
+    >>> stays = climb(log_posterior, start)  # no width to sweep
+    >>> swept = climb(log_posterior, start, widths=[likelihood.width_name])
+    >>> [round(float(np.exp(z[0]) / 0.01), 1) for z in (stays, swept)]
+    [5.2, 8.0]
+    """
+    prior = log_posterior.prior
+    scan = scan_posterior(log_posterior)
+    columns = [column for column, name in enumerate(prior.names) if name in widths]
+    starts = np.atleast_2d(starts)
+    swept = np.array([_sweep_widths(scan, start, prior, columns) for start in starts])
+    moved = np.any(swept != starts, axis=1)
+    best = _best_local(scan, np.vstack([starts, swept[moved]]))
+    for _ in range(3):
+        swept = _sweep_widths(scan, best.x, prior, columns)
+        if np.array_equal(swept, best.x):
+            break
+        best = _best_local(scan, swept[None])
+    if log_posterior.likelihood.engine == "fast":
+        return best.x
+    polished = _best_local(log_posterior, best.x[None])
+    return polished.x if np.isfinite(polished.fun) else best.x
+
+
+def _with_gradient(function: Callable[[np.ndarray], np.ndarray], z_high: np.ndarray):
+    """-function(z) and its forward-difference gradient from one vectorised call.
+
+    The P + 1 points are evaluated as one batch (about half the cost of
+    P + 1 single calls); steps point into the box below ``z_high``, as
+    scipy's own finite differences do at a bound.
+    """
+
+    def negative(z: np.ndarray) -> tuple[float, np.ndarray]:
+        step = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(z))
+        step = np.where(z + step > z_high, -step, step)
+        values = -function(np.vstack([z, z + np.diag(step)]))
+        return values[0], (values[1:] - values[0]) / step
+
+    return negative
+
+
+def _sweep_widths(
+    function: LogPosterior,
+    z: np.ndarray,
+    prior: Prior,
+    width_columns: Sequence[int],
+) -> np.ndarray:
+    """Move each kernel width to the best of a grid over its prior range, the rest held.
+
+    A kernel width can have separated optima: the moving-average family's
+    likelihood in its width has local maxima at about half and 1.5 times
+    the best width, hundreds of nats lower, and a local search started in
+    their basins stays there. A line scan of each width finds the best
+    basin: :data:`SWEEP_POINTS` over the prior's range of log width, then
+    :data:`SWEEP_REFINE` within two of their steps of the best (a quarter
+    of the evaluations of one fine grid, most of them saved at the wide
+    widths, whose long predictors cost the most).
+    """
+    for column in width_columns:
+        low, high = prior.z_low[column], prior.z_high[column]
+        coarse = np.linspace(low, high, SWEEP_POINTS)
+        z = _best_on_line(function, z, column, coarse)
+        reach = 2 * (coarse[1] - coarse[0])
+        fine = np.linspace(max(low, z[column] - reach), min(high, z[column] + reach), SWEEP_REFINE)
+        z = _best_on_line(function, z, column, fine)
+    return z
+
+
+def _best_on_line(
+    function: LogPosterior, z: np.ndarray, column: int, values: np.ndarray
+) -> np.ndarray:
+    """The best of ``z`` and ``z`` with ``column`` set to each of ``values``."""
+    candidates = np.repeat(z[None], len(values) + 1, axis=0)
+    candidates[1:, column] = values
+    return candidates[np.argmax(function(candidates))]
+
+
+def laplace_walkers(
+    log_posterior: LogPosterior, centre: np.ndarray, walkers: int, rng: np.random.Generator
+) -> Start:
+    """Walkers from the Laplace approximation at ``centre``, kept inside the prior.
+
+    The approximation goes with them, for the chain's independence moves
+    (:mod:`bayes_jackal.inference.moves`), where importance sampling from their
+    proposal is efficient enough
+    (:func:`~bayes_jackal.inference.proposal_efficiency`). Where it is not
+    (a MAP on the prior's boundary: the damping ridge or a kernel width can
+    run into it; a Hessian that is not positive definite, regularised to
+    at most a quarter of each prior range), the approximation is moved to
+    the posterior's mean and covariance by importance sampling
+    (:func:`~bayes_jackal.inference.moment_matched`). Where no single t fits (a
+    curved ridge: the damping's scale unidentified, the noise bending along
+    it), the approximation is a mixture along the ridge
+    (:func:`ridge_mixture`). Where that fails too, the walkers start in a
+    small ball, and the chain moves by differential evolution alone.
+
+    Examples
+    --------
+    Walkers around a point (here the truth of a simulated run), all inside
+    the prior and of finite posterior:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.inference import laplace_walkers
+    >>> from bayes_jackal.likelihood import LogPosterior, Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw",))
+    >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
+    >>> centre = np.log([110.0, 30.0, 0.047, 0.01, 0.005])
+    >>> start = laplace_walkers(log_posterior, centre, 12, np.random.default_rng(1))
+    >>> start.walkers.shape
+    (12, 5)
+
+    Away from the MAP the Hessian is not the posterior's shape: importance
+    sampling from it is inefficient, so the approximation is moved to the
+    posterior's moments, from which it is efficient (measured 0.48):
+
+    >>> from bayes_jackal.inference import MIN_PROPOSAL_EFFICIENCY, proposal_efficiency
+    >>> efficiency = proposal_efficiency(
+    ...     log_posterior, start.approximation, np.random.default_rng(2)
+    ... )
+    >>> bool(efficiency > MIN_PROPOSAL_EFFICIENCY)
+    True
+    >>> inside = log_posterior.prior.inside(start.walkers)
+    >>> bool(inside.all() and np.isfinite(log_posterior(start.walkers)).all())
+    True
+    """
+    prior = log_posterior.prior
+    span = prior.z_high - prior.z_low
+    step = 1e-4 * span
+    centre = np.clip(centre, prior.z_low + 10 * step, prior.z_high - 10 * step)
+    gradient, hessian = _derivatives(log_posterior, centre, step)
+    approximation, exact = _hessian_approximation(centre, gradient, hessian, span)
+    points = None
+    if exact:
+        points = _walkers_inside(log_posterior, approximation, walkers, rng)
+        if points is not None and (
+            proposal_efficiency(log_posterior, approximation, rng) >= MIN_PROPOSAL_EFFICIENCY
+        ):
+            return Start(points, approximation)
+    if approximation is not None:  # not the posterior's shape: its moments, by importance sampling
+        matched = moment_matched(log_posterior, approximation, rng)
+        start = _efficient_start(log_posterior, matched, walkers, rng)
+        if start is None:  # a curved posterior, which no single t fits: a mixture along its ridge
+            widest = approximation if matched is None else matched
+            mixture = ridge_mixture(log_posterior, approximation.centre, widest.covariance)
+            start = _efficient_start(log_posterior, mixture, walkers, rng)
+        if start is not None:
+            return start
+    if points is None:  # no approximation of the posterior: a small ball
+        ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
+        points = ball[prior.inside(ball)][:walkers]
+    return Start(points, None)  # differential evolution alone
+
+
+def _derivatives(
+    log_posterior: LogPosterior, centre: np.ndarray, step: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Central-difference gradient and Hessian at ``centre``, one vectorised call over the stencil.
+
+    The gradient comes from the Hessian's diagonal points, ``centre`` +- 2 ``step``.
+    """
+    ndim = len(centre)
+    rows, cols = np.triu_indices(ndim)
+    signs = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
+    offsets = np.zeros((len(rows), 4, ndim))
+    pairs = np.arange(len(rows))[:, None]
+    offsets[pairs, np.arange(4), rows[:, None]] += signs[:, 0] * step[rows][:, None]
+    offsets[pairs, np.arange(4), cols[:, None]] += signs[:, 1] * step[cols][:, None]
+    values = log_posterior(centre + offsets.reshape(-1, ndim)).reshape(-1, 4)
+    hessian = np.zeros((ndim, ndim))
+    hessian[rows, cols] = values @ np.array([1, -1, -1, 1]) / (4 * step[rows] * step[cols])
+    hessian[cols, rows] = hessian[rows, cols]
+    diagonal = values[rows == cols]
+    return (diagonal[:, 0] - diagonal[:, 3]) / (4 * step), hessian
+
+
+def _hessian_approximation(
+    centre: np.ndarray, gradient: np.ndarray, hessian: np.ndarray, span: np.ndarray
+) -> tuple[LaplaceApproximation | None, bool]:
+    """The Laplace approximation at ``centre``, and whether it is exact (not regularised).
+
+    Where the negative Hessian is not positive definite, or has a direction
+    wider than a quarter of the prior (a MAP on the prior's boundary, a
+    direction the likelihood does not see), each of its
+    eigenvalues, in units of a quarter of each prior range, is raised to
+    the squared gradient along its direction (the log-density of an
+    exponential tail of scale 1 / |g| falls by |g| per unit), and to at
+    least 1: no direction wider than a quarter of the prior. None where
+    they are not finite.
+    """
+    if not (np.all(np.isfinite(hessian)) and np.all(np.isfinite(gradient))):
+        return None, False
+    if np.all(np.linalg.eigvalsh(-hessian * np.outer(span, span) / 16.0) >= 1.0):
+        try:
+            covariance = np.linalg.inv(-hessian)
+            np.linalg.cholesky(covariance)
+            return LaplaceApproximation(centre, covariance), True
+        except np.linalg.LinAlgError:
+            pass
+    return LaplaceApproximation(centre, _bounded_covariance(gradient, hessian, span)), False
+
+
+def _bounded_covariance(gradient: np.ndarray, hessian: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """The inverse negative Hessian, each eigenvalue raised to the squared slope along it and to 1.
+
+    In units of a quarter of each prior range (``span``): a direction in
+    which the log-density falls by |g| per unit is an exponential tail of
+    scale 1 / |g| (a parameter piled against its bound), whatever the
+    curvature says; none is wider than a quarter of the prior.
+    """
+    quarter = np.outer(span, span) / 16.0
+    values, vectors = np.linalg.eigh(-hessian * quarter)
+    slopes = (gradient * np.sqrt(np.diag(quarter))) @ vectors
+    values = np.maximum(np.maximum(values, slopes**2), 1.0)
+    return (vectors / values) @ vectors.T * quarter
+
+
+def _efficient_start(
+    log_posterior: LogPosterior,
+    approximation: Approximation | None,
+    walkers: int,
+    rng: np.random.Generator,
+) -> Start | None:
+    """Walkers from ``approximation`` where importance sampling from it is efficient enough.
+
+    None without an approximation, or below :data:`~bayes_jackal.inference.MIN_MATCHED_EFFICIENCY`.
+    """
+    try:
+        if approximation is None or (
+            proposal_efficiency(log_posterior, approximation, rng) < MIN_MATCHED_EFFICIENCY
+        ):
+            return None
+    except np.linalg.LinAlgError:  # a covariance that is not positive definite
+        return None
+    drawn = _walkers_inside(log_posterior, approximation, walkers, rng)
+    return None if drawn is None else Start(drawn, approximation)
+
+
+def _walkers_inside(
+    log_posterior: LogPosterior,
+    approximation: Approximation,
+    walkers: int,
+    rng: np.random.Generator,
+) -> np.ndarray | None:
+    """``walkers`` draws from half the approximation's width, inside the prior and finite.
+
+    A mixture's draws come from its components by weight. None when fewer
+    than ``walkers`` of 8 times as many draws are.
+    """
+    mixture, count = as_mixture(approximation), 8 * walkers
+    if len(mixture.weights) == 1:
+        points = rng.multivariate_normal(
+            mixture.centres[0], 0.25 * mixture.covariances[0], size=count
+        )
+    else:
+        chosen = rng.choice(len(mixture.weights), size=count, p=mixture.weights)
+        normal = rng.standard_normal((count, mixture.centres.shape[1]))
+        factors = np.linalg.cholesky(mixture.covariances)[chosen]
+        points = mixture.centres[chosen] + 0.5 * np.einsum("nij,nj->ni", factors, normal)
+    points = points[log_posterior.prior.inside(points)]
+    points = points[np.isfinite(log_posterior(points))]
+    return points[:walkers] if len(points) >= walkers else None
+
+
+def ridge_mixture(
+    log_posterior: LogPosterior, centre: np.ndarray, covariance: np.ndarray
+) -> MixtureApproximation | None:
+    """A mixture of Gaussians along the posterior's ridge: its profile over its widest parameter.
+
+    Where the damping's scale is not identified (one channel, short runs
+    at a low rate), the posterior is a ridge along it, and the noise
+    parameters bend with the scale (a banana). No single Gaussian fits it;
+    differential evolution crawls along it (tau of 130 steps on eight 48 s
+    runs at 10 Hz, yaw, the Gaussian family: 6,600 steps, 10 times the other
+    families' time). The parameter along which ``covariance`` is widest
+    (in units of its prior range) is cut into :data:`RIDGE_CELLS` cells;
+    in each, the log-posterior is maximised over the other parameters
+    (bounded quasi-Newton, started from the neighbouring cell's maximum,
+    outwards from the MAP's cell). Each cell within :data:`RIDGE_DEPTH`
+    nats of the best gives a component: centred at the cell's maximum, a
+    cell's width along the path's tangent, and across it the inverse
+    negative Hessian of the other parameters (an exponential tail's scale
+    along a direction in which the posterior is piled against its bound),
+    weighted by its Laplace mass (the maximum's height and the covariance's
+    volume). The independence moves then propose from the mixture
+    (:class:`~bayes_jackal.inference.IndependenceMove`).
+
+    Parameters
+    ----------
+    log_posterior : LogPosterior
+    centre : ndarray, shape (k,)
+        Where the path starts (the MAP), in z.
+    covariance : ndarray, shape (k, k)
+        An approximation's covariance (the moments by importance sampling,
+        which have spread along the ridge), which picks the widest parameter.
+
+    Returns
+    -------
+    MixtureApproximation or None
+        None where fewer than two cells have a finite maximum.
+
+    Examples
+    --------
+    A banana in two log-uniform parameters: z2 = 0.5 z1^2 within 0.05, z1
+    uniform over [-2, 2]. A Gaussian at z1 = -1.8 (a MAP at the end of the
+    ridge) covers none of it; the mixture follows it, and importance
+    sampling from it is efficient:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.inference import ridge_mixture
+    >>> from bayes_jackal.inference import proposal_efficiency
+    >>> from bayes_jackal.likelihood import LogPosterior, Prior
+    >>> def banana(theta):
+    ...     z = np.log(theta)
+    ...     return -0.5 * ((z[:, 1] - 0.5 * z[:, 0] ** 2) / 0.05) ** 2
+    >>> prior = Prior(("a", "b"), np.exp([-2.0, -1.0]), np.exp([2.0, 3.0]), np.full(2, True))
+    >>> log_posterior = LogPosterior(banana, prior)
+    >>> mixture = ridge_mixture(log_posterior, np.array([-1.8, 1.62]), np.diag([0.5, 0.01]))
+    >>> len(mixture.weights), np.round(mixture.centres[[0, -1]], 2).tolist()
+    (16, [[-1.88, 1.76], [1.88, 1.76]])
+    >>> bool(proposal_efficiency(log_posterior, mixture, np.random.default_rng(1)) > 0.5)
+    True
+    """
+    prior = log_posterior.prior
+    span = prior.z_high - prior.z_low
+    scaled = covariance / np.outer(span, span)
+    axis = int(np.argmax(np.abs(np.linalg.eigh(scaled)[1][:, -1])))
+    width = span[axis] / RIDGE_CELLS
+    cells = prior.z_low[axis] + width * (np.arange(RIDGE_CELLS) + 0.5)
+    path, heights = _conditional_maxima(log_posterior, centre, axis, cells)
+    finite = np.flatnonzero(np.isfinite(heights))
+    if len(finite) < 2:
+        return None
+    tangents = np.gradient(path[finite], cells[finite], axis=0)
+    kept = heights[finite] > np.max(heights[finite]) - RIDGE_DEPTH
+    cells_kept = zip(path[finite][kept], tangents[kept], heights[finite][kept], strict=True)
+    components = [
+        (point, component[0], height + component[1])
+        for point, tangent, height in cells_kept
+        if (component := _cell_component(log_posterior, point, tangent, axis, width))
+    ]
+    if not components:
+        return None
+    log_masses = np.array([log_mass for _, _, log_mass in components])
+    weights = np.exp(log_masses - np.max(log_masses))
+    used = weights > 1e-12  # a component of no weight would never be drawn
+    return MixtureApproximation(
+        weights[used] / np.sum(weights[used]),
+        np.array([point for point, _, _ in components])[used],
+        np.array([covariance for _, covariance, _ in components])[used],
+    )
+
+
+def _conditional_maxima(
+    log_posterior: LogPosterior, centre: np.ndarray, axis: int, cells: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each cell's maximum over the parameters but ``axis`` (fixed at the cell), and its height.
+
+    Each search starts from the neighbouring cell's maximum, outwards from
+    the cell nearest ``centre``.
+    """
+    path = np.repeat(centre[None], len(cells), axis=0)
+    path[:, axis] = cells
+    heights = np.full(len(cells), -np.inf)
+    first = int(np.argmin(np.abs(cells - centre[axis])))
+    for index in [*range(first, len(cells)), *range(first - 1, -1, -1)]:
+        neighbour = index - 1 if index > first else index + 1 if index < first else index
+        start = centre.copy() if index == first else path[neighbour].copy()
+        start[axis] = cells[index]
+        path[index], heights[index] = _conditional_maximum(log_posterior, start, axis)
+    return path, heights
+
+
+def _conditional_maximum(
+    log_posterior: LogPosterior, start: np.ndarray, axis: int
+) -> tuple[np.ndarray, float]:
+    """The maximum over every parameter but ``axis`` from ``start`` (L-BFGS-B in the prior box)."""
+    prior = log_posterior.prior
+    others = np.flatnonzero(np.arange(len(start)) != axis)
+
+    def conditional(u: np.ndarray) -> np.ndarray:
+        points = np.repeat(start[None], len(u), axis=0)
+        points[:, others] = u
+        return log_posterior(points)
+
+    low, high = prior.z_low[others], prior.z_high[others]
+    with np.errstate(invalid="ignore"):  # differences beside a -inf region, as in _best_local
+        result = scipy.optimize.minimize(
+            _with_gradient(conditional, high), np.clip(start[others], low, high),
+            method="L-BFGS-B", jac=True, bounds=list(zip(low, high, strict=True)),
+        )  # fmt: skip
+    point = start.copy()
+    point[others] = result.x
+    height = -float(result.fun)
+    return point, height if np.isfinite(height) else -np.inf
+
+
+def _cell_component(
+    log_posterior: LogPosterior, point: np.ndarray, tangent: np.ndarray, axis: int, width: float
+) -> tuple[np.ndarray, float] | None:
+    """A cell's covariance (its width along ``tangent``, the bounded inverse Hessian across)
+    and the log-volume of the part across (half the log-determinant).
+
+    None where the derivatives are not finite (the maximum against a region
+    where the posterior is -inf) or the covariance is not positive definite.
+    """
+    prior = log_posterior.prior
+    span = prior.z_high - prior.z_low
+    step = 1e-4 * span
+    inside = np.clip(point, prior.z_low + 10 * step, prior.z_high - 10 * step)
+    gradient, hessian = _derivatives(log_posterior, inside, step)
+    if not (np.all(np.isfinite(gradient)) and np.all(np.isfinite(hessian))):
+        return None
+    others = np.flatnonzero(np.arange(len(point)) != axis)
+    across = _bounded_covariance(gradient[others], hessian[np.ix_(others, others)], span[others])
+    covariance = width**2 * np.outer(tangent, tangent)
+    covariance[np.ix_(others, others)] += across
+    sign, log_determinant = np.linalg.slogdet(across)
+    if sign <= 0 or not np.all(np.isfinite(covariance)):
+        return None
+    return covariance, 0.5 * float(log_determinant)

@@ -1,0 +1,187 @@
+"""Posterior of the damping and the noise parameters, sampled with emcee (docs/design.md §4).
+
+The run: the likelihood profiled over each noise group's parameters on a
+design over the damping, local optimisations from the best profile points
+to the maximum a posteriori (MAP), walkers drawn from the Laplace
+approximation there, and the chain run to convergence by
+:func:`bayes_jackal.inference.run_chain` (stored step by step in an HDF5 file;
+a run started again with the same file and settings resumes where it
+stopped). :class:`SamplerSettings` and :class:`BufferedHDFBackend` live in
+:mod:`bayes_jackal.inference.chains` and are importable from here. The priors and
+the log-posterior live in :mod:`bayes_jackal.likelihood.priors`, the MAP search and
+the walkers' start in :mod:`bayes_jackal.inference.map_search`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from .._runtime import interrupt
+from .._runtime.arviz_quiet import az
+from ..io.pose_track import POSE_FIELDS
+from ..likelihood.priors import LogPosterior, Prior
+from ..likelihood.residual_likelihood import ResidualLikelihood
+from ..posterior.inference_data import build_inference_data
+from .chains import SamplerSettings, run_chain
+from .map_search import find_map, laplace_walkers
+from .moves import Start
+
+__all__ = ["chain_path", "run_identity", "sample_posterior"]
+
+
+def chain_path(posterior: str | Path) -> Path:
+    """Where ``sample`` keeps the chain of a posterior file: ``p.nc`` -> ``p.chain.h5``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.inference import chain_path
+    >>> chain_path("fits/posterior.nc").as_posix()
+    'fits/posterior.chain.h5'
+    """
+    return Path(posterior).with_suffix(".chain.h5")
+
+
+#: Robot fields that do not change a chain: names and where the profile came from.
+_ROBOT_LABELS = ("name", "source", "topics", "wheels")
+
+
+def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> dict:
+    """What defines a chain, part by part (JSON-ready; data and robot as hashes).
+
+    Keys ``data``, ``robot``, ``family``, ``likelihood``, ``priors``,
+    ``walkers`` and ``seed``: a resumed or reused run must match on all.
+
+    Examples
+    --------
+    What defines a chain; a resumed run must match it on every key:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import run_identity
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> from bayes_jackal.likelihood import Prior
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw",))
+    >>> identity = run_identity(likelihood, Prior.for_likelihood(likelihood, robot), 32, 1)
+    >>> sorted(identity)
+    ['data', 'family', 'likelihood', 'priors', 'robot', 'seed', 'walkers']
+    >>> identity["family"], identity["likelihood"]["channels"], len(identity["data"])
+    ('white', ['yaw'], 64)
+    """
+    data = hashlib.sha256()
+    for experiment in likelihood.experiments:
+        for values in (experiment.t, experiment.yaw_rate, experiment.omega_r, experiment.omega_l):
+            data.update(np.ascontiguousarray(values).tobytes())
+        for values in (experiment.vx, experiment.vy):
+            if values is not None:
+                data.update(np.ascontiguousarray(values).tobytes())
+        if experiment.pose is not None:  # the pose channels' data
+            for field in POSE_FIELDS:
+                data.update(np.ascontiguousarray(getattr(experiment.pose, field)).tobytes())
+        # The window the likelihood reads (``steady``): another window is other data.
+        data.update(json.dumps(experiment.steady_window).encode())
+    robot = {
+        key: value for key, value in asdict(likelihood.robot).items() if key not in _ROBOT_LABELS
+    }
+    return {
+        "data": data.hexdigest(),
+        "robot": hashlib.sha256(json.dumps(robot, sort_keys=True).encode()).hexdigest(),
+        "family": likelihood.family,
+        "likelihood": {
+            "channels": list(likelihood.channels),
+            "shared_noise": likelihood.shared_noise,
+            # only when set: chains written before the option still resume
+            **({"shared_width": True} if likelihood.shared_width else {}),
+            "sensor": likelihood.sensor,
+            "engine": likelihood.engine,
+            "steady": likelihood.steady,
+        },
+        "priors": {"low": prior.low.tolist(), "high": prior.high.tolist()},
+        "walkers": walkers,
+        "seed": seed,
+    }
+
+
+def _fingerprint(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> str:
+    """Hash of everything that defines a chain, to refuse resuming a different run."""
+    identity = run_identity(likelihood, prior, walkers, seed)
+    return hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
+
+
+def sample_posterior(
+    likelihood: ResidualLikelihood,
+    settings: SamplerSettings | None = None,
+    seed: int | None = None,
+    chain_file: str | Path | None = None,
+    prior_overrides: dict | None = None,
+    *,
+    say: Callable[[str], None] | None = None,
+) -> az.InferenceData:
+    """Sample the posterior of a residual likelihood with emcee.
+
+    Parameters
+    ----------
+    likelihood : ResidualLikelihood
+        Experiments, channels, noise family, sensor model and engine.
+    settings : SamplerSettings, optional
+    seed : int, optional
+        Seeds the design, the walkers and emcee's moves: same seed, same chain.
+    chain_file : str or Path, optional
+        HDF5 file of the chain; a run with the same file and settings resumes.
+    prior_overrides : dict, optional
+        (low, high) per base parameter name, over the profile's ranges.
+    say : callable, optional
+        Told "resuming <chain_file> at step N" when a stored chain resumes.
+
+    Returns
+    -------
+    arviz.InferenceData
+        Groups ``posterior`` (parameters and derived ratio, Ad, Bd),
+        ``sample_stats`` (lp, log_likelihood_total), ``observed_data`` (residuals at
+        the posterior median), ``constant_data`` (the measured experiments);
+        ``attrs`` hold convergence diagnostics and the settings.
+
+    Examples
+    --------
+    The posterior of a white-noise model of one run's yaw rate. The 20-step
+    chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import SamplerSettings, sample_posterior
+    >>> from bayes_jackal.likelihood import ResidualLikelihood
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw",))
+    >>> posterior = sample_posterior(likelihood, SamplerSettings(max_steps=20), seed=1)
+    >>> sorted(posterior.groups())
+    ['constant_data', 'observed_data', 'posterior', 'sample_stats']
+    >>> dict(posterior.posterior.sizes)
+    {'chain': 32, 'draw': 17, 'state': 3, 'wheel': 2}
+    """
+    settings = settings or SamplerSettings()
+    prior = Prior.for_likelihood(likelihood, likelihood.robot, prior_overrides)
+    log_posterior = LogPosterior(likelihood, prior)
+
+    def initial(rng: np.random.Generator, walkers: int) -> Start:
+        centre = find_map(log_posterior, rng, settings.design_points)
+        interrupt.check()  # a signal swallowed in the search (scipy's Cython code)
+        return laplace_walkers(log_posterior, centre, walkers, rng)
+
+    chain = run_chain(
+        log_posterior,
+        initial,
+        settings=settings,
+        seed=seed,
+        fingerprint=_fingerprint(likelihood, prior, settings.n_walkers(len(prior.names)), seed),
+        chain_file=chain_file,
+        say=say,
+    )
+    return build_inference_data(
+        likelihood, prior, chain.samples, chain.log_prob, chain.diagnostics
+    )

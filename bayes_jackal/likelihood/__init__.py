@@ -1,0 +1,94 @@
+"""From an experiment to a log-likelihood: one-step residuals, how each channel was
+measured, the likelihood engines (Toeplitz, spectral, Whittle) and the sampler's priors.
+"""
+
+from .measurements import (
+    MEASUREMENT_MODELS,
+    ChannelSeries,
+    Measurement,
+    PoseMeasurement,
+    RateMeasurement,
+    measurement_of,
+    pose_weights,
+    residual_autocovariance,
+)
+from .priors import LogPosterior, Prior
+from .residual_likelihood import (
+    ResidualLikelihood,
+    pose_channels,
+    resolve_channels,
+    sample_stationary,
+)
+from .residuals import channel_residuals, check_residual_window, residual_regressors
+from .series_likelihood import (
+    MIN_LIKELIHOOD_SAMPLES,
+    SERIES_SPREAD,
+    WHITE_SD,
+    SeriesLikelihood,
+    check_length,
+    check_series,
+)
+from .spectral import (
+    CHUNK_ELEMENTS,
+    SHORT_GRIDS,
+    ResidualBlock,
+    evaluate_on_grids,
+    spectral_forms,
+    spectral_loglike,
+)
+from .toeplitz import (
+    FALLBACK_BAND,
+    FAST_TOLERANCE,
+    SCAN_WORK,
+    banded_toeplitz_loglike,
+    fallback_loglike,
+    toeplitz_loglike,
+)
+from .whittle import (
+    cross_periodogram,
+    debiased_whittle_loglike,
+    expected_periodogram,
+    frequency_weights,
+)
+
+__all__ = [
+    "CHUNK_ELEMENTS",
+    "FALLBACK_BAND",
+    "FAST_TOLERANCE",
+    "MEASUREMENT_MODELS",
+    "MIN_LIKELIHOOD_SAMPLES",
+    "SCAN_WORK",
+    "SERIES_SPREAD",
+    "SHORT_GRIDS",
+    "WHITE_SD",
+    "ChannelSeries",
+    "LogPosterior",
+    "Measurement",
+    "PoseMeasurement",
+    "Prior",
+    "RateMeasurement",
+    "ResidualBlock",
+    "ResidualLikelihood",
+    "SeriesLikelihood",
+    "banded_toeplitz_loglike",
+    "channel_residuals",
+    "check_length",
+    "check_residual_window",
+    "check_series",
+    "cross_periodogram",
+    "debiased_whittle_loglike",
+    "evaluate_on_grids",
+    "expected_periodogram",
+    "fallback_loglike",
+    "frequency_weights",
+    "measurement_of",
+    "pose_channels",
+    "pose_weights",
+    "residual_autocovariance",
+    "residual_regressors",
+    "resolve_channels",
+    "sample_stationary",
+    "spectral_forms",
+    "spectral_loglike",
+    "toeplitz_loglike",
+]

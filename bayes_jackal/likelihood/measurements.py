@@ -1,0 +1,366 @@
+"""How a channel was recorded: its one-step residual, linear in the data, and that residual's law.
+
+A channel enters the likelihood as a residual series r = Z c: regressors Z
+built from the data once, coefficients c from the damping. Each way of
+recording a channel is a class here (one per idea), registered in
+:data:`MEASUREMENT_MODELS` under the names of
+:data:`bayes_jackal.io.MEASUREMENTS`:
+
+- :class:`RateMeasurement` (``rate``): a sensor measures the state, y = x +
+  n (the IMU's yaw rate; a velocity sensor). The residual is eq. 7-3,
+
+      r_k = y_{k+1} - alpha y_k - beta . u_k = w_k + n_{k+1} - alpha n_k,
+
+  with Z = [y_{k+1}, y_k, u_k] and the sensor noise's MA(1) footprint
+  (docs/design.md §4).
+- :class:`PoseMeasurement` (``pose``): motion capture records the world
+  pose, and vx, vy are seen through the body-frame increments M_k of the
+  poses (:mod:`bayes_jackal.io.pose_increments`). Between samples the inputs
+  and the process noise are held (zero-order hold, as the thesis'
+  discretisation holds the input: eq. 6-6), so over a step of the channel's
+  scalar model dx/dt = a x + b.u + eta,
+
+      M_k = g x_k + h (beta / g) . u_k + (h / g) w_k,
+      g = dt exprel(a dt) = (alpha - 1) / a,   h = (g - dt) / a,
+
+  with w_k = g eta_k the discrete process noise of eq. 7-3. Applying
+  (1 - alpha L) removes the state (A is diagonal: the step's integral
+  commutes with Ad), and with the pose noise e of each sample, over dt,
+
+      r_k = (M_{k+1} - alpha M_k) / dt - kappa_0 beta . u_{k+1} - kappa_1 beta . u_k
+          = kappa_0 w_{k+1} + kappa_1 w_k + (e_{k+2} - (1 + alpha) e_{k+1} + alpha e_k) / dt,
+
+      kappa_0 = h / (g dt),   kappa_1 = g / dt - alpha kappa_0
+      (kappa_0 + kappa_1 = 1; both -> 1/2 as dt -> 0).
+
+  So Z = [M_{k+1}, M_k, u_{k+1}, u_k], the residual is in the channel's
+  velocity unit, and its law is stationary Gaussian: the process noise
+  through a two-tap filter plus the pose noise's known MA(2) term, of sd
+  sigma_p / sqrt(n) per sample (n poses averaged per sample). sigma_p,
+  the motion-capture system's position noise [m], is the channel's sensor
+  parameter. The scale 1 / dt is the same for every parameter set, so the
+  density of r is that of the increments up to a constant: dividing by g,
+  which depends on the damping, would add N log g to the likelihood and
+  pull the damping down (measured: 80 nats between d_long 10 and 30 on a
+  38 s run).
+
+Both laws are Toeplitz, so every engine of
+:class:`bayes_jackal.likelihood.ResidualLikelihood` evaluates either.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..io.experiment import Experiment
+from ..io.pose_increments import body_increments, pose_samples, tick_poses
+from ..model.kernels import Family
+from ..model.physics import channel_coefficients, step_integrals
+from ..model.robot import RobotProfile
+
+__all__ = [
+    "MEASUREMENT_MODELS",
+    "ChannelSeries",
+    "Measurement",
+    "PoseMeasurement",
+    "RateMeasurement",
+    "measurement_of",
+    "pose_weights",
+    "residual_autocovariance",
+]
+
+
+@dataclass(frozen=True)
+class ChannelSeries:
+    """The regressors of one channel of one experiment, and its pose count.
+
+    Attributes
+    ----------
+    regressors : ndarray, shape (n, K)
+        Z: the residuals are Z c.
+    samples : int
+        Recorded poses averaged into each sample (1 for a rate channel).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.likelihood import ChannelSeries
+    >>> ChannelSeries(np.zeros((100, 4))).samples
+    1
+    """
+
+    regressors: np.ndarray
+    samples: int = 1
+
+
+class Measurement(abc.ABC):
+    """A way of recording a channel: its residual's regressors, coefficients and law.
+
+    Attributes
+    ----------
+    name : str
+        Key in :data:`MEASUREMENT_MODELS`.
+    sensor_parameter : str
+        The channel's sensor-noise parameter: ``sigma_n`` (the state's
+        sensor [channel unit]) or ``sigma_p`` (the pose's position [m]).
+    regressor_count : int
+        K, the columns of Z.
+
+    Examples
+    --------
+    The registered models, by name:
+
+    >>> from bayes_jackal.likelihood import MEASUREMENT_MODELS
+    >>> for name, model in MEASUREMENT_MODELS.items():
+    ...     print(name, model.sensor_parameter, model.regressor_count)
+    rate sigma_n 4
+    pose sigma_p 6
+    """
+
+    name: ClassVar[str]
+    sensor_parameter: ClassVar[str]
+    regressor_count: ClassVar[int]
+
+    @abc.abstractmethod
+    def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
+        """The regressors Z of ``channel`` over the whole ``experiment``."""
+
+    def samples(self, experiment: Experiment) -> int:
+        """The recorded poses each sample of ``experiment`` averages (1: none)."""
+        return 1
+
+    @abc.abstractmethod
+    def coefficients(
+        self,
+        robot: RobotProfile,
+        d_lat: np.ndarray | float,
+        d_long: np.ndarray | float,
+        channel: str,
+        dt: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """c, shape (..., K), and the channel's discrete pole alpha = Ad[c, c], shape (...)."""
+
+    @abc.abstractmethod
+    def autocovariance(
+        self,
+        family: Family,
+        width: np.ndarray,
+        sigma_c: np.ndarray,
+        sigma_sensor: np.ndarray,
+        alpha: np.ndarray,
+        dt: float,
+        lags: int,
+        *,
+        sensor: str = "ma1",
+        samples: int = 1,
+    ) -> np.ndarray:
+        """The residual's autocovariance at lags 0..lags-1, shape (B, lags).
+
+        ``width`` [s], ``sigma_c`` (process noise per step [channel unit]),
+        ``sigma_sensor`` (:attr:`sensor_parameter`'s value) and ``alpha``
+        are arrays of shape (B,); ``sensor`` is the rate channels' sensor
+        term (``ma1`` or ``diagonal``), ``samples`` the poses per sample.
+        """
+
+
+class RateMeasurement(Measurement):
+    """A sensor measures the state: y = x + n (eq. 7-3; module docstring).
+
+    Examples
+    --------
+    The yaw rate's residuals are Z (1, -alpha, -beta):
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import RateMeasurement
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v2", rng=1)
+    >>> series = RateMeasurement().series(run, "yaw")
+    >>> c, alpha = RateMeasurement().coefficients(robot, 110.0, 30.0, "yaw", run.dt)
+    >>> series.regressors.shape, c.shape, round(float(alpha), 4)
+    ((1872, 4), (4,), 0.7244)
+    """
+
+    name = "rate"
+    sensor_parameter = "sigma_n"
+    regressor_count = 4
+
+    def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
+        y = experiment.channel(channel)
+        return ChannelSeries(np.column_stack([y[1:], y[:-1], experiment.inputs[:-1]]))
+
+    def coefficients(self, robot, d_lat, d_long, channel, dt):
+        alpha, beta = channel_coefficients(robot, d_lat, d_long, channel, dt)
+        ones = np.ones((*alpha.shape, 1))
+        return np.concatenate([ones, -alpha[..., None], -beta], axis=-1), alpha
+
+    def autocovariance(
+        self, family, width, sigma_c, sigma_sensor, alpha, dt, lags, *, sensor="ma1", samples=1
+    ):
+        return residual_autocovariance(
+            family, width, sigma_c, sigma_sensor, alpha, dt, lags, sensor
+        )
+
+
+class PoseMeasurement(Measurement):
+    """Motion capture records the pose; vx, vy are seen through its increments (module docstring).
+
+    Examples
+    --------
+    The coefficients of the vx channel at 72 Hz: the input weights kappa_0,
+    kappa_1 of the two steps are near 1/2, and the residual of a noise-free
+    steady drive is zero:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import PoseMeasurement, pose_weights
+    >>> robot = bj.load_profile()
+    >>> c, alpha = PoseMeasurement().coefficients(robot, 110.0, 30.0, "vx", 1 / 72)
+    >>> c.shape, [round(float(w), 4) for w in pose_weights(alpha)]
+    ((6,), [0.5084, 0.4916])
+    >>> v = 0.4  # the steady speed: u gives x = -b.u / a, and M = v dt each step
+    >>> u = np.array([v / robot.wheel_radius] * 2)
+    >>> residual = c @ np.concatenate([[v / 72, v / 72], u, u])
+    >>> bool(abs(residual) < 1e-12)
+    True
+    """
+
+    name = "pose"
+    sensor_parameter = "sigma_p"
+    regressor_count = 6
+
+    def samples(self, experiment: Experiment) -> int:
+        return pose_samples(experiment)[0]
+
+    def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
+        ticks = tick_poses(experiment)
+        increments = body_increments(ticks, channel)
+        u = experiment.inputs
+        regressors = np.column_stack([increments[1:], increments[:-1], u[1:-1], u[:-2]])
+        return ChannelSeries(regressors, ticks.samples)
+
+    def coefficients(self, robot, d_lat, d_long, channel, dt):
+        alpha, beta = channel_coefficients(robot, d_lat, d_long, channel, dt)
+        kappa_0, kappa_1 = pose_weights(alpha)
+        columns = [
+            np.full((*alpha.shape, 1), 1.0 / dt),
+            (-alpha / dt)[..., None],
+            -kappa_0[..., None] * beta,
+            -kappa_1[..., None] * beta,
+        ]
+        return np.concatenate(columns, axis=-1), alpha
+
+    def autocovariance(
+        self, family, width, sigma_c, sigma_sensor, alpha, dt, lags, *, sensor="ma1", samples=1
+    ):
+        kappa_0, kappa_1 = (w[:, None] for w in pose_weights(alpha))
+        kernel = family.autocorrelation(width, dt, lags + 1)
+        before = np.concatenate([kernel[:, 1:2], kernel[:, : lags - 1]], axis=1)  # R(l - 1)
+        acov = sigma_c[:, None] ** 2 * (
+            (kappa_0**2 + kappa_1**2) * kernel[:, :lags]
+            + kappa_0 * kappa_1 * (before + kernel[:, 1:])
+        )
+        variance = sigma_sensor**2 / (samples * dt**2)
+        ma2 = np.stack([1.0 + (1.0 + alpha) ** 2 + alpha**2, -((1.0 + alpha) ** 2), alpha], -1)
+        kept = min(3, lags)
+        acov[:, :kept] += variance[:, None] * ma2[:, :kept]
+        return acov
+
+
+def pose_weights(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """kappa_0 = h / (g dt) and kappa_1 = g / dt - alpha kappa_0 of a pose channel's pole.
+
+    :func:`bayes_jackal.model.step_integrals` at dt = 1 (both are functions of
+    a dt alone).
+
+    Examples
+    --------
+    Both weights tend to 1/2 for a slow pole, and always add up to 1:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.likelihood import pose_weights
+    >>> [round(float(w), 6) for w in pose_weights(np.array(1 - 1e-9))]
+    [0.5, 0.5]
+    >>> float(sum(pose_weights(np.array(0.3))))
+    1.0
+    """
+    g, h = step_integrals(alpha, 1.0)
+    kappa_0 = h / g
+    return kappa_0, g - np.asarray(alpha, float) * kappa_0
+
+
+#: The measurement models by name (:data:`bayes_jackal.io.MEASUREMENTS`).
+MEASUREMENT_MODELS: dict[str, Measurement] = {
+    model.name: model for model in (RateMeasurement(), PoseMeasurement())
+}
+
+
+def measurement_of(experiment: Experiment, channel: str) -> Measurement:
+    """The model of how ``channel`` of ``experiment`` was recorded.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import measurement_of
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> measurement_of(run, "vx").name
+    'rate'
+    """
+    return MEASUREMENT_MODELS[experiment.measurement(channel)]
+
+
+def residual_autocovariance(
+    family: Family,
+    width: np.ndarray,
+    sigma_c: np.ndarray,
+    sigma_n: np.ndarray,
+    alpha: np.ndarray,
+    dt: float,
+    n: int,
+    sensor: str = "ma1",
+) -> np.ndarray:
+    """Autocovariance of a rate channel's one-step residual at lags 0..n-1.
+
+    Parameters
+    ----------
+    family : Family
+        Process-noise filter family.
+    width, sigma_c, sigma_n, alpha : ndarray, shape (B,)
+        Kernel width [s], process-noise sd, sensor-noise sd [channel units],
+        and the channel's discrete pole Ad[c, c].
+    dt : float
+        Sample time [s].
+    n : int
+        Number of lags.
+    sensor : {"ma1", "diagonal"}
+
+    Returns
+    -------
+    ndarray, shape (B, n)
+
+    Examples
+    --------
+    White process noise and the MA(1) footprint of sensor noise:
+    sigma_c^2 + sigma_n^2 (1 + alpha^2) at lag 0, -sigma_n^2 alpha at lag 1:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.model import get_family
+    >>> from bayes_jackal.likelihood import residual_autocovariance
+    >>> one = np.ones(1)
+    >>> acov = residual_autocovariance(
+    ...     get_family("white"), one, 0.01 * one, 0.005 * one, 0.9 * one, dt=0.01, n=4
+    ... )
+    >>> bool(np.allclose(acov, [[1e-4 + 2.5e-5 * 1.81, -2.5e-5 * 0.9, 0.0, 0.0]]))
+    True
+    """
+    acov = sigma_c[:, None] ** 2 * family.autocorrelation(width, dt, n)
+    if sensor == "ma1":
+        acov[:, 0] += sigma_n**2 * (1.0 + alpha**2)
+        acov[:, 1] -= sigma_n**2 * alpha
+    else:
+        acov[:, 0] += sigma_n**2
+    return acov

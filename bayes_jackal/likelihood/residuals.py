@@ -1,0 +1,200 @@
+"""One-step residuals and their regressors (thesis eq. 7-3).
+
+The one-step residual of a channel measured by a sensor (the yaw rate) is
+w[k] = y[k+1] - Ad y[k] - Bd u[k]: what the linear model leaves
+unexplained. It is linear in the regressors Z = [y[k+1], y[k], u_r[k],
+u_l[k]], w = Z (1, -Ad[c, c], -Bd[c, :]). A channel recorded through
+motion-capture poses (vx, vy of a bag) has the residual of its pose
+increments instead, linear in its own regressors
+(:class:`bayes_jackal.likelihood.PoseMeasurement`): the same
+functions here give either, by how the experiment recorded the channel
+(:meth:`~bayes_jackal.io.Experiment.measurement`). The likelihood
+works on Z, the residual analysis (:mod:`bayes_jackal.thesis.residual_analysis`,
+thesis ch. 7), the posterior files and the model criticism on w.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._runtime.errors import DataError
+from ..io.experiment import CHANNEL_FIELDS, Experiment
+from ..model.robot import RobotProfile
+from .measurements import measurement_of
+
+__all__ = ["channel_residuals", "check_residual_window", "residual_regressors"]
+
+
+def channel_residuals(
+    experiment: Experiment,
+    robot: RobotProfile,
+    d_lat: np.ndarray | float,
+    d_long: np.ndarray | float,
+    channel: str = "yaw",
+    steady: bool = True,
+    samples: slice = slice(None),
+) -> np.ndarray:
+    """One-step residuals of one measured channel (eq. 7-3).
+
+    w[k] = y[k+1] - Ad y[k] - Bd u[k] for k = 0..N-2, with the channel's
+    exact (ZOH) pole Ad[c, c] and input row Bd[c, :] at the experiment's
+    sample time (eq. 6-6); for a channel recorded as poses, the residual of
+    its pose increments (k = 0..N-3,
+    :class:`~bayes_jackal.likelihood.PoseMeasurement`), in the same unit.
+    The thesis evaluates the steady-state window only (ch. 7-1:
+    acceleration and deceleration left out).
+
+    Parameters
+    ----------
+    experiment : Experiment
+    robot : RobotProfile
+    d_lat, d_long : float or array_like
+        Damping [N s/m], broadcast together; arrays add leading axes.
+    channel : {"yaw", "vx", "vy"}
+        Measured state: yaw rate [rad/s] or body velocity [m/s].
+    steady : bool
+        Use ``experiment.steady()`` (the whole experiment when it has no
+        steady-state window); False uses every sample.
+    samples : slice
+        Which residuals to compute (default all): a window of a long run
+        costs only its own length.
+
+    Returns
+    -------
+    ndarray, shape (..., N - 1) or (..., window length)
+        Residuals in the channel's unit ([rad/s] or [m/s]).
+
+    Raises
+    ------
+    DataError
+        When the experiment does not measure the channel.
+    InputError
+        For an unknown channel or non-positive damping.
+
+    Examples
+    --------
+    The yaw channel of :func:`bayes_jackal.model.one_step_residuals` on the
+    steady window, vectorised over the damping:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.model import discrete_matrices, one_step_residuals
+    >>> from bayes_jackal.likelihood import channel_residuals
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> w = channel_residuals(run, robot, 110.0, 30.0, "yaw")
+    >>> w.shape
+    (2376,)
+    >>> steady = run.steady()
+    >>> states = np.column_stack([steady.channel(c) for c in ("vx", "vy", "yaw")])
+    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0, steady.dt)
+    >>> bool(np.allclose(w, one_step_residuals(Ad, Bd, states, steady.inputs)[:, 2]))
+    True
+    >>> channel_residuals(run, robot, [100.0, 110.0, 120.0], 30.0).shape
+    (3, 2376)
+    """
+    window = experiment.steady() if steady else experiment
+    measurement = measurement_of(window, channel)
+    coefficients, _ = measurement.coefficients(robot, d_lat, d_long, channel, window.dt)
+    return coefficients @ measurement.series(window, channel).regressors[samples].T
+
+
+def residual_regressors(experiment: Experiment, channel: str, steady: bool = True) -> np.ndarray:
+    """Regressors Z = [y[k+1], y[k], u_r[k], u_l[k]] of one channel, shape (N - 1, 4).
+
+    The one-step residual (eq. 7-3) is linear in them: w = Z (1, -Ad[c, c],
+    -Bd[c, 0], -Bd[c, 1]). A channel recorded as poses has the regressors of
+    :class:`~bayes_jackal.likelihood.PoseMeasurement`, shape (N - 2, 6).
+
+    Parameters
+    ----------
+    experiment : Experiment
+    channel : {"yaw", "vx", "vy"}
+    steady : bool
+        The steady-state window (the whole experiment when it has none), or
+        every sample.
+
+    Examples
+    --------
+    The residuals are Z (1, -Ad[c, c], -Bd[c, :]):
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.model import channel_coefficients
+    >>> from bayes_jackal.likelihood import channel_residuals, residual_regressors
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+    >>> Z = residual_regressors(run, "yaw")
+    >>> Z.shape
+    (2376, 4)
+    >>> alpha, row = channel_coefficients(robot, 110.0, 30.0, "yaw", run.dt)
+    >>> c = np.concatenate([[1.0, -alpha], -row])
+    >>> bool(np.allclose(Z @ c, channel_residuals(run, robot, 110.0, 30.0, "yaw")))
+    True
+    """
+    window = experiment.steady() if steady else experiment
+    return measurement_of(window, channel).series(window, channel).regressors
+
+
+def check_residual_window(
+    experiment: Experiment,
+    channel: str,
+    minimum: int,
+    steady: bool = True,
+    reason: str = "",
+    field: str | None = None,
+) -> None:
+    """Raise unless the window holds ``minimum`` residuals of a varying channel.
+
+    Parameters
+    ----------
+    experiment : Experiment
+    channel : {"yaw", "vx", "vy"}
+    minimum : int
+        Fewest one-step residuals the caller needs.
+    steady : bool
+        Check the steady-state window (or every sample).
+    reason : str
+        What needs them, appended to the message (e.g. " for 30 lags").
+    field : str, optional
+        Field the short-window error names; the channel by default.
+
+    Raises
+    ------
+    DataError
+        Naming the file, the field and the sample count, or the constant value.
+
+    Examples
+    --------
+    Silent when the window is long enough; otherwise a
+    :class:`~bayes_jackal._runtime.errors.DataError` (a ``ValueError``) naming the file
+    (``<memory>`` for a simulated run), the field and the counts:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import check_residual_window
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v1", rng=1)
+    >>> check_residual_window(run, "yaw", 32)
+    >>> try:
+    ...     check_residual_window(run, "yaw", 10_000, reason=" for this example")
+    ... except ValueError as error:
+    ...     print(error)
+    <memory>: yaw: the steady-state window holds 2377 samples, 2376 one-step
+    residuals; at least 10000 are needed for this example
+    """
+    window = experiment.steady() if steady else experiment
+    y = window.channel(channel)
+    span = "the steady-state window" if steady and experiment.steady_window else "the experiment"
+    count = len(y) - (2 if window.measurement(channel) == "pose" else 1)  # two increments each
+    if count < minimum:
+        raise DataError(
+            f"{span} holds {len(y)} samples, {count} one-step residuals; at least "
+            f"{minimum} are needed{reason}",
+            source=experiment.source,
+            field=field or channel,
+        )
+    if np.ptp(y) == 0:
+        raise DataError(
+            f"channel {channel!r} is constant ({y[0]:g}) in {span}: it carries no information",
+            source=experiment.source,
+            field=CHANNEL_FIELDS[channel],
+        )

@@ -1,0 +1,330 @@
+"""Model criticism of the inputs' path: the residual-input test, steady windows, derived data.
+
+Three checks of a posterior, run with the others by
+:func:`bayes_jackal.posterior.criticise` (and importable from
+:mod:`bayes_jackal.posterior.criticism`). ``residual-input`` (:func:`residual_input`,
+MATLAB ``resid``'s independence test): do the one-step residuals correlate
+with the wheel speeds, which a wrong input path would make them do?
+``not-steady`` (:func:`steady_windows`): are the analysed windows steady
+cornering, as the thesis' analysis (ch. 5) assumes? ``derived-velocity``
+(:func:`derived_velocities`): are vx, vy modelled as measured where they
+were derived from poses the data no longer hold?
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.stats
+
+from .._runtime.arviz_quiet import az
+from ..io.experiment import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, Experiment
+from ..likelihood.residuals import channel_residuals
+from .criticism_statistics import (
+    Check,
+    cross_correlation,
+    cross_correlation_sd,
+    simultaneous_threshold,
+    steadiness,
+)
+from .file_format import posterior_metadata
+from .inference_data import parameter_draws, posterior_experiments
+from .series_statistics import sample_autocorrelation
+
+__all__ = [
+    "INPUTS",
+    "RESIDUAL_ACF_LAGS",
+    "RESIDUAL_INPUT_LAGS",
+    "RESIDUAL_INPUT_LEVEL",
+    "derived_velocities",
+    "residual_input",
+    "steady_windows",
+    "velocities_derived",
+]
+
+#: Lags -L..L of the residual-input cross-correlation (MATLAB ``resid``: 25).
+RESIDUAL_INPUT_LAGS = 25
+#: Level of the per-lag band, and family-wise level of the warning.
+RESIDUAL_INPUT_LEVEL = 0.99
+#: Lags of the residuals' own autocorrelation in the band (twice the test's lags):
+#: a white fit on Gaussian noise of 0.3 s (21 samples) gives max |z| 1.2 with it,
+#: 4.1 with the family's (flat) autocorrelation; a 30 % input-gain error 5.5.
+RESIDUAL_ACF_LAGS = 2 * RESIDUAL_INPUT_LAGS
+#: Inputs the residuals are correlated with: wheel-speed sum (forward drive,
+#: rad/s) and difference (turning), the two directions of B.
+INPUTS = ("sum", "difference")
+
+
+# --- residual-input cross-correlation -------------------------------------------------
+
+
+def _input_series(experiment: Experiment) -> dict[str, np.ndarray]:
+    """Wheel-speed sum and difference at the samples' times [rad/s].
+
+    The residual k of every channel begins at sample k: the first of them
+    line up with the residuals.
+    """
+    u = experiment.inputs
+    return dict(zip(INPUTS, (u[:, 0] + u[:, 1], u[:, 0] - u[:, 1]), strict=True))
+
+
+def _posterior_median(idata: az.InferenceData) -> np.ndarray:
+    draws, _ = parameter_draws(idata)
+    return np.median(draws.reshape(-1, draws.shape[-1]), axis=0)
+
+
+def _tapered_autocorrelation(residual: np.ndarray, lags: int) -> np.ndarray:
+    """The residuals' sample autocorrelation at 0..lags, times Bartlett's taper 1 - j/(lags+1).
+
+    The taper keeps the band's variance positive and damps the sample
+    autocorrelation's noise at long lags.
+    """
+    return sample_autocorrelation(residual, lags) * (1.0 - np.arange(lags + 1) / (lags + 1))
+
+
+def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) -> Check:
+    """Cross-correlation of the one-step residuals with the inputs, per experiment and channel.
+
+    The residuals and the model are taken at the posterior median, over the
+    whole run: in a steady window the wheel speeds are constant, and a
+    wrong input gain is absorbed by the damping there; only where the input
+    varies can the residuals betray it. The residual autocorrelation in the
+    band (:func:`cross_correlation_sd`) is the residuals' own, to
+    :data:`RESIDUAL_ACF_LAGS` lags with Bartlett's taper (Ljung, *System
+    Identification*, 16.6), not the fitted family's: a family that misses
+    the residuals' colour (white noise on coloured, which the
+    ``predictive-acf`` check flags) would make the band too narrow and blame
+    the input path for it. Each input's z(k) = r(k) / sd is flagged when
+    max |z| over both inputs and lags -L..L exceeds
+    :func:`simultaneous_threshold` (family-wise level 99 %); the per-lag
+    99 % band is +-2.58 sd, as MATLAB's ``resid`` draws it.
+
+    Numbers per experiment and channel: ``lags``, ``z`` per input (list
+    over lags), ``sd`` per input, ``band`` (per-lag z), ``threshold``,
+    ``max_abs_z``. An input that is constant over the run is left out.
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import residual_input
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> check = residual_input(posterior)
+    >>> row = check.numbers["v1"]["yaw"]
+    >>> row["lags"], round(row["threshold"], 2), round(row["max_abs_z"], 1), check.warnings
+    (25, 3.9, 1.0, [])
+    """
+    metadata = posterior_metadata(idata)
+    theta = _posterior_median(idata)[None]
+    band = float(scipy.stats.norm.isf((1.0 - RESIDUAL_INPUT_LEVEL) / 2.0))
+    check = Check()
+    for experiment in posterior_experiments(idata):
+        inputs = {name: u for name, u in _input_series(experiment).items() if np.ptp(u) > 0}
+        rows = {}
+        for channel in metadata.channels:
+            residual = channel_residuals(
+                experiment, metadata.robot, theta[0, 0], theta[0, 1], channel, steady=False
+            )
+            n = len(residual)
+            length = min(lags, n - 1)
+            rho = _tapered_autocorrelation(residual, min(RESIDUAL_ACF_LAGS, n - 1))
+            sd = {name: float(cross_correlation_sd(rho, u[:n])) for name, u in inputs.items()}
+            z = {
+                name: cross_correlation(residual, u[:n], length) / sd[name]
+                for name, u in inputs.items()
+            }
+            threshold = simultaneous_threshold(
+                max(1, len(z)) * (2 * length + 1), level=RESIDUAL_INPUT_LEVEL
+            )
+            worst = max(z, key=lambda name: np.abs(z[name]).max(), default=None)
+            peak = 0.0 if worst is None else float(np.abs(z[worst]).max())
+            rows[channel] = {
+                "lags": length,
+                "z": {name: values.tolist() for name, values in z.items()},
+                "sd": sd,
+                "band": band,
+                "threshold": threshold,
+                "max_abs_z": peak,
+            }
+            if peak > threshold:
+                check.warnings.append(
+                    _input_warning(experiment.name, channel, worst, z[worst], threshold)
+                )
+        check.numbers[experiment.name] = rows
+    return check
+
+
+def _input_warning(
+    experiment: str, channel: str, name: str, z: np.ndarray, threshold: float
+) -> dict:
+    index = int(np.argmax(np.abs(z)))
+    lag = index - len(z) // 2
+    return {
+        "kind": "residual-input",
+        "experiment": experiment,
+        "channel": channel,
+        "input": name,
+        "lag": lag,
+        "z": float(z[index]),
+        "message": (
+            f"{experiment}, {channel}: the one-step residuals correlate with the wheel-speed "
+            f"{name} at lag {lag} (z = {z[index]:.1f}; 99 % over all lags: |z| < "
+            f"{threshold:.1f}): the model's input path is wrong (wheel radius, input "
+            "conversion, track width or a missing dynamic)"
+        ),
+    }
+
+
+# --- steadiness ----------------------------------------------------------------------
+
+
+def steady_windows(idata: az.InferenceData) -> Check:
+    """Warnings for analysed windows that are not steady cornering (thesis ch. 5).
+
+    The window is each experiment's steady window when the posterior used
+    them, else the whole run. Numbers per experiment: ``input_deviation``
+    (None when the wheels stand still), ``yaw_drift`` (:func:`steadiness`),
+    ``duration`` [s], and the tolerances.
+
+    Examples
+    --------
+    A posterior of a chain kept short on purpose (100 steps, far from
+    converged), so that the example runs in a second; white noise fitted on
+    the yaw rate alone of a run simulated with coloured noise:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import steady_windows
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> check = steady_windows(posterior)
+    >>> row = check.numbers["v1"]
+    >>> row["duration"], row["input_deviation"], round(row["yaw_drift"], 3), check.warnings
+    (33.0, 0.0, 0.01, [])
+    """
+    steady = posterior_metadata(idata).steady
+    check = Check()
+    for experiment in posterior_experiments(idata):
+        window = experiment.steady() if steady else experiment
+        deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
+        duration = float(window.t[-1] - window.t[0])
+        check.numbers[experiment.name] = {
+            "input_deviation": deviation,
+            "yaw_drift": drift,
+            "duration": duration,
+            "input_tolerance": STEADY_INPUT_TOLERANCE,
+            "yaw_tolerance": STEADY_YAW_TOLERANCE,
+        }
+        failures = _steadiness_failures(deviation, drift)
+        if not failures:
+            continue
+        span = "steady window" if steady and experiment.steady_window else "run"
+        check.warnings.append(
+            {
+                "kind": "not-steady",
+                "experiment": experiment.name,
+                "input_deviation": deviation,
+                "yaw_drift": drift,
+                "message": (
+                    f"{experiment.name}: the analysed {span} ({duration:.1f} s) is not steady: "
+                    f"{' and '.join(failures)}; the thesis' analysis assumes steady circles "
+                    "(ch. 5): transients test the model where it is least sure"
+                ),
+            }
+        )
+    return check
+
+
+def _steadiness_failures(deviation: float | None, drift: float) -> list[str]:
+    """The steadiness criteria a window fails, in words."""
+    failures = []
+    if deviation is None:
+        failures.append("the wheels stand still")
+    elif deviation > STEADY_INPUT_TOLERANCE:
+        failures.append(
+            f"the wheel speeds depart from their median by {100 * deviation:.0f} % "
+            f"(tolerance {100 * STEADY_INPUT_TOLERANCE:.0f} %)"
+        )
+    if drift > STEADY_YAW_TOLERANCE:
+        failures.append(
+            f"the yaw rate drifts by {100 * drift:.0f} % "
+            f"(tolerance {100 * STEADY_YAW_TOLERANCE:.0f} %)"
+        )
+    return failures
+
+
+# --- derived velocities ------------------------------------------------------------------
+
+
+def velocities_derived(provenance: dict) -> bool:
+    """Whether an experiment's vx, vy were derived from poses (its provenance says so).
+
+    A table read with ``velocities="derived"`` records it, and so does every
+    bag's reading, whose provenance names the ``smoother``: one read before
+    the poses were kept has only those velocities, one read since has its
+    poses too, and its vx, vy are then modelled through them
+    (:func:`derived_velocities` flags only velocities modelled as measured).
+
+    Examples
+    --------
+    >>> from bayes_jackal.posterior import velocities_derived
+    >>> velocities_derived({"smoother": {"window_s": 0.1}}), velocities_derived({})
+    (True, False)
+    """
+    return provenance.get("velocities") == "derived" or "smoother" in provenance
+
+
+def derived_velocities(idata: az.InferenceData) -> Check:
+    """Warnings for vx, vy modelled as measured that were derived from poses (docs/design.md §2.2).
+
+    A smoothing derivative of the poses widens the process noise's kernel
+    and colours the pose noise: modelled as a measured velocity it put the
+    damping at half its truth on motion-capture bags. An experiment whose
+    poses are kept has its vx, vy modelled through them and is not flagged.
+    Numbers per experiment: ``derived`` (its provenance says so) and
+    ``channels`` (those modelled as measured although derived).
+
+    Examples
+    --------
+    A simulated run measures its velocities: nothing to say. The 20-step
+    chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import derived_velocities
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw", "vx"], max_steps=20,
+    ...                       seed=1)
+    >>> check = derived_velocities(posterior)
+    >>> check.numbers["v1"], check.warnings
+    ({'derived': False, 'channels': []}, [])
+    """
+    metadata = posterior_metadata(idata)
+    modelled = [
+        c
+        for c in metadata.channels
+        if c in ("vx", "vy") and c not in metadata.layout.pose_channels
+    ]
+    check = Check()
+    for record in metadata.experiments:
+        derived = velocities_derived(record.provenance)
+        channels = modelled if derived else []
+        check.numbers[record.name] = {"derived": derived, "channels": channels}
+        if channels:
+            check.warnings.append(
+                {
+                    "kind": "derived-velocity",
+                    "experiment": record.name,
+                    "channels": channels,
+                    "message": (
+                        f"{record.name}: {' and '.join(channels)} were derived from poses by a "
+                        "smoothing derivative and are modelled as measured velocities (the "
+                        "data hold no poses): the smoothing widens their kernel and colours "
+                        "the pose noise, which has put the damping at half its truth "
+                        "(docs/design.md 2.2); ingest the bag again (ingest keeps the poses), "
+                        "give the poses as columns x, y, heading, or use --channels yaw"
+                    ),
+                }
+            )
+    return check

@@ -1,0 +1,108 @@
+"""The summary of a posterior: arviz's table of each parameter, convergence and criticism.
+
+What ``sample --json`` prints and the report tabulates (docs/design.md §6).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .._runtime.arviz_quiet import az
+from .._runtime.defaults import HDI_PROB
+from .criticism import criticise
+from .file_format import posterior_metadata
+from .inference_data import parameter_variables
+
+__all__ = ["INTERVAL_FIELDS", "THESIS_RATIO", "interval", "summarize"]
+
+
+#: The thesis' ridge ratio d_lat / d_long (ch. 5-2-2).
+THESIS_RATIO = 11.0 / 3.0
+
+
+_SUMMARY_FIELDS = ("mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat")
+
+
+#: The fields of a summary row that describe the posterior itself.
+INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
+
+
+def interval(row: dict) -> dict:
+    """Mean, sd and 94 % HDI of a :func:`summarize` row.
+
+    Examples
+    --------
+    The ratio d_lat / d_long, which the yaw rate alone identifies (truth
+    110 / 30 = 3.67). The 20-step chain is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.posterior import interval
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> row = interval(bj.summarize(posterior)["ratio"])
+    >>> sorted(row), row["hdi_3%"] < 110 / 30 < row["hdi_97%"]
+    (['hdi_3%', 'hdi_97%', 'mean', 'sd'], True)
+    """
+    return {key: row[key] for key in INTERVAL_FIELDS}
+
+
+def summarize(idata: az.InferenceData) -> dict:
+    """JSON-ready summary of a posterior (docs/design.md §6 ``sample --json``).
+
+    One key per parameter and for the derived ``ratio``, each with arviz's
+    ``mean``, ``sd``, ``hdi_3%``, ``hdi_97%``, ``ess_bulk``, ``ess_tail``,
+    ``r_hat`` (walkers as chains: a secondary check only) and
+    ``ess_autocorr``, the ESS implied by the integrated autocorrelation time
+    (the primary one for emcee); plus ``corr_d_lat_d_long``,
+    ``autocorr_time``, ``n_steps``, ``converged``, and under ``ratio`` the
+    thesis' 3 2/3. ``warnings`` lists the model-criticism warnings (dicts
+    with ``kind`` and ``message``) and ``criticism`` their numbers
+    (:func:`bayes_jackal.posterior.criticise`).
+
+    Examples
+    --------
+    The summary of a white-noise fit to one run's yaw rate. The 20-step chain
+    is short on purpose:
+
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> summary = bj.summarize(posterior)
+    >>> summary["family"], summary["n_steps"], summary["converged"]
+    ('white', 20, False)
+    >>> round(summary["ratio"]["mean"], 1), round(summary["ratio"]["thesis"], 2)
+    (3.6, 3.67)
+
+    The criticism warns: yaw alone does not identify the damping's scale, and
+    the residuals are coloured (the simulated noise is Gaussian-filtered):
+
+    >>> sorted({warning["kind"] for warning in summary["warnings"]})
+    ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
+    """
+    metadata = posterior_metadata(idata)
+    convergence = metadata.convergence
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        table = az.summary(
+            idata,
+            var_names=[*parameter_variables(idata), "ratio"],
+            hdi_prob=HDI_PROB,
+            round_to="none",
+        )
+    summary: dict = {}
+    for label, row in table.iterrows():
+        summary[label] = {key: float(row[key]) for key in _SUMMARY_FIELDS}
+        if label in convergence.ess_autocorr:
+            summary[label]["ess_autocorr"] = convergence.ess_autocorr[label]
+    posterior = idata.posterior
+    d_lat, d_long = posterior["d_lat"].values.ravel(), posterior["d_long"].values.ravel()
+    summary["ratio"]["thesis"] = THESIS_RATIO
+    summary["corr_d_lat_d_long"] = float(np.corrcoef(d_lat, d_long)[0, 1])
+    summary["autocorr_time"] = convergence.autocorr_time
+    summary["n_steps"] = convergence.n_steps
+    summary["converged"] = convergence.converged
+    summary["family"] = metadata.family
+    summary["channels"] = list(metadata.channels)
+    return summary | criticise(idata)

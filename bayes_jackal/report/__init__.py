@@ -1,0 +1,82 @@
+"""Self-contained HTML reports and every figure in them."""
+
+from .estimate_plots import SHOWN_SECONDS, plot_state_estimates, shown_window
+from .figures import DPI, ReportFigures, slug
+from .grid_plots import plot_grid, save_grid_plot
+from .noise_page import (
+    NOISE_HEADER,
+    NOISE_REPORT,
+    noise_rows,
+    render_noise_report,
+    write_noise_report,
+)
+from .noise_plots import (
+    noise_predictive_bands,
+    plot_noise_autocorrelation,
+    plot_noise_spectrum,
+    plot_noise_widths,
+    replicate_statistics,
+)
+from .page import (
+    LAGS,
+    read_posteriors,
+    render_report,
+    report_page,
+    save_report,
+    write_page,
+    write_report,
+)
+from .plots import (
+    plot_criticism,
+    plot_damping,
+    plot_model_fit,
+    plot_residuals,
+    plot_sigma_h,
+    plot_traces,
+)
+from .predictive_plots import (
+    band_statistics,
+    plot_autocorrelation,
+    plot_spectrum,
+    predictive_bands,
+)
+from .sections import html_table
+
+__all__ = [
+    "DPI",
+    "LAGS",
+    "NOISE_HEADER",
+    "NOISE_REPORT",
+    "SHOWN_SECONDS",
+    "ReportFigures",
+    "band_statistics",
+    "html_table",
+    "noise_predictive_bands",
+    "noise_rows",
+    "plot_autocorrelation",
+    "plot_criticism",
+    "plot_damping",
+    "plot_grid",
+    "plot_model_fit",
+    "plot_noise_autocorrelation",
+    "plot_noise_spectrum",
+    "plot_noise_widths",
+    "plot_residuals",
+    "plot_sigma_h",
+    "plot_spectrum",
+    "plot_state_estimates",
+    "plot_traces",
+    "predictive_bands",
+    "read_posteriors",
+    "render_noise_report",
+    "render_report",
+    "replicate_statistics",
+    "report_page",
+    "save_grid_plot",
+    "save_report",
+    "shown_window",
+    "slug",
+    "write_noise_report",
+    "write_page",
+    "write_report",
+]

@@ -1,0 +1,32 @@
+"""The thesis' own methods: the grid searches over the damping (ch. 5-6) and the
+residual analysis of ch. 7.
+"""
+
+from .acf_fit import LEAST_SQUARES_LAGS, THESIS_LAGS, acf_least_squares, thesis_fit
+from .gridsearch import GridResult, damping_grid, grid_search, onestep_mse, simulation_mse
+from .residual_analysis import (
+    FIRST_LAGS,
+    SIGMA_H_GRID,
+    analyse,
+    average_per_series,
+    fit_sigma_h,
+    sigma_h_table,
+)
+
+__all__ = [
+    "FIRST_LAGS",
+    "LEAST_SQUARES_LAGS",
+    "SIGMA_H_GRID",
+    "THESIS_LAGS",
+    "GridResult",
+    "acf_least_squares",
+    "analyse",
+    "average_per_series",
+    "damping_grid",
+    "fit_sigma_h",
+    "grid_search",
+    "onestep_mse",
+    "sigma_h_table",
+    "simulation_mse",
+    "thesis_fit",
+]

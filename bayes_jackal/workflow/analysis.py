@@ -1,0 +1,547 @@
+"""The whole analysis of a set of logs, as ``bayes-jackal analyse`` runs it.
+
+:func:`analyse_logs` takes ROS bags (``.bag``, ``.mcap``, ``.db3``, bag
+folders) and experiment files (``.csv``, ``.mat``, ``.nc``: what
+:func:`bayes_jackal.io.load_experiment` reads) and writes into one
+folder:
+
+- ``experiments/<name>.nc``: every input that could be read, with its
+  provenance (a bad input is reported with its reason and skipped);
+- ``grid_onestep.png``, ``grid_simulation.png``, ``grid.json``: the thesis'
+  grid searches of the yaw channel (ch. 9-1-2 at 1 N s/m resolution and
+  ch. 5's grid of step 10, both over 1-1000 N s/m);
+- ``posteriors/<family>.nc`` and ``compare.json``: the pooled posterior of
+  the damping and the noise on every channel all experiments measure, for
+  each noise family, with its evidence (:func:`compare_families`); each
+  family is saved as it finishes, so an interruption keeps those done;
+- ``posterior.nc``, ``posterior.json``: the posterior of the family of
+  highest evidence, the main result;
+- ``prior.json``: the Active Inference prior exported from that same
+  posterior, at embedding order 2 or the highest the family and the
+  precision's conditioning allow (:data:`bayes_jackal.dem.export.AUTO_ORDER`,
+  :func:`bayes_jackal.dem.allowed_orders`; 0 for white noise): the
+  prior follows the model the data support best;
+- ``state_estimation/`` and ``state_estimation.json``: with two or more
+  runs, each run's filters driven by the prior of the best family given the
+  other runs, scored (:mod:`bayes_jackal.filters.left_out`: its files and
+  cost). The posterior without each run is the best family's pooled
+  posterior reweighted by PSIS, or, where its Pareto k-hat is above 0.7,
+  a new posterior on the other runs; ``state_estimation=False`` skips it;
+- ``report.html``: the report of every family's posterior, best first,
+  with the section "State estimation with this prior".
+
+The demo (:mod:`bayes_jackal.workflow.demo`) is this function on the shipped bags.
+Not to be confused with :func:`bayes_jackal.thesis.analyse`, the thesis'
+ch. 7 residual analysis.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+from .._runtime.defaults import DEFAULT_FAMILIES, STATE_ESTIMATION
+from .._runtime.errors import DataError, describe, each_input
+from .._runtime.files import write_json
+from ..dem.export import export_prior, write_prior
+from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
+from ..inference.chains import SamplerSettings
+from ..inference.comparison import compare_families
+from ..inference.executors import Executor, ProcessExecutor
+from ..inference.sampler_warnings import keep_warnings
+from ..io.bag_reading import bag_format
+from ..io.bags import read_bag
+from ..io.experiment import Experiment, write_netcdf
+from ..io.tables import load_experiment
+from ..likelihood.residual_likelihood import resolve_channels
+from ..model.robot import RobotProfile, load_profile
+from ..posterior.criticism import criticise
+from ..posterior.inference_data import save_posterior
+from ..posterior.summary import summarize
+from ..report.grid_plots import save_grid_plot
+from ..report.page import write_report
+from ..report.sections import state_estimation_highlight, state_estimation_section
+from ..thesis.gridsearch import damping_grid, grid_search
+
+__all__ = ["analyse_logs", "ingest_logs", "read_log"]
+
+#: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
+GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
+
+
+def read_log(
+    path: str | Path,
+    robot: RobotProfile,
+    *,
+    window: tuple[float, float] | None = None,
+    max_gap: float | None = None,
+    progress: bool = False,
+    read_options: Mapping | None = None,
+) -> Experiment:
+    """One input as an experiment: a bag as ``ingest`` reads it, or an experiment file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A bag (:data:`BAG_SUFFIXES`, or a ROS2 bag folder) or an experiment
+        file (``.csv``, ``.mat``, ``.nc``).
+    robot : RobotProfile
+        Topics and wheel joints of a bag; the rate an experiment file's
+        sample time must agree with (:func:`~bayes_jackal.io.check_sample_time`).
+    window, max_gap, progress, read_options
+        As in :func:`ingest_logs`.
+
+    Returns
+    -------
+    Experiment
+
+    Examples
+    --------
+    An experiment file as is, or cut to a window [s]:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.model import load_profile
+    >>> from bayes_jackal.io import Series, simulate_experiment
+    >>> from bayes_jackal.io import write_csv
+    >>> from bayes_jackal.workflow import read_log
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = write_csv(run, Path(folder) / "short.csv")
+    ...     whole = read_log(path, robot)
+    ...     steady = read_log(path, robot, window=(2.0, 6.0))
+    >>> print(whole.name, len(whole.t), whole.steady_window, steady.steady_window)
+    short 577 None (2.0, 6.0)
+    """
+    path = Path(path)
+    if bag_format(path) is not None:
+        gap = {} if max_gap is None else {"max_gap": max_gap}
+        return read_bag(path, robot, window=window, progress=progress, **gap)
+    options = {"robot": robot, **(read_options or {})}
+    experiment = load_experiment(path, max_gap=max_gap, **options)
+    if window is None:
+        return experiment
+    experiment.window(*window)  # raises DataError when it holds too few samples
+    return dataclasses.replace(experiment, steady_window=tuple(float(w) for w in window))
+
+
+def _target(
+    name: str, folder: Path, source: Path, inputs: set[Path], taken: Mapping[str, str]
+) -> tuple[str, Path]:
+    """A free name and ``folder/<name>.nc`` for an input.
+
+    A name an earlier input ``taken`` gets a suffix ``-2``, ``-3``...;
+    refused for a name that is no plain file name or whose file is an input.
+    """
+    if name in ("", ".", "..") or any(sep in name for sep in ("/", "\\")):
+        raise DataError(
+            f"its experiment name {name!r} cannot name a file; rename the experiment",
+            source=str(source),
+            field="name",
+        )
+    free, count = name, 1
+    while free in taken:
+        count += 1
+        free = f"{name}-{count}"
+    target = folder / f"{free}.nc"
+    if target.resolve() in inputs:
+        raise DataError(
+            f"writing it as {target} would overwrite an input; choose another output folder",
+            source=str(source),
+        )
+    return free, target
+
+
+def ingest_logs(
+    paths: Sequence[str | Path],
+    robot: RobotProfile,
+    folder: str | Path,
+    *,
+    window: tuple[float, float] | None = None,
+    max_gap: float | None = None,
+    progress: bool = False,
+    labels: Mapping[str, Mapping] | None = None,
+    read_options: Mapping | None = None,
+    say: Callable[[str], None] = lambda text: None,
+) -> tuple[list[Experiment], dict[str, str]]:
+    """Read every input, write each as ``folder/<name>.nc``; keep going past bad ones.
+
+    Two inputs of one experiment name are both kept: the later one is
+    written as ``<name>-2.nc`` (``-3``...), named so, with ``renamed_from``
+    in its provenance, and ``say`` tells.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Bags (``.bag``, ``.mcap``, ``.db3``, ROS2 bag folders) and
+        experiment files (``.csv``, ``.mat``, ``.nc``).
+    robot : RobotProfile
+        Topics, wheel joints and constants.
+    folder : str or Path
+        Where the experiment files go.
+    window : (float, float), optional
+        Steady window [s on each experiment's time axis; for bags, from the
+        first IMU stamp]; detected in bags, the whole run in files, when
+        omitted.
+    max_gap : float, optional
+        Longest tolerated dropout [s]; None: the defaults of
+        :func:`~bayes_jackal.io.read_bag` (0.25 s) and of
+        :func:`~bayes_jackal.io.load_experiment`.
+    progress : bool
+        Show each bag's progress on stderr.
+    labels : mapping, optional
+        Per input path (as given), Experiment fields to set, e.g. ``series``
+        and ``truth`` of a simulated run.
+    read_options : mapping, optional
+        Keywords of :func:`~bayes_jackal.io.load_experiment` for
+        experiment files (``columns``, ``rate``, ``velocities``).
+    say : callable
+        Receives one line per input.
+
+    Returns
+    -------
+    experiments : list of Experiment
+    failed : dict of str to str
+        The reason for each input that could not be used, by path.
+
+    Examples
+    --------
+    A CSV file, a bag of the same short run (8 s) and a missing file: the
+    two are written as experiment files, the third is reported:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.io import write_bag
+    >>> from bayes_jackal.model import load_profile
+    >>> from bayes_jackal.io import Series, simulate_experiment
+    >>> from bayes_jackal.io import write_csv
+    >>> from bayes_jackal.workflow import ingest_logs
+    >>> robot = load_profile()
+    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     logs = [
+    ...         write_csv(run, Path(folder) / "table.csv"),
+    ...         write_bag(run, Path(folder) / "recording.bag", robot, "ros1", rng=1),
+    ...         Path(folder) / "lost.bag",
+    ...     ]
+    ...     experiments, failed = ingest_logs(logs, robot, Path(folder) / "experiments")
+    ...     written = sorted(path.name for path in (Path(folder) / "experiments").iterdir())
+    >>> [(e.name, e.steady_window is not None) for e in experiments], written
+    ([('table', False), ('recording', True)], ['recording.nc', 'table.nc'])
+    >>> [reason.rsplit(": ", 1)[1] for reason in failed.values()]
+    ['no such file']
+    """
+    owners: dict[str, str] = {}
+    inputs = {Path(given).resolve() for given in paths}
+
+    def ingest(given: str | Path) -> Experiment:
+        path = Path(given)
+        experiment = read_log(
+            path,
+            robot,
+            window=window,
+            max_gap=max_gap,
+            progress=progress,
+            read_options=read_options,
+        )
+        name, target = _target(experiment.name, Path(folder), path, inputs, owners)
+        experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
+        if name != experiment.name:  # two inputs of one name: both kept, the second renamed
+            taken = owners[experiment.name]
+            say(f"  {given}: its name {experiment.name} is {taken}'s; ingested as {name}")
+            provenance = {**experiment.provenance, "renamed_from": experiment.name}
+            experiment = dataclasses.replace(experiment, name=name, provenance=provenance)
+        owners[experiment.name] = str(given)
+        write_netcdf(experiment, target)
+        window_text = (
+            "{:.2f}-{:.2f} s".format(*experiment.steady_window)
+            if experiment.steady_window
+            else "none (whole run)"
+        )
+        say(
+            f"  ingested {given}: {len(experiment.t)} samples at {1 / experiment.dt:.1f} Hz, "
+            f"channels {', '.join(experiment.channels)}, steady window {window_text}"
+        )
+        return experiment
+
+    # one bad input does not lose the others
+    ingested, failed = each_input(
+        paths, ingest, on_failure=lambda given, exc: say(f"  skipped {describe(exc, given)}")
+    )
+    return list(ingested.values()), failed
+
+
+def _common_truth(experiments: list[Experiment]) -> dict | None:
+    """The true damping all experiments share (simulated runs), else None."""
+    truths = [{key: (e.truth or {}).get(key) for key in ("d_lat", "d_long")} for e in experiments]
+    shared = truths[0]
+    return shared if None not in shared.values() and all(t == shared for t in truths) else None
+
+
+def _grids(experiments, robot, folder: Path, say: Callable[[str], None]) -> dict:
+    """The thesis' grid searches; surfaces as PNG, minima in grid.json."""
+    summaries = {}
+    for method, (start, stop, step) in GRIDS.items():
+        values = damping_grid(start, stop, step)
+        result = grid_search(experiments, robot, values, values, method=method)
+        d_lat, d_long, _ = result.argmin()
+        save_grid_plot(result, folder / f"grid_{method}.png")
+        say(f"  {method} MSE grid minimum: d_lat = {d_lat:g}, d_long = {d_long:g} N s/m")
+        summaries[method] = result.summary()
+    payload = {"truth": _common_truth(experiments), **summaries}
+    write_json(folder / "grid.json", payload)
+    return summaries
+
+
+def analyse_logs(
+    paths: Sequence[str | Path],
+    out: str | Path,
+    *,
+    robot: RobotProfile | None = None,
+    families: Sequence[str] = DEFAULT_FAMILIES,
+    channels: Sequence[str] | None = None,
+    settings: SamplerSettings | None = None,
+    seed: int | None = None,
+    processes: int | None = None,
+    executor: Executor | None = None,
+    prior_overrides: Mapping[str, tuple[float, float]] | None = None,
+    likelihood_options: Mapping | None = None,
+    window: tuple[float, float] | None = None,
+    max_gap: float | None = None,
+    labels: Mapping[str, Mapping] | None = None,
+    read_options: Mapping | None = None,
+    state_estimation: bool = STATE_ESTIMATION,
+    say: Callable[[str], None] = lambda text: None,
+) -> dict:
+    """Ingest logs, run the grids, compare the noise families, export the prior, report.
+
+    See the module text for the files written under ``out``.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Bags and experiment files (see :func:`ingest_logs`).
+    out : str or Path
+        Output folder (created).
+    robot : RobotProfile, optional
+        Default: the Jackal profile.
+    families : sequence of str
+        Noise families to compare (default white and gaussian).
+    channels : sequence of str, optional
+        Default: every channel all experiments measure.
+    settings : SamplerSettings, optional
+        Walkers, step cap and progress display of each family's chain.
+    seed : int, optional
+        Seeds every chain and the evidence: same seed, same numbers.
+    processes : int, optional
+        Families sampled at once (default: one per core), without ``executor``.
+    executor : Executor, optional
+        Where the families run (:mod:`bayes_jackal.inference.executors`), e.g. a
+        ``DaskExecutor`` of a Dask cluster; default: local processes.
+    prior_overrides : mapping, optional
+        Prior ranges by parameter name, e.g. ``{"sigma_h": (0.01, 3.0)}``
+        [natural units], as in :func:`bayes_jackal.inference.sample_posterior`.
+    likelihood_options : mapping, optional
+        Further keywords of :class:`~bayes_jackal.likelihood.ResidualLikelihood`
+        (``sensor``, ``shared_noise``, ``shared_width``, ``engine``).
+    window, max_gap, labels, read_options
+        As in :func:`ingest_logs`.
+    state_estimation : bool
+        With two or more runs, take the best family's posterior given every
+        run but one and score the filters on the one left out, for each run
+        (:func:`bayes_jackal.filters.leave_one_out`): the pooled
+        posterior reweighted by PSIS, or refit with this analysis' sampler
+        settings, seed, priors, likelihood options and executor where the
+        reweighting's Pareto k-hat is above 0.7. False skips it.
+    say : callable
+        Receives the progress and summary lines.
+
+    Returns
+    -------
+    dict
+        ``experiments`` (name -> file, source, samples, rate [Hz], channels,
+        steady window), ``failed`` (input -> reason), ``channels``,
+        ``grids`` (the grid summaries), ``comparison`` (``compare.json``),
+        ``best`` (the family of highest evidence), ``posterior`` (its
+        summary), ``warnings`` (objects with ``kind`` and ``message``: a
+        family's chain that did not converge, then every family's
+        model-criticism warnings, with its ``family``, then each left-out
+        run's chain that did not converge (for a reweighting, the pooled
+        chain's), with its ``left_out``),
+        ``state_estimation`` (``state_estimation.json``:
+        :meth:`~bayes_jackal.filters.LeaveOneOut.to_dict`) and
+        ``files`` (report, prior, posterior, state_estimation (None when
+        not run), folder).
+
+    Raises
+    ------
+    InputError
+        When no input can be read (each reason in the message), or for bad
+        options.
+
+    Warns
+    -----
+    Warning
+        The warnings raised while the families were compared (in worker
+        processes too), each once, also when the comparison fails; the
+        convergence warnings go into the result's ``warnings`` instead.
+
+    Examples
+    --------
+    The whole analysis of one short simulated run (8 s), white noise only on
+    the yaw channel, in this process. The chain is capped at 100 steps on
+    purpose, to keep the example quick, and says it did not converge; the
+    thesis' grid searches and the report take most of its ~7 s:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.inference.executors import SerialExecutor
+    >>> from bayes_jackal.inference import SamplerSettings
+    >>> from bayes_jackal.model import load_profile
+    >>> from bayes_jackal.io import Series, simulate_experiment
+    >>> from bayes_jackal.io import write_csv
+    >>> from bayes_jackal.workflow import analyse_logs
+    >>> run = simulate_experiment(load_profile(), 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     result = analyse_logs(
+    ...         [write_csv(run, Path(folder) / "short.csv")],
+    ...         Path(folder) / "analysis",
+    ...         families=("white",),
+    ...         channels=("yaw",),
+    ...         settings=SamplerSettings(max_steps=100, design_points=64),
+    ...         seed=1,
+    ...         executor=SerialExecutor(),
+    ...     )
+    ...     written = sorted(path.name for path in (Path(folder) / "analysis").iterdir())
+    >>> result["best"], list(result["experiments"]), result["failed"]
+    ('white', ['short'], {})
+    >>> result["warnings"][0]["message"]
+    'white: NOT CONVERGED: 100 steps are fewer than 50 autocorrelation times ...'
+    >>> written
+    ['compare.json', 'experiments', 'grid.json', 'grid_onestep.png', 'grid_simulation.png',
+     'posterior.json', 'posterior.nc', 'posteriors', 'prior.json', 'report.html', 'report_figures']
+    """
+    folder = Path(out)
+    robot = robot or load_profile()
+    settings = settings or SamplerSettings()
+    settings.check_evidence_steps()  # before the logs are read and the grids written
+    experiments, failed = ingest_logs(
+        paths,
+        robot,
+        folder / "experiments",
+        window=window,
+        max_gap=max_gap,
+        progress=settings.progress,
+        labels=labels,
+        read_options=read_options,
+        say=say,
+    )
+    if not experiments:
+        raise DataError(
+            f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
+            field="inputs",
+        )
+    channels = resolve_channels(experiments, channels)
+    say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2):")
+    grids = _grids(experiments, robot, folder, say)
+    say(
+        f"posterior and evidence of {', '.join(families)} noise on {', '.join(channels)}, "
+        f"pooled over {len(experiments)} experiment(s):"
+    )
+
+    paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
+    executor = executor or ProcessExecutor(processes or os.cpu_count() or 1)
+    options = {**(likelihood_options or {}), "channels": channels}
+
+    def finished(family, evidence, idata) -> None:
+        criticise(idata)  # cached in its attrs: the saved file and the report reuse it
+        save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
+        say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+
+    try:
+        with keep_warnings() as kept:
+            comparison = compare_families(
+                experiments,
+                robot,
+                tuple(families),
+                settings,
+                seed,
+                prior_overrides=prior_overrides,
+                on_family=finished,
+                reuse=paths_by_family,
+                say=say,
+                executor=executor,
+                **options,
+            )
+    finally:
+        # The convergence warnings go into the result; the others reach the user,
+        # also those raised before the comparison failed.
+        kept.issue()
+    best = comparison.best
+    idata = comparison.posteriors[best]
+    save_posterior(idata, folder / "posterior.nc")
+    summary = summarize(idata)
+    write_json(folder / "posterior.json", summary)
+    result = comparison.to_dict()
+    write_json(folder / "compare.json", result)
+    # The highest order the best family allows, up to export.AUTO_ORDER.
+    prior = write_prior(
+        export_prior(idata, order=None, source=str(paths_by_family[best])), folder / "prior.json"
+    )
+    if state_estimation:
+        # Each run's posterior without it: the best family's pooled posterior reweighted
+        # (PSIS), or refit where the reweighting is unreliable.
+        left_out = leave_one_out(experiments, robot, best, folder, pooled=idata,
+                                 pooled_source=str(paths_by_family[best]), settings=settings,
+                                 seed=seed, prior_overrides=prior_overrides,
+                                 likelihood_options=options, executor=executor,
+                                 say=say)  # fmt: skip
+    else:
+        left_out = LeaveOneOut(best, skipped="turned off (--no-state-estimation)")
+    say("writing the report (figures as PNG and SVG)...")
+    ranked = [best, *(family for family in families if family != best)]
+    report = write_report(
+        [paths_by_family[family] for family in ranked],
+        folder / "report.html",
+        sections=[functools.partial(state_estimation_section, left_out)],
+        highlights=[line for line in [state_estimation_highlight(left_out)] if line],
+        say=say,
+    )
+    convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
+    convergence_left_out = [
+        {"kind": "not-converged", "message": f"leaving out {run}: {message}", "left_out": run}
+        for run, record in left_out.runs.items()
+        for message in record["warnings"]
+    ]
+    return {
+        "experiments": {
+            e.name: {
+                "file": str(folder / "experiments" / f"{e.name}.nc"),
+                "source": e.source,
+                "samples": len(e.t),
+                "rate": 1.0 / e.dt,
+                "channels": list(e.channels),
+                "steady_window": e.steady_window,
+            }
+            for e in experiments
+        },
+        "failed": failed,
+        "channels": list(channels),
+        "grids": grids,
+        "comparison": result,
+        "best": best,
+        "posterior": summary,
+        "warnings": convergence + result["warnings"] + convergence_left_out,
+        "state_estimation": left_out.to_dict(),
+        "files": {
+            "report": str(report),
+            "prior": str(prior),
+            "posterior": str(folder / "posterior.nc"),
+            "state_estimation": str(folder / SUMMARY) if left_out.skipped is None else None,
+            "folder": str(folder),
+        },
+    }
