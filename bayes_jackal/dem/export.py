@@ -387,7 +387,7 @@ def export_prior(
     Returns
     -------
     dict
-        The schema ``bayes_jackal.prior/1`` (README, "Active Inference prior").
+        The schema ``bayes_jackal.prior/1`` (docs/guide/prior.md, "The file").
 
     Raises
     ------

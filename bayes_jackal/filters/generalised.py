@@ -4,7 +4,7 @@ Each channel c of the model is the scalar system, in continuous time,
 
     dx/dt = a x + b . u + w,     y = x + z,
 
-with a = A[c, c] [1/s], b = B[c, :], w coloured process noise and z white
+with a = ``A[c, c]`` [1/s], b = ``B[c, :]``, w coloured process noise and z white
 sensor noise. Generalised filtering (Friston 2008, "Hierarchical models in
 the brain", DEM; Friston et al. 2010, "Generalised filtering") describes the
 state by its generalised coordinates mu~ = (mu, mu', .., mu^(p)) of embedding
@@ -179,9 +179,9 @@ def d_step(
     Parameters
     ----------
     a : float
-        The channel's pole A[c, c] [1/s].
+        The channel's pole ``A[c, c]`` [1/s].
     b : array_like, shape (m,)
-        The channel's input row B[c, :] [units / s per input unit].
+        The channel's input row ``B[c, :]`` [units / s per input unit].
     dt : float
         Sample time [s].
     process_precision : array_like, shape (p + 1, p + 1)
@@ -288,7 +288,7 @@ def conditional_covariance(
     Parameters
     ----------
     a : float
-        The channel's pole A[c, c] [1/s].
+        The channel's pole ``A[c, c]`` [1/s].
     process_precision, sensor_precision : array_like
         Pi_w (p + 1, p + 1) and Pi_z, as :func:`d_step` (one order more for a
         pose channel's travel).

@@ -74,11 +74,11 @@ class StateEstimate:
     Attributes
     ----------
     mean : ndarray
-        E[x_k | y_0..y_k, u] [channel units].
+        ``E[x_k | y_0..y_k, u]`` [channel units].
     variance : ndarray
         Its variance [channel units^2].
     innovation : ndarray
-        nu_k = y_k - E[y_k | y_0..y_k-1, u] [the measurement's units: the
+        ``nu_k = y_k - E[y_k | y_0..y_k-1, u]`` [the measurement's units: the
         channel's, or m for a channel recorded as poses]; NaN where y_k is
         no measurement (a pose channel's first sample).
     innovation_variance : ndarray

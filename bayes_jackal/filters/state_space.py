@@ -111,7 +111,7 @@ class ChannelModel:
     s[k+1] = F s[k] + G u[k] + Gamma eps[k] with eps ~ N(0, I); the
     measurement is y[k] = H s[k] + n[k] with var(n) = R: the state x_c
     (H = e_0') for a rate channel, its travel q for a pose channel. The
-    estimated state is s[k][0], x_c.
+    estimated state is ``s[k][0]``, x_c.
 
     Attributes
     ----------
@@ -196,9 +196,9 @@ def channel_model(
     ----------
     channel : str
     alpha : float
-        Discrete pole Ad[c, c] [-].
+        Discrete pole ``Ad[c, c]`` [-].
     input_row : sequence of 2 floats
-        Bd[c, :] [channel units / (rad/s)].
+        ``Bd[c, :]`` [channel units / (rad/s)].
     family : str
         Noise family (:data:`bayes_jackal.model.FAMILIES`); ``"white"`` for
         the white-noise model.

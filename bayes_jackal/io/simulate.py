@@ -275,6 +275,8 @@ def simulate_series(
 ) -> list[Experiment]:
     """Simulate several experiments per series, as the thesis' 10 x v1 + 5 x v2.
 
+    The parameters not listed here are those of :func:`simulate_experiment`.
+
     Parameters
     ----------
     counts : dict of str to int
@@ -282,8 +284,6 @@ def simulate_series(
         named ``v1_01``, ``v1_02``, ...
     rng : numpy.random.Generator, int or None
         Each run gets an independent child generator of this one.
-
-    Other parameters are those of :func:`simulate_experiment`.
 
     Examples
     --------

@@ -85,6 +85,8 @@ class ParameterLayout:
         The channels recorded as motion-capture poses: their groups' sensor
         parameter is :data:`POSE_SENSOR` instead of ``sigma_n``.
 
+    Notes
+    -----
     The derived names and groups are computed once per layout.
 
     Examples
