@@ -45,6 +45,7 @@ _LAZY = {
     "NoiseSettings": ".io",
     "RobotProfile": ".model",
     "SamplerSettings": ".inference",
+    "Posterior": ".posterior",
     "load_posterior": ".posterior",
     "load_profile": ".model",
     "save_posterior": ".posterior",

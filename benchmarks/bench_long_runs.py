@@ -37,8 +37,8 @@ from bayes_jackal import load_profile
 from bayes_jackal.inference.sampling import chain_path
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
-from bayes_jackal.posterior.file_format import posterior_metadata
-from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.posterior import Posterior
+from bayes_jackal.posterior.posterior import load_posterior
 
 ROBOT = load_profile()
 TRUTH = {"d_lat": 110.0, "d_long": 30.0, "sigma_h": 0.047}
@@ -72,7 +72,7 @@ def sample(path: Path, folder: Path, seed: int, *extra: str) -> dict:
     result = run(
         ["sample", str(path), "--out", str(out), "--seed", str(seed), "--no-progress", *extra]
     )
-    tau = posterior_metadata(load_posterior(out)).convergence.autocorr_time
+    tau = Posterior.of(load_posterior(out)).metadata.convergence.autocorr_time
     return result | {"tau": max(tau.values())}
 
 
@@ -151,7 +151,7 @@ def main() -> None:
             f"{result['peak_mb']:7.0f} MB (largest process)"
         )
         for posterior in sorted(out.glob("*.nc")):
-            convergence = posterior_metadata(load_posterior(posterior)).convergence
+            convergence = Posterior.of(load_posterior(posterior)).metadata.convergence
             tau = max(convergence.autocorr_time.values())
             print(
                 f"  {posterior.stem.split('.')[-1]:<14s} {convergence.n_steps:>6} steps "

@@ -77,7 +77,7 @@ def build(seconds: float, engine: str | None, out: Path) -> None:
     from bayes_jackal.io.simulate import Series, simulate_experiment
     from bayes_jackal.likelihood.priors import Prior
     from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
-    from bayes_jackal.posterior.inference_data import (
+    from bayes_jackal.posterior.posterior import (
         build_inference_data,
         save_posterior,
     )
@@ -114,16 +114,15 @@ def _render(draw) -> None:
 
 def run_step(step: str, path: Path) -> None:
     """One post-processing step on the posterior file ``path``."""
+    from bayes_jackal.posterior import Posterior, load_posterior
     from bayes_jackal.posterior.criticism import criticise
-    from bayes_jackal.posterior.file_format import posterior_metadata
-    from bayes_jackal.posterior.inference_data import load_posterior, posterior_likelihood
     from bayes_jackal.report import plots
     from bayes_jackal.report.page import write_report
 
     idata = load_posterior(path)
-    channels = posterior_metadata(idata).channels
+    channels = Posterior.of(idata).metadata.channels
     if step == "load":
-        posterior_likelihood(idata)
+        Posterior.of(idata).likelihood()
     elif step == "criticise":
         criticise(idata)
     elif step == "predictive":

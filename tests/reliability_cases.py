@@ -357,7 +357,7 @@ def _exported_prior(lib: Library) -> Path:
     path = lib.root / "prior.json"
     if not path.exists():
         from bayes_jackal.dem.export import export_prior, write_prior
-        from bayes_jackal.posterior.inference_data import load_posterior
+        from bayes_jackal.posterior.posterior import load_posterior
 
         prior = export_prior(load_posterior(lib.posterior), order=2, source=str(lib.posterior))
         write_prior(prior, path)

@@ -12,7 +12,7 @@ import numpy as np
 from bayes_jackal import load_profile
 from bayes_jackal.likelihood.priors import Prior
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
-from bayes_jackal.posterior.inference_data import build_inference_data
+from bayes_jackal.posterior.posterior import build_inference_data
 
 ROBOT = load_profile()
 

@@ -26,7 +26,7 @@ from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.kernels import FAMILIES
 from bayes_jackal.model.robot import default_profile_path, load_profile
 from bayes_jackal.posterior.file_format import posterior_layout
-from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.posterior.posterior import load_posterior
 from bayes_jackal.thesis.gridsearch import grid_search
 from bayes_jackal.thesis.residual_analysis import analyse
 

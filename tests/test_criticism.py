@@ -26,7 +26,7 @@ from bayes_jackal.likelihood.residual_likelihood import (
     sample_stationary,
 )
 from bayes_jackal.likelihood.residuals import channel_residuals
-from bayes_jackal.posterior import criticism, predictive
+from bayes_jackal.posterior import Posterior, criticism, predictive
 from bayes_jackal.posterior.criticism import (
     BOUNDARY_DENSITY,
     PRIOR_SHIFT,
@@ -43,11 +43,8 @@ from bayes_jackal.posterior.criticism_statistics import (
     simultaneous_threshold,
     steadiness,
 )
-from bayes_jackal.posterior.file_format import posterior_metadata
-from bayes_jackal.posterior.inference_data import (
+from bayes_jackal.posterior.posterior import (
     model_autocovariance,
-    posterior_likelihood,
-    thinned_draws,
 )
 from bayes_jackal.posterior.records import Evidence
 from bayes_jackal.posterior.summary import summarize
@@ -257,16 +254,16 @@ def test_chunked_p_values_equal_the_draw_by_draw_computation(simulated, monkeypa
     whole = predictive_acf(idata, count=50).numbers["v2"]["yaw"]
     monkeypatch.setattr(predictive, "CHUNK_SAMPLES", 1)
     chunked = predictive_acf(idata, count=50).numbers["v2"]["yaw"]
-    likelihood = posterior_likelihood(idata)
+    likelihood = Posterior.of(idata).likelihood()
     (experiment,) = likelihood.experiments
-    theta = thinned_draws(idata, 50)
+    theta = Posterior.of(idata).thinned_draws(50)
     n = idata.observed_data["residual_yaw_0"].size
     options = {"lags": criticism.PREDICTIVE_LAGS, "portmanteau": criticism.PORTMANTEAU_LAGS}
     generators = np.random.default_rng(0).spawn(50)
     exceed = 0
     for row, generator in zip(theta, generators, strict=True):
         observed = channel_residuals(experiment, ROBOT, row[0], row[1], "yaw", steady=True)
-        acov = model_autocovariance(posterior_metadata(idata), 0, "yaw", row[None], n)
+        acov = model_autocovariance(Posterior.of(idata).metadata, 0, "yaw", row[None], n)
         replicated = sample_stationary(acov, generator)[0]
         exceed += acf_statistics(replicated, **options) >= acf_statistics(observed, **options)
     assert chunked["draws"] == 50

@@ -31,7 +31,7 @@ from bayes_jackal.io.experiment import Experiment
 from bayes_jackal.io.simulate import simulate_experiment
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.physics import continuous_matrices, discrete_matrices
-from bayes_jackal.posterior.inference_data import save_posterior
+from bayes_jackal.posterior.posterior import save_posterior
 
 ROBOT = load_profile()
 SHORT = SamplerSettings(max_steps=120, check_every=40, design_points=256)

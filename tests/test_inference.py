@@ -31,7 +31,7 @@ from bayes_jackal.inference.starts import profile_starts
 from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
 from bayes_jackal.likelihood.priors import LogPosterior, Prior
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
-from bayes_jackal.posterior.inference_data import load_posterior, parameter_draws, save_posterior
+from bayes_jackal.posterior import Posterior, load_posterior, save_posterior
 from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()
@@ -309,7 +309,7 @@ def test_posterior_widths_match_importance_sampling(thesis_like):
     likelihood = ResidualLikelihood([thesis_like], ROBOT, channels=("yaw", "vx", "vy"))
     idata = sample_posterior(likelihood, seed=2)
     log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, ROBOT))
-    z, log_prob = parameter_draws(idata)
+    z, log_prob = Posterior.of(idata).draws()
     z = np.log(z).reshape(-1, z.shape[-1])
     rng = np.random.default_rng(3)
     start = laplace_walkers(log_posterior, z[np.argmax(log_prob.ravel())], 44, rng)

@@ -39,8 +39,7 @@ from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.likelihood.priors import LogPosterior, Prior
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
-from bayes_jackal.posterior.file_format import posterior_metadata
-from bayes_jackal.posterior.inference_data import load_posterior, parameter_draws, save_posterior
+from bayes_jackal.posterior import Posterior, load_posterior, save_posterior
 from bayes_jackal.posterior.reweighting import (
     PARETO_K_THRESHOLD,
     PooledPosterior,
@@ -414,7 +413,7 @@ def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
         "\n".join(lines)
     )
     idata = load_posterior(record["files"]["posterior"])
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     others = [name for name in FOUR if name != left]
     assert [e.name for e in metadata.experiments] == record["trained_on"] == others
     stored = metadata.reweighting
@@ -427,14 +426,14 @@ def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
         executor=SerialExecutor(), **OPTIONS,
     ).posteriors["white"]  # fmt: skip
     logs = {
-        name: np.log(parameter_draws(posterior)[0]).reshape(-1, 4)
+        name: np.log(Posterior.of(posterior).draws()[0]).reshape(-1, 4)
         for name, posterior in (("psis", idata), ("refit", reference), ("pooled", pooled))
     }
     # Tolerance: four Monte Carlo standard errors of the difference of the two
     # means. The reweighting's: the weights' ESS times the chain's relative
     # efficiency, plus the resampling's 1 / draws; the refit's: its chain's
     # autocorrelation ESS per parameter.
-    refit_ess = np.array(list(posterior_metadata(reference).convergence.ess_autocorr.values()))
+    refit_ess = np.array(list(Posterior.of(reference).metadata.convergence.ess_autocorr.values()))
     psis_ess = record["weights_ess"] * record["relative_efficiency"]
     sd = logs["refit"].std(axis=0)
     error = sd * np.sqrt(1 / psis_ess + 1 / len(logs["psis"]) + 1 / refit_ess)
@@ -505,12 +504,12 @@ def test_a_reweighting_with_noise_per_run_keeps_the_other_runs_and_their_log_pos
     # The posterior without b: a and c's layout, and their log posterior at each draw.
     equal = dataclasses.replace(weights, weights=np.full(pooled.count, 1 / pooled.count))
     idata = pooled.posterior_without("b", equal, np.random.default_rng(0), {"method": "psis"})
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     assert metadata.layout.names == (
         "d_lat", "d_long", "sigma_c[a]", "sigma_n[a]", "sigma_c[c]", "sigma_n[c]"
     )  # fmt: skip
     assert metadata.reweighting == {"method": "psis"}
-    draws, lp = parameter_draws(idata)
+    draws, lp = Posterior.of(idata).draws()
     z = np.log(draws.reshape(-1, 6))
     log_posterior = LogPosterior(others, Prior.for_likelihood(others, ROBOT))
     assert np.allclose(lp.reshape(-1), log_posterior(z), rtol=0, atol=1e-6)

@@ -17,19 +17,17 @@ from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.likelihood.priors import Prior
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
+from bayes_jackal.posterior import Posterior
 from bayes_jackal.posterior.file_format import (
     FORMAT,
     ROBOT_CONSTANTS,
     experiment_arrays,
-    posterior_metadata,
     store_comparison,
     store_criticism,
 )
-from bayes_jackal.posterior.inference_data import (
+from bayes_jackal.posterior.posterior import (
     build_inference_data,
     load_posterior,
-    parameter_draws,
-    posterior_experiments,
     save_posterior,
 )
 from bayes_jackal.posterior.records import Convergence, Evidence
@@ -82,7 +80,7 @@ def sampled():
 
 def test_the_typed_metadata_are_what_was_sampled(sampled):
     likelihood, prior, _, diagnostics, idata = sampled
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     assert metadata.format == FORMAT
     assert metadata.layout == likelihood.layout
     assert metadata.layout.groups == (
@@ -114,15 +112,15 @@ def test_the_metadata_say_which_channels_each_experiment_measured(sampled):
     likelihood, prior, chain, diagnostics, idata = sampled
     # The simulated runs measure every channel; a second posterior of one of
     # them without vy (vx and yaw used) measures vx and yaw only.
-    assert [e.channels for e in posterior_metadata(idata).experiments] == [CHANNELS] * 2
-    assert posterior_metadata(idata).measured_channels == CHANNELS
+    assert [e.channels for e in Posterior.of(idata).metadata.experiments] == [CHANNELS] * 2
+    assert Posterior.of(idata).metadata.measured_channels == CHANNELS
     run, other = likelihood.experiments
     runs = [run, dataclasses.replace(other, vy=None)]
     partial = ResidualLikelihood(
         runs, ROBOT, family="exponential", channels=("yaw", "vx"), shared_noise=False
     )
     stored = build_inference_data(partial, prior, chain, chain[..., 0], diagnostics)
-    metadata = posterior_metadata(stored)
+    metadata = Posterior.of(stored).metadata
     assert [e.channels for e in metadata.experiments] == [CHANNELS, ("vx", "yaw")]
     assert metadata.measured_channels == ("vx", "yaw")
     arrays = experiment_arrays(stored, 1)
@@ -133,7 +131,7 @@ def test_the_metadata_say_which_channels_each_experiment_measured(sampled):
 
 def test_parameter_draws_follow_the_layout(sampled):
     likelihood, _, chain, _, idata = sampled
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     np.testing.assert_array_equal(draws, np.exp(chain))
     layout = likelihood.layout
     column = layout.column("sigma_c", layout.group("vx", "v1_02"))
@@ -153,20 +151,20 @@ def test_a_saved_posterior_loads_with_the_same_metadata(sampled, tmp_path):
     )
     store_criticism(idata, {"warnings": [], "criticism": {"damping_scale": {}}})
     loaded = load_posterior(save_posterior(idata, tmp_path / "p.nc"))
-    before, after = posterior_metadata(idata), posterior_metadata(loaded)
+    before, after = Posterior.of(idata).metadata, Posterior.of(loaded).metadata
     for field in dataclasses.fields(before):
         if field.name != "prior":
             assert getattr(after, field.name) == getattr(before, field.name), field.name
     assert after.evidence == Evidence(-12.5, 0.03, "bridge") and after.evidence_nested is None
     assert after.convergence_messages == ("NOT CONVERGED: 400 steps",)
     assert after.task == {"family": "exponential"}
-    np.testing.assert_array_equal(parameter_draws(loaded)[0], np.exp(chain))
-    assert [e.name for e in posterior_experiments(loaded)] == ["v1_01", "v1_02"]
+    np.testing.assert_array_equal(Posterior.of(loaded).draws()[0], np.exp(chain))
+    assert [e.name for e in Posterior.of(loaded).experiments] == ["v1_01", "v1_02"]
 
 
 def test_a_file_written_before_the_format_had_an_owner_loads_and_summarises():
     idata = load_posterior(OLD_FILE)
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     assert metadata.format == "bayes_jackal.posterior/1"
     assert metadata.layout.names == ("d_lat", "d_long", "sigma_c", "sigma_n")
     assert metadata.layout.groups == (("yaw", "all"),)
@@ -188,7 +186,7 @@ def test_a_file_written_before_the_format_had_an_owner_loads_and_summarises():
     assert summary["corr_d_lat_d_long"] == pytest.approx(0.6383411792858013, rel=1e-12)
     kinds = {"damping-scale-not-identified", "predictive-acf", "prior-boundary"}
     assert len(summary["warnings"]) == 8 and {w["kind"] for w in summary["warnings"]} == kinds
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     assert draws.shape[-1] == 4
 
 
@@ -234,7 +232,7 @@ def test_a_posterior_with_broken_attributes_is_refused_naming_the_attribute(
     with pytest.raises(DataError, match=rf"{re.escape(str(path))}: {pattern}"):
         load_posterior(path)
     with pytest.raises(DataError, match=pattern):
-        posterior_metadata(idata)
+        _ = Posterior.of(idata).metadata
 
 
 def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
@@ -244,7 +242,7 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     from bayes_jackal.io.bag_writer import write_bag
     from bayes_jackal.io.bags import read_bag
     from bayes_jackal.posterior.file_format import observed_residuals
-    from bayes_jackal.posterior.inference_data import model_autocovariance
+    from bayes_jackal.posterior.posterior import model_autocovariance
 
     run = simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 10.0), rng=1, name="short")
     experiment = read_bag(write_bag(run, tmp_path / "short.bag", ROBOT, "ros1", rng=1), ROBOT)
@@ -254,10 +252,10 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     assert list(posterior.posterior["sigma_p_group"].values) == ["vx", "vy"]
     assert list(posterior.posterior["sigma_n_group"].values) == ["yaw"]
     back = load_posterior(save_posterior(posterior, tmp_path / "short.nc"))
-    draws, _ = parameter_draws(back)
-    original, _ = parameter_draws(posterior)
+    draws, _ = Posterior.of(back).draws()
+    original, _ = Posterior.of(posterior).draws()
     np.testing.assert_array_equal(draws, original)
-    metadata = posterior_metadata(back)
+    metadata = Posterior.of(back).metadata
     assert metadata.layout.pose_channels == ("vx", "vy")
     assert metadata.experiments[0].pose_samples == 5
     summary = summarize(back)
@@ -265,7 +263,7 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     residuals = {c: observed_residuals(back, 0, c) for c in ("yaw", "vx")}
     assert np.isfinite(residuals["vx"]).all()
     assert len(residuals["vx"]) == len(residuals["yaw"]) - 1  # two increments each
-    [rebuilt] = posterior_experiments(back)
+    [rebuilt] = Posterior.of(back).experiments
     np.testing.assert_array_equal(rebuilt.pose.x, experiment.pose.x)
     acov = model_autocovariance(metadata, 0, "vx", draws[0], 4)
     assert acov.shape == (draws.shape[1], 4) and np.all(acov[:, 3] == 0)  # white + MA(2)

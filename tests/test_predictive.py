@@ -10,12 +10,9 @@ from bayes_jackal._runtime.chunks import chunks
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.likelihood.residual_likelihood import sample_stationary
 from bayes_jackal.model.physics import simulate
-from bayes_jackal.posterior import predictive
-from bayes_jackal.posterior.file_format import posterior_metadata
-from bayes_jackal.posterior.inference_data import (
+from bayes_jackal.posterior import Posterior, predictive
+from bayes_jackal.posterior.posterior import (
     model_autocovariance,
-    posterior_likelihood,
-    thinned_draws,
 )
 from bayes_jackal.posterior.predictive import (
     model_percentiles,
@@ -51,8 +48,8 @@ def test_a_series_longer_than_the_budget_is_one_draw_per_chunk():
 
 def _reference_series(idata, seed: int) -> np.ndarray:
     """Series i drawn alone from the i-th generator spawned from the seed."""
-    metadata = posterior_metadata(idata)
-    theta = thinned_draws(idata, DRAWS)
+    metadata = Posterior.of(idata).metadata
+    theta = Posterior.of(idata).thinned_draws(DRAWS)
     n = idata.observed_data["residual_yaw_0"].size
     generators = np.random.default_rng(seed).spawn(DRAWS)
     return np.concatenate(
@@ -64,8 +61,8 @@ def _reference_series(idata, seed: int) -> np.ndarray:
 
 
 def test_predictive_series_do_not_depend_on_the_chunks(idata, monkeypatch):
-    metadata = posterior_metadata(idata)
-    theta = thinned_draws(idata, DRAWS)
+    metadata = Posterior.of(idata).metadata
+    theta = Posterior.of(idata).thinned_draws(DRAWS)
     n = idata.observed_data["residual_yaw_0"].size
     whole = list(predictive_series(metadata, 0, "yaw", theta, n, rng=3))
     monkeypatch.setattr(predictive, "CHUNK_SAMPLES", 5 * n)  # chunks of 5, 5 and 2 draws
@@ -97,9 +94,9 @@ def test_predictive_statistics_equal_the_statistics_of_all_series_at_once(idata,
 
 def _reference_percentiles(idata, percentiles, count: int) -> np.ndarray:
     """The percentiles of the model states of every draw over the whole run at once."""
-    likelihood = posterior_likelihood(idata)
+    likelihood = Posterior.of(idata).likelihood()
     (run,) = likelihood.experiments
-    theta = thinned_draws(idata, count)
+    theta = Posterior.of(idata).thinned_draws(count)
     x0 = np.array([run.vx[0], run.vy[0], run.yaw_rate[0]])
     states = simulate(ROBOT, theta[:, 0], theta[:, 1], run.inputs, x0, dt=run.dt)
     return np.percentile(states, percentiles, axis=0)

@@ -16,7 +16,7 @@ import scipy.stats
 from bayes_jackal import load_profile
 from bayes_jackal.cli import main
 from bayes_jackal.io.tables import write_csv
-from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.posterior.posterior import load_posterior
 from bayes_jackal.posterior.summary import summarize
 
 ROBOT = load_profile()

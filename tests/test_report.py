@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal.cli import main
-from bayes_jackal.posterior.inference_data import load_posterior, save_posterior
+from bayes_jackal.posterior.posterior import load_posterior, save_posterior
 from bayes_jackal.report import plots
 from bayes_jackal.report.sections import _criticism_table
 

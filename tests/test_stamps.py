@@ -36,7 +36,7 @@ from bayes_jackal.io.stamps import GRID, ONE_PER_TICK, UNIFORM, sort_stamps, uni
 from bayes_jackal.io.tables import load_experiment, read_csv, write_csv
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import default_profile_path, load_profile
-from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.posterior.posterior import load_posterior
 from bayes_jackal.thesis.gridsearch import damping_grid, grid_search
 
 MS = 1e-3

@@ -27,7 +27,7 @@ from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.io.tables import write_csv
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
-from bayes_jackal.posterior.inference_data import load_posterior
+from bayes_jackal.posterior.posterior import load_posterior
 from bayes_jackal.workflow.analysis import analyse_logs, ingest_logs
 from bayes_jackal.workflow.demo import demo_folder, demo_labels
 

@@ -36,7 +36,7 @@ from ..model.kernels import FAMILIES
 from ..model.parameters import prior_overrides
 from ..model.robot import RobotProfile
 from ..posterior.criticism import criticise
-from ..posterior.inference_data import load_posterior, save_posterior
+from ..posterior.posterior import load_posterior, save_posterior
 from ..posterior.summary import summarize
 from ..report.grid_plots import save_grid_plot
 from ..report.page import read_posteriors, save_report

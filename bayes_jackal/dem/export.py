@@ -67,8 +67,8 @@ from .._runtime.files import require_file, write_json
 from ..model.kernels import get_family
 from ..model.parameters import DAMPING
 from ..model.physics import continuous_matrices, discrete_matrices
-from ..posterior.file_format import ROBOT_CONSTANTS, posterior_metadata
-from ..posterior.inference_data import parameter_draws, posterior_experiments
+from ..posterior.file_format import ROBOT_CONSTANTS
+from ..posterior.posterior import Posterior
 from ..posterior.summary import interval, summarize
 from .consumer_keys import (
     channel_moments,
@@ -410,7 +410,7 @@ def export_prior(
     >>> bj.write_prior(prior, "prior.json")  # doctest: +SKIP
     PosixPath('prior.json')
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     layout = metadata.layout
     family, channels, names = layout.family, list(layout.channels), layout.names
     if order is not None:
@@ -428,7 +428,7 @@ def export_prior(
     if len(dts) != 1:
         raise InputError(f"experiments differ in sample time: {sorted(dts)} s", source=source)
     dt = dts.pop()
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     draws = draws.reshape(-1, len(names))
     d = draws[:, :2]
     # Shared noise: group c is channel c; white noise has unit widths.
@@ -517,7 +517,7 @@ def export_prior(
         dt=dt,
         A=A,
         B=B,
-        experiments=posterior_experiments(idata),
+        experiments=Posterior.of(idata).experiments,
         steady=metadata.steady,
     )
     for key, value in additions.items():

@@ -89,8 +89,7 @@ from ..inference.executors import Executor
 from ..inference.sampler_warnings import keep_warnings
 from ..io.experiment import Experiment
 from ..model.robot import RobotProfile
-from ..posterior.file_format import posterior_metadata
-from ..posterior.inference_data import load_posterior, save_posterior
+from ..posterior.posterior import Posterior, load_posterior, save_posterior
 from ..posterior.reweighting import PARETO_K_THRESHOLD, PooledPosterior
 from .kalman_filters import StateEstimate
 from .state_estimation import (
@@ -184,7 +183,7 @@ def _reweighting(path: Path) -> tuple[az.InferenceData, dict] | None:
         return None
     try:
         idata = load_posterior(path)
-        record = posterior_metadata(idata).reweighting
+        record = Posterior.of(idata).metadata.reweighting
     except DataError:
         return None
     return None if record is None else (idata, record)

@@ -34,8 +34,8 @@ from ..likelihood.priors import LogPosterior, Prior
 from ..likelihood.residual_likelihood import ResidualLikelihood
 from ..model.kernels import FAMILIES
 from ..model.robot import RobotProfile
-from ..posterior.file_format import posterior_metadata, store_comparison
-from ..posterior.inference_data import load_posterior, parameter_draws
+from ..posterior.file_format import store_comparison
+from ..posterior.posterior import Posterior, load_posterior
 from ..posterior.records import Evidence
 from .chains import SamplerSettings
 from .comparison_result import Comparison
@@ -124,7 +124,7 @@ class _FamilyRun:
             idata = sample_posterior(
                 likelihood, settings, self.seed, prior_overrides=self.prior_overrides
             )
-            draws, lp = parameter_draws(idata)
+            draws, lp = Posterior.of(idata).draws()
             # Keyed on the family, not on which others are compared: results are reusable.
             key = list(FAMILIES).index(family)
             rng = np.random.default_rng(None if self.seed is None else [self.seed, key])
@@ -142,7 +142,7 @@ class _FamilyRun:
     @staticmethod
     def _stored(family: str, idata: az.InferenceData, kept: KeptWarnings | None = None):
         """(family, evidence, posterior, nested or None, ``kept``) from the posterior's attrs."""
-        metadata = posterior_metadata(idata)
+        metadata = Posterior.of(idata).metadata
         return family, metadata.evidence, idata, metadata.evidence_nested, kept or KeptWarnings()
 
     def reuse(self, family: str, path: Path, say: Callable[[str], None]):
@@ -151,7 +151,7 @@ class _FamilyRun:
             return None
         try:
             idata = load_posterior(path)
-            stored = posterior_metadata(idata).task or {}
+            stored = Posterior.of(idata).metadata.task or {}
         except (DataError, ValueError) as exc:
             say(f"  recomputing {family}: {exc}")
             return None

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._runtime.arviz_quiet import az
 from .._runtime.defaults import HDI_PROB
-from ..posterior.file_format import posterior_metadata
+from ..posterior.posterior import Posterior
 from ..posterior.records import Evidence
 from ..posterior.summary import interval, summarize
 from .evidence import evidence_strength
@@ -89,7 +89,7 @@ class Comparison:
         return [
             f"{family}: {message}"
             for family, idata in self.posteriors.items()
-            for message in posterior_metadata(idata).convergence_messages
+            for message in Posterior.of(idata).metadata.convergence_messages
         ]
 
     def log_bayes_factor(self, family: str, other: str) -> tuple[float, float]:
@@ -116,7 +116,7 @@ class Comparison:
                 self.log_bayes_factor(name, "white")[0] if "white" in self.evidence else None
             )
             entry["width"] = _width_summary(self.posteriors[name], name)
-            entry["converged"] = posterior_metadata(self.posteriors[name]).convergence.converged
+            entry["converged"] = Posterior.of(self.posteriors[name]).metadata.convergence.converged
             entry["warnings"] = summarize(self.posteriors[name])["warnings"]
             if name in self.nested:
                 entry["log_evidence_nested"] = self.nested[name].log_evidence
@@ -140,7 +140,7 @@ class Comparison:
 
 def _width_summary(idata: az.InferenceData, family: str) -> dict | None:
     """Posterior mean, sd and HDI of a family's width(s) [s]; None for white noise."""
-    layout = posterior_metadata(idata).layout
+    layout = Posterior.of(idata).metadata.layout
     if layout.width_name is None:
         return None
     summary = summarize(idata)

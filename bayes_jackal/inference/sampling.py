@@ -27,7 +27,7 @@ from .._runtime.arviz_quiet import az
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
 from ..likelihood.residual_likelihood import ResidualLikelihood
-from ..posterior.inference_data import build_inference_data
+from ..posterior.posterior import build_inference_data
 from .chains import SamplerSettings, run_chain
 from .map_search import find_map, laplace_walkers
 from .moves import Start

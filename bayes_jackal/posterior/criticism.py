@@ -1,7 +1,7 @@
 """Model criticism: checks of a fitted posterior and of its data.
 
 A converged posterior can still be wrong. Each check takes an arviz
-InferenceData as written by :mod:`bayes_jackal.posterior.inference_data` and returns a
+InferenceData as written by :mod:`bayes_jackal.posterior.posterior` and returns a
 :class:`Check`: JSON-ready numbers and warnings, dicts with ``kind``,
 ``message`` and the fields that locate them. Kinds: ``prior-boundary``
 (:func:`prior_boundary`), ``residual-input`` (:func:`residual_input`, MATLAB
@@ -42,8 +42,8 @@ from .criticism_statistics import (
     predictive_p_values,
     prior_shift,
 )
-from .file_format import observed_residuals, posterior_metadata, store_criticism
-from .inference_data import parameter_draws, posterior_experiments, thinned_draws
+from .file_format import observed_residuals, store_criticism
+from .posterior import Posterior
 from .predictive import predictive_series
 from .records import PosteriorMetadata
 
@@ -138,9 +138,9 @@ def prior_boundary(idata: az.InferenceData) -> Check:
     >>> {name: bool(ratios["low"] >= BOUNDARY_DENSITY) for name, ratios in check.numbers.items()}
     {'d_lat': False, 'd_long': True, 'sigma_c': False, 'sigma_n': True}
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     layout = metadata.layout
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     keys = [layout.prior_key(base) for base in layout.bases]
     return boundary_check(draws.reshape(-1, len(keys)), metadata.prior, keys)
 
@@ -278,11 +278,11 @@ def predictive_acf(
     >>> [(w["statistic"], w["p_value"]) for w in check.warnings]  # white misses the colour
     [('acf[1]', 0.0), ('acf[2]', 0.0), ('acf[5]', 0.0), ('acf[10]', 1.0), ('Q[1..30]', 0.0)]
     """
-    metadata = posterior_metadata(idata)
-    theta = thinned_draws(idata, count)
+    metadata = Posterior.of(idata).metadata
+    theta = Posterior.of(idata).thinned_draws(count)
     rng = as_rng(rng)  # one generator: every channel spawns its own series from it
     check = Check()
-    for index, experiment in enumerate(posterior_experiments(idata)):
+    for index, experiment in enumerate(Posterior.of(idata).experiments):
         rows = {}
         for channel in metadata.channels:
             total = observed_residuals(idata, index, channel).size
@@ -421,11 +421,11 @@ def damping_scale(idata: az.InferenceData) -> Check:
     >>> print(check.warnings[0]["message"])
     yaw alone identifies ...; add vx or vy (--channels yaw,vx,vy)
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     channels = list(metadata.channels)
     # Yaw first: the channel a single-channel posterior usually has.
     measured = [c for c in ("yaw", "vx", "vy") if c in metadata.measured_channels]
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     damping = draws.reshape(-1, draws.shape[-1])[:, : len(DAMPING)]
     shift = _damping_prior_shift(damping, metadata.prior)
     scaled = max(abs(value) for value in shift.values()) < PRIOR_SHIFT
@@ -527,7 +527,7 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     >>> sorted({warning["kind"] for warning in result["warnings"]})
     ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
-    stored = posterior_metadata(idata).criticism
+    stored = Posterior.of(idata).metadata.criticism
     if stored is not None:
         return stored
     checks = {

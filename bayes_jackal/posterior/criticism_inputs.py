@@ -26,8 +26,7 @@ from .criticism_statistics import (
     simultaneous_threshold,
     steadiness,
 )
-from .file_format import posterior_metadata
-from .inference_data import parameter_draws, posterior_experiments
+from .posterior import Posterior
 from .series_statistics import sample_autocorrelation
 
 __all__ = [
@@ -68,7 +67,7 @@ def _input_series(experiment: Experiment) -> dict[str, np.ndarray]:
 
 
 def _posterior_median(idata: az.InferenceData) -> np.ndarray:
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     return np.median(draws.reshape(-1, draws.shape[-1]), axis=0)
 
 
@@ -117,11 +116,11 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
     >>> row["lags"], round(row["threshold"], 2), round(row["max_abs_z"], 1), check.warnings
     (25, 3.9, 1.0, [])
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     theta = _posterior_median(idata)[None]
     band = float(scipy.stats.norm.isf((1.0 - RESIDUAL_INPUT_LEVEL) / 2.0))
     check = Check()
-    for experiment in posterior_experiments(idata):
+    for experiment in Posterior.of(idata).experiments:
         inputs = {name: u for name, u in _input_series(experiment).items() if np.ptp(u) > 0}
         rows = {}
         for channel in metadata.channels:
@@ -204,9 +203,9 @@ def steady_windows(idata: az.InferenceData) -> Check:
     >>> row["duration"], row["input_deviation"], round(row["yaw_drift"], 3), check.warnings
     (33.0, 0.0, 0.01, [])
     """
-    steady = posterior_metadata(idata).steady
+    steady = Posterior.of(idata).metadata.steady
     check = Check()
-    for experiment in posterior_experiments(idata):
+    for experiment in Posterior.of(idata).experiments:
         window = experiment.steady() if steady else experiment
         deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
         duration = float(window.t[-1] - window.t[0])
@@ -300,7 +299,7 @@ def derived_velocities(idata: az.InferenceData) -> Check:
     >>> check.numbers["v1"], check.warnings
     ({'derived': False, 'channels': []}, [])
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     modelled = [
         c
         for c in metadata.channels

@@ -6,9 +6,10 @@ the format versions). This module is the only one that writes or parses
 them, and the only one that names the arrays of the ``constant_data``
 (:func:`experiment_data`, :func:`experiment_arrays`) and ``observed_data``
 groups (:func:`observed_data`, :func:`observed_residuals`);
-:mod:`bayes_jackal.posterior.inference_data`, which builds, saves and loads the files,
-re-exports its public names. :func:`posterior_metadata` gives them typed
-(the records of :mod:`bayes_jackal.posterior.records`);
+:mod:`bayes_jackal.posterior.posterior`, which builds, saves and loads the files,
+reads them through :func:`posterior_metadata` into
+:attr:`~bayes_jackal.posterior.Posterior.metadata` (the records of
+:mod:`bayes_jackal.posterior.records`);
 :func:`store_comparison` and :func:`store_criticism` add the results
 computed later, :func:`store_reweighting` the record of a posterior made by
 reweighting another's draws.
@@ -35,7 +36,7 @@ from ..model.parameters import ParameterLayout
 from ..model.robot import RobotProfile, load_profile
 from .records import Convergence, Evidence, ExperimentRecord, PosteriorMetadata
 
-if TYPE_CHECKING:  # arviz is imported by bayes_jackal.posterior.inference_data
+if TYPE_CHECKING:  # arviz is imported by bayes_jackal.posterior.posterior
     import arviz as az
 
 __all__ = [
@@ -48,7 +49,6 @@ __all__ = [
     "observed_data",
     "observed_residuals",
     "posterior_layout",
-    "posterior_metadata",
     "store_comparison",
     "store_criticism",
     "store_reweighting",
@@ -469,9 +469,10 @@ def _convergence(attrs: Mapping) -> Convergence:
 def posterior_metadata(idata: az.InferenceData) -> PosteriorMetadata:
     """Everything a posterior file says besides its draws, typed (docs/design.md §7).
 
-    Read from the attributes (and the names of the stored arrays) each
-    time: results stored later (:func:`store_comparison`,
-    :func:`store_criticism`) show at once.
+    The reader behind :attr:`bayes_jackal.posterior.Posterior.metadata`, its
+    one caller, which reads again when the attributes change (results
+    stored later by :func:`store_comparison`, :func:`store_criticism`,
+    :func:`store_reweighting`).
 
     Raises
     ------
@@ -479,20 +480,6 @@ def posterior_metadata(idata: az.InferenceData) -> PosteriorMetadata:
         For a file that is not a posterior this version reads (naming the
         format found), a missing or malformed attribute, or no
         ``constant_data`` group.
-
-    Examples
-    --------
-    The typed metadata of a posterior. The 20-step chain is short on purpose:
-
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> metadata = posterior_metadata(posterior)
-    >>> metadata.format, metadata.family, metadata.convergence.converged
-    ('bayes_jackal.posterior/1', 'white', False)
-    >>> [record.name for record in metadata.experiments], metadata.evidence
-    (['v1'], None)
     """
     attrs = idata.posterior.attrs
     layout = posterior_layout(idata)
@@ -541,7 +528,7 @@ def store_comparison(
     messages: Sequence[str],
     task: dict,
 ) -> None:
-    """Keep a comparison's result in a posterior (read back by :func:`posterior_metadata`).
+    """Keep a comparison's result in a posterior (read back by :attr:`Posterior.metadata`).
 
     Parameters
     ----------
@@ -562,14 +549,14 @@ def store_comparison(
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import Evidence
-    >>> from bayes_jackal.posterior import posterior_metadata, store_comparison
+    >>> from bayes_jackal.posterior import store_comparison
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> evidence = Evidence(-12.5, 0.03, "bridge sampling")
     >>> store_comparison(
     ...     posterior, evidence=evidence, nested=None, messages=[], task={"family": "white"}
     ... )
-    >>> posterior_metadata(posterior).evidence == evidence
+    >>> posterior.metadata.evidence == evidence
     True
     """
     idata.posterior.attrs |= {
@@ -590,11 +577,11 @@ def store_criticism(idata: az.InferenceData, criticism: dict) -> None:
     purpose:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata, store_criticism
+    >>> from bayes_jackal.posterior import store_criticism
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> store_criticism(posterior, {"warnings": [], "criticism": {}})
-    >>> posterior_metadata(posterior).criticism
+    >>> posterior.metadata.criticism
     {'warnings': [], 'criticism': {}}
     >>> bj.summarize(posterior)["warnings"]
     []
@@ -621,13 +608,13 @@ def store_reweighting(idata: az.InferenceData, record: dict) -> None:
     purpose:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata, store_reweighting
+    >>> from bayes_jackal.posterior import store_reweighting
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> posterior_metadata(posterior).reweighting is None  # sampled
+    >>> posterior.metadata.reweighting is None  # sampled
     True
     >>> store_reweighting(posterior, {"method": "psis", "pareto_k": 0.21})
-    >>> posterior_metadata(posterior).reweighting
+    >>> posterior.metadata.reweighting
     {'method': 'psis', 'pareto_k': 0.21}
     """
     idata.posterior.attrs["reweighting"] = json.dumps(record)

@@ -24,8 +24,8 @@ from .._runtime.chunks import chunks
 from .._runtime.rng import as_rng
 from ..likelihood.residual_likelihood import sample_stationary
 from ..model.physics import simulate
-from .file_format import observed_residuals, posterior_metadata
-from .inference_data import model_autocovariance, posterior_experiments, thinned_draws
+from .file_format import observed_residuals
+from .posterior import Posterior, model_autocovariance
 from .records import PosteriorMetadata
 
 __all__ = [
@@ -69,7 +69,7 @@ def predictive_series(
     Parameters
     ----------
     metadata : PosteriorMetadata
-        Of the posterior (:func:`~bayes_jackal.posterior.posterior_metadata`).
+        Of the posterior (:attr:`bayes_jackal.posterior.Posterior.metadata`).
     index : int
         Experiment index.
     channel : {"yaw", "vx", "vy"}
@@ -93,11 +93,11 @@ def predictive_series(
     purpose:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata, thinned_draws
+    >>> from bayes_jackal.posterior import Posterior
     >>> from bayes_jackal.posterior import predictive_series
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> metadata, theta = posterior_metadata(posterior), thinned_draws(posterior, 4)
+    >>> metadata, theta = posterior.metadata, posterior.thinned_draws(4)
     >>> chunks = predictive_series(metadata, 0, "yaw", theta, 100, rng=1)
     >>> [(part, series.shape) for part, series in chunks]
     [(slice(0, 4, None), (4, 100))]
@@ -157,8 +157,8 @@ def predictive_statistics(
     >>> replicated.shape, round(float(replicated.mean() / observed), 1)
     ((20,), 1.0)
     """
-    metadata = posterior_metadata(idata)
-    theta = thinned_draws(idata, count)
+    metadata = Posterior.of(idata).metadata
+    theta = Posterior.of(idata).thinned_draws(count)
     n = observed_residuals(idata, index, channel).size
     return stationary_statistics(
         _model(metadata, index, channel, theta, n),
@@ -310,9 +310,9 @@ def model_percentiles(
     >>> round(float(states[1, steady, 2].mean()), 2), round(float(run.yaw_rate[steady].mean()), 2)
     (0.22, 0.21)
     """
-    experiment = posterior_experiments(idata)[index]
-    robot = posterior_metadata(idata).robot
-    theta = thinned_draws(idata, count)
+    experiment = Posterior.of(idata).experiments[index]
+    robot = Posterior.of(idata).metadata.robot
+    theta = Posterior.of(idata).thinned_draws(count)
     x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
     state = np.array([*x0, experiment.yaw_rate[0]])
     inputs = experiment.inputs

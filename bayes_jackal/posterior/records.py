@@ -1,8 +1,7 @@
 """The typed records of a posterior file's metadata: experiments, convergence, the whole.
 
-:func:`bayes_jackal.posterior.posterior_metadata`, which reads the
-file's attributes, fills them; :mod:`bayes_jackal.posterior.file_format` and
-:mod:`bayes_jackal.posterior.inference_data` re-export them.
+:attr:`bayes_jackal.posterior.Posterior.metadata`, read from the file's
+attributes, fills them.
 """
 
 from __future__ import annotations
@@ -50,10 +49,10 @@ class ExperimentRecord:
     is short on purpose:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata
+    >>> from bayes_jackal.posterior import Posterior
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> [record] = posterior_metadata(posterior).experiments
+    >>> [record] = posterior.metadata.experiments
     >>> record.name, record.series, record.steady_window, round(1 / record.dt)
     ('v1', 'v1', (3.0, 36.0), 72)
     >>> record.channels, record.truth["d_lat"]
@@ -99,10 +98,10 @@ class Convergence:
     takes the default step cap:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata
+    >>> from bayes_jackal.posterior import Posterior
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> convergence = posterior_metadata(posterior).convergence
+    >>> convergence = posterior.metadata.convergence
     >>> convergence.converged, convergence.n_steps, convergence.walkers, convergence.seed
     (False, 20, 32, 1)
     >>> sorted(convergence.autocorr_time)
@@ -123,7 +122,7 @@ class Convergence:
 
 @dataclass(frozen=True)
 class PosteriorMetadata:
-    """Everything a posterior file says besides its draws (:func:`posterior_metadata`).
+    """Everything a posterior file says besides its draws (:attr:`Posterior.metadata`).
 
     Attributes
     ----------
@@ -167,10 +166,10 @@ class PosteriorMetadata:
     purpose:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_metadata
+    >>> from bayes_jackal.posterior import Posterior
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> metadata = posterior_metadata(posterior)
+    >>> metadata = posterior.metadata
     >>> metadata.family, metadata.channels, metadata.engine, metadata.robot.name
     ('white', ('yaw',), 'fast', 'jackal')
     >>> metadata.layout.names

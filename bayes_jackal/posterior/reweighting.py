@@ -68,8 +68,8 @@ from ..likelihood.residual_likelihood import ResidualLikelihood
 from ..likelihood.spectral import CHUNK_ELEMENTS
 from ..model.parameters import ParameterLayout
 from ..model.robot import RobotProfile
-from .file_format import experiment_arrays, posterior_metadata, store_reweighting
-from .inference_data import build_inference_data, parameter_draws
+from .file_format import experiment_arrays, store_reweighting
+from .posterior import Posterior, build_inference_data
 
 __all__ = [
     "OWN_COVARIANCE_SCALE",
@@ -377,7 +377,7 @@ class PooledPosterior:
         prior_overrides: Mapping | None = None,
         source: str | None = None,
     ) -> None:
-        self.metadata = metadata = posterior_metadata(idata)
+        self.metadata = metadata = Posterior.of(idata).metadata
         self.source, self.robot, self.family = source, robot, family
         self.options, self.prior_overrides = dict(options), prior_overrides
         self.experiments = list(experiments)
@@ -400,7 +400,7 @@ class PooledPosterior:
                     field="pooled",
                 )
         self.layout = metadata.layout
-        draws, lp = parameter_draws(idata)
+        draws, lp = Posterior.of(idata).draws()
         self.shape = draws.shape[:2]  # (draws, walkers)
         self.theta = draws.reshape(-1, draws.shape[-1])
         self.lp = lp.reshape(-1)

@@ -12,8 +12,7 @@ import numpy as np
 from .._runtime.arviz_quiet import az
 from .._runtime.defaults import HDI_PROB
 from .criticism import criticise
-from .file_format import posterior_metadata
-from .inference_data import parameter_variables
+from .posterior import Posterior
 
 __all__ = ["INTERVAL_FIELDS", "THESIS_RATIO", "interval", "summarize"]
 
@@ -81,13 +80,13 @@ def summarize(idata: az.InferenceData) -> dict:
     >>> sorted({warning["kind"] for warning in summary["warnings"]})
     ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     convergence = metadata.convergence
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         table = az.summary(
             idata,
-            var_names=[*parameter_variables(idata), "ratio"],
+            var_names=[*Posterior.of(idata).variables, "ratio"],
             hdi_prob=HDI_PROB,
             round_to="none",
         )

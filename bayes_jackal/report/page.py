@@ -23,8 +23,7 @@ from .._runtime.defaults import FIGURE_FORMATS
 from .._runtime.errors import InputError, each_input, refuse
 from .._runtime.files import atomic_path
 from .._runtime.output_safety import refuse_link, removed_if_empty
-from ..posterior.file_format import posterior_metadata
-from ..posterior.inference_data import load_posterior
+from ..posterior.posterior import Posterior, load_posterior
 from .figures import ReportFigures
 from .sections import evidence_section, posterior_section, summary_section
 
@@ -196,7 +195,7 @@ def render_report(
     True
     """
     body = [summary_section(posteriors, highlights)]
-    stale = [p.name for p, i in posteriors if not posterior_metadata(i).convergence.converged]
+    stale = [p.name for p, i in posteriors if not Posterior.of(i).metadata.convergence.converged]
     if stale:
         body.append(
             f'<div class="not-converged">NOT CONVERGED: {html.escape(", ".join(stale))}. '
@@ -337,7 +336,7 @@ def _labelled(
     labelled, failed, taken = [], {}, set()
     for label, item in items:
         if isinstance(item, az.InferenceData):
-            name = label or posterior_metadata(item).family
+            name = label or Posterior.of(item).metadata.family
             free, count = name, 1
             while Path(free).stem in taken:
                 count += 1

@@ -20,8 +20,8 @@ from matplotlib.patches import Patch
 from .._runtime.defaults import CHANNELS
 from ..model.parameters import DAMPING
 from ..posterior.criticism import criticise
-from ..posterior.file_format import observed_residuals, posterior_layout, posterior_metadata
-from ..posterior.inference_data import parameter_draws, posterior_experiments, posterior_truth
+from ..posterior.file_format import observed_residuals, posterior_layout
+from ..posterior.posterior import Posterior
 from ..posterior.predictive import model_percentiles
 from ..posterior.summary import THESIS_RATIO
 from ._layout import BAND, DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS, new_axes
@@ -116,7 +116,7 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     >>> axes[0].get_title()
     'v1: model at the posterior against the data'
     """
-    experiment = posterior_experiments(idata)[index]
+    experiment = Posterior.of(idata).experiments[index]
     t = experiment.t
     low, median, high = model_percentiles(idata, index, [BAND[0], 50.0, BAND[1]])
     fig, axes = _figures(axes, 3, figsize=(7.0, 6.0))
@@ -160,7 +160,7 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     >>> len(axes), axes[0].get_ylabel()  # one channel sampled: one axes
     (1, 'yaw residual [rad/s]')
     """
-    experiment = posterior_experiments(idata)[index]
+    experiment = Posterior.of(idata).experiments[index]
     channels = _channels(idata)
     fig, axes = _figures(axes, len(channels), figsize=(7.0, 1.0 + 1.8 * len(channels)))
     for ax, channel in zip(axes, channels, strict=True):
@@ -176,7 +176,7 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
 
 def _channels(idata) -> list[str]:
-    return list(posterior_metadata(idata).channels)
+    return list(Posterior.of(idata).metadata.channels)
 
 
 def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
@@ -199,7 +199,7 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     >>> [ax.get_ylabel() for ax in axes], axes[-1].get_yscale()
     (['d_lat', 'd_long', 'sigma_c', 'sigma_n'], 'log')
     """
-    draws, _ = parameter_draws(idata)
+    draws, _ = Posterior.of(idata).draws()
     layout = posterior_layout(idata)
     names = layout.names
     fig, axes = _figures(axes, len(names), figsize=(7.0, 1.0 + 1.2 * len(names)))
@@ -256,7 +256,7 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
         span, ratio * span, color=MODEL_COLOUR, lw=1, label=f"ridge d_lat = {ratio:.3f} d_long"
     )
     ax.plot(span, THESIS_RATIO * span, "k--", lw=0.8, label="thesis 11/3")
-    truth = posterior_truth(idata)
+    truth = Posterior.of(idata).truth
     if truth:
         ax.plot(truth["d_long"], truth["d_lat"], "k*", ms=12, label="truth (simulated)")
     ax.set_xlabel("d_long [N s/m]")
@@ -298,7 +298,7 @@ def plot_sigma_h(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
         ax.hist(values, bins=60, density=True, alpha=0.6, label=f"posterior {group or ''}".strip())
     for (label, value), style in zip(THESIS_SIGMA_H.items(), (":", "-.", "--"), strict=True):
         ax.axvline(value, color="k", ls=style, lw=1, label=f"thesis {label}: {value} s")
-    truth = posterior_truth(idata)
+    truth = Posterior.of(idata).truth
     if truth and truth.get("sigma_h"):
         ax.axvline(truth["sigma_h"], color=MODEL_COLOUR, lw=1.5, label="truth (simulated)")
     ax.set_xlabel("sigma_h [s]")

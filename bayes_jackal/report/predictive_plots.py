@@ -16,7 +16,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from .._runtime.errors import InputError
-from ..posterior.file_format import observed_residuals, posterior_metadata
+from ..posterior.file_format import observed_residuals
+from ..posterior.posterior import Posterior
 from ..posterior.predictive import predictive_statistics
 from ..posterior.records import ExperimentRecord
 from ..posterior.series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
@@ -230,4 +231,4 @@ def plot_spectrum(
 
 def _experiment(idata, index: int) -> ExperimentRecord:
     """The stored description (name, dt, window, truth) of one experiment."""
-    return posterior_metadata(idata).experiments[index]
+    return Posterior.of(idata).metadata.experiments[index]

@@ -33,7 +33,7 @@ from ..filters.state_estimation import score_rows
 from ..inference.comparison_result import colour_verdict
 from ..model.physics import discrete_matrices
 from ..posterior.criticism import KIND_MEANINGS
-from ..posterior.file_format import posterior_metadata
+from ..posterior.posterior import Posterior
 from ..posterior.reweighting import PARETO_K_THRESHOLD
 from ..posterior.summary import summarize
 from . import estimate_plots, plots, predictive_plots
@@ -105,7 +105,7 @@ def _model_truth(idata: az.InferenceData, truth: dict | None) -> dict | None:
     """
     if not truth or "sigma_n" in idata.posterior.data_vars:
         return truth
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     dt = metadata.experiments[0].dt
     Ad, _ = discrete_matrices(metadata.robot, truth["d_lat"], truth["d_long"], dt)
     total = {
@@ -148,7 +148,7 @@ def _summary_section(idata: az.InferenceData, truth: dict | None) -> str:
         ],
         rows,
     )
-    convergence = posterior_metadata(idata).convergence
+    convergence = Posterior.of(idata).metadata.convergence
     taus = summary["autocorr_time"]
     diagnostics = (
         f"<p>{summary['n_steps']} steps of {convergence.walkers} walkers; longest "
@@ -176,7 +176,7 @@ def summary_section(
     the truth was held.
     """
     path, idata = reported_posterior(posteriors)
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     summary = summarize(idata)
     runs = ", ".join(e.name for e in metadata.experiments)
     lines = [
@@ -209,11 +209,11 @@ def reported_posterior(
     rivals = _with_evidence(posteriors).get(_runs(posteriors[0][1]))
     if not rivals:
         return posteriors[0]
-    return max(rivals, key=lambda item: posterior_metadata(item[1]).evidence.log_evidence)
+    return max(rivals, key=lambda item: Posterior.of(item[1]).metadata.evidence.log_evidence)
 
 
 def _runs(idata: az.InferenceData) -> tuple[str, ...]:
-    return tuple(e.name for e in posterior_metadata(idata).experiments)
+    return tuple(e.name for e in Posterior.of(idata).metadata.experiments)
 
 
 def _with_evidence(
@@ -222,7 +222,7 @@ def _with_evidence(
     """The posteriors that carry a log evidence, grouped by the runs they were fitted to."""
     groups: dict[tuple[str, ...], list[tuple[Path, az.InferenceData]]] = {}
     for path, idata in posteriors:
-        if posterior_metadata(idata).evidence is not None:
+        if Posterior.of(idata).metadata.evidence is not None:
             groups.setdefault(_runs(idata), []).append((path, idata))
     return groups
 
@@ -272,7 +272,7 @@ def _colour_summary(
 ) -> str:
     """The verdict on colour from the families fitted to the reported posterior's runs."""
     fitted = _with_evidence(posteriors).get(_runs(idata), [])
-    evidence = {m.family: m.evidence for m in (posterior_metadata(i) for _, i in fitted)}
+    evidence = {m.family: m.evidence for m in (Posterior.of(i).metadata for _, i in fitted)}
     return f"<b>Is the noise coloured?</b> {html.escape(colour_verdict(evidence)[1])}."
 
 
@@ -311,7 +311,7 @@ def evidence_section(posteriors: list[tuple[Path, az.InferenceData]]) -> str:
     """Evidence tables, one per data set, from posteriors that carry one."""
     parts = []
     for names, members in _with_evidence(posteriors).items():
-        metadata = [posterior_metadata(idata) for _, idata in members]
+        metadata = [Posterior.of(idata).metadata for _, idata in members]
         evidence = {m.family: m.evidence.to_dict() for m in metadata}
         best = max(evidence.values(), key=lambda e: e["log_evidence"])["log_evidence"]
         white = evidence.get("white", {}).get("log_evidence")
@@ -417,7 +417,7 @@ def posterior_section(
 
     ``lags`` is the largest lag of the autocorrelation figures.
     """
-    metadata = posterior_metadata(idata)
+    metadata = Posterior.of(idata).metadata
     experiments = metadata.experiments
     channels = metadata.channels
     family = metadata.family

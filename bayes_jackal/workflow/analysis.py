@@ -59,7 +59,7 @@ from ..io.tables import load_experiment
 from ..likelihood.residual_likelihood import resolve_channels
 from ..model.robot import RobotProfile, load_profile
 from ..posterior.criticism import criticise
-from ..posterior.inference_data import save_posterior
+from ..posterior.posterior import save_posterior
 from ..posterior.summary import summarize
 from ..report.grid_plots import save_grid_plot
 from ..report.page import write_report

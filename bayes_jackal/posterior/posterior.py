@@ -6,7 +6,7 @@ A posterior is an arviz InferenceData (NetCDF on disk) with the groups
 (the residuals at the posterior median) and ``constant_data`` (the measured
 experiments). Its metadata (attributes of ``posterior``) and the names in
 the data groups are owned by :mod:`bayes_jackal.posterior.file_format` (re-exported):
-:func:`posterior_metadata` gives them typed (the robot, priors, parameter
+:class:`Posterior` gives them typed (the robot, priors, parameter
 layout, experiments, noise groups, convergence, and the results stored
 later by :func:`store_comparison`, :func:`store_criticism` and
 :func:`store_reweighting`). No other module parses them.
@@ -22,7 +22,7 @@ import numpy as np
 from .._runtime.arviz_quiet import az
 from .._runtime.chunks import thinned_indices
 from .._runtime.defaults import CHANNELS
-from .._runtime.errors import DataError
+from .._runtime.errors import DataError, InputError
 from .._runtime.files import require_file, write_hdf5
 from ..io.experiment import Experiment
 from ..likelihood.measurements import MEASUREMENT_MODELS
@@ -36,24 +36,17 @@ from .file_format import (
     experiment_data,
     file_attributes,
     observed_data,
-    posterior_layout,
     posterior_metadata,
 )
 from .records import PosteriorMetadata
 
 __all__ = [
+    "Posterior",
     "build_inference_data",
     "load_posterior",
     "model_autocovariance",
     "noise_dimension",
-    "parameter_draws",
-    "parameter_variables",
-    "posterior_experiments",
-    "posterior_likelihood",
-    "posterior_robot",
-    "posterior_truth",
     "save_posterior",
-    "thinned_draws",
 ]
 
 
@@ -111,8 +104,8 @@ def build_inference_data(
     chain: np.ndarray,
     lp: np.ndarray,
     diagnostics: dict,
-) -> az.InferenceData:
-    """InferenceData of a sampled chain.
+) -> Posterior:
+    """The posterior of a sampled chain.
 
     Parameters
     ----------
@@ -192,188 +185,170 @@ def build_inference_data(
             dims=dims | observed_dims | constant_dims,
         )
     idata.posterior.attrs.update(file_attributes(likelihood, prior, diagnostics))
-    return idata
+    return Posterior.of(idata)
 
 
-def parameter_variables(idata: az.InferenceData) -> list[str]:
-    """The sampled parameters' variable names (d_lat, d_long, then the noise).
+class Posterior(az.InferenceData):
+    """A posterior: arviz's InferenceData of the draws, with its typed metadata.
 
-    Examples
-    --------
-    The 20-step chain is short on purpose:
-
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import parameter_variables
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> parameter_variables(posterior)
-    ['d_lat', 'd_long', 'sigma_c', 'sigma_n']
-    """
-    skip = {"ratio", "Ad", "Bd"}
-    return [name for name in idata.posterior.data_vars if name not in skip]
-
-
-def parameter_draws(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray]:
-    """The chain of a posterior in parameter-vector order, and its log posterior.
-
-    Returns
-    -------
-    draws : ndarray, shape (draws, walkers, P)
-        Parameters in natural units, ordered as the layout's names
-        (:func:`posterior_layout`: d_lat, d_long, then each noise group's).
-    lp : ndarray, shape (draws, walkers)
-        Log posterior in sampling coordinates (z = log theta).
+    What :func:`bayes_jackal.sample` returns and :func:`load_posterior` reads:
+    an InferenceData (arviz's functions take it as one) whose file
+    attributes are read once, into :attr:`metadata`, and read again only
+    when a result stored later (:func:`~bayes_jackal.posterior.file_format.store_comparison`,
+    ``store_criticism``, ``store_reweighting``) changes them. Every function
+    of the package that takes a posterior takes this, or any InferenceData
+    of a bayes_jackal posterior, which it reads through :meth:`of`.
 
     Examples
     --------
-    The 20-step chain is short on purpose:
+    A posterior's robot, layout, experiments and draws. The 20-step chain is
+    short on purpose:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import parameter_draws
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> draws, lp = parameter_draws(posterior)
-    >>> draws.shape, lp.shape  # (draws, walkers, P): d_lat, d_long, sigma_c, sigma_n
-    ((17, 32, 4), (17, 32))
+    >>> type(posterior).__name__, posterior.family, posterior.channels
+    ('Posterior', 'white', ('yaw',))
+    >>> posterior.robot.name, [run.name for run in posterior.experiments]
+    ('jackal', ['v1'])
+    >>> posterior.layout.names, posterior.noise_groups
+    (('d_lat', 'd_long', 'sigma_c', 'sigma_n'), (('yaw', 'all'),))
+    >>> draws, lp = posterior.draws()
+    >>> draws.shape, lp.shape, posterior.thinned_draws(10).shape
+    ((17, 32, 4), (17, 32), (10, 4))
+    >>> posterior.truth["d_lat"], posterior.metadata.convergence.converged
+    (110.0, False)
     """
-    posterior = idata.posterior
-    layout = posterior_layout(idata)
-    columns = []
-    for base, group in zip(layout.bases, layout.column_groups, strict=True):
-        variable = posterior[base]
-        dimension, groups = noise_dimension(layout, base)
-        if dimension is not None:
-            variable = variable.isel({dimension: groups.index(group)})
-        columns.append(variable.transpose("draw", "chain").values)
-    return np.stack(columns, axis=-1), idata.sample_stats["lp"].transpose("draw", "chain").values
 
+    @classmethod
+    def of(cls, idata: az.InferenceData) -> Posterior:
+        """``idata`` itself if it is a :class:`Posterior`, else one sharing its groups.
 
-def posterior_truth(idata: az.InferenceData) -> dict | None:
-    """The shared truth of simulated experiments, when every one has it.
-
-    Examples
-    --------
-    The simulator's truth, kept in the posterior of a simulated run. The
-    20-step chain is short on purpose:
-
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_truth
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> truth = posterior_truth(posterior)
-    >>> truth["d_lat"], truth["d_long"], truth["family"], truth["sigma_h"]
-    (110.0, 30.0, 'gaussian', 0.047)
-    """
-    return posterior_metadata(idata).truth
-
-
-def posterior_robot(idata: az.InferenceData) -> RobotProfile:
-    """The robot profile a posterior was sampled with (:attr:`PosteriorMetadata.robot`).
-
-    Rebuilt from the file alone. Files written before the whole profile was
-    stored (bayes_jackal 0.1.0 before docs/design.md §7) keep the body
-    constants only; their priors, topics and wheel joints are then the
-    installed default profile's, which do not enter the model.
-
-    Examples
-    --------
-    The 20-step chain is short on purpose:
-
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_robot
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> robot = posterior_robot(posterior)
-    >>> robot.name, robot.rate, robot == bj.load_profile()
-    ('jackal', 72.0, True)
-    """
-    return posterior_metadata(idata).robot
-
-
-def posterior_experiments(idata: az.InferenceData) -> list[Experiment]:
-    """The measured experiments a posterior was sampled from, with names and windows.
-
-    Examples
-    --------
-    The 20-step chain is short on purpose:
-
-    >>> import numpy as np
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_experiments
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> [stored] = posterior_experiments(posterior)
-    >>> stored.name, stored.channels, stored.steady_window
-    ('v1', ('vx', 'vy', 'yaw'), (3.0, 36.0))
-    >>> np.array_equal(stored.yaw_rate, run.yaw_rate)
-    True
-    """
-    experiments = []
-    for i, record in enumerate(posterior_metadata(idata).experiments):
-        experiments.append(
-            Experiment(
-                **experiment_arrays(idata, i),
-                name=record.name,
-                series=record.series,
-                steady_window=record.steady_window,
-                truth=record.truth,
-                provenance=record.provenance,
-                source=record.source or "<memory>",
+        Raises
+        ------
+        InputError
+            For an object that is not an InferenceData.
+        """
+        if isinstance(idata, cls):
+            return idata
+        if not isinstance(idata, az.InferenceData):
+            raise InputError(
+                f"not a posterior: a {type(idata).__name__}; give the InferenceData of "
+                "bj.sample or bj.load_posterior",
+                field="posterior",
             )
+        return cls(**{group: idata[group] for group in idata.groups()})
+
+    @property
+    def metadata(self) -> PosteriorMetadata:
+        """Everything the file says besides its draws (read once per change of its attributes)."""
+        attrs = tuple(self.posterior.attrs.items())
+        cached = self.__dict__.get("_metadata")
+        if cached is None or cached[0] != attrs:
+            cached = (attrs, posterior_metadata(self))
+            self.__dict__["_metadata"] = cached
+        return cached[1]
+
+    @property
+    def robot(self) -> RobotProfile:
+        """The robot profile sampled with (:attr:`PosteriorMetadata.robot`)."""
+        return self.metadata.robot
+
+    @property
+    def layout(self) -> ParameterLayout:
+        """Parameter names, noise groups and columns."""
+        return self.metadata.layout
+
+    @property
+    def family(self) -> str:
+        """The noise family."""
+        return self.metadata.family
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The channels, in likelihood order."""
+        return self.metadata.channels
+
+    @property
+    def noise_groups(self) -> tuple[tuple[str, str], ...]:
+        """The (channel, experiment or ``"all"`` when pooled) of each noise group."""
+        return self.layout.groups
+
+    @property
+    def truth(self) -> dict | None:
+        """The shared truth of simulated experiments, when every one has it."""
+        return self.metadata.truth
+
+    @property
+    def experiments(self) -> list[Experiment]:
+        """The measured experiments sampled from, with their names and windows."""
+        if "_experiments" not in self.__dict__:
+            self.__dict__["_experiments"] = [
+                Experiment(
+                    **experiment_arrays(self, i),
+                    name=record.name,
+                    series=record.series,
+                    steady_window=record.steady_window,
+                    truth=record.truth,
+                    provenance=record.provenance,
+                    source=record.source or "<memory>",
+                )
+                for i, record in enumerate(self.metadata.experiments)
+            ]
+        return list(self.__dict__["_experiments"])
+
+    @property
+    def variables(self) -> list[str]:
+        """The sampled parameters' variable names (d_lat, d_long, then the noise)."""
+        return [name for name in self.posterior.data_vars if name not in ("ratio", "Ad", "Bd")]
+
+    def draws(self) -> tuple[np.ndarray, np.ndarray]:
+        """The chain in parameter-vector order, and its log posterior.
+
+        Returns
+        -------
+        draws : ndarray, shape (draws, walkers, P)
+            Parameters in natural units, ordered as the layout's names
+            (d_lat, d_long, then each noise group's).
+        lp : ndarray, shape (draws, walkers)
+            Log posterior in sampling coordinates (z = log theta).
+        """
+        layout = self.layout
+        columns = []
+        for base, group in zip(layout.bases, layout.column_groups, strict=True):
+            variable = self.posterior[base]
+            dimension, groups = noise_dimension(layout, base)
+            if dimension is not None:
+                variable = variable.isel({dimension: groups.index(group)})
+            columns.append(variable.transpose("draw", "chain").values)
+        lp = self.sample_stats["lp"].transpose("draw", "chain").values
+        return np.stack(columns, axis=-1), lp
+
+    def thinned_draws(self, count: int) -> np.ndarray:
+        """At most ``count`` evenly spaced draws in natural units, shape (count, P)."""
+        draws, _ = self.draws()
+        draws = draws.reshape(-1, draws.shape[-1])
+        return draws[thinned_indices(len(draws), count)]
+
+    def likelihood(self) -> ResidualLikelihood:
+        """The likelihood sampled with, rebuilt from the file.
+
+        It prepares the likelihood's data (lagged sums, spectra): what needs
+        only the parameters reads :attr:`metadata` instead.
+        """
+        metadata = self.metadata
+        layout = metadata.layout
+        return ResidualLikelihood(
+            self.experiments,
+            metadata.robot,
+            family=layout.family,
+            channels=layout.channels,
+            shared_noise=layout.shared_noise,
+            sensor=layout.sensor,
+            engine=metadata.engine,
+            steady=metadata.steady,
+            shared_width=layout.shared_width,
         )
-    return experiments
-
-
-def posterior_likelihood(idata: az.InferenceData) -> ResidualLikelihood:
-    """The likelihood a posterior was sampled with, rebuilt from its file.
-
-    It prepares the likelihood's data (lagged sums, spectra): what needs
-    only the parameters reads :func:`posterior_metadata` instead.
-
-    Examples
-    --------
-    The 20-step chain is short on purpose:
-
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import posterior_likelihood
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> likelihood = posterior_likelihood(posterior)
-    >>> likelihood.family, likelihood.channels, likelihood.engine
-    ('white', ('yaw',), 'fast')
-    """
-    metadata = posterior_metadata(idata)
-    layout = metadata.layout
-    return ResidualLikelihood(
-        posterior_experiments(idata),
-        metadata.robot,
-        family=layout.family,
-        channels=layout.channels,
-        shared_noise=layout.shared_noise,
-        sensor=layout.sensor,
-        engine=metadata.engine,
-        steady=metadata.steady,
-        shared_width=layout.shared_width,
-    )
-
-
-def thinned_draws(idata: az.InferenceData, count: int) -> np.ndarray:
-    """At most ``count`` evenly spaced posterior draws in natural units, shape (count, P).
-
-    Examples
-    --------
-    The 20-step chain is short on purpose:
-
-    >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import thinned_draws
-    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> thinned_draws(posterior, 10).shape  # 10 of the kept draws, 4 parameters
-    (10, 4)
-    """
-    draws, _ = parameter_draws(idata)
-    draws = draws.reshape(-1, draws.shape[-1])
-    return draws[thinned_indices(len(draws), count)]
 
 
 def model_autocovariance(
@@ -388,7 +363,7 @@ def model_autocovariance(
     Parameters
     ----------
     metadata : PosteriorMetadata
-        Of the posterior (:func:`posterior_metadata`).
+        Of the posterior (:attr:`Posterior.metadata`).
     index : int
         Experiment index.
     channel : {"yaw", "vx", "vy"}
@@ -410,11 +385,11 @@ def model_autocovariance(
 
     >>> import numpy as np
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.posterior import model_autocovariance, posterior_metadata, thinned_draws
+    >>> from bayes_jackal.posterior import model_autocovariance
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
-    >>> theta = thinned_draws(posterior, 5)
-    >>> acov = model_autocovariance(posterior_metadata(posterior), 0, "yaw", theta, 3)
+    >>> theta = posterior.thinned_draws(5)
+    >>> acov = model_autocovariance(posterior.metadata, 0, "yaw", theta, 3)
     >>> acov.shape, bool(np.all(acov[:, 1] < 0)), np.allclose(acov[:, 2], 0)
     ((5, 3), True, True)
     """
@@ -458,7 +433,7 @@ def save_posterior(idata: az.InferenceData, path: str | Path) -> Path:
     return write_hdf5(idata, path)
 
 
-def load_posterior(path: str | Path) -> az.InferenceData:
+def load_posterior(path: str | Path) -> Posterior:
     """Read a posterior written by :func:`save_posterior`, its attributes checked.
 
     Raises
@@ -502,8 +477,9 @@ def load_posterior(path: str | Path) -> az.InferenceData:
             "`bayes-jackal sample` and `compare --out`)",
             source=str(path),
         )
+    posterior = Posterior.of(idata)
     try:
-        posterior_metadata(idata)
+        _ = posterior.metadata  # read now: a malformed file is refused here, naming it
     except DataError as exc:
         raise DataError(str(exc), source=str(path)) from None
-    return idata
+    return posterior
