@@ -47,6 +47,7 @@ from bayes_jackal.inference.executors import (
 )
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.model.kernels import FAMILIES
 
 ROBOT = load_profile()
@@ -64,7 +65,7 @@ def campaign(runs, families, settings, seed, executor: Executor) -> tuple[float,
             families=families,
             settings=settings,
             seed=seed,
-            likelihood_options={"channels": ("yaw",)},
+            likelihood_options=LikelihoodOptions(channels=("yaw",)),
             executor=executor,
         ):
             evidences[name] = {f: e.log_evidence for f, e in comparison.evidence.items()}

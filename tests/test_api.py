@@ -221,7 +221,7 @@ def test_a_bad_option_is_an_input_error_naming_it(run, call, pattern):
         call(run)
 
 
-@pytest.mark.parametrize("name", [*FUNCTIONS, "likelihood_options"])
+@pytest.mark.parametrize("name", FUNCTIONS)
 def test_docstring_examples_show_the_call(name):
     # Each example calls its function; tests/test_docstrings.py runs every
     # public function's examples (these among them), so they are not run twice.

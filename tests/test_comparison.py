@@ -25,13 +25,14 @@ from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.inference.sampling import sample_posterior
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood import LikelihoodOptions
 
 ROBOT = load_profile()
 #: The v2 command (0.4 m/s, 30 deg/s) for 8 s instead of its 26 s.
 SHORT_V2 = Series(0.4, float(np.deg2rad(30.0)), 8.0)
 FAMILIES = ("white", "exponential")
 SETTINGS = SamplerSettings(max_steps=60, progress=False)
-OPTIONS = {"channels": ("yaw",)}
+OPTIONS = LikelihoodOptions(channels=("yaw",))
 #: Flags of a quick comparison, the families in this process one after the other.
 QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "60"]
 QUICK += ["--channels", "yaw", "--no-progress", "--json", "--processes", "1"]
@@ -67,7 +68,13 @@ def test_every_group_equals_its_comparison_alone(runs):
         )
         alone = {
             key: compare_families(
-                group, ROBOT, FAMILIES, SETTINGS, 3, executor=SerialExecutor(), **OPTIONS
+                group,
+                ROBOT,
+                FAMILIES,
+                SETTINGS,
+                3,
+                executor=SerialExecutor(),
+                likelihood_options=OPTIONS,
             )
             for key, group in runs.items()
         }

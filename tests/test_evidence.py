@@ -21,6 +21,7 @@ from bayes_jackal.inference.evidence import (
 )
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment
+from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.priors import LogPosterior, Prior
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.posterior.records import Evidence
@@ -233,7 +234,9 @@ def test_unknown_or_repeated_families_are_refused():
 @pytest.mark.slow
 def test_bridge_and_nested_sampling_agree_on_coloured_noise():
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=4)
-    comparison = compare_families([run], ROBOT, ("gaussian",), seed=2, channels=YAW)
+    comparison = compare_families(
+        [run], ROBOT, ("gaussian",), seed=2, likelihood_options=LikelihoodOptions(channels=YAW)
+    )
     bridge = comparison.evidence["gaussian"]
     likelihood = ResidualLikelihood([run], ROBOT, family="gaussian", channels=YAW)
     # 100 live points: about 45,000 likelihood calls one by one (dynesty's
@@ -263,7 +266,13 @@ def _compare(noise: NoiseSettings, seed: int) -> Comparison:
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        return compare_families([run], ROBOT, settings=CAPPED, seed=seed, channels=YAW)
+        return compare_families(
+            [run],
+            ROBOT,
+            settings=CAPPED,
+            seed=seed,
+            likelihood_options=LikelihoodOptions(channels=YAW),
+        )
 
 
 @pytest.mark.slow
@@ -306,7 +315,7 @@ def test_families_in_parallel_processes_give_the_same_result():
                 quick,
                 seed=3,
                 processes=processes,
-                channels=YAW,
+                likelihood_options=LikelihoodOptions(channels=YAW),
             )
         results.append(comparison)
         # Both chains stop at the cap; each worker's warning reaches the caller.

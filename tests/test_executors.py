@@ -31,6 +31,7 @@ from bayes_jackal.inference.comparison import compare_families
 from bayes_jackal.inference.executors import DaskExecutor, ProcessExecutor, SerialExecutor
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.io.simulate import simulate_experiment
+from bayes_jackal.likelihood import LikelihoodOptions
 
 distributed = pytest.importorskip("distributed")
 
@@ -60,7 +61,13 @@ def _compare(run, executor):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)  # 200 steps do not converge
         return compare_families(
-            [run], ROBOT, FAMILIES, settings, 3, channels=("yaw",), executor=executor
+            [run],
+            ROBOT,
+            FAMILIES,
+            settings,
+            3,
+            likelihood_options=LikelihoodOptions(channels=("yaw",)),
+            executor=executor,
         )
 
 

@@ -36,8 +36,8 @@ from bayes_jackal.inference.executors import SerialExecutor
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.priors import LogPosterior, Prior
-from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.posterior import Posterior, load_posterior, save_posterior
 from bayes_jackal.posterior.reweighting import (
@@ -68,7 +68,7 @@ def _refit(state: dict) -> list[str]:
     ]
 
 
-OPTIONS = {"channels": ["yaw"]}
+OPTIONS = LikelihoodOptions(channels=["yaw"])
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +89,7 @@ def analysis(tmp_path_factory) -> tuple:
         folder / "out",
         robot=ROBOT,
         families=("white",),
-        channels=("yaw",),
+        likelihood_options=LikelihoodOptions(channels=("yaw",)),
         settings=SETTINGS,
         seed=1,
         executor=SerialExecutor(),
@@ -384,7 +384,13 @@ def four_runs(tmp_path_factory) -> tuple:
         for name, rng in zip(FOUR, children, strict=True)
     ]
     comparison = compare_families(
-        runs, ROBOT, ("white",), CONVERGED, seed=1, executor=SerialExecutor(), **OPTIONS
+        runs,
+        ROBOT,
+        ("white",),
+        CONVERGED,
+        seed=1,
+        executor=SerialExecutor(),
+        likelihood_options=OPTIONS,
     )
     pooled = comparison.posteriors["white"]
     source = save_posterior(pooled, folder / "white.nc")
@@ -423,7 +429,7 @@ def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
     # The independent reference: the chain sampled on the other three runs (another seed).
     reference = compare_families(
         [run for run in runs if run.name != left], ROBOT, ("white",), CONVERGED, seed=8,
-        executor=SerialExecutor(), **OPTIONS,
+        executor=SerialExecutor(), likelihood_options=OPTIONS,
     ).posteriors["white"]  # fmt: skip
     logs = {
         name: np.log(Posterior.of(posterior).draws()[0]).reshape(-1, 4)
@@ -481,7 +487,7 @@ def test_a_reweighting_with_noise_per_run_keeps_the_other_runs_and_their_log_pos
         simulate_experiment(ROBOT, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=rng, name=name)
         for name, rng in zip("abc", children, strict=True)
     ]
-    options = {"channels": ("yaw",), "shared_noise": False}
+    options = LikelihoodOptions(channels=("yaw",), noise="per-experiment")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         [(_, comparison)] = compare_groups(
@@ -492,7 +498,7 @@ def test_a_reweighting_with_noise_per_run_keeps_the_other_runs_and_their_log_pos
     theta = pooled.theta
     weights = pooled.weights(runs[1])
     # Run b's log-likelihood at each draw, against the stored total less a and c's.
-    others = ResidualLikelihood([runs[0], runs[2]], ROBOT, family="white", **options)
+    others = options.likelihood([runs[0], runs[2]], ROBOT, "white")
     layout = pooled.layout
     columns = [layout.names.index(name) for name in ("d_lat", "d_long")] + [
         layout.names.index(f"{base}[{run}]") for run in "ac" for base in ("sigma_c", "sigma_n")

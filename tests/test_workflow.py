@@ -25,6 +25,7 @@ from bayes_jackal.io.bags import read_bag
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.io.tables import write_csv
+from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.posterior.posterior import load_posterior
@@ -271,7 +272,7 @@ def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
                 tmp_path / "out",
                 robot=ROBOT,
                 families=("white",),
-                channels=("yaw",),
+                likelihood_options=LikelihoodOptions(channels=("yaw",)),
                 settings=settings,
                 seed=1,
                 executor=SerialExecutor(),

@@ -31,7 +31,7 @@ from ..io.bag_writer import bag_truth, write_bag
 from ..io.experiment import Experiment, write_netcdf
 from ..io.simulate import NoiseSettings, simulate_series
 from ..io.tables import write_csv
-from ..likelihood.residual_likelihood import ResidualLikelihood, resolve_channels
+from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.kernels import FAMILIES
 from ..model.parameters import prior_overrides
 from ..model.robot import RobotProfile
@@ -43,7 +43,6 @@ from ..report.page import read_posteriors, save_report
 from ..thesis.gridsearch import damping_grid, grid_search
 from ..thesis.residual_analysis import analyse
 from ..workflow.analysis import analyse_logs, ingest_logs
-from ..workflow.api import likelihood_options
 from ..workflow.demo import DEMO_TRUTH, run_demo
 from .output import (
     EXIT_BAD_INPUT,
@@ -190,7 +189,7 @@ class _Sampling:
 
     robot: RobotProfile
     family: str
-    likelihood_options: dict
+    likelihood_options: LikelihoodOptions
     settings: SamplerSettings
     seed: int | None
     prior_overrides: dict
@@ -210,9 +209,7 @@ class _Sampling:
         path = self.path(group)
         with keep_warnings() as kept:
             try:
-                likelihood = ResidualLikelihood(
-                    group, self.robot, family=self.family, **self.likelihood_options
-                )
+                likelihood = self.likelihood_options.likelihood(group, self.robot, self.family)
                 if self.say is not None:
                     self.say(
                         f"sampling {', '.join(e.name for e in group)} on channels "
@@ -264,9 +261,9 @@ def _executor(args: argparse.Namespace, processes: int = 1) -> Executor:
     return executor_for(args.scheduler, processes=processes)
 
 
-def _likelihood_options(args: argparse.Namespace) -> dict:
-    """ResidualLikelihood keywords from the shared modelling flags, as the library's."""
-    return likelihood_options(
+def _likelihood_options(args: argparse.Namespace) -> LikelihoodOptions:
+    """The likelihood options of the shared modelling flags."""
+    return LikelihoodOptions(
         channels=args.channels, noise=args.noise, sensor=args.sensor_noise, engine=args.engine
     )
 
@@ -503,19 +500,17 @@ def _prior_overrides(items: list[list[str]]) -> dict[str, tuple[float, float]]:
 def cmd_analyse(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_with_topics(args)
-    options = _likelihood_options(args)
     with _executor(args, args.processes) as executor:
         result = analyse_logs(
             args.inputs,
             args.out,
             robot=robot,
             families=args.families,
-            channels=options.pop("channels"),
             settings=_sampler_settings(args),
             seed=args.seed,
             executor=executor,
             prior_overrides=_prior_overrides(args.prior),
-            likelihood_options=options,
+            likelihood_options=_likelihood_options(args),
             window=args.window,
             max_gap=args.max_gap,
             read_options=read_options(args),

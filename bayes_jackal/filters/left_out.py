@@ -88,6 +88,7 @@ from ..inference.comparison import compare_groups
 from ..inference.executors import Executor
 from ..inference.sampler_warnings import keep_warnings
 from ..io.experiment import Experiment
+from ..likelihood.residual_likelihood import LikelihoodOptions
 from ..model.robot import RobotProfile
 from ..posterior.posterior import Posterior, load_posterior, save_posterior
 from ..posterior.reweighting import PARETO_K_THRESHOLD, PooledPosterior
@@ -268,7 +269,7 @@ def leave_one_out(
     settings: SamplerSettings | None = None,
     seed: int | None = None,
     prior_overrides: Mapping | None = None,
-    likelihood_options: Mapping | None = None,
+    likelihood_options: LikelihoodOptions | None = None,
     executor: Executor | None = None,
     filters: Sequence[str] = FILTERS,
     say: Callable[[str], None] = lambda text: None,
@@ -329,6 +330,7 @@ def leave_one_out(
     >>> import tempfile
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.filters import leave_one_out
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> from bayes_jackal.io import Series
     >>> robot = bj.load_profile()
     >>> runs = [
@@ -339,7 +341,7 @@ def leave_one_out(
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     result = leave_one_out(
     ...         runs, robot, "white", folder, settings=settings, seed=1,
-    ...         likelihood_options={"channels": ["yaw"]},
+    ...         likelihood_options=LikelihoodOptions(channels=["yaw"]),
     ...     )
     >>> {run: (record["trained_on"], record["method"]) for run, record in result.runs.items()}
     {'a': (['b'], 'refit'), 'b': (['a'], 'refit')}
@@ -357,7 +359,7 @@ def leave_one_out(
     order = [e.name for e in experiments]
     by_name = dict(zip(order, experiments, strict=True))
     posteriors = {name: folder / "posteriors" / f"{name}.nc" for name in order}
-    options = dict(likelihood_options or {})
+    options = likelihood_options or LikelihoodOptions()
     draws = None
     if pooled is not None:  # checked before anything is written
         draws = PooledPosterior(pooled, experiments, robot, family, options, prior_overrides,
@@ -436,7 +438,7 @@ def leave_one_out(
             settings=settings,
             seed=seed,
             prior_overrides=None if prior_overrides is None else dict(prior_overrides),
-            likelihood_options=likelihood_options,
+            likelihood_options=options,
             executor=executor,
             reuse=reuse,
             on_family=save,

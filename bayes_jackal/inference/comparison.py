@@ -31,7 +31,7 @@ from .._runtime.arviz_quiet import az
 from .._runtime.errors import DataError, InputError
 from ..io.experiment import Experiment
 from ..likelihood.priors import LogPosterior, Prior
-from ..likelihood.residual_likelihood import ResidualLikelihood
+from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
 from ..model.kernels import FAMILIES
 from ..model.robot import RobotProfile
 from ..posterior.file_format import store_comparison
@@ -76,14 +76,12 @@ class _FamilyRun:
     seed: int | None
     prior_overrides: dict | None
     cross_check: bool
-    likelihood_options: dict
+    likelihood_options: LikelihoodOptions
     lines: int = 1
     label: str = ""
 
     def _model(self, family: str) -> tuple[ResidualLikelihood, Prior]:
-        likelihood = ResidualLikelihood(
-            self.experiments, self.robot, family=family, **self.likelihood_options
-        )
+        likelihood = self.likelihood_options.likelihood(self.experiments, self.robot, family)
         return likelihood, Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
 
     def task(self, family: str) -> dict:
@@ -196,7 +194,7 @@ def compare_groups(
     settings: SamplerSettings | None = None,
     seed: int | None = None,
     prior_overrides: dict | None = None,
-    likelihood_options: Mapping | None = None,
+    likelihood_options: LikelihoodOptions | None = None,
     cross_check: bool = False,
     executor: Executor | None = None,
     reuse: Mapping[K, Mapping[str, str | Path]] | None = None,
@@ -228,10 +226,9 @@ def compare_groups(
         every group).
     prior_overrides : dict, optional
         As in :func:`bayes_jackal.inference.sample_posterior`.
-    likelihood_options : mapping, optional
-        ``channels``, ``shared_noise``, ``shared_width``, ``sensor``, ``engine`` of
-        :class:`ResidualLikelihood`, for every group. Without ``channels``
-        each group sees every channel measured in all its experiments.
+    likelihood_options : LikelihoodOptions, optional
+        For every group (default: the defaults'). Without ``channels`` each
+        group sees every channel measured in all its experiments.
     cross_check : bool
         Also estimate each evidence by nested sampling (slow).
     executor : Executor, optional
@@ -275,6 +272,7 @@ def compare_groups(
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.inference import compare_groups
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> robot = bj.load_profile()
     >>> runs = {
     ...     name: [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed, name=name)]
@@ -282,7 +280,7 @@ def compare_groups(
     ... }
     >>> for key, comparison in compare_groups(
     ...     runs, robot, families=["white"], settings=bj.SamplerSettings(max_steps=20), seed=1,
-    ...     likelihood_options={"channels": ["yaw"]},
+    ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
     ... ):
     ...     print(key, comparison.experiments, list(comparison.evidence))
     v1_01 ['v1_01'] ['white']
@@ -298,7 +296,7 @@ def compare_groups(
     executor = executor or SerialExecutor()
     if not executor.terminal:  # workers have no terminal
         settings = dataclasses.replace(settings or SamplerSettings(), progress=False)
-    options = dict(likelihood_options or {})
+    options = likelihood_options or LikelihoodOptions()
     runs = {
         key: _FamilyRun(
             list(group),
@@ -409,7 +407,7 @@ def compare_families(
     say: Callable[[str], None] = lambda text: None,
     *,
     executor: Executor | None = None,
-    **likelihood_options,
+    likelihood_options: LikelihoodOptions | None = None,
 ) -> Comparison:
     """Sample each family's posterior and estimate its evidence by bridge sampling.
 
@@ -453,10 +451,9 @@ def compare_families(
         (:mod:`bayes_jackal.inference.executors`), e.g. ``DaskExecutor("tcp://host:8786")``
         for a Dask cluster (no progress bars there). Default:
         ``ProcessExecutor(processes)``.
-    **likelihood_options
-        ``channels``, ``shared_noise``, ``shared_width``, ``sensor``, ``engine`` of
-        :class:`ResidualLikelihood`. Without ``channels`` (or with None)
-        every family sees every channel measured in all experiments
+    likelihood_options : LikelihoodOptions, optional
+        Default: the defaults'. Without ``channels`` every family sees every
+        channel measured in all experiments
         (:func:`~bayes_jackal.likelihood.resolve_channels`).
 
     Returns
@@ -474,11 +471,12 @@ def compare_families(
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.inference import compare_families
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> robot = bj.load_profile()
     >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
     >>> comparison = compare_families(
     ...     [run], robot, ("white", "exponential"), bj.SamplerSettings(max_steps=20), seed=1,
-    ...     channels=["yaw"],
+    ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
     ... )
     >>> list(comparison.evidence), comparison.best
     (['white', 'exponential'], 'exponential')

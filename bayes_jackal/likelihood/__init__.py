@@ -14,6 +14,7 @@ from .measurements import (
 )
 from .priors import LogPosterior, Prior
 from .residual_likelihood import (
+    LikelihoodOptions,
     ResidualLikelihood,
     pose_channels,
     resolve_channels,
@@ -62,6 +63,7 @@ __all__ = [
     "SHORT_GRIDS",
     "WHITE_SD",
     "ChannelSeries",
+    "LikelihoodOptions",
     "LogPosterior",
     "Measurement",
     "PoseMeasurement",

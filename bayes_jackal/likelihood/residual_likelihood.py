@@ -66,6 +66,8 @@ from .._runtime.defaults import (
     ENGINE,
     ENGINES,
     FAMILY,
+    NOISE,
+    NOISE_SHARING,
     SENSOR,
     SENSOR_MODELS,
     SHARED_NOISE,
@@ -84,7 +86,13 @@ from .spectral import ResidualBlock, spectral_loglike
 from .toeplitz import fallback_loglike, toeplitz_loglike
 from .whittle import debiased_whittle_loglike
 
-__all__ = ["ResidualLikelihood", "pose_channels", "resolve_channels", "sample_stationary"]
+__all__ = [
+    "LikelihoodOptions",
+    "ResidualLikelihood",
+    "pose_channels",
+    "resolve_channels",
+    "sample_stationary",
+]
 
 #: Fewest residuals a channel must have to enter the likelihood.
 MIN_RESIDUALS = 32
@@ -239,6 +247,77 @@ def resolve_channels(
                 field="channels",
             )
     return channels
+
+
+@dataclass(frozen=True)
+class LikelihoodOptions:
+    """How the residuals are modelled, besides the noise family: one object for every layer.
+
+    The options of :func:`bayes_jackal.sample` and :func:`bayes_jackal.compare`
+    and of the flags ``--channels``, ``--noise``, ``--sensor-noise`` and
+    ``--engine``; the comparison, the state estimation on runs left out and
+    the whole analysis take them as they are.
+
+    Parameters
+    ----------
+    channels : sequence of str, optional
+        Channels among ``yaw``, ``vx``, ``vy``; None: every channel measured
+        in all experiments (:func:`resolve_channels`).
+    noise : {"shared", "per-experiment", "one-width"}
+        One noise setting per channel for all experiments, one per
+        experiment and channel, or shared with one width for every channel.
+    sensor : {"ma1", "diagonal"}
+    engine : {"fast", "exact", "whittle"}
+
+    Raises
+    ------
+    InputError
+        For a ``noise`` not in :data:`~bayes_jackal._runtime.defaults.NOISE_SHARING`
+        (the likelihood checks the others).
+
+    Examples
+    --------
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
+    >>> options = LikelihoodOptions(channels=["yaw"], noise="one-width")
+    >>> options.keywords  # doctest: +NORMALIZE_WHITESPACE
+    {'channels': ('yaw',), 'shared_noise': True, 'sensor': 'ma1', 'engine': 'fast',
+     'shared_width': True}
+    >>> try:
+    ...     LikelihoodOptions(noise="per-run")
+    ... except ValueError as error:
+    ...     print(error)
+    noise: unknown noise 'per-run'; use one of ('shared', 'per-experiment', 'one-width')
+    """
+
+    channels: tuple[str, ...] | None = None
+    noise: str = NOISE
+    sensor: str = SENSOR
+    engine: str = ENGINE
+
+    def __post_init__(self) -> None:
+        if self.noise not in NOISE_SHARING:
+            raise InputError(
+                f"unknown noise {self.noise!r}; use one of {NOISE_SHARING}", field="noise"
+            )
+        if self.channels is not None:
+            object.__setattr__(self, "channels", tuple(self.channels))
+
+    @property
+    def keywords(self) -> dict:
+        """The keywords of :class:`ResidualLikelihood` these options set."""
+        return {
+            "channels": self.channels,
+            "shared_noise": self.noise != "per-experiment",
+            "sensor": self.sensor,
+            "engine": self.engine,
+            "shared_width": self.noise == "one-width",
+        }
+
+    def likelihood(
+        self, experiments: Sequence[Experiment], robot: RobotProfile, family: str
+    ) -> ResidualLikelihood:
+        """The likelihood of ``experiments`` under ``family`` with these options."""
+        return ResidualLikelihood(list(experiments), robot, family=family, **self.keywords)
 
 
 @dataclass

@@ -64,7 +64,7 @@ from .._runtime.defaults import REQUIRED
 from .._runtime.errors import InputError
 from ..io.experiment import Experiment
 from ..likelihood.priors import Prior
-from ..likelihood.residual_likelihood import ResidualLikelihood
+from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
 from ..likelihood.spectral import CHUNK_ELEMENTS
 from ..model.parameters import ParameterLayout
 from ..model.robot import RobotProfile
@@ -329,10 +329,8 @@ class PooledPosterior:
         The runs it was fitted to (checked by name and data).
     robot : RobotProfile
     family : str
-    options : mapping
-        The likelihood options it was sampled with (``channels``,
-        ``shared_noise``, ``shared_width``, ``sensor``, ``engine``, as for
-        :class:`~bayes_jackal.likelihood.ResidualLikelihood`).
+    options : LikelihoodOptions
+        The likelihood options it was sampled with.
     prior_overrides : mapping, optional
         The prior ranges it was sampled under (as for
         :meth:`~bayes_jackal.likelihood.Prior.for_likelihood`).
@@ -352,6 +350,7 @@ class PooledPosterior:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import PooledPosterior
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> from bayes_jackal.io import Series
     >>> robot = bj.load_profile()
     >>> runs = [
@@ -359,7 +358,8 @@ class PooledPosterior:
     ...     for seed, name in [(1, "a"), (2, "b")]
     ... ]
     >>> posterior = bj.sample(runs, family="white", channels=["yaw"], max_steps=200, seed=1)
-    >>> pooled = PooledPosterior(posterior, runs, robot, "white", {"channels": ["yaw"]})
+    >>> options = LikelihoodOptions(channels=["yaw"])
+    >>> pooled = PooledPosterior(posterior, runs, robot, "white", options)
     >>> weights = pooled.weights(runs[0])
     >>> weights.draws == pooled.count, weights.weights is None, weights.pareto_k > 0.7
     (True, True, True)
@@ -373,13 +373,14 @@ class PooledPosterior:
         experiments: Sequence[Experiment],
         robot: RobotProfile,
         family: str,
-        options: Mapping,
+        options: LikelihoodOptions,
         prior_overrides: Mapping | None = None,
         source: str | None = None,
     ) -> None:
-        self.metadata = metadata = Posterior.of(idata).metadata
+        posterior = Posterior.of(idata)
+        self.metadata = metadata = posterior.metadata
         self.source, self.robot, self.family = source, robot, family
-        self.options, self.prior_overrides = dict(options), prior_overrides
+        self.options, self.prior_overrides = options, prior_overrides
         self.experiments = list(experiments)
         names = [e.name for e in experiments]
         fitted = [e.name for e in metadata.experiments]
@@ -400,7 +401,7 @@ class PooledPosterior:
                     field="pooled",
                 )
         self.layout = metadata.layout
-        draws, lp = Posterior.of(idata).draws()
+        draws, lp = posterior.draws()
         self.shape = draws.shape[:2]  # (draws, walkers)
         self.theta = draws.reshape(-1, draws.shape[-1])
         self.lp = lp.reshape(-1)
@@ -452,9 +453,7 @@ class PooledPosterior:
 
     def _likelihood(self, experiments: list[Experiment]) -> ResidualLikelihood:
         """The likelihood of ``experiments`` with the analysis' options, checked against ours."""
-        likelihood = ResidualLikelihood(
-            experiments, self.robot, family=self.family, **self.options
-        )
+        likelihood = self.options.likelihood(experiments, self.robot, self.family)
         ours, theirs = likelihood.layout, self.layout
         settings = {
             name: (getattr(ours, name), getattr(theirs, name))

@@ -56,7 +56,7 @@ from ..io.bag_reading import bag_format
 from ..io.bags import read_bag
 from ..io.experiment import Experiment, write_netcdf
 from ..io.tables import load_experiment
-from ..likelihood.residual_likelihood import resolve_channels
+from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.robot import RobotProfile, load_profile
 from ..posterior.criticism import criticise
 from ..posterior.posterior import save_posterior
@@ -303,13 +303,12 @@ def analyse_logs(
     *,
     robot: RobotProfile | None = None,
     families: Sequence[str] = DEFAULT_FAMILIES,
-    channels: Sequence[str] | None = None,
     settings: SamplerSettings | None = None,
     seed: int | None = None,
     processes: int | None = None,
     executor: Executor | None = None,
     prior_overrides: Mapping[str, tuple[float, float]] | None = None,
-    likelihood_options: Mapping | None = None,
+    likelihood_options: LikelihoodOptions | None = None,
     window: tuple[float, float] | None = None,
     max_gap: float | None = None,
     labels: Mapping[str, Mapping] | None = None,
@@ -331,8 +330,6 @@ def analyse_logs(
         Default: the Jackal profile.
     families : sequence of str
         Noise families to compare (default white and gaussian).
-    channels : sequence of str, optional
-        Default: every channel all experiments measure.
     settings : SamplerSettings, optional
         Walkers, step cap and progress display of each family's chain.
     seed : int, optional
@@ -345,9 +342,9 @@ def analyse_logs(
     prior_overrides : mapping, optional
         Prior ranges by parameter name, e.g. ``{"sigma_h": (0.01, 3.0)}``
         [natural units], as in :func:`bayes_jackal.inference.sample_posterior`.
-    likelihood_options : mapping, optional
-        Further keywords of :class:`~bayes_jackal.likelihood.ResidualLikelihood`
-        (``sensor``, ``shared_noise``, ``shared_width``, ``engine``).
+    likelihood_options : LikelihoodOptions, optional
+        The channels (default: every channel all experiments measure), the
+        noise sharing, sensor model and engine.
     window, max_gap, labels, read_options
         As in :func:`ingest_logs`.
     state_estimation : bool
@@ -399,8 +396,8 @@ def analyse_logs(
 
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from bayes_jackal.inference.executors import SerialExecutor
-    >>> from bayes_jackal.inference import SamplerSettings
+    >>> from bayes_jackal.inference import SamplerSettings, SerialExecutor
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> from bayes_jackal.model import load_profile
     >>> from bayes_jackal.io import Series, simulate_experiment
     >>> from bayes_jackal.io import write_csv
@@ -411,7 +408,7 @@ def analyse_logs(
     ...         [write_csv(run, Path(folder) / "short.csv")],
     ...         Path(folder) / "analysis",
     ...         families=("white",),
-    ...         channels=("yaw",),
+    ...         likelihood_options=LikelihoodOptions(channels=("yaw",)),
     ...         settings=SamplerSettings(max_steps=100, design_points=64),
     ...         seed=1,
     ...         executor=SerialExecutor(),
@@ -445,7 +442,11 @@ def analyse_logs(
             f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
             field="inputs",
         )
-    channels = resolve_channels(experiments, channels)
+    options = likelihood_options or LikelihoodOptions()
+    options = dataclasses.replace(
+        options, channels=resolve_channels(experiments, options.channels)
+    )
+    channels = options.channels
     say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2):")
     grids = _grids(experiments, robot, folder, say)
     say(
@@ -455,7 +456,6 @@ def analyse_logs(
 
     paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
     executor = executor or ProcessExecutor(processes or os.cpu_count() or 1)
-    options = {**(likelihood_options or {}), "channels": channels}
 
     def finished(family, evidence, idata) -> None:
         criticise(idata)  # cached in its attrs: the saved file and the report reuse it
@@ -475,7 +475,7 @@ def analyse_logs(
                 reuse=paths_by_family,
                 say=say,
                 executor=executor,
-                **options,
+                likelihood_options=options,
             )
     finally:
         # The convergence warnings go into the result; the others reach the user,

@@ -31,12 +31,11 @@ from .._runtime.defaults import (
     FAMILY,
     MAX_STEPS,
     NOISE,
-    NOISE_SHARING,
     SENSOR,
     VELOCITIES,
     WALKERS,
 )
-from .._runtime.errors import InputError, each_input, refuse
+from .._runtime.errors import each_input, refuse
 from ..inference.chains import SamplerSettings
 from ..inference.comparison import compare_families
 from ..inference.comparison_result import Comparison
@@ -49,12 +48,12 @@ from ..io.tables import (
     check_declared_rate,
     check_unique_names,
 )
-from ..likelihood.residual_likelihood import ResidualLikelihood
+from ..likelihood.residual_likelihood import LikelihoodOptions
 from ..model.kernels import FAMILIES
 from ..model.robot import RobotProfile, load_profile
 from .analysis import read_log
 
-__all__ = ["compare", "likelihood_options", "load_experiments", "read_logs", "sample"]
+__all__ = ["compare", "load_experiments", "read_logs", "sample"]
 
 
 def _profile(robot: RobotProfile | str | Path | None) -> RobotProfile:
@@ -65,56 +64,6 @@ def _profile(robot: RobotProfile | str | Path | None) -> RobotProfile:
 def _experiments(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
     """One experiment, or several, as a list."""
     return [experiments] if isinstance(experiments, Experiment) else list(experiments)
-
-
-def likelihood_options(
-    *,
-    channels: Sequence[str] | None = None,
-    noise: str = NOISE,
-    sensor: str = SENSOR,
-    engine: str = ENGINE,
-) -> dict:
-    """The :class:`~bayes_jackal.likelihood.ResidualLikelihood` keywords of the modelling options.
-
-    The options of :func:`sample` and :func:`compare`, and of the flags
-    ``--channels``, ``--noise``, ``--sensor-noise`` and ``--engine``.
-
-    Parameters
-    ----------
-    channels, noise, sensor, engine
-        As in :func:`sample`.
-
-    Returns
-    -------
-    dict
-        ``channels``, ``shared_noise``, ``sensor``, ``engine`` and
-        ``shared_width`` (``noise="one-width"``: shared noise, one width).
-
-    Raises
-    ------
-    InputError
-        For a ``noise`` not in :data:`NOISE_SHARING` (the likelihood checks
-        the others).
-
-    Examples
-    --------
-    >>> from bayes_jackal.workflow import likelihood_options
-    >>> likelihood_options(noise="per-experiment")  # doctest: +NORMALIZE_WHITESPACE
-    {'channels': None, 'shared_noise': False, 'sensor': 'ma1', 'engine': 'fast',
-     'shared_width': False}
-    >>> options = likelihood_options(noise="one-width")
-    >>> options["shared_noise"], options["shared_width"]
-    (True, True)
-    """
-    if noise not in NOISE_SHARING:
-        raise InputError(f"unknown noise {noise!r}; use one of {NOISE_SHARING}", field="noise")
-    return {
-        "channels": channels,
-        "shared_noise": noise != "per-experiment",
-        "sensor": sensor,
-        "engine": engine,
-        "shared_width": noise == "one-width",
-    }
 
 
 def load_experiments(
@@ -375,12 +324,8 @@ def sample(
     >>> summary["family"], summary["channels"], summary["converged"]
     ('white', ['yaw'], False)
     """
-    likelihood = ResidualLikelihood(
-        _experiments(experiments),
-        _profile(robot),
-        family=family,
-        **likelihood_options(channels=channels, noise=noise, sensor=sensor, engine=engine),
-    )
+    options = LikelihoodOptions(channels=channels, noise=noise, sensor=sensor, engine=engine)
+    likelihood = options.likelihood(_experiments(experiments), _profile(robot), family)
     return sample_posterior(
         likelihood,
         SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
@@ -472,5 +417,7 @@ def compare(
         cross_check=nested,
         processes=processes,
         executor=executor,
-        **likelihood_options(channels=channels, noise=noise, sensor=sensor, engine=engine),
+        likelihood_options=LikelihoodOptions(
+            channels=channels, noise=noise, sensor=sensor, engine=engine
+        ),
     )
