@@ -20,6 +20,7 @@ _LAZY = {
     "export_prior": ".dem",
     "write_prior": ".dem",
     "read_prior": ".dem",
+    "ActiveInferencePrior": ".dem",
     "write_report": ".report",
     "analyse_logs": ".workflow",
     # a bare noise series

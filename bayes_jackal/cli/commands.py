@@ -436,14 +436,13 @@ def cmd_export_prior(args: argparse.Namespace) -> int:
         idata, order=args.order, source=args.posterior, sensor_smoothness=args.sensor_smoothness
     )
     path = write_prior(prior, args.out)
-    noise = prior["noise"]
-    size = len(prior["generalised_coordinates"]["precision"])
+    size = len(prior.generalised_coordinates["precision"])
     out.say(
-        f"wrote {path}: {noise['family']} noise on {', '.join(noise['channels'])}, "
+        f"wrote {path}: {prior.family} noise on {', '.join(prior.channels)}, "
         f"embedding order {args.order} ({size} x {size} precision), "
-        f"{prior['draws']['count']} posterior draws"
+        f"{prior.draws['count']} posterior draws"
     )
-    if not prior["converged"]:
+    if not prior.converged:
         warn_not_converged(args.posterior)
     return EXIT_OK
 

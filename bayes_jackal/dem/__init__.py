@@ -23,11 +23,13 @@ from .export import (
     temporal_covariance,
     write_prior,
 )
+from .prior import ActiveInferencePrior
 from .prior_fields import PRIOR_FORMAT, check_prior_fields, prior_field, prior_layout
 
 __all__ = [
     "MAX_CONDITION",
     "PRIOR_FORMAT",
+    "ActiveInferencePrior",
     "allowed_orders",
     "autocorrelation_derivatives",
     "channel_moments",

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -78,7 +79,8 @@ from .consumer_keys import (
     mean_covariance_precision,
     prior_additions,
 )
-from .prior_fields import PRIOR_FORMAT, check_prior_fields
+from .prior import ActiveInferencePrior
+from .prior_fields import PRIOR_FORMAT
 
 __all__ = [
     "MAX_CONDITION",
@@ -363,8 +365,8 @@ def export_prior(
     order: int | None = AUTO_ORDER,
     source: str | None = None,
     sensor_smoothness: float = SENSOR_SMOOTHNESS,
-) -> dict:
-    """The Active Inference prior of a posterior, as a JSON-ready dict.
+) -> ActiveInferencePrior:
+    """The Active Inference prior of a posterior.
 
     Parameters
     ----------
@@ -386,8 +388,9 @@ def export_prior(
 
     Returns
     -------
-    dict
-        The schema ``bayes_jackal.prior/1`` (docs/guide/prior.md, "The file").
+    ActiveInferencePrior
+        The schema ``bayes_jackal.prior/1`` (docs/guide/prior.md, "The file"):
+        :meth:`~ActiveInferencePrior.to_json` is the JSON of ``prior.json``.
 
     Raises
     ------
@@ -405,8 +408,11 @@ def export_prior(
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="exponential", channels=["yaw"], max_steps=20, seed=1)
     >>> prior = bj.export_prior(posterior, order=0)  # the exponential family allows order 0
-    >>> prior["noise"]["family"], prior["generalised_coordinates"]["order"], prior["dt"]
-    ('exponential', 0, 0.013888888889)
+    >>> prior
+    ActiveInferencePrior(family='exponential', channels=('yaw',), order=0, dt=0.013888888889,
+                         source=None)
+    >>> prior.noise["sigma_c_is"], prior["generalised_coordinates"]["order"]  # fields, or keys
+    ('process', 0)
     >>> bj.write_prior(prior, "prior.json")  # doctest: +SKIP
     PosixPath('prior.json')
     """
@@ -529,7 +535,7 @@ def export_prior(
         prior["sensor_noise"]["measured"] = {
             c: "pose" if c in layout.pose_channels else "rate" for c in channels
         }
-    return prior
+    return ActiveInferencePrior(**prior)
 
 
 def _pose_samples(metadata) -> float:
@@ -544,8 +550,33 @@ def _pose_samples(metadata) -> float:
     return float(1.0 / np.mean(1.0 / np.asarray(counts, float)))
 
 
-def write_prior(prior: dict, path: str | Path) -> Path:
-    """Write an exported prior as JSON, atomically.
+def write_prior(prior: ActiveInferencePrior | Mapping, path: str | Path) -> Path:
+    """Write an exported prior as JSON, atomically; return the path.
+
+    Parameters
+    ----------
+    prior : ActiveInferencePrior or mapping
+        A prior (:func:`export_prior`), written as its
+        :meth:`~ActiveInferencePrior.to_json`. A mapping of its format,
+        ``bayes_jackal.prior/1``, is checked first
+        (:meth:`ActiveInferencePrior.from_json`), so that the file is one
+        :func:`read_prior` reads; a mapping of another format (the prior of
+        a noise series, :func:`bayes_jackal.noise.export_noise_prior`) is
+        written as it is.
+    path : str or Path
+        The file (``prior.json``); a number that is not finite is written as null.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputError
+        For a mapping of the format ``bayes_jackal.prior/1`` with a field
+        the filters read missing or of the wrong type, naming it.
+    OutputError
+        When the file cannot be written.
 
     Examples
     --------
@@ -558,16 +589,20 @@ def write_prior(prior: dict, path: str | Path) -> Path:
     >>> import bayes_jackal as bj
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> prior = bj.export_prior(posterior, order=0)
     >>> with tempfile.TemporaryDirectory() as folder:
-    ...     path = bj.write_prior(bj.export_prior(posterior, order=0), Path(folder) / "prior.json")
+    ...     path = bj.write_prior(prior, Path(folder) / "prior.json")
     ...     stored = json.loads(path.read_text())
-    >>> path.name, stored["format"], stored["noise"]["family"]
-    ('prior.json', 'bayes_jackal.prior/1', 'white')
+    >>> path.name, stored["format"], stored["noise"]["family"], stored == prior.to_json()
+    ('prior.json', 'bayes_jackal.prior/1', 'white', True)
     """
-    return write_json(path, prior, indent=1)
+    if not isinstance(prior, ActiveInferencePrior) and prior.get("format") == PRIOR_FORMAT:
+        prior = ActiveInferencePrior.from_json(prior)
+    payload = prior.to_json() if isinstance(prior, ActiveInferencePrior) else prior
+    return write_json(path, payload, indent=1)
 
 
-def read_prior(path: str | Path) -> dict:
+def read_prior(path: str | Path) -> ActiveInferencePrior:
     """Read a prior written by :func:`write_prior` (``prior.json``).
 
     Parameters
@@ -577,8 +612,8 @@ def read_prior(path: str | Path) -> dict:
 
     Returns
     -------
-    dict
-        As :func:`export_prior` made it.
+    ActiveInferencePrior
+        As :func:`export_prior` made it (:meth:`ActiveInferencePrior.from_json`).
 
     Raises
     ------
@@ -611,5 +646,4 @@ def read_prior(path: str | Path) -> dict:
         raise DataError(f"cannot read: {error.strerror}", source=source) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise DataError(f"not JSON: {error}", source=source) from None
-    check_prior_fields(prior, source=source)
-    return prior
+    return ActiveInferencePrior.from_json(prior, source=source)

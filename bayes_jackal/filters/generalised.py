@@ -69,6 +69,7 @@ from .._runtime.defaults import CHANNELS
 from .._runtime.errors import InputError
 from ..dem.consumer_keys import continuous_sd, mean_covariance_precision
 from ..dem.export import checked_precision, temporal_covariance
+from ..dem.prior import ActiveInferencePrior
 from ..dem.prior_fields import prior_field
 from ..io.experiment import Experiment
 from ..model.kernels import get_family
@@ -317,7 +318,7 @@ def conditional_covariance(
 
 
 def process_precision(
-    prior: Mapping, channel: str, order: int, *, parameters: str = "plug-in"
+    prior: ActiveInferencePrior | Mapping, channel: str, order: int, *, parameters: str = "plug-in"
 ) -> np.ndarray:
     """Pi_w of one channel at embedding order p, from an exported prior's noise parameters.
 
@@ -334,8 +335,10 @@ def process_precision(
 
     Parameters
     ----------
-    prior : mapping
-        An exported prior.
+    prior : ActiveInferencePrior or mapping
+        An exported prior, or a mapping holding the fields read here
+        (``robot``, ``dt``, ``noise``, ``damping.mean``, ``draws``), as
+        :func:`bayes_jackal.filters.filter_models`.
     channel : str
         One of its channels.
     order : int
@@ -382,7 +385,7 @@ def process_precision(
 
 def generalised_filter(
     experiment: Experiment,
-    prior: Mapping,
+    prior: ActiveInferencePrior | Mapping,
     *,
     channels: Sequence[str] | None = None,
     order: int | None = None,
@@ -407,8 +410,10 @@ def generalised_filter(
     ----------
     experiment : Experiment
         Measurements and wheel speeds, at the prior's sample time.
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.dem.export_prior`, ``prior.json``).
+    prior : ActiveInferencePrior or mapping
+        An exported prior (:func:`bayes_jackal.dem.export_prior`,
+        :func:`bayes_jackal.dem.read_prior`), or its JSON as a mapping
+        (:meth:`bayes_jackal.dem.ActiveInferencePrior.from_json` checks it).
     channels : sequence of str, optional
         Channels to filter; by default every channel of the prior.
     order : int, optional
@@ -462,6 +467,7 @@ def generalised_filter(
     >>> estimate.derivatives.shape[1], rmse(estimate.mean) < rmse(runs[1].yaw_rate)
     (3, True)
     """
+    prior = ActiveInferencePrior.from_json(prior)
     channels = check_prior(prior, experiment, channels, robot=robot)
     if sensor_precision not in SENSOR_PRECISIONS:
         raise InputError(
@@ -474,7 +480,7 @@ def generalised_filter(
             "generalised filter needs",
             field="sensor_noise",
         )
-    dt = float(prior_field(prior, "dt"))
+    dt = float(prior.dt)
     if order is None:
         order = int(prior_field(prior, "generalised_coordinates.order"))
     A = np.asarray(prior_field(prior, "model.A"), float)
@@ -508,7 +514,7 @@ def generalised_filter(
 
 
 def _sensor_precision(
-    prior: Mapping,
+    prior: ActiveInferencePrior,
     channel: str,
     order: int,
     dt: float,

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._runtime.errors import DataError
+from ..dem.prior import ActiveInferencePrior
 from ..io.experiment import Experiment
 from ..model.robot import RobotProfile
 from .lti import lti_outputs
@@ -306,7 +307,7 @@ def _smoothed(
 
 def kalman_filter(
     experiment: Experiment,
-    prior: Mapping,
+    prior: ActiveInferencePrior | Mapping,
     *,
     noise: str = "coloured",
     channels: Sequence[str] | None = None,
@@ -320,8 +321,10 @@ def kalman_filter(
     Parameters
     ----------
     experiment : Experiment
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.dem.export_prior`, ``prior.json``).
+    prior : ActiveInferencePrior or mapping
+        An exported prior (:func:`bayes_jackal.dem.export_prior`,
+        :func:`bayes_jackal.dem.read_prior`), or its JSON as a mapping
+        (:meth:`bayes_jackal.dem.ActiveInferencePrior.from_json` checks it).
     noise : {"coloured", "white"}
         ``kalman-coloured`` or ``kalman`` (:data:`KALMAN_FILTERS`,
         :func:`bayes_jackal.filters.filter_models`).
@@ -345,7 +348,8 @@ def kalman_filter(
     Raises
     ------
     InputError
-        For a prior of another robot or rate, or channels it lacks
+        For a prior with a field missing or of the wrong type, of another
+        robot or rate, or without a channel asked for
         (:func:`bayes_jackal.filters.check_prior`).
     DataError
         When the experiment does not measure a channel.
@@ -376,6 +380,7 @@ def kalman_filter(
     >>> bool(rmse["coloured"] < rmse["white"])
     True
     """
+    prior = ActiveInferencePrior.from_json(prior)
     channels = check_prior(prior, experiment, channels, robot=robot)
     estimates = {}
     for channel in channels:

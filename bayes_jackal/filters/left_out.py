@@ -241,9 +241,9 @@ def _estimate(
     columns = {name: estimate_columns(left_out, estimates)}
     files["estimates"] = str(write_estimates(folder / f"{name}.csv", columns))
     record = {
-        "trained_on": prior["experiments"],
-        "order": prior["generalised_coordinates"]["order"],
-        "converged": prior["converged"],
+        "trained_on": prior.experiments,
+        "order": prior.order,
+        "converged": prior.converged,
         "scores": score_estimates(left_out, estimates),
         "filters_failed": refused,
         "files": files,

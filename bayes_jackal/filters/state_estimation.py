@@ -57,6 +57,7 @@ import scipy.stats
 from .._runtime import defaults
 from .._runtime.errors import InputError
 from .._runtime.files import atomic_path
+from ..dem.prior import ActiveInferencePrior
 from ..io.experiment import CHANNEL_FIELDS, Experiment
 from ..model.robot import RobotProfile
 from .generalised import LOOKAHEAD, SENSOR_PRECISIONS, generalised_filter
@@ -107,7 +108,7 @@ def _check_filters(filters: Sequence[str]) -> tuple[str, ...]:
 
 def estimate_states(
     experiment: Experiment,
-    prior: Mapping,
+    prior: ActiveInferencePrior | Mapping,
     *,
     filters: Sequence[str] = FILTERS,
     channels: Sequence[str] | None = None,
@@ -123,8 +124,10 @@ def estimate_states(
     ----------
     experiment : Experiment
         A run at the prior's sample time, measuring the channels.
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.dem.export_prior`, ``prior.json``).
+    prior : ActiveInferencePrior or mapping
+        An exported prior (:func:`bayes_jackal.dem.export_prior`,
+        :func:`bayes_jackal.dem.read_prior`), or its JSON as a mapping
+        (:meth:`bayes_jackal.dem.ActiveInferencePrior.from_json` checks it).
     filters : sequence of str
         Names from :data:`FILTERS`.
     channels : sequence of str, optional
@@ -159,8 +162,10 @@ def estimate_states(
     >>> {name: list(per_channel) for name, per_channel in estimates.items()}
     {'kalman': ['yaw'], 'kalman-coloured': ['yaw'], 'generalised': ['yaw']}
     """
+    filters = _check_filters(filters)
+    prior = ActiveInferencePrior.from_json(prior)
     estimates = {}
-    for name in _check_filters(filters):
+    for name in filters:
         if name in KALMAN_FILTERS:
             options = {"noise": KALMAN_FILTERS[name], "channels": channels, "robot": robot}
             estimate = kalman_filter(experiment, prior, parameters=parameters, **options)
@@ -177,21 +182,21 @@ def estimate_states(
     return estimates
 
 
-def _draw_priors(prior: Mapping) -> list[Mapping]:
+def _draw_priors(prior: ActiveInferencePrior) -> list[ActiveInferencePrior]:
     """The prior with its noise parameters' means set to :data:`NIS_DRAWS` of its draws.
 
     Empty for a prior without draws of every noise parameter. The damping
     stays at its mean, as in the filters' averaged mode.
     """
-    parameters = prior["noise"]["parameters"]
-    draws = prior.get("draws")
+    parameters = prior.noise["parameters"]
+    draws = prior.draws
     if not isinstance(draws, Mapping) or not all(name in draws for name in parameters):
         return []
     count = min(len(draws[name]) for name in parameters)
     picks = np.unique(np.linspace(0, count - 1, min(NIS_DRAWS, count)).astype(int))
     return [
-        {**prior, "noise": {**prior["noise"], "parameters": {
-            name: {**stats, "mean": draws[name][i]} for name, stats in parameters.items()}}}
+        replace(prior, noise={**prior.noise, "parameters": {
+            name: {**stats, "mean": draws[name][i]} for name, stats in parameters.items()}})
         for i in picks
     ]  # fmt: skip
 
@@ -218,13 +223,17 @@ _CALLER_FIELDS = ("order", "lookahead")
 
 
 def estimate_each(
-    experiment: Experiment, prior: Mapping, *, filters: Sequence[str] = FILTERS, **options
+    experiment: Experiment,
+    prior: ActiveInferencePrior | Mapping,
+    *,
+    filters: Sequence[str] = FILTERS,
+    **options,
 ) -> tuple[dict[str, dict[str, StateEstimate]], dict[str, str]]:
     """:func:`estimate_states` filter by filter: one the prior cannot drive is skipped, named.
 
     The generalised filter needs a sensor-noise sd, which white noise
     fitted with the diagonal sensor term does not have; the Kalman filters
-    run on such a prior. ``options`` are :func:`estimate_states`'.
+    run on such a prior. ``prior`` and ``options`` are :func:`estimate_states`'.
 
     Returns
     -------
@@ -255,6 +264,7 @@ def estimate_each(
     (['kalman', 'kalman-coloured'], ['generalised'])
     """
     filters = _check_filters(filters)
+    prior = ActiveInferencePrior.from_json(prior)
     # A prior that does not fit the experiment fits no filter: that error stops all.
     check_prior(prior, experiment, options.get("channels"), robot=options.get("robot"))
     estimates, refused = {}, {}

@@ -69,7 +69,8 @@ import scipy.linalg
 
 from .._runtime.defaults import CHANNELS, FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
 from .._runtime.errors import InputError
-from ..dem.prior_fields import check_prior_fields, prior_field, prior_layout
+from ..dem.prior import ActiveInferencePrior
+from ..dem.prior_fields import prior_field, prior_layout
 from ..io.experiment import Experiment
 from ..io.pose_increments import body_displacement, tick_poses
 from ..model.kernels import Family, get_family
@@ -328,7 +329,9 @@ def _realisation(realise, width: np.ndarray, dt: float) -> tuple:
     return T[0], np.broadcast_to(g, (len(width), m)), c[0], np.broadcast_to(d, width.shape)
 
 
-def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str, ...]:
+def _prior_channels(
+    prior: ActiveInferencePrior | Mapping, channels: Sequence[str] | None
+) -> tuple[str, ...]:
     """The channels asked for (None: all the prior's), each one the prior has."""
     known = list(prior_field(prior, "noise.channels"))
     channels = tuple(known if channels is None else channels)
@@ -341,7 +344,7 @@ def _prior_channels(prior: Mapping, channels: Sequence[str] | None) -> tuple[str
 
 
 def check_prior(
-    prior: Mapping,
+    prior: ActiveInferencePrior | Mapping,
     experiment: Experiment,
     channels: Sequence[str] | None = None,
     *,
@@ -351,8 +354,10 @@ def check_prior(
 
     Parameters
     ----------
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.dem.export_prior`, ``prior.json``).
+    prior : ActiveInferencePrior or mapping
+        An exported prior (:func:`bayes_jackal.dem.export_prior`,
+        :func:`bayes_jackal.dem.read_prior`), or its JSON as a mapping
+        (:meth:`bayes_jackal.dem.ActiveInferencePrior.from_json` checks it).
     experiment : Experiment
     channels : sequence of str, optional
         Channels to filter; by default every channel of the prior.
@@ -392,8 +397,8 @@ def check_prior(
     dt: the prior is for 36 Hz (dt = 0.02778 s), the experiment is sampled at 72 Hz
     (dt = 0.01389 s)
     """
-    check_prior_fields(prior)
-    constants = prior_field(prior, "robot")
+    prior = ActiveInferencePrior.from_json(prior)
+    constants = prior.robot
     name = experiment.provenance.get("robot")
     if name is not None and name != constants.get("name"):
         raise InputError(
@@ -409,7 +414,7 @@ def check_prior(
                 f"{getattr(robot, key)!r}",
                 field=f"robot.{key}",
             )
-    dt = float(prior_field(prior, "dt"))
+    dt = float(prior.dt)
     if not abs(experiment.dt / dt - 1.0) <= PRIOR_RATE_TOLERANCE:
         raise InputError(
             f"the prior is for {1 / dt:.4g} Hz (dt = {dt:.4g} s), the experiment is sampled "
@@ -457,7 +462,7 @@ def measured_series(experiment: Experiment, channel: str) -> tuple[np.ndarray, i
 
 
 def filter_models(
-    prior: Mapping,
+    prior: ActiveInferencePrior | Mapping,
     *,
     noise: str = "coloured",
     channels: Sequence[str] | None = None,
@@ -469,8 +474,11 @@ def filter_models(
 
     Parameters
     ----------
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.dem.export_prior`, ``prior.json``).
+    prior : ActiveInferencePrior or mapping
+        An exported prior (:func:`bayes_jackal.dem.export_prior`,
+        :func:`bayes_jackal.dem.read_prior`), or a mapping holding the fields
+        read here, as they would be in ``prior.json`` (not checked:
+        :func:`check_prior` checks a whole prior).
     noise : {"coloured", "white"}
         The prior's noise family with its shaping filter in the state, or
         white process noise of the same variance per step.
@@ -553,13 +561,16 @@ def filter_models(
     return models
 
 
-def parameter_values(prior: Mapping, *, parameters: str = "plug-in") -> np.ndarray:
+def parameter_values(
+    prior: ActiveInferencePrior | Mapping, *, parameters: str = "plug-in"
+) -> np.ndarray:
     """The prior's parameter vectors: the posterior means (one row) or its draws.
 
     Parameters
     ----------
-    prior : mapping
-        An exported prior.
+    prior : ActiveInferencePrior or mapping
+        An exported prior, or a mapping holding the fields read here
+        (``noise``, ``damping.mean``, ``draws``), as :func:`filter_models`.
     parameters : {"plug-in", "averaged"}
 
     Returns
@@ -591,14 +602,15 @@ def parameter_values(prior: Mapping, *, parameters: str = "plug-in") -> np.ndarr
 
 
 def noise_parameters(
-    prior: Mapping, channel: str, *, parameters: str = "plug-in"
+    prior: ActiveInferencePrior | Mapping, channel: str, *, parameters: str = "plug-in"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The noise parameters of one channel of an exported prior.
 
     Parameters
     ----------
-    prior : mapping
-        An exported prior (:func:`bayes_jackal.dem.export_prior`).
+    prior : ActiveInferencePrior or mapping
+        An exported prior (:func:`bayes_jackal.dem.export_prior`), or a
+        mapping holding the fields read here, as :func:`parameter_values`.
     channel : str
         One of the prior's channels.
     parameters : {"plug-in", "averaged"}
@@ -640,12 +652,14 @@ def noise_parameters(
     return layout.noise_parameters(theta, layout.channels.index(channel))
 
 
-def prior_robot(prior: Mapping) -> RobotProfile:
+def prior_robot(prior: ActiveInferencePrior | Mapping) -> RobotProfile:
     """The robot an exported prior was identified on: its constants in the default profile.
 
     Only the physical constants, the rate and the wheel-speed conversion
     enter the model; the profile's priors, topics and wheel joints are the
-    installed default's.
+    installed default's. ``prior`` is an
+    :class:`~bayes_jackal.dem.ActiveInferencePrior` or a mapping with its
+    ``robot`` field.
 
     Examples
     --------
