@@ -14,9 +14,9 @@ __version__ = "0.1.0"
 #: Public name -> the subpackage that exports it.
 _LAZY = {
     # the workflow: logs in, posteriors, evidence, priors, reports out
-    "load_experiments": ".workflow",
-    "sample": ".workflow",
-    "compare": ".workflow",
+    "load_experiments": ".io",
+    "sample": ".inference",
+    "compare": ".inference",
     "export_prior": ".dem",
     "write_prior": ".dem",
     "read_prior": ".dem",

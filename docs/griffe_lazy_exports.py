@@ -2,7 +2,7 @@
 
 ``bayes_jackal/__init__.py`` imports its public names on first use: a
 dictionary ``_LAZY`` maps each name to the module that defines it, relative
-to the package (``"sample": ".workflow.api"``), ``__getattr__`` imports it,
+to the package (``"sample": ".inference"``), ``__getattr__`` imports it,
 and ``__all__`` is built from the dictionary at run time. Griffe reads the
 source without running it, so it sees neither the names nor ``__all__``.
 This extension reads ``_LAZY`` from the source of any module that has one,
@@ -25,8 +25,8 @@ def lazy_names(source: str) -> dict[str, str]:
 
     Examples
     --------
-    >>> lazy_names('_LAZY = {"sample": ".workflow.api"}\\n__all__ = sorted(_LAZY)')
-    {'sample': '.workflow.api'}
+    >>> lazy_names('_LAZY = {"sample": ".inference"}\\n__all__ = sorted(_LAZY)')
+    {'sample': '.inference'}
     >>> lazy_names("x = 1")
     {}
     """
@@ -59,7 +59,7 @@ class LazyExports(griffe.Extension):
         for name, module in names.items():
             if name in mod.members:
                 continue
-            # ".workflow.api" relative to the package "bayes_jackal".
+            # ".inference" relative to the package "bayes_jackal".
             target = f"{mod.path}{module}" if module.startswith(".") else module
             mod.set_member(name, griffe.Alias(name, f"{target}.{name}", parent=mod))
         kept = [export for export in mod.exports or [] if isinstance(export, str)]

@@ -16,13 +16,13 @@ import scipy.io
 import bayes_jackal as bj
 from bayes_jackal.cli import main
 from bayes_jackal.cli.parser import build_parser
+from bayes_jackal.inference import sampling
 from bayes_jackal.inference.sampling import sample_posterior
 from bayes_jackal.io.bags import read_bag
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
 from bayes_jackal.io.tables import read_csv, read_mat
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.report.page import _labelled
-from bayes_jackal.workflow import api
 from bayes_jackal.workflow.demo import demo_folder
 
 #: A quick white-noise chain on the yaw channel (far from converged: 80 steps).
@@ -66,7 +66,7 @@ def test_import_stays_lazy():
 def test_every_public_name_resolves():
     for name in bj.__all__:
         assert getattr(bj, name) is not None, name
-    assert bj.sample is api.sample and bj.export_prior.__module__ == "bayes_jackal.dem.export"
+    assert bj.sample is sampling.sample and bj.export_prior.__module__ == "bayes_jackal.dem.export"
 
 
 @pytest.mark.parametrize("name", FUNCTIONS)
@@ -225,7 +225,7 @@ def test_a_bad_option_is_an_input_error_naming_it(run, call, pattern):
 def test_docstring_examples_show_the_call(name):
     # Each example calls its function; tests/test_docstrings.py runs every
     # public function's examples (these among them), so they are not run twice.
-    function = getattr(api, name, None) or getattr(bj, name)
+    function = getattr(bj, name)
     [test] = doctest.DocTestFinder(recurse=False).find(function, name)
     assert test.examples, f"{name} has no Examples"
     assert any(f"{name}(" in example.source for example in test.examples), name

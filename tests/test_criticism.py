@@ -16,7 +16,7 @@ from bayes_jackal import load_profile
 from bayes_jackal._runtime.arviz_quiet import az
 from bayes_jackal.cli import main
 from bayes_jackal.inference.chains import SamplerSettings
-from bayes_jackal.inference.comparison_result import Comparison
+from bayes_jackal.inference.comparison import Comparison
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.inference.sampling import sample_posterior
 from bayes_jackal.io.experiment import Experiment, detect_steady, write_netcdf

@@ -30,8 +30,9 @@ import matplotlib
 import pytest
 
 import bayes_jackal
+from bayes_jackal import inference
+from bayes_jackal.inference import sampling
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
-from bayes_jackal.workflow import api
 
 matplotlib.use("Agg")
 
@@ -75,7 +76,7 @@ def test_every_public_namespace_is_covered():
 
 #: The posteriors of the examples' calls of ``bj.sample``, by call (module text).
 SAMPLED: dict[str, object] = {}
-SAMPLE = api.sample
+SAMPLE = sampling.sample
 
 
 def shared_sample(experiments, **options):
@@ -94,7 +95,8 @@ def test_docstring_examples_run(module, name, monkeypatch):
     [test] = doctest.DocTestFinder(recurse=False).find(obj, f"{module}.{name}", globs={})
     assert test.examples, f"{module}.{name} has no Examples"
     if obj is not SAMPLE:
-        monkeypatch.setattr(api, "sample", shared_sample)
+        monkeypatch.setattr(sampling, "sample", shared_sample)
+        monkeypatch.setattr(inference, "sample", shared_sample)
         monkeypatch.setattr(bayes_jackal, "sample", shared_sample)
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     # Examples that run a short chain on purpose say so; its warning is expected.

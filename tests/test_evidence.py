@@ -11,8 +11,7 @@ import scipy.special
 
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.inference.chains import SamplerSettings
-from bayes_jackal.inference.comparison import compare_families
-from bayes_jackal.inference.comparison_result import Comparison
+from bayes_jackal.inference.comparison import Comparison, compare_families
 from bayes_jackal.inference.evidence import (
     bridge_sampling,
     evidence_strength,

@@ -17,8 +17,8 @@ import xarray as xr
 from bayes_jackal._runtime.errors import DataError, InputError
 from bayes_jackal.cli import main
 from bayes_jackal.io.experiment import Experiment, read_netcdf, write_netcdf
+from bayes_jackal.io.logs import load_experiments
 from bayes_jackal.io.tables import load_experiment, read_csv, read_mat, write_csv
-from bayes_jackal.workflow.api import load_experiments
 
 DT = 0.1
 N = 40

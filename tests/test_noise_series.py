@@ -22,9 +22,9 @@ from bayes_jackal._runtime.errors import DataError, InputError
 from bayes_jackal.io.bag_reading import typestore
 from bayes_jackal.io.bag_writer import BagMessage, stamped_header, write_messages
 from bayes_jackal.io.bags import read_bag
+from bayes_jackal.io.logs import read_log
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.noise.series import MIN_SERIES_SAMPLES, NoiseSeries, read_noise_series
-from bayes_jackal.workflow.analysis import read_log
 
 NS = 1_000_000_000
 EPOCH = 1_700_000_000 * NS

@@ -23,13 +23,14 @@ from bayes_jackal.inference.sampling import sample_posterior
 from bayes_jackal.io.bag_writer import write_bag
 from bayes_jackal.io.bags import read_bag
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
+from bayes_jackal.io.logs import ingest_logs
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.io.tables import write_csv
 from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.posterior.posterior import load_posterior
-from bayes_jackal.workflow.analysis import analyse_logs, ingest_logs
+from bayes_jackal.workflow.analysis import analyse_logs
 from bayes_jackal.workflow.demo import demo_folder, demo_labels
 
 ROBOT = load_profile()

@@ -29,6 +29,7 @@ from ..inference.sampler_warnings import ConvergenceWarning, keep_warnings
 from ..inference.sampling import chain_path, sample_posterior
 from ..io.bag_writer import bag_truth, write_bag
 from ..io.experiment import Experiment, write_netcdf
+from ..io.logs import ingest_logs
 from ..io.simulate import NoiseSettings, simulate_series
 from ..io.tables import write_csv
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
@@ -42,7 +43,7 @@ from ..report.grid_plots import save_grid_plot
 from ..report.page import read_posteriors, save_report
 from ..thesis.gridsearch import damping_grid, grid_search
 from ..thesis.residual_analysis import analyse
-from ..workflow.analysis import analyse_logs, ingest_logs
+from ..workflow.analysis import analyse_logs
 from ..workflow.demo import DEMO_TRUTH, run_demo
 from .output import (
     EXIT_BAD_INPUT,

@@ -11,9 +11,9 @@ from typing import Any
 
 from .._runtime.errors import InputError, describe, each_input
 from ..io.experiment import Experiment
+from ..io.logs import load_experiments, read_logs
 from ..io.tables import check_column_roles
 from ..model.robot import RobotProfile, load_profile
-from ..workflow.api import load_experiments, read_logs
 from .output import Failures
 from .paths import check_named_outputs
 
@@ -112,7 +112,7 @@ def read_options(args: argparse.Namespace) -> dict:
 
 
 def log_options(args: argparse.Namespace) -> dict:
-    """Keywords of :func:`~bayes_jackal.workflow.load_experiments` from the flags of reading logs.
+    """Keywords of :func:`~bayes_jackal.io.load_experiments` from the flags of reading logs.
 
     Those of experiment files, and of bags (``--window``, ``--max-gap``,
     ``--topic``); ``--robot``: topics and wheels of bags, the rate of files.

@@ -10,8 +10,15 @@ from .chains import (
     effective_sizes,
     run_chain,
 )
-from .comparison import compare_families, compare_groups
-from .comparison_result import COLOURED_LOG_BF, WHITE_LOG_BF, Comparison, colour_verdict
+from .comparison import (
+    COLOURED_LOG_BF,
+    WHITE_LOG_BF,
+    Comparison,
+    colour_verdict,
+    compare,
+    compare_families,
+    compare_groups,
+)
 from .evidence import bridge_sampling, evidence_strength, integrated_time, nested_sampling
 from .executors import (
     DaskExecutor,
@@ -36,7 +43,7 @@ from .moves import (
     proposal_efficiency,
 )
 from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
-from .sampling import chain_path, run_identity, sample_posterior
+from .sampling import chain_path, run_identity, sample, sample_posterior
 from .starts import profile_starts, series_profile
 
 __all__ = [
@@ -65,6 +72,7 @@ __all__ = [
     "chain_path",
     "climb",
     "colour_verdict",
+    "compare",
     "compare_families",
     "compare_groups",
     "effective_sizes",
@@ -83,6 +91,7 @@ __all__ = [
     "ridge_mixture",
     "run_chain",
     "run_identity",
+    "sample",
     "sample_posterior",
     "scan_posterior",
     "series_profile",

@@ -55,7 +55,7 @@ DEFAULT_TIMEOUT = 5.0
 #: What the worker processes' server imports once, before it forks each worker
 #: (:func:`in_processes`): a spawned worker imported the package itself, 2-3 s
 #: of CPU each.
-WORKER_MODULES = ["bayes_jackal.workflow.api"]
+WORKER_MODULES = ["bayes_jackal.inference"]
 
 
 @functools.cache

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
 
@@ -24,15 +24,18 @@ import numpy as np
 
 from .._runtime import interrupt
 from .._runtime.arviz_quiet import az
+from .._runtime.defaults import ENGINE, FAMILY, MAX_STEPS, NOISE, SENSOR, WALKERS
+from ..io.experiment import Experiment, as_experiments
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
-from ..likelihood.residual_likelihood import ResidualLikelihood
+from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
+from ..model.robot import RobotProfile, as_profile
 from ..posterior.posterior import build_inference_data
 from .chains import SamplerSettings, run_chain
 from .map_search import find_map, laplace_walkers
 from .moves import Start
 
-__all__ = ["chain_path", "run_identity", "sample_posterior"]
+__all__ = ["chain_path", "run_identity", "sample", "sample_posterior"]
 
 
 def chain_path(posterior: str | Path) -> Path:
@@ -184,4 +187,103 @@ def sample_posterior(
     )
     return build_inference_data(
         likelihood, prior, chain.samples, chain.log_prob, chain.diagnostics
+    )
+
+
+def sample(
+    experiments: Experiment | Sequence[Experiment],
+    *,
+    family: str = FAMILY,
+    channels: Sequence[str] | None = None,
+    noise: str = NOISE,
+    sensor: str = SENSOR,
+    engine: str = ENGINE,
+    seed: int | None = None,
+    max_steps: int = MAX_STEPS,
+    walkers: int = WALKERS,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    robot: RobotProfile | str | Path | None = None,
+    chain_file: str | Path | None = None,
+    progress: bool = True,
+) -> az.InferenceData:
+    """The posterior of the damping and the noise, sampled with emcee (``bayes-jackal sample``).
+
+    The same likelihood, sampler settings and seed as ``bayes-jackal sample
+    --pooled`` with the same options, so the same chain.
+
+    Parameters
+    ----------
+    experiments : Experiment or sequence of them
+        Several are pooled into one posterior: one damping (d_lat, d_long)
+        for all.
+    family : str
+        Process-noise family, a key of :data:`bayes_jackal.FAMILIES`
+        (``--family``; :data:`FAMILY`).
+    channels : sequence of {"yaw", "vx", "vy"}, optional
+        By default every channel all experiments measure (``--channels``).
+    noise : {"shared", "per-experiment", "one-width"}
+        Pooled experiments' noise parameters (``--noise``; :data:`NOISE`):
+        "one-width" shares them too, with one width for every channel.
+    sensor : {"ma1", "diagonal"}
+        Sensor-noise footprint (``--sensor-noise``; :data:`SENSOR`).
+    engine : {"fast", "exact", "whittle"}
+        Likelihood engine (``--engine``; :data:`ENGINE`).
+    seed : int, optional
+        Same seed, same chain (``--seed``).
+    max_steps : int
+        Step cap of the chain (``--max-steps``; :data:`MAX_STEPS`). A chain
+        that reaches it before converging warns
+        (:class:`~bayes_jackal.inference.ConvergenceWarning`).
+    walkers : int
+        Ensemble size; 0: max(32, 4 x parameters) (``--walkers``).
+    priors : mapping of str to (float, float), optional
+        (low, high) ranges over the profile's, e.g. ``{"d_lat": (10, 2000)}``
+        [N s/m; s for ``sigma_h``/``width``; rad/s or m/s for ``sigma_c``,
+        ``sigma_n``] (``--prior``).
+    robot : RobotProfile, str or Path, optional
+        A profile or its TOML file; the Jackal's by default (``--robot``).
+    chain_file : str or Path, optional
+        HDF5 file of the chain: a run with the same file and options resumes
+        it (``sample`` keeps it beside the posterior as ``*.chain.h5``).
+    progress : bool
+        Show the chain's progress on stderr (by default: a bar on a terminal, a
+        line every 10 s elsewhere, with the steps the chain expects to need and
+        the time left); False for silence.
+
+    Returns
+    -------
+    arviz.InferenceData
+        As :func:`bayes_jackal.inference.sample_posterior`; save it with
+        :func:`bayes_jackal.save_posterior`.
+
+    Raises
+    ------
+    InputError
+        Naming an unknown family, channel, noise sharing, sensor model,
+        engine or prior, or a bad count.
+    DataError
+        For a channel an experiment does not measure.
+
+    Examples
+    --------
+    A quick chain of 20 steps, far from converged (a ConvergenceWarning);
+    real use takes the default step cap:
+
+    >>> import bayes_jackal as bj
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> sorted(posterior.posterior.data_vars)[:4]
+    ['Ad', 'Bd', 'd_lat', 'd_long']
+    >>> summary = bj.summarize(posterior)
+    >>> summary["family"], summary["channels"], summary["converged"]
+    ('white', ['yaw'], False)
+    """
+    options = LikelihoodOptions(channels=channels, noise=noise, sensor=sensor, engine=engine)
+    likelihood = options.likelihood(as_experiments(experiments), as_profile(robot), family)
+    return sample_posterior(
+        likelihood,
+        SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
+        seed=seed,
+        chain_file=chain_file,
+        prior_overrides=priors,
     )

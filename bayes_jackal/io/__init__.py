@@ -29,6 +29,7 @@ from .experiment import (
     STEADY_YAW_FLOOR,
     STEADY_YAW_TOLERANCE,
     Experiment,
+    as_experiments,
     check_values,
     detect_steady,
     numeric_array,
@@ -36,6 +37,7 @@ from .experiment import (
     steady_smoothing,
     write_netcdf,
 )
+from .logs import ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
     TickPoses,
@@ -125,6 +127,7 @@ __all__ = [
     "Series",
     "TickPoses",
     "UniformClock",
+    "as_experiments",
     "bag_format",
     "bag_messages",
     "bag_truth",
@@ -140,7 +143,9 @@ __all__ = [
     "command_profile",
     "detect_steady",
     "header_stamp",
+    "ingest_logs",
     "load_experiment",
+    "load_experiments",
     "longest_run",
     "numeric_array",
     "numeric_column",
@@ -150,6 +155,8 @@ __all__ = [
     "read_bag",
     "read_csv",
     "read_csv_table",
+    "read_log",
+    "read_logs",
     "read_mat",
     "read_netcdf",
     "receive_time_for_zero",

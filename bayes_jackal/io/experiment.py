@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,6 +47,7 @@ __all__ = [
     "STEADY_YAW_FLOOR",
     "STEADY_YAW_TOLERANCE",
     "Experiment",
+    "as_experiments",
     "check_values",
     "detect_steady",
     "numeric_array",
@@ -682,3 +683,17 @@ def _json_attribute(attrs: dict, key: str, source: str, *, null: bool = False) -
             field=key,
         )
     return value
+
+
+def as_experiments(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
+    """One experiment, or several, as a list.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.io import as_experiments
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> len(as_experiments(run)), len(as_experiments((run, run)))
+    (1, 2)
+    """
+    return [experiments] if isinstance(experiments, Experiment) else list(experiments)

@@ -39,7 +39,7 @@ from .physics import (
     step_integrals,
     wheel_speeds,
 )
-from .robot import DEFAULT_PRIORS, RobotProfile, default_profile_path, load_profile
+from .robot import DEFAULT_PRIORS, RobotProfile, as_profile, default_profile_path, load_profile
 
 __all__ = [
     "DAMPING",
@@ -59,6 +59,7 @@ __all__ = [
     "RobotProfile",
     "Triangular",
     "White",
+    "as_profile",
     "bandwidth",
     "channel_coefficients",
     "continuous_matrices",

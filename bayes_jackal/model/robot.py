@@ -23,7 +23,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["DEFAULT_PRIORS", "RobotProfile", "default_profile_path", "load_profile"]
+__all__ = ["DEFAULT_PRIORS", "RobotProfile", "as_profile", "default_profile_path", "load_profile"]
 
 
 _BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radius")
@@ -349,3 +349,18 @@ def _validate(profile: RobotProfile) -> None:
     missing = [key for key in _PRIOR_KEYS if key not in profile.priors]
     if missing:
         raise ProfileError(f"missing prior ranges {missing}", source=source, field="priors")
+
+
+def as_profile(robot: RobotProfile | str | Path | None) -> RobotProfile:
+    """A robot profile as given, or read from its TOML file (None: the Jackal's).
+
+    Examples
+    --------
+    >>> from bayes_jackal.model import as_profile, default_profile_path, load_profile
+    >>> jackal = load_profile()
+    >>> as_profile(jackal) is jackal, as_profile(None).name
+    (True, 'jackal')
+    >>> as_profile(default_profile_path()) == jackal
+    True
+    """
+    return robot if isinstance(robot, RobotProfile) else load_profile(robot)

@@ -36,7 +36,7 @@ from .._runtime.arviz_quiet import az
 from .._runtime.defaults import HDI_PROB, NOISE_MAX_STEPS, SERIES_ENGINES
 from .._runtime.errors import InputError
 from ..inference.chains import SamplerSettings, run_chain
-from ..inference.comparison_result import colour_verdict
+from ..inference.comparison import colour_verdict
 from ..inference.evidence import bridge_sampling
 from ..inference.executors import Executor, SerialExecutor
 from ..inference.map_search import climb, laplace_walkers, scan_posterior

@@ -30,7 +30,7 @@ from .._runtime.arviz_quiet import az
 from .._runtime.defaults import CHANNELS, HDI_PROB
 from ..filters.left_out import LeaveOneOut
 from ..filters.state_estimation import score_rows
-from ..inference.comparison_result import colour_verdict
+from ..inference.comparison import colour_verdict
 from ..model.physics import discrete_matrices
 from ..posterior.criticism import KIND_MEANINGS
 from ..posterior.posterior import Posterior

@@ -44,7 +44,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from .._runtime.defaults import DEFAULT_FAMILIES, STATE_ESTIMATION
-from .._runtime.errors import DataError, describe, each_input
+from .._runtime.errors import DataError
 from .._runtime.files import write_json
 from ..dem.export import export_prior, write_prior
 from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
@@ -52,10 +52,8 @@ from ..inference.chains import SamplerSettings
 from ..inference.comparison import compare_families
 from ..inference.executors import Executor, ProcessExecutor
 from ..inference.sampler_warnings import keep_warnings
-from ..io.bag_reading import bag_format
-from ..io.bags import read_bag
-from ..io.experiment import Experiment, write_netcdf
-from ..io.tables import load_experiment
+from ..io.experiment import Experiment
+from ..io.logs import ingest_logs
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.robot import RobotProfile, load_profile
 from ..posterior.criticism import criticise
@@ -66,213 +64,10 @@ from ..report.page import write_report
 from ..report.sections import state_estimation_highlight, state_estimation_section
 from ..thesis.gridsearch import damping_grid, grid_search
 
-__all__ = ["analyse_logs", "ingest_logs", "read_log"]
+__all__ = ["analyse_logs"]
 
 #: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
 GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
-
-
-def read_log(
-    path: str | Path,
-    robot: RobotProfile,
-    *,
-    window: tuple[float, float] | None = None,
-    max_gap: float | None = None,
-    progress: bool = False,
-    read_options: Mapping | None = None,
-) -> Experiment:
-    """One input as an experiment: a bag as ``ingest`` reads it, or an experiment file.
-
-    Parameters
-    ----------
-    path : str or Path
-        A bag (:data:`BAG_SUFFIXES`, or a ROS2 bag folder) or an experiment
-        file (``.csv``, ``.mat``, ``.nc``).
-    robot : RobotProfile
-        Topics and wheel joints of a bag; the rate an experiment file's
-        sample time must agree with (:func:`~bayes_jackal.io.check_sample_time`).
-    window, max_gap, progress, read_options
-        As in :func:`ingest_logs`.
-
-    Returns
-    -------
-    Experiment
-
-    Examples
-    --------
-    An experiment file as is, or cut to a window [s]:
-
-    >>> import tempfile
-    >>> from pathlib import Path
-    >>> from bayes_jackal.model import load_profile
-    >>> from bayes_jackal.io import Series, simulate_experiment
-    >>> from bayes_jackal.io import write_csv
-    >>> from bayes_jackal.workflow import read_log
-    >>> robot = load_profile()
-    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
-    >>> with tempfile.TemporaryDirectory() as folder:
-    ...     path = write_csv(run, Path(folder) / "short.csv")
-    ...     whole = read_log(path, robot)
-    ...     steady = read_log(path, robot, window=(2.0, 6.0))
-    >>> print(whole.name, len(whole.t), whole.steady_window, steady.steady_window)
-    short 577 None (2.0, 6.0)
-    """
-    path = Path(path)
-    if bag_format(path) is not None:
-        gap = {} if max_gap is None else {"max_gap": max_gap}
-        return read_bag(path, robot, window=window, progress=progress, **gap)
-    options = {"robot": robot, **(read_options or {})}
-    experiment = load_experiment(path, max_gap=max_gap, **options)
-    if window is None:
-        return experiment
-    experiment.window(*window)  # raises DataError when it holds too few samples
-    return dataclasses.replace(experiment, steady_window=tuple(float(w) for w in window))
-
-
-def _target(
-    name: str, folder: Path, source: Path, inputs: set[Path], taken: Mapping[str, str]
-) -> tuple[str, Path]:
-    """A free name and ``folder/<name>.nc`` for an input.
-
-    A name an earlier input ``taken`` gets a suffix ``-2``, ``-3``...;
-    refused for a name that is no plain file name or whose file is an input.
-    """
-    if name in ("", ".", "..") or any(sep in name for sep in ("/", "\\")):
-        raise DataError(
-            f"its experiment name {name!r} cannot name a file; rename the experiment",
-            source=str(source),
-            field="name",
-        )
-    free, count = name, 1
-    while free in taken:
-        count += 1
-        free = f"{name}-{count}"
-    target = folder / f"{free}.nc"
-    if target.resolve() in inputs:
-        raise DataError(
-            f"writing it as {target} would overwrite an input; choose another output folder",
-            source=str(source),
-        )
-    return free, target
-
-
-def ingest_logs(
-    paths: Sequence[str | Path],
-    robot: RobotProfile,
-    folder: str | Path,
-    *,
-    window: tuple[float, float] | None = None,
-    max_gap: float | None = None,
-    progress: bool = False,
-    labels: Mapping[str, Mapping] | None = None,
-    read_options: Mapping | None = None,
-    say: Callable[[str], None] = lambda text: None,
-) -> tuple[list[Experiment], dict[str, str]]:
-    """Read every input, write each as ``folder/<name>.nc``; keep going past bad ones.
-
-    Two inputs of one experiment name are both kept: the later one is
-    written as ``<name>-2.nc`` (``-3``...), named so, with ``renamed_from``
-    in its provenance, and ``say`` tells.
-
-    Parameters
-    ----------
-    paths : sequence of str or Path
-        Bags (``.bag``, ``.mcap``, ``.db3``, ROS2 bag folders) and
-        experiment files (``.csv``, ``.mat``, ``.nc``).
-    robot : RobotProfile
-        Topics, wheel joints and constants.
-    folder : str or Path
-        Where the experiment files go.
-    window : (float, float), optional
-        Steady window [s on each experiment's time axis; for bags, from the
-        first IMU stamp]; detected in bags, the whole run in files, when
-        omitted.
-    max_gap : float, optional
-        Longest tolerated dropout [s]; None: the defaults of
-        :func:`~bayes_jackal.io.read_bag` (0.25 s) and of
-        :func:`~bayes_jackal.io.load_experiment`.
-    progress : bool
-        Show each bag's progress on stderr.
-    labels : mapping, optional
-        Per input path (as given), Experiment fields to set, e.g. ``series``
-        and ``truth`` of a simulated run.
-    read_options : mapping, optional
-        Keywords of :func:`~bayes_jackal.io.load_experiment` for
-        experiment files (``columns``, ``rate``, ``velocities``).
-    say : callable
-        Receives one line per input.
-
-    Returns
-    -------
-    experiments : list of Experiment
-    failed : dict of str to str
-        The reason for each input that could not be used, by path.
-
-    Examples
-    --------
-    A CSV file, a bag of the same short run (8 s) and a missing file: the
-    two are written as experiment files, the third is reported:
-
-    >>> import tempfile
-    >>> from pathlib import Path
-    >>> from bayes_jackal.io import write_bag
-    >>> from bayes_jackal.model import load_profile
-    >>> from bayes_jackal.io import Series, simulate_experiment
-    >>> from bayes_jackal.io import write_csv
-    >>> from bayes_jackal.workflow import ingest_logs
-    >>> robot = load_profile()
-    >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
-    >>> with tempfile.TemporaryDirectory() as folder:
-    ...     logs = [
-    ...         write_csv(run, Path(folder) / "table.csv"),
-    ...         write_bag(run, Path(folder) / "recording.bag", robot, "ros1", rng=1),
-    ...         Path(folder) / "lost.bag",
-    ...     ]
-    ...     experiments, failed = ingest_logs(logs, robot, Path(folder) / "experiments")
-    ...     written = sorted(path.name for path in (Path(folder) / "experiments").iterdir())
-    >>> [(e.name, e.steady_window is not None) for e in experiments], written
-    ([('table', False), ('recording', True)], ['recording.nc', 'table.nc'])
-    >>> [reason.rsplit(": ", 1)[1] for reason in failed.values()]
-    ['no such file']
-    """
-    owners: dict[str, str] = {}
-    inputs = {Path(given).resolve() for given in paths}
-
-    def ingest(given: str | Path) -> Experiment:
-        path = Path(given)
-        experiment = read_log(
-            path,
-            robot,
-            window=window,
-            max_gap=max_gap,
-            progress=progress,
-            read_options=read_options,
-        )
-        name, target = _target(experiment.name, Path(folder), path, inputs, owners)
-        experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
-        if name != experiment.name:  # two inputs of one name: both kept, the second renamed
-            taken = owners[experiment.name]
-            say(f"  {given}: its name {experiment.name} is {taken}'s; ingested as {name}")
-            provenance = {**experiment.provenance, "renamed_from": experiment.name}
-            experiment = dataclasses.replace(experiment, name=name, provenance=provenance)
-        owners[experiment.name] = str(given)
-        write_netcdf(experiment, target)
-        window_text = (
-            "{:.2f}-{:.2f} s".format(*experiment.steady_window)
-            if experiment.steady_window
-            else "none (whole run)"
-        )
-        say(
-            f"  ingested {given}: {len(experiment.t)} samples at {1 / experiment.dt:.1f} Hz, "
-            f"channels {', '.join(experiment.channels)}, steady window {window_text}"
-        )
-        return experiment
-
-    # one bad input does not lose the others
-    ingested, failed = each_input(
-        paths, ingest, on_failure=lambda given, exc: say(f"  skipped {describe(exc, given)}")
-    )
-    return list(ingested.values()), failed
 
 
 def _common_truth(experiments: list[Experiment]) -> dict | None:
