@@ -30,7 +30,7 @@ _LAZY = {
     "read_noise_series": ".noise",
     "write_noise_report": ".report",
     # state estimation with a prior (the filters)
-    "FILTERS": ".filters",
+    "FILTERS": "._runtime.defaults",
     "estimate_columns": ".filters",
     "estimate_each": ".filters",
     "estimate_states": ".filters",

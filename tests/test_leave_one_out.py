@@ -22,14 +22,13 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from bayes_jackal._runtime.defaults import STATE_ESTIMATION
+from bayes_jackal._runtime.defaults import FILTERS, STATE_ESTIMATION
 from bayes_jackal._runtime.errors import InputError
 from bayes_jackal.cli import main
 from bayes_jackal.cli.output import state_estimation_text
 from bayes_jackal.cli.parser import build_parser
 from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS, StateEstimate
 from bayes_jackal.filters.left_out import FOLDER, SUMMARY, leave_one_out, method_text
-from bayes_jackal.filters.state_estimation import FILTERS
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_families, compare_groups
 from bayes_jackal.inference.executors import SerialExecutor

@@ -3,8 +3,8 @@
 The one place these are written. The modules that use them import them from
 here, and so does the command line's parser: ``bayes-jackal --help`` shows
 the library's defaults without loading numpy, scipy, arviz or matplotlib,
-and a flag's default cannot drift from the library's. Each constant is
-also importable, as before, from the module it belongs to (named below).
+and a flag's default cannot drift from the library's. Each comment names
+the subpackage that uses its constants.
 """
 
 from __future__ import annotations
@@ -30,13 +30,13 @@ __all__ = [
     "FIGURE_FORMATS",
     "FILTERS",
     "FILTER_PARAMETERS",
+    "GRID_METHODS",
     "HDI_PROB",
     "LOOKAHEAD",
     "MAX_GAP",
     "MAX_GAP_STEPS",
     "MAX_STEPS",
     "METHOD",
-    "METHODS",
     "MIN_ESS",
     "MIN_EVIDENCE_STEPS",
     "NOISE",
@@ -70,7 +70,7 @@ FAMILY = "gaussian"
 #: Families ``analyse`` compares (``workflow.DEFAULT_FAMILIES``): coloured or not.
 DEFAULT_FAMILIES = ("white", "gaussian")
 
-# -- the model and its likelihood (physics, likelihood)
+# -- the model and its likelihood (model.physics, likelihood)
 #: State channels in state-vector order (``physics.CHANNELS``).
 CHANNELS = ("vx", "vy", "yaw")
 #: Order of the default channels: the thesis' yaw rate, then vx and vy.
@@ -114,11 +114,11 @@ AUTOCORR_MULTIPLE = 50.0
 #: (arviz's ess, walkers as chains; Vehtari et al. 2021 ask 400 before trusting r_hat).
 MIN_ESS = 400
 
-# -- the thesis' grid search and residual analysis (gridsearch, residual_analysis)
+# -- the thesis' grid search and residual analysis (thesis)
 #: The channel of the thesis' grid search and residual analysis: the yaw rate.
 THESIS_CHANNEL = "yaw"
 #: Grid-search criteria (``grid --method``) and the default.
-METHODS = ("onestep", "simulation")
+GRID_METHODS = ("onestep", "simulation")
 METHOD = "onestep"
 #: (START, STOP, STEP) of the thesis' damping grid [N s/m], STOP included.
 DAMPING_GRID = (10.0, 1000.0, 10.0)
@@ -131,7 +131,7 @@ RESIDUAL_LAGS = 30
 #: Channels of the residual analysis by default.
 RESIDUAL_CHANNELS = (THESIS_CHANNEL,)
 
-# -- simulated runs (simulate)
+# -- simulated runs (io.simulate)
 #: Runs per series of a simulated data set: the thesis' 10 x v1 + 5 x v2.
 SERIES_COUNTS = {"v1": 10, "v2": 5}
 #: ``simulate.NoiseSettings`` defaults: kernel width [s], process and sensor
@@ -152,7 +152,7 @@ POSE_NOISE = (0.5e-3, 0.002)
 #: Ways of turning a velocity command (v, w) into wheel speeds (``robot.CONVERSIONS``).
 CONVERSIONS = ("ros", "thesis")
 
-# -- reading logs (experiment, tables, stamps, bags)
+# -- reading logs (io)
 #: Columns every experiment has, and those it may have.
 REQUIRED = ("t", "yaw_rate", "omega_r", "omega_l")
 OPTIONAL = ("vx", "vy")
@@ -169,35 +169,36 @@ MAX_GAP = 0.25
 #: Longest gap of an experiment file filled by interpolation [sample steps].
 MAX_GAP_STEPS = 5
 
-# -- outputs (export, report)
+# -- outputs (dem, report)
 #: The embedding order of ``export_prior(order=None)`` where the family allows it.
 AUTO_ORDER = 2
 #: Smoothness of the white sensor noise in Pi_z [time bins]: SPM's default
 #: ``E.s``; its derivative has the variance of white noise's one-step
-#: difference, 2 sigma_n^2 per bin^2 (``export_consumers.SENSOR_SMOOTHNESS``).
+#: difference, 2 sigma_n^2 per bin^2 (the default ``sensor_smoothness`` of
+#: ``export_prior``).
 SENSOR_SMOOTHNESS = 0.5
 #: Figure files written beside a report (``report --formats``).
 FIGURE_FORMATS = ("png", "svg")
 
-# -- state estimation with a prior (filter_models, kalman, generalised_filtering, state_estimation)
+# -- state estimation with a prior (filters)
 #: The filters (``filter --filters``): the white and coloured Kalman
 #: filters, and the generalised filter (``state_estimation.FILTERS``).
 FILTERS = ("kalman", "kalman-coloured", "generalised")
 #: The filters' noise parameters: at the posterior means, or averaged over
-#: the prior's draws (``filter_models.PARAMETERS``); the first is the default.
+#: the prior's draws (``bayes_jackal.filters.PARAMETERS``); the first is the default.
 FILTER_PARAMETERS = ("plug-in", "averaged")
 #: Pi_z of the generalised filter: embedded white noise, or the prior's
-#: Gaussian sensor smoothness (``generalised_filtering.SENSOR_PRECISIONS``); the
+#: Gaussian sensor smoothness (the generalised filter's ``sensor_precision``); the
 #: first is the default.
 SENSOR_PRECISIONS = ("white", "exported")
 #: Samples after t_k in the generalised filter's embedding: 0, causal
-#: (``generalised_filtering.LOOKAHEAD``).
+#: (the generalised filter's ``lookahead``).
 LOOKAHEAD = 0
 #: Whether ``analyse`` scores the filters on each run left out of the prior
 #: (``analyse --no-state-estimation`` turns it off; ``leave_one_out``).
 STATE_ESTIMATION = True
 
-# -- a bare noise series (series_likelihood, noise_characterisation)
+# -- a bare noise series (likelihood.series_likelihood, noise)
 #: Likelihood engines of a noise series (``noise --engine``); the first is the default.
 SERIES_ENGINES = ("fast", "exact")
 

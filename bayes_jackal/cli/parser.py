@@ -31,12 +31,12 @@ from .._runtime.defaults import (
     FIGURE_FORMATS,
     FILTER_PARAMETERS,
     FILTERS,
+    GRID_METHODS,
     LOOKAHEAD,
     MAX_GAP,
     MAX_GAP_STEPS,
     MAX_STEPS,
     METHOD,
-    METHODS,
     NOISE,
     NOISE_SHARING,
     POSE_NOISE,
@@ -351,7 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     grid = commands.add_parser("grid", help="thesis grid search over (d_lat, d_long)")
     grid.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
-    grid.add_argument("--method", choices=METHODS, default=METHOD, help=f"criterion ({METHOD})")
+    grid.add_argument(
+        "--method", choices=GRID_METHODS, default=METHOD, help=f"criterion ({METHOD})"
+    )
     start, stop, step = DAMPING_GRID
     for name in ("d-lat", "d-long"):
         grid.add_argument(

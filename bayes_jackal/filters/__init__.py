@@ -3,8 +3,6 @@ filter, and each run estimated with the prior of the others.
 """
 
 from .generalised import (
-    LOOKAHEAD,
-    SENSOR_PRECISIONS,
     TAIL,
     conditional_covariance,
     d_step,
@@ -31,7 +29,6 @@ from .left_out import FOLDER, METHODS, SUMMARY, LeaveOneOut, leave_one_out, meth
 from .lti import lti_outputs, matrix_powers
 from .state_estimation import (
     DERIVED,
-    FILTERS,
     NIS_DRAWS,
     NIS_PROBABILITY,
     estimate_columns,
@@ -60,17 +57,14 @@ __all__ = [
     "CONVERGED",
     "DERIVED",
     "DIFFUSE",
-    "FILTERS",
     "FOLDER",
     "KALMAN_FILTERS",
-    "LOOKAHEAD",
     "METHODS",
     "NIS_DRAWS",
     "NIS_PROBABILITY",
     "NOISE_MODELS",
     "PARAMETERS",
     "PRIOR_RATE_TOLERANCE",
-    "SENSOR_PRECISIONS",
     "SUMMARY",
     "TAIL",
     "TRUNCATION",

@@ -64,8 +64,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import scipy.linalg
 
-from .._runtime import defaults
-from .._runtime.defaults import CHANNELS
+from .._runtime.defaults import CHANNELS, LOOKAHEAD, SENSOR_PRECISIONS
 from .._runtime.errors import InputError
 from ..dem.consumer_keys import continuous_sd, mean_covariance_precision
 from ..dem.export import checked_precision, temporal_covariance
@@ -86,24 +85,8 @@ from .state_space import (
     prior_robot,
 )
 
-__all__ = [
-    "LOOKAHEAD",
-    "SENSOR_PRECISIONS",
-    "TAIL",
-    "conditional_covariance",
-    "d_step",
-    "generalised_filter",
-    "process_precision",
-]
+__all__ = ["TAIL", "conditional_covariance", "d_step", "generalised_filter", "process_precision"]
 
-#: The generalised filter's default look-ahead: 0, a causal filter that
-#: uses the samples up to t_k, as the Kalman filters do (SPM's centred
-#: embedding, floor(p / 2), makes it a smoother of that many samples).
-LOOKAHEAD = defaults.LOOKAHEAD
-#: Pi_z of the prior-driven filter: embedded white noise (T' T / sigma_n^2,
-#: :func:`~bayes_jackal.filters.white_sensor_precision`) or
-#: the prior's Gaussian sensor smoothness s_z (``sensor_noise``, SPM's convention).
-SENSOR_PRECISIONS = defaults.SENSOR_PRECISIONS
 
 #: The impulse response is cut where expm(J dt)^m falls below this (relative
 #: to 1): the terms left off are below double precision's rounding.

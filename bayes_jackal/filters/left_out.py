@@ -304,7 +304,7 @@ def leave_one_out(
         ``seed`` also seeds each reweighting's resampling (with the run's
         position); None: fresh entropy.
     filters : sequence of str
-        Names from :data:`bayes_jackal.filters.FILTERS`.
+        Names from :data:`bayes_jackal.FILTERS`.
     say : callable
         Receives a line per run done, refit or failed (and which posteriors
         are reused).

@@ -54,19 +54,18 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
-from .._runtime import defaults
+from .._runtime.defaults import FILTERS, LOOKAHEAD, SENSOR_PRECISIONS
 from .._runtime.errors import InputError
 from .._runtime.files import atomic_path
 from ..dem.prior import ActiveInferencePrior
 from ..io.experiment import CHANNEL_FIELDS, Experiment
 from ..model.robot import RobotProfile
-from .generalised import LOOKAHEAD, SENSOR_PRECISIONS, generalised_filter
+from .generalised import generalised_filter
 from .kalman_filters import KALMAN_FILTERS, StateEstimate, kalman_filter
 from .state_space import check_prior
 
 __all__ = [
     "DERIVED",
-    "FILTERS",
     "NIS_DRAWS",
     "NIS_PROBABILITY",
     "estimate_columns",
@@ -78,9 +77,6 @@ __all__ = [
     "write_estimates",
 ]
 
-#: The filters by name (``--filters``), in the order they are reported:
-#: the Kalman filters of :data:`bayes_jackal.filters.KALMAN_FILTERS`, then ``generalised``.
-FILTERS = defaults.FILTERS
 #: Probability of the NIS band (two-sided).
 NIS_PROBABILITY = 0.95
 #: The prior's draws (evenly spaced among them) each Kalman filter is run

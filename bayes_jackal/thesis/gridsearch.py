@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .._runtime.defaults import DISCRETISATION, METHOD, METHODS, THESIS_CHANNEL
+from .._runtime.defaults import DISCRETISATION, GRID_METHODS, METHOD, THESIS_CHANNEL
 from .._runtime.errors import InputError
 from .._runtime.files import write_hdf5
 from ..io.experiment import UNLABELLED, Experiment
@@ -361,7 +361,7 @@ def grid_search(
     (:func:`bayes_jackal.posterior.damping_scale`) says so.
     """
     if method not in _CRITERIA:
-        raise InputError(f"unknown method {method!r}; use one of {METHODS}", field="method")
+        raise InputError(f"unknown method {method!r}; use one of {GRID_METHODS}", field="method")
     if not experiments:
         raise InputError("no experiments given", field="experiments")
     d_lat, d_long = np.asarray(d_lat, float), np.asarray(d_long, float)
