@@ -20,6 +20,7 @@ from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.executors import SerialExecutor
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io import ReadOptions
 from bayes_jackal.io.bag_writer import write_bag
 from bayes_jackal.io.bags import read_bag
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
@@ -191,7 +192,7 @@ def test_ingest_logs_mixes_files_and_bags_and_renames_a_repeated_name(short_runs
         [csv, bag, other],
         ROBOT,
         tmp_path / "out",
-        window=(3.0, 11.0),
+        read_options=ReadOptions(window=(3.0, 11.0)),
         labels={str(other): {"series": "v1"}},
         say=lines.append,
     )

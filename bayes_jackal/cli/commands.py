@@ -29,7 +29,7 @@ from ..inference.sampler_warnings import ConvergenceWarning, keep_warnings
 from ..inference.sampling import chain_path, sample_posterior
 from ..io.bag_writer import bag_truth, write_bag
 from ..io.experiment import Experiment, write_netcdf
-from ..io.logs import ingest_logs
+from ..io.logs import ReadOptions, ingest_logs
 from ..io.simulate import NoiseSettings, simulate_series
 from ..io.tables import write_csv
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
@@ -102,8 +102,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
         args.bags,
         robot_with_topics(args),
         folder,
-        window=args.window,
-        max_gap=args.max_gap,
+        read_options=ReadOptions(window=args.window, max_gap=args.max_gap),
         progress=not args.json,
     )
     for reason in failed.values():
@@ -511,8 +510,6 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             executor=executor,
             prior_overrides=_prior_overrides(args.prior),
             likelihood_options=_likelihood_options(args),
-            window=args.window,
-            max_gap=args.max_gap,
             read_options=read_options(args),
             state_estimation=args.state_estimation,
             say=out.say,

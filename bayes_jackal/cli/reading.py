@@ -11,7 +11,7 @@ from typing import Any
 
 from .._runtime.errors import InputError, describe, each_input
 from ..io.experiment import Experiment
-from ..io.logs import load_experiments, read_logs
+from ..io.logs import ReadOptions, load_experiments, read_logs
 from ..io.tables import check_column_roles
 from ..model.robot import RobotProfile, load_profile
 from .output import Failures
@@ -92,8 +92,8 @@ def each_experiment(
     return [(loaded[given], result) for given, result in done.items()], failed, failures.code
 
 
-def read_options(args: argparse.Namespace) -> dict:
-    """Keywords of reading CSV and MATLAB files: ``--column``, ``--rate``, ``--velocities``.
+def read_options(args: argparse.Namespace) -> ReadOptions:
+    """The flags of reading logs: window, longest gap, column roles, rate, velocities.
 
     A role given twice is refused: the later would silently win.
     """
@@ -104,11 +104,13 @@ def read_options(args: argparse.Namespace) -> dict:
     if twice:
         role, given = next(iter(twice.items()))
         raise InputError(f"role {role!r} is given {len(given)} times: {given}", field="--column")
-    return {
-        "columns": check_column_roles(dict(args.column), field="--column"),
-        "rate": args.rate,
-        "velocities": args.velocities,
-    }
+    return ReadOptions(
+        window=args.window,
+        max_gap=args.max_gap,
+        columns=check_column_roles(dict(args.column), field="--column"),
+        rate=args.rate,
+        velocities=args.velocities,
+    )
 
 
 def log_options(args: argparse.Namespace) -> dict:
@@ -117,10 +119,12 @@ def log_options(args: argparse.Namespace) -> dict:
     Those of experiment files, and of bags (``--window``, ``--max-gap``,
     ``--topic``); ``--robot``: topics and wheels of bags, the rate of files.
     """
-    return read_options(args) | {
+    options = read_options(args)
+    return {
         "robot": robot_with_topics(args),
-        "window": args.window,
-        "max_gap": args.max_gap,
+        "window": options.window,
+        "max_gap": options.max_gap,
+        **options.table_keywords,
     }
 
 

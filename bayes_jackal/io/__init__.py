@@ -37,7 +37,7 @@ from .experiment import (
     steady_smoothing,
     write_netcdf,
 )
-from .logs import ingest_logs, load_experiments, read_log, read_logs
+from .logs import ReadOptions, ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
     TickPoses,
@@ -124,6 +124,7 @@ __all__ = [
     "Experiment",
     "NoiseSettings",
     "PoseTrack",
+    "ReadOptions",
     "Series",
     "TickPoses",
     "UniformClock",

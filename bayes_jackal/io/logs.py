@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from .._runtime.defaults import VELOCITIES
@@ -27,17 +28,60 @@ from .tables import (
     load_experiment,
 )
 
-__all__ = ["ingest_logs", "load_experiments", "read_log", "read_logs"]
+__all__ = ["ReadOptions", "ingest_logs", "load_experiments", "read_log", "read_logs"]
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How logs are read: the window, the longest gap, column roles, rate and velocities.
+
+    The flags ``--window``, ``--max-gap``, ``--column``, ``--rate`` and
+    ``--velocities``: one object for every reader of logs (:func:`read_log`,
+    :func:`ingest_logs`, :func:`bayes_jackal.workflow.analyse_logs`);
+    :func:`load_experiments` and :func:`read_logs` take the same as keywords.
+
+    Parameters
+    ----------
+    window : (float, float), optional
+        Steady window [s on each experiment's time axis; for bags, from the
+        first IMU stamp]; detected in bags, the whole run in files, when
+        omitted.
+    max_gap : float, optional
+        Longest tolerated dropout [s]; None: the defaults of
+        :func:`~bayes_jackal.io.read_bag` (0.25 s) and of
+        :func:`~bayes_jackal.io.load_experiment`.
+    columns : mapping of str to str, optional
+        Column roles of CSV and MATLAB files (``{"t": "time"}``).
+    rate : float, optional
+        Declared sample rate of experiment files [Hz].
+    velocities : {"measured", "derived"}
+        Whether a table's vx, vy were measured or derived from poses.
+
+    Examples
+    --------
+    >>> from bayes_jackal.io import ReadOptions
+    >>> ReadOptions(window=(3, 35), columns={"t": "time"}).table_keywords
+    {'columns': {'t': 'time'}, 'rate': None, 'velocities': 'measured'}
+    """
+
+    window: tuple[float, float] | None = None
+    max_gap: float | None = None
+    columns: Mapping[str, str] | None = None
+    rate: float | None = None
+    velocities: str = VELOCITIES[0]
+
+    @property
+    def table_keywords(self) -> dict:
+        """The keywords of :func:`~bayes_jackal.io.load_experiment` these options set."""
+        return {"columns": self.columns, "rate": self.rate, "velocities": self.velocities}
 
 
 def read_log(
     path: str | Path,
     robot: RobotProfile,
     *,
-    window: tuple[float, float] | None = None,
-    max_gap: float | None = None,
+    read_options: ReadOptions | None = None,
     progress: bool = False,
-    read_options: Mapping | None = None,
 ) -> Experiment:
     """One input as an experiment: a bag as ``ingest`` reads it, or an experiment file.
 
@@ -49,8 +93,9 @@ def read_log(
     robot : RobotProfile
         Topics and wheel joints of a bag; the rate an experiment file's
         sample time must agree with (:func:`~bayes_jackal.io.check_sample_time`).
-    window, max_gap, progress, read_options
-        As in :func:`ingest_logs`.
+    read_options : ReadOptions, optional
+    progress : bool
+        Show a bag's progress on stderr.
 
     Returns
     -------
@@ -65,22 +110,25 @@ def read_log(
     >>> from bayes_jackal.model import load_profile
     >>> from bayes_jackal.io import Series, simulate_experiment
     >>> from bayes_jackal.io import write_csv
-    >>> from bayes_jackal.io import read_log
+    >>> from bayes_jackal.io import ReadOptions, read_log
     >>> robot = load_profile()
     >>> run = simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     path = write_csv(run, Path(folder) / "short.csv")
     ...     whole = read_log(path, robot)
-    ...     steady = read_log(path, robot, window=(2.0, 6.0))
+    ...     steady = read_log(path, robot, read_options=ReadOptions(window=(2.0, 6.0)))
     >>> print(whole.name, len(whole.t), whole.steady_window, steady.steady_window)
     short 577 None (2.0, 6.0)
     """
     path = Path(path)
+    options = read_options or ReadOptions()
     if bag_format(path) is not None:
-        gap = {} if max_gap is None else {"max_gap": max_gap}
-        return read_bag(path, robot, window=window, progress=progress, **gap)
-    options = {"robot": robot, **(read_options or {})}
-    experiment = load_experiment(path, max_gap=max_gap, **options)
+        gap = {} if options.max_gap is None else {"max_gap": options.max_gap}
+        return read_bag(path, robot, window=options.window, progress=progress, **gap)
+    experiment = load_experiment(
+        path, robot=robot, max_gap=options.max_gap, **options.table_keywords
+    )
+    window = options.window
     if window is None:
         return experiment
     experiment.window(*window)  # raises DataError when it holds too few samples
@@ -92,11 +140,9 @@ def ingest_logs(
     robot: RobotProfile,
     folder: str | Path,
     *,
-    window: tuple[float, float] | None = None,
-    max_gap: float | None = None,
+    read_options: ReadOptions | None = None,
     progress: bool = False,
     labels: Mapping[str, Mapping] | None = None,
-    read_options: Mapping | None = None,
     say: Callable[[str], None] = lambda text: None,
 ) -> tuple[list[Experiment], dict[str, str]]:
     """Read every input, write each as ``folder/<name>.nc``; keep going past bad ones.
@@ -114,22 +160,13 @@ def ingest_logs(
         Topics, wheel joints and constants.
     folder : str or Path
         Where the experiment files go.
-    window : (float, float), optional
-        Steady window [s on each experiment's time axis; for bags, from the
-        first IMU stamp]; detected in bags, the whole run in files, when
-        omitted.
-    max_gap : float, optional
-        Longest tolerated dropout [s]; None: the defaults of
-        :func:`~bayes_jackal.io.read_bag` (0.25 s) and of
-        :func:`~bayes_jackal.io.load_experiment`.
+    read_options : ReadOptions, optional
+        The window, the longest dropout and how experiment files are read.
     progress : bool
         Show each bag's progress on stderr.
     labels : mapping, optional
         Per input path (as given), Experiment fields to set, e.g. ``series``
         and ``truth`` of a simulated run.
-    read_options : mapping, optional
-        Keywords of :func:`~bayes_jackal.io.load_experiment` for
-        experiment files (``columns``, ``rate``, ``velocities``).
     say : callable
         Receives one line per input.
 
@@ -171,14 +208,7 @@ def ingest_logs(
 
     def ingest(given: str | Path) -> Experiment:
         path = Path(given)
-        experiment = read_log(
-            path,
-            robot,
-            window=window,
-            max_gap=max_gap,
-            progress=progress,
-            read_options=read_options,
-        )
+        experiment = read_log(path, robot, read_options=read_options, progress=progress)
         name, target = _target(experiment.name, Path(folder), path, inputs, owners)
         experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
         if name != experiment.name:  # two inputs of one name: both kept, the second renamed
@@ -380,18 +410,18 @@ def read_logs(
     (['v1_01'], ['missing.nc'])
     """
     robot = as_profile(robot)
-    options = {
-        "columns": check_column_roles(columns),
-        "rate": check_declared_rate(rate),
-        "velocities": velocities,
-    }
+    options = ReadOptions(
+        window=window,
+        max_gap=max_gap,
+        columns=check_column_roles(columns),
+        rate=check_declared_rate(rate),
+        velocities=velocities,
+    )
     paths = _paths(paths)
     check_columns_apply(paths, columns)
     experiments, failed = each_input(
         paths,
-        lambda path: read_log(
-            path, robot, window=window, max_gap=max_gap, progress=progress, read_options=options
-        ),
+        lambda path: read_log(path, robot, read_options=options, progress=progress),
         on_failure=on_failure,
     )
     check_unique_names(experiments.values())

@@ -53,7 +53,7 @@ from ..inference.comparison import compare_families
 from ..inference.executors import Executor, ProcessExecutor
 from ..inference.sampler_warnings import keep_warnings
 from ..io.experiment import Experiment
-from ..io.logs import ingest_logs
+from ..io.logs import ReadOptions, ingest_logs
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.robot import RobotProfile, load_profile
 from ..posterior.criticism import criticise
@@ -104,10 +104,8 @@ def analyse_logs(
     executor: Executor | None = None,
     prior_overrides: Mapping[str, tuple[float, float]] | None = None,
     likelihood_options: LikelihoodOptions | None = None,
-    window: tuple[float, float] | None = None,
-    max_gap: float | None = None,
+    read_options: ReadOptions | None = None,
     labels: Mapping[str, Mapping] | None = None,
-    read_options: Mapping | None = None,
     state_estimation: bool = STATE_ESTIMATION,
     say: Callable[[str], None] = lambda text: None,
 ) -> dict:
@@ -140,8 +138,9 @@ def analyse_logs(
     likelihood_options : LikelihoodOptions, optional
         The channels (default: every channel all experiments measure), the
         noise sharing, sensor model and engine.
-    window, max_gap, labels, read_options
-        As in :func:`ingest_logs`.
+    read_options, labels
+        As in :func:`~bayes_jackal.io.ingest_logs`: the window, the longest
+        dropout and how experiment files are read; fields of each input.
     state_estimation : bool
         With two or more runs, take the best family's posterior given every
         run but one and score the filters on the one left out, for each run
@@ -225,11 +224,9 @@ def analyse_logs(
         paths,
         robot,
         folder / "experiments",
-        window=window,
-        max_gap=max_gap,
+        read_options=read_options,
         progress=settings.progress,
         labels=labels,
-        read_options=read_options,
         say=say,
     )
     if not experiments:
