@@ -416,7 +416,8 @@ def export_prior(
     >>> bj.write_prior(prior, "prior.json")  # doctest: +SKIP
     PosixPath('prior.json')
     """
-    metadata = Posterior.of(idata).metadata
+    fitted = Posterior.of(idata)
+    metadata = fitted.metadata
     layout = metadata.layout
     family, channels, names = layout.family, list(layout.channels), layout.names
     if order is not None:
@@ -434,7 +435,7 @@ def export_prior(
     if len(dts) != 1:
         raise InputError(f"experiments differ in sample time: {sorted(dts)} s", source=source)
     dt = dts.pop()
-    draws, _ = Posterior.of(idata).draws()
+    draws, _ = fitted.draws()
     draws = draws.reshape(-1, len(names))
     d = draws[:, :2]
     # Shared noise: group c is channel c; white noise has unit widths.
@@ -523,7 +524,7 @@ def export_prior(
         dt=dt,
         A=A,
         B=B,
-        experiments=Posterior.of(idata).experiments,
+        experiments=fitted.experiments,
         steady=metadata.steady,
     )
     for key, value in additions.items():

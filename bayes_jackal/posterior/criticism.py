@@ -138,9 +138,10 @@ def prior_boundary(idata: az.InferenceData) -> Check:
     >>> {name: bool(ratios["low"] >= BOUNDARY_DENSITY) for name, ratios in check.numbers.items()}
     {'d_lat': False, 'd_long': True, 'sigma_c': False, 'sigma_n': True}
     """
-    metadata = Posterior.of(idata).metadata
+    posterior = Posterior.of(idata)
+    metadata = posterior.metadata
     layout = metadata.layout
-    draws, _ = Posterior.of(idata).draws()
+    draws, _ = posterior.draws()
     keys = [layout.prior_key(base) for base in layout.bases]
     return boundary_check(draws.reshape(-1, len(keys)), metadata.prior, keys)
 
@@ -278,11 +279,12 @@ def predictive_acf(
     >>> [(w["statistic"], w["p_value"]) for w in check.warnings]  # white misses the colour
     [('acf[1]', 0.0), ('acf[2]', 0.0), ('acf[5]', 0.0), ('acf[10]', 1.0), ('Q[1..30]', 0.0)]
     """
-    metadata = Posterior.of(idata).metadata
-    theta = Posterior.of(idata).thinned_draws(count)
+    posterior = Posterior.of(idata)
+    metadata = posterior.metadata
+    theta = posterior.thinned_draws(count)
     rng = as_rng(rng)  # one generator: every channel spawns its own series from it
     check = Check()
-    for index, experiment in enumerate(Posterior.of(idata).experiments):
+    for index, experiment in enumerate(posterior.experiments):
         rows = {}
         for channel in metadata.channels:
             total = observed_residuals(idata, index, channel).size
@@ -421,11 +423,12 @@ def damping_scale(idata: az.InferenceData) -> Check:
     >>> print(check.warnings[0]["message"])
     yaw alone identifies ...; add vx or vy (--channels yaw,vx,vy)
     """
-    metadata = Posterior.of(idata).metadata
+    fitted = Posterior.of(idata)
+    metadata = fitted.metadata
     channels = list(metadata.channels)
     # Yaw first: the channel a single-channel posterior usually has.
     measured = [c for c in ("yaw", "vx", "vy") if c in metadata.measured_channels]
-    draws, _ = Posterior.of(idata).draws()
+    draws, _ = fitted.draws()
     damping = draws.reshape(-1, draws.shape[-1])[:, : len(DAMPING)]
     shift = _damping_prior_shift(damping, metadata.prior)
     scaled = max(abs(value) for value in shift.values()) < PRIOR_SHIFT

@@ -116,11 +116,12 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
     >>> row["lags"], round(row["threshold"], 2), round(row["max_abs_z"], 1), check.warnings
     (25, 3.9, 1.0, [])
     """
-    metadata = Posterior.of(idata).metadata
+    posterior = Posterior.of(idata)
+    metadata = posterior.metadata
     theta = _posterior_median(idata)[None]
     band = float(scipy.stats.norm.isf((1.0 - RESIDUAL_INPUT_LEVEL) / 2.0))
     check = Check()
-    for experiment in Posterior.of(idata).experiments:
+    for experiment in posterior.experiments:
         inputs = {name: u for name, u in _input_series(experiment).items() if np.ptp(u) > 0}
         rows = {}
         for channel in metadata.channels:
@@ -203,9 +204,10 @@ def steady_windows(idata: az.InferenceData) -> Check:
     >>> row["duration"], row["input_deviation"], round(row["yaw_drift"], 3), check.warnings
     (33.0, 0.0, 0.01, [])
     """
-    steady = Posterior.of(idata).metadata.steady
+    posterior = Posterior.of(idata)
+    steady = posterior.metadata.steady
     check = Check()
-    for experiment in Posterior.of(idata).experiments:
+    for experiment in posterior.experiments:
         window = experiment.steady() if steady else experiment
         deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
         duration = float(window.t[-1] - window.t[0])

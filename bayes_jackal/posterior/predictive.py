@@ -157,8 +157,9 @@ def predictive_statistics(
     >>> replicated.shape, round(float(replicated.mean() / observed), 1)
     ((20,), 1.0)
     """
-    metadata = Posterior.of(idata).metadata
-    theta = Posterior.of(idata).thinned_draws(count)
+    posterior = Posterior.of(idata)
+    metadata = posterior.metadata
+    theta = posterior.thinned_draws(count)
     n = observed_residuals(idata, index, channel).size
     return stationary_statistics(
         _model(metadata, index, channel, theta, n),
@@ -310,9 +311,10 @@ def model_percentiles(
     >>> round(float(states[1, steady, 2].mean()), 2), round(float(run.yaw_rate[steady].mean()), 2)
     (0.22, 0.21)
     """
-    experiment = Posterior.of(idata).experiments[index]
-    robot = Posterior.of(idata).metadata.robot
-    theta = Posterior.of(idata).thinned_draws(count)
+    posterior = Posterior.of(idata)
+    experiment = posterior.experiments[index]
+    robot = posterior.metadata.robot
+    theta = posterior.thinned_draws(count)
     x0 = [0.0 if v is None else v[0] for v in (experiment.vx, experiment.vy)]
     state = np.array([*x0, experiment.yaw_rate[0]])
     inputs = experiment.inputs

@@ -80,13 +80,14 @@ def summarize(idata: az.InferenceData) -> dict:
     >>> sorted({warning["kind"] for warning in summary["warnings"]})
     ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
-    metadata = Posterior.of(idata).metadata
+    fitted = Posterior.of(idata)
+    metadata = fitted.metadata
     convergence = metadata.convergence
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         table = az.summary(
             idata,
-            var_names=[*Posterior.of(idata).variables, "ratio"],
+            var_names=[*fitted.variables, "ratio"],
             hdi_prob=HDI_PROB,
             round_to="none",
         )
