@@ -222,9 +222,13 @@ def test_the_chain_stops_on_the_ess_once_longer_than_the_tau_multiple():
             seed=1,
         )
 
-    diagnostics = chain(5000).diagnostics
+    converged = chain(5000)
+    diagnostics = converged.diagnostics
     steps, tau = diagnostics["n_steps"], max(diagnostics["autocorr_time"].values())
     assert diagnostics["converged"] and steps > 100 * tau
+    # Its draws are the target's, unit sd (run_chain's example, which the doctests skip).
+    z = converged.samples.reshape(-1, 2)
+    assert np.all(np.abs(z.std(axis=0) - 1) < 0.1)
     # One check earlier the ESS of the kept draws was still short of 400.
     with pytest.warns(ConvergenceWarning, match=r"effective sample size of [ab] is \d+ after"):
         assert not chain(steps - 10).diagnostics["converged"]

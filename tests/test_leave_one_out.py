@@ -135,6 +135,23 @@ def test_each_run_is_filtered_with_the_prior_of_exactly_the_others(analysis):
     assert left_out == list(RUNS)
 
 
+def test_the_analysis_writes_its_files_and_says_it_did_not_converge(analysis):
+    # What analyse_logs' example shows (its doctest skips the call: it writes
+    # files): the best family, no failure, the short chain's warning first,
+    # the files of an analysis (here with the state estimation's folder).
+    _, out, result = analysis
+    assert result["best"] == "white" and result["failed"] == {}
+    assert list(result["experiments"]) == list(RUNS)
+    assert result["warnings"][0]["message"].startswith(
+        "white: NOT CONVERGED: 100 steps are fewer than 50 autocorrelation times"
+    )
+    assert sorted(path.name for path in out.iterdir()) == sorted([
+        "compare.json", "experiments", "grid.json", "grid_onestep.png", "grid_simulation.png",
+        "posterior.json", "posterior.nc", "posteriors", "prior.json", "report.html",
+        "report_figures", FOLDER, SUMMARY,
+    ])  # fmt: skip
+
+
 def test_the_report_has_the_section_its_table_and_figure(analysis):
     _, out, result = analysis
     report = (out / "report.html").read_text()

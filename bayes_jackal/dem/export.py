@@ -406,13 +406,13 @@ def export_prior(
 
     >>> import bayes_jackal as bj
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="exponential", channels=["yaw"], max_steps=20, seed=1)
-    >>> prior = bj.export_prior(posterior, order=0)  # the exponential family allows order 0
+    >>> posterior = bj.sample([run], family="gaussian", channels=["yaw"], max_steps=20, seed=1)
+    >>> prior = bj.export_prior(posterior, order=2)
     >>> prior
-    ActiveInferencePrior(family='exponential', channels=('yaw',), order=0, dt=0.013888888889,
+    ActiveInferencePrior(family='gaussian', channels=('yaw',), order=2, dt=0.013888888889,
                          source=None)
     >>> prior.noise["sigma_c_is"], prior["generalised_coordinates"]["order"]  # fields, or keys
-    ('process', 0)
+    ('process', 2)
     >>> bj.write_prior(prior, "prior.json")  # doctest: +SKIP
     PosixPath('prior.json')
     """

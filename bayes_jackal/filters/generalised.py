@@ -441,8 +441,8 @@ def generalised_filter(
     >>> import numpy as np
     >>> import bayes_jackal as bj
     >>> robot = bj.load_profile()
-    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, "v2", rng=seed) for seed in (1, 2)]
-    >>> posterior = bj.sample(runs[:1], channels=["yaw"], max_steps=20, seed=1)
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed) for seed in (1, 2)]
+    >>> posterior = bj.sample(runs[:1], family="gaussian", channels=["yaw"], max_steps=20, seed=1)
     >>> prior = bj.export_prior(posterior, order=2)
     >>> estimate = bj.generalised_filter(runs[1], prior)["yaw"]
     >>> def rmse(x):

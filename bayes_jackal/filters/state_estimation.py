@@ -152,8 +152,8 @@ def estimate_states(
     --------
     >>> import bayes_jackal as bj
     >>> robot = bj.load_profile()
-    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, "v2", rng=seed) for seed in (1, 2)]
-    >>> posterior = bj.sample(runs[:1], channels=["yaw"], max_steps=20, seed=1)
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed) for seed in (1, 2)]
+    >>> posterior = bj.sample(runs[:1], family="gaussian", channels=["yaw"], max_steps=20, seed=1)
     >>> estimates = bj.estimate_states(runs[1], bj.export_prior(posterior, order=2))
     >>> {name: list(per_channel) for name, per_channel in estimates.items()}
     {'kalman': ['yaw'], 'kalman-coloured': ['yaw'], 'generalised': ['yaw']}
@@ -252,7 +252,7 @@ def estimate_each(
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.filters import estimate_each
     >>> robot = bj.load_profile()
-    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, "v2", rng=seed) for seed in (1, 2)]
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed) for seed in (1, 2)]
     >>> posterior = bj.sample(runs[:1], family="white", channels=["yaw"], sensor="diagonal",
     ...                       max_steps=20, seed=1)
     >>> estimates, refused = estimate_each(runs[1], bj.export_prior(posterior, order=0))

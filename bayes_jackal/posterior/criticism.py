@@ -123,14 +123,14 @@ def prior_boundary(idata: az.InferenceData) -> Check:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second; white noise fitted on
     the yaw rate alone of a run simulated with coloured noise:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import prior_boundary
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = prior_boundary(posterior)
     >>> [(w["parameter"], w["side"]) for w in check.warnings]  # yaw alone: d_long runs free
     [('d_long', 'low'), ('sigma_n', 'low')]
@@ -264,14 +264,14 @@ def predictive_acf(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second; white noise fitted on
     the yaw rate alone of a run simulated with coloured noise:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import predictive_acf
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = predictive_acf(posterior)
     >>> row = check.numbers["v1"]["yaw"]
     >>> row["statistics"], row["draws"]
@@ -515,14 +515,14 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second; white noise fitted on
     the yaw rate alone of a run simulated with coloured noise:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import criticise
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> result = criticise(posterior)
     >>> sorted(result["criticism"])
     ['damping_scale', 'derived_velocities', 'predictive_acf', 'prior_boundary',

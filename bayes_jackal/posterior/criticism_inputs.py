@@ -103,14 +103,14 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second; white noise fitted on
     the yaw rate alone of a run simulated with coloured noise:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import residual_input
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = residual_input(posterior)
     >>> row = check.numbers["v1"]["yaw"]
     >>> row["lags"], round(row["threshold"], 2), round(row["max_abs_z"], 1), check.warnings
@@ -191,14 +191,14 @@ def steady_windows(idata: az.InferenceData) -> Check:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second; white noise fitted on
     the yaw rate alone of a run simulated with coloured noise:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import steady_windows
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = steady_windows(posterior)
     >>> row = check.numbers["v1"]
     >>> row["duration"], row["input_deviation"], round(row["yaw_drift"], 3), check.warnings

@@ -84,7 +84,7 @@ def plot_state_estimates(
     >>> from bayes_jackal.report import plot_state_estimates
     >>> robot = bj.load_profile()
     >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed) for seed in (1, 2)]
-    >>> posterior = bj.sample(runs[:1], channels=["yaw"], max_steps=20, seed=1)
+    >>> posterior = bj.sample(runs[:1], family="gaussian", channels=["yaw"], max_steps=20, seed=1)
     >>> prior = bj.export_prior(posterior, order=2)
     >>> estimates = bj.estimate_states(runs[1], prior, filters=["kalman", "generalised"])
     >>> fig, axes = plot_state_estimates(runs[1], estimates)

@@ -115,7 +115,7 @@ def read_posteriors(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged, as the report says in red), so that the example is quick:
 
     >>> import tempfile
@@ -123,7 +123,7 @@ def read_posteriors(
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import read_posteriors
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     path = bj.save_posterior(posterior, Path(folder) / "white.nc")
     ...     read, failed = read_posteriors([folder, Path(folder) / "gaussian.nc"])
@@ -176,7 +176,7 @@ def render_report(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged, as the report says in red), so that the example is quick:
 
     >>> import tempfile
@@ -185,7 +185,7 @@ def render_report(
     >>> from bayes_jackal.report import render_report
     >>> from bayes_jackal.report import ReportFigures
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     figures = ReportFigures(Path(folder), ())  # embedded only: no figure files
     ...     text = render_report([(Path("white.nc"), posterior)], figures)
@@ -405,14 +405,14 @@ def write_report(
 
     Examples
     --------
-    A posterior in memory (100 steps for a quick example, far from
+    A posterior in memory (20 steps for a quick example, far from
     converged, as the report says in red; real use takes the default cap):
 
     >>> import tempfile
     >>> from pathlib import Path
     >>> import bayes_jackal as bj
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     path = bj.write_report(posterior, Path(folder) / "report.html", formats=("png",))
     ...     text = path.read_text()
@@ -442,7 +442,7 @@ def save_report(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged, as the report says in red), so that the example is quick:
 
     >>> import tempfile
@@ -450,7 +450,7 @@ def save_report(
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import save_report
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     out = Path(folder) / "fit.html"
     ...     path = save_report([(Path("white.nc"), posterior)], out, ("png",))

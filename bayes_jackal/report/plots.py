@@ -103,13 +103,13 @@ def plot_model_fit(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_model_fit
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, axes = plot_model_fit(posterior)
     >>> [ax.get_ylabel() for ax in axes]
     ['vx [m/s]', 'vy [m/s]', 'yaw [rad/s]']
@@ -149,13 +149,13 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_residuals
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, axes = plot_residuals(posterior)
     >>> len(axes), axes[0].get_ylabel()  # one channel sampled: one axes
     (1, 'yaw residual [rad/s]')
@@ -188,13 +188,13 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_traces
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, axes = plot_traces(posterior)
     >>> [ax.get_ylabel() for ax in axes], axes[-1].get_yscale()
     (['d_lat', 'd_long', 'sigma_c', 'sigma_n'], 'log')
@@ -224,13 +224,13 @@ def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_damping
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, ax = plot_damping(posterior)
     >>> ax.get_xlabel(), ax.get_ylabel()
     ('d_long [N s/m]', 'd_lat [N s/m]')
@@ -330,13 +330,13 @@ def plot_criticism(idata, axes=None) -> tuple[Figure, np.ndarray]:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_criticism
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, axes = plot_criticism(posterior)
     >>> axes.shape, [ax.get_title() for ax in axes[0]]  # a row per channel
     ((1, 2), ['residual-input cross-correlation (99 % band)',

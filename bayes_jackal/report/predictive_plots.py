@@ -55,13 +55,13 @@ def predictive_bands(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import predictive_bands
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> bands = predictive_bands(posterior, 0, "yaw", lags=10, rng=0)
     >>> bands["acf"].shape, bands["psd"].shape[0]
     ((200, 11), 200)
@@ -140,13 +140,13 @@ def plot_autocorrelation(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_autocorrelation
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, ax = plot_autocorrelation(posterior, 0, "yaw", lags=10)
     >>> ax.get_title()
     'v1: yaw residual autocorrelation'
@@ -204,13 +204,13 @@ def plot_spectrum(
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (100 steps, far from
+    A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.report import plot_spectrum
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> fig, ax = plot_spectrum(posterior, 0, "yaw")
     >>> ax.get_title(), ax.get_xlabel(), ax.get_xscale()
     ('v1: yaw residual spectrum', 'frequency [Hz]', 'log')

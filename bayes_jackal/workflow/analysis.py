@@ -186,7 +186,8 @@ def analyse_logs(
     The whole analysis of one short simulated run (8 s), white noise only on
     the yaw channel, in this process. The chain is capped at 100 steps on
     purpose, to keep the example quick, and says it did not converge; the
-    thesis' grid searches and the report take most of its ~7 s:
+    thesis' grid searches and the report take most of its ~7 s (the
+    doctests skip it, as it writes files; tests/test_leave_one_out.py runs it):
 
     >>> import tempfile
     >>> from pathlib import Path
@@ -197,7 +198,7 @@ def analyse_logs(
     >>> from bayes_jackal.io import write_csv
     >>> from bayes_jackal.workflow import analyse_logs
     >>> run = simulate_experiment(load_profile(), 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=1)
-    >>> with tempfile.TemporaryDirectory() as folder:
+    >>> with tempfile.TemporaryDirectory() as folder:  # doctest: +SKIP
     ...     result = analyse_logs(
     ...         [write_csv(run, Path(folder) / "short.csv")],
     ...         Path(folder) / "analysis",
@@ -208,11 +209,11 @@ def analyse_logs(
     ...         executor=SerialExecutor(),
     ...     )
     ...     written = sorted(path.name for path in (Path(folder) / "analysis").iterdir())
-    >>> result["best"], list(result["experiments"]), result["failed"]
+    >>> result["best"], list(result["experiments"]), result["failed"]  # doctest: +SKIP
     ('white', ['short'], {})
-    >>> result["warnings"][0]["message"]
+    >>> result["warnings"][0]["message"]  # doctest: +SKIP
     'white: NOT CONVERGED: 100 steps are fewer than 50 autocorrelation times ...'
-    >>> written
+    >>> written  # doctest: +SKIP
     ['compare.json', 'experiments', 'grid.json', 'grid_onestep.png', 'grid_simulation.png',
      'posterior.json', 'posterior.nc', 'posteriors', 'prior.json', 'report.html', 'report_figures']
     """
