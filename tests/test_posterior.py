@@ -267,3 +267,16 @@ def test_a_posterior_of_pose_channels_keeps_their_noise_and_poses(tmp_path):
     np.testing.assert_array_equal(rebuilt.pose.x, experiment.pose.x)
     acov = model_autocovariance(metadata, 0, "vx", draws[0], 4)
     assert acov.shape == (draws.shape[1], 4) and np.all(acov[:, 3] == 0)  # white + MA(2)
+
+
+def test_a_posterior_reads_its_metadata_once_and_again_after_a_stored_result(sampled):
+    *_, idata = sampled
+    posterior = Posterior.of(copy.deepcopy(idata))
+    assert Posterior.of(posterior) is posterior  # a Posterior is taken as it is
+    first = posterior.metadata
+    assert posterior.metadata is first  # read once, not per call
+    store_criticism(posterior, {"warnings": [], "criticism": {"damping_scale": {}}})
+    # A result stored later changes the attributes: they are read again.
+    assert posterior.metadata is not first
+    assert posterior.metadata.criticism == {"warnings": [], "criticism": {"damping_scale": {}}}
+    assert first.criticism is None

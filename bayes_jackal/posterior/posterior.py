@@ -5,7 +5,7 @@ A posterior is an arviz InferenceData (NetCDF on disk) with the groups
 ``sample_stats`` (``lp``, ``log_likelihood_total``), ``observed_data``
 (the residuals at the posterior median) and ``constant_data`` (the measured
 experiments). Its metadata (attributes of ``posterior``) and the names in
-the data groups are owned by :mod:`bayes_jackal.posterior.file_format` (re-exported):
+the data groups are owned by :mod:`bayes_jackal.posterior.file_format`;
 :class:`Posterior` gives them typed (the robot, priors, parameter
 layout, experiments, noise groups, convergence, and the results stored
 later by :func:`store_comparison`, :func:`store_criticism` and
@@ -242,7 +242,10 @@ class Posterior(az.InferenceData):
     @property
     def metadata(self) -> PosteriorMetadata:
         """Everything the file says besides its draws (read once per change of its attributes)."""
-        attrs = tuple(self.posterior.attrs.items())
+        attrs = tuple(
+            (key, value.tobytes() if isinstance(value, np.ndarray) else value)
+            for key, value in self.posterior.attrs.items()
+        )
         cached = self.__dict__.get("_metadata")
         if cached is None or cached[0] != attrs:
             cached = (attrs, posterior_metadata(self))
