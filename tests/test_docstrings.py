@@ -320,11 +320,13 @@ def run_examples(test: doctest.DocTest, results: dict, monkeypatch) -> tuple[int
 @pytest.mark.parametrize(("module", "name"), CASES, ids=[f"{m[13:]}.{n}" for m, n in CASES])
 def test_docstring_examples_run(module, name, shared_results, monkeypatch):
     obj = getattr(importlib.import_module(module), name)
-    [test] = doctest.DocTestFinder(recurse=False).find(obj, f"{module}.{name}", globs={})
-    assert test.examples, f"{module}.{name} has no Examples"
-    failed, problems = run_examples(test, shared_results, monkeypatch)
-    assert not problems, "\n".join(problems)
-    assert failed == 0, f"{module}.{name}: an example failed"
+    # A class's methods' examples run with it (DocTestFinder's recursion).
+    own, *methods = doctest.DocTestFinder().find(obj, f"{module}.{name}", globs={})
+    assert own.name == f"{module}.{name}" and own.examples, f"{module}.{name} has no Examples"
+    for test in [own, *methods]:
+        failed, problems = run_examples(test, shared_results, monkeypatch)
+        assert not problems, "\n".join(problems)
+        assert failed == 0, f"{test.name}: an example failed"
 
 
 def _doctest(text: str, name: str) -> doctest.DocTest:

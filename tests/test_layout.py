@@ -33,12 +33,21 @@ def _modules() -> list[Path]:
 
 
 def _listed(tree: ast.Module) -> list[str]:
-    """The names a module's ``__all__`` lists (none without one)."""
+    """The names a module's ``__all__`` lists (none without one).
+
+    Only a plain list of strings is read; any other form of ``__all__`` (an
+    annotation, ``+=``, a computed list) fails here rather than pass unread.
+    """
     for node in tree.body:
-        if isinstance(node, ast.Assign) and any(
-            isinstance(target, ast.Name) and target.id == "__all__" for target in node.targets
-        ):
-            return [element.value for element in node.value.elts]
+        targets = node.targets if isinstance(node, ast.Assign) else [getattr(node, "target", None)]
+        if not any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets):
+            continue
+        if not isinstance(node, ast.Assign) or not isinstance(node.value, ast.List):
+            raise TypeError(f"line {node.lineno}: __all__ is not a plain list")
+        names = [element.value for element in node.value.elts if isinstance(element, ast.Constant)]
+        if len(names) != len(node.value.elts):
+            raise TypeError(f"line {node.lineno}: __all__ lists more than strings")
+        return names
     return []
 
 

@@ -12,6 +12,7 @@ from bayes_jackal.inference.sampling import sample_posterior
 from bayes_jackal.inference.starts import _binned_periodogram
 from bayes_jackal.io.experiment import Experiment
 from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment, simulate_series
+from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.measurements import residual_autocovariance
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood, sample_stationary
 from bayes_jackal.likelihood.residuals import channel_residuals
@@ -423,3 +424,15 @@ def test_the_profile_bins_a_long_periodogram_keeping_its_weights_and_energy(expe
     np.testing.assert_allclose(weights @ binned, full_weights @ block.periodogram, rtol=1e-12)
     same, same_weights = _binned_periodogram(block, block.n)
     assert same is block.periodogram and np.array_equal(same_weights, full_weights)
+
+
+def test_likelihood_options_are_an_object_not_a_dict():
+    # The options travel as one object; the old dict of keywords is refused,
+    # saying what to give instead, before any work.
+    assert LikelihoodOptions.of(None) == LikelihoodOptions()
+    options = LikelihoodOptions(channels=["yaw"], noise="per-experiment")
+    assert LikelihoodOptions.of(options) is options and options.channels == ("yaw",)
+    with pytest.raises(
+        InputError, match="likelihood_options: give a LikelihoodOptions, not a dict"
+    ):
+        LikelihoodOptions.of({"channels": ["yaw"]})

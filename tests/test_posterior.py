@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from bayes_jackal import DataError, load_profile
+from bayes_jackal import DataError, InputError, load_profile
 from bayes_jackal._runtime.defaults import CHANNELS
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
@@ -280,3 +280,27 @@ def test_a_posterior_reads_its_metadata_once_and_again_after_a_stored_result(sam
     assert posterior.metadata is not first
     assert posterior.metadata.criticism == {"warnings": [], "criticism": {"damping_scale": {}}}
     assert first.criticism is None
+
+
+def test_a_copy_or_slice_of_a_posterior_reads_its_groups_anew(sampled):
+    *_, idata = sampled
+    posterior = Posterior.of(copy.deepcopy(idata))
+    n = len(posterior.experiments[0].t)
+    # arviz's isel deep-copies: what the copy reads must be its own groups.
+    sliced = posterior.isel(groups="constant_data", time_0=slice(0, 50))
+    assert isinstance(sliced, Posterior) and len(sliced.experiments[0].t) == 50
+    assert len(posterior.experiments[0].t) == n
+    # A pickle (a worker's result) carries the groups, not what was read from them.
+    assert "_experiments" not in copy.copy(posterior).__dict__
+
+
+def test_a_posterior_keeps_the_root_attributes_and_refuses_what_is_not_one(sampled):
+    *_, idata = sampled
+    import arviz as az
+
+    tagged = az.InferenceData(attrs={"lab": "ours"}, **{g: idata[g] for g in idata.groups()})
+    assert Posterior.of(tagged).attrs == {"lab": "ours"}
+    with pytest.raises(InputError, match="posterior: not a posterior"):
+        Posterior.of(az.InferenceData(constant_data=idata.constant_data))
+    with pytest.raises(InputError, match="posterior: not a posterior: a dict"):
+        Posterior.of({})

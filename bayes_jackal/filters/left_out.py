@@ -363,7 +363,7 @@ def leave_one_out(
     order = [e.name for e in experiments]
     by_name = dict(zip(order, experiments, strict=True))
     posteriors = {name: folder / "posteriors" / f"{name}.nc" for name in order}
-    options = likelihood_options or LikelihoodOptions()
+    options = LikelihoodOptions.of(likelihood_options)
     draws = None
     if pooled is not None:  # checked before anything is written
         draws = PooledPosterior(pooled, experiments, robot, family, options, prior_overrides,

@@ -309,7 +309,7 @@ def compare_groups(
     executor = executor or SerialExecutor()
     if not executor.terminal:  # workers have no terminal
         settings = dataclasses.replace(settings or SamplerSettings(), progress=False)
-    options = likelihood_options or LikelihoodOptions()
+    options = LikelihoodOptions.of(likelihood_options)
     runs = {
         key: _FamilyRun(
             list(group),

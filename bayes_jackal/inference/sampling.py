@@ -23,14 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime import interrupt
-from .._runtime.arviz_quiet import az
 from .._runtime.defaults import ENGINE, FAMILY, MAX_STEPS, NOISE, SENSOR, WALKERS
 from ..io.experiment import Experiment, as_experiments
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
 from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
 from ..model.robot import RobotProfile, as_profile
-from ..posterior.posterior import build_inference_data
+from ..posterior.posterior import Posterior, build_inference_data
 from .chains import SamplerSettings, run_chain
 from .map_search import find_map, laplace_walkers
 from .moves import Start
@@ -125,7 +124,7 @@ def sample_posterior(
     prior_overrides: dict | None = None,
     *,
     say: Callable[[str], None] | None = None,
-) -> az.InferenceData:
+) -> Posterior:
     """Sample the posterior of a residual likelihood with emcee.
 
     Parameters
@@ -205,7 +204,7 @@ def sample(
     robot: RobotProfile | str | Path | None = None,
     chain_file: str | Path | None = None,
     progress: bool = True,
-) -> az.InferenceData:
+) -> Posterior:
     """The posterior of the damping and the noise, sampled with emcee (``bayes-jackal sample``).
 
     The same likelihood, sampler settings and seed as ``bayes-jackal sample

@@ -302,6 +302,25 @@ class LikelihoodOptions:
         if self.channels is not None:
             object.__setattr__(self, "channels", tuple(self.channels))
 
+    @classmethod
+    def of(cls, options: LikelihoodOptions | None) -> LikelihoodOptions:
+        """``options`` as given, or the defaults for None.
+
+        Raises
+        ------
+        InputError
+            For anything else, e.g. a dict of the keywords.
+        """
+        if options is None:
+            return cls()
+        if not isinstance(options, cls):
+            raise InputError(
+                f"give a LikelihoodOptions, not a {type(options).__name__}: e.g. "
+                'LikelihoodOptions(channels=["yaw"])',
+                field="likelihood_options",
+            )
+        return options
+
     @property
     def keywords(self) -> dict:
         """The keywords of :class:`ResidualLikelihood` these options set."""

@@ -50,6 +50,10 @@ __all__ = [
 ]
 
 
+#: What a :class:`Posterior` reads from its groups once (dropped from its copies).
+_CACHES = ("_metadata", "_experiments")
+
+
 def _noise_variables(layout: ParameterLayout, draws: np.ndarray) -> tuple[dict, dict, dict]:
     """Noise parameters as variables, with their dims and coordinates.
 
@@ -227,17 +231,23 @@ class Posterior(az.InferenceData):
         Raises
         ------
         InputError
-            For an object that is not an InferenceData.
+            For an object that is not an InferenceData, or one without a
+            ``posterior`` group.
         """
         if isinstance(idata, cls):
             return idata
-        if not isinstance(idata, az.InferenceData):
+        if not isinstance(idata, az.InferenceData) or "posterior" not in idata.groups():
             raise InputError(
-                f"not a posterior: a {type(idata).__name__}; give the InferenceData of "
-                "bj.sample or bj.load_posterior",
+                f"not a posterior: a {type(idata).__name__} without draws; give the "
+                "InferenceData of bj.sample or bj.load_posterior",
                 field="posterior",
             )
-        return cls(**{group: idata[group] for group in idata.groups()})
+        groups = {group: idata[group] for group in idata.groups()}
+        return cls(attrs=dict(idata.attrs) or None, **groups)
+
+    def __getstate__(self) -> dict:
+        """The state without what is read from it: a copy, a slice or a pickle reads anew."""
+        return {key: value for key, value in vars(self).items() if key not in _CACHES}
 
     @property
     def metadata(self) -> PosteriorMetadata:

@@ -380,7 +380,8 @@ class PooledPosterior:
         posterior = Posterior.of(idata)
         self.metadata = metadata = posterior.metadata
         self.source, self.robot, self.family = source, robot, family
-        self.options, self.prior_overrides = options, prior_overrides
+        self.options = LikelihoodOptions.of(options)
+        self.prior_overrides = prior_overrides
         self.experiments = list(experiments)
         names = [e.name for e in experiments]
         fitted = [e.name for e in metadata.experiments]

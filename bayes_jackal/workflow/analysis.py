@@ -235,7 +235,7 @@ def analyse_logs(
             f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
             field="inputs",
         )
-    options = likelihood_options or LikelihoodOptions()
+    options = LikelihoodOptions.of(likelihood_options)
     options = dataclasses.replace(
         options, channels=resolve_channels(experiments, options.channels)
     )
