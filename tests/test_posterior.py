@@ -12,6 +12,7 @@ import pytest
 import xarray as xr
 
 from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal._runtime.arviz_quiet import az
 from bayes_jackal._runtime.defaults import CHANNELS
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
@@ -296,8 +297,6 @@ def test_a_copy_or_slice_of_a_posterior_reads_its_groups_anew(sampled):
 
 def test_a_posterior_keeps_the_root_attributes_and_refuses_what_is_not_one(sampled):
     *_, idata = sampled
-    import arviz as az
-
     tagged = az.InferenceData(attrs={"lab": "ours"}, **{g: idata[g] for g in idata.groups()})
     assert Posterior.of(tagged).attrs == {"lab": "ours"}
     with pytest.raises(InputError, match="posterior: not a posterior"):

@@ -336,12 +336,13 @@ def _labelled(
     labelled, failed, taken = [], {}, set()
     for label, item in items:
         if isinstance(item, az.InferenceData):
-            name = label or Posterior.of(item).metadata.family
+            posterior = Posterior.of(item)  # read once here, for every section and figure
+            name = label or posterior.family
             free, count = name, 1
             while Path(free).stem in taken:
                 count += 1
                 free = f"{name}-{count}"
-            found = [(Path(free), item)]
+            found = [(Path(free), posterior)]
         elif isinstance(item, str | Path) and label is None:
             found, unreadable = read_posteriors([item])
             failed |= unreadable

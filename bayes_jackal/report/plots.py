@@ -20,7 +20,7 @@ from matplotlib.patches import Patch
 from .._runtime.defaults import CHANNELS
 from ..model.parameters import DAMPING
 from ..posterior.criticism import criticise
-from ..posterior.file_format import observed_residuals, posterior_layout
+from ..posterior.file_format import observed_residuals
 from ..posterior.posterior import Posterior
 from ..posterior.predictive import model_percentiles
 from ..posterior.summary import THESIS_RATIO
@@ -199,8 +199,9 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     >>> [ax.get_ylabel() for ax in axes], axes[-1].get_yscale()
     (['d_lat', 'd_long', 'sigma_c', 'sigma_n'], 'log')
     """
-    draws, _ = Posterior.of(idata).draws()
-    layout = posterior_layout(idata)
+    posterior = Posterior.of(idata)
+    draws, _ = posterior.draws()
+    layout = posterior.layout
     names = layout.names
     fig, axes = _figures(axes, len(names), figsize=(7.0, 1.0 + 1.2 * len(names)))
     for ax, name, values, base in zip(
