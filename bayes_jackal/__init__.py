@@ -17,6 +17,11 @@ _LAZY = {
     "load_experiments": ".io",
     "sample": ".inference",
     "compare": ".inference",
+    # many runs: groups, their population and its speed dependence
+    "population": ".inference",
+    "Population": ".inference",
+    "read_groups": ".io",
+    "plot_population": ".report",
     "export_prior": ".dem",
     "write_prior": ".dem",
     "read_prior": ".dem",

@@ -25,6 +25,7 @@ from ..filters.state_estimation import (
 from ..inference.chains import SamplerSettings
 from ..inference.comparison import compare_groups
 from ..inference.executors import Executor, executor_for
+from ..inference.population import population
 from ..inference.sampler_warnings import ConvergenceWarning, keep_warnings
 from ..inference.sampling import chain_path, sample_posterior
 from ..io.bag_writer import bag_truth, write_bag
@@ -41,6 +42,7 @@ from ..posterior.posterior import load_posterior, save_posterior
 from ..posterior.summary import summarize
 from ..report.grid_plots import save_grid_plot
 from ..report.page import read_posteriors, save_report
+from ..report.population_plots import save_population_plot
 from ..thesis.gridsearch import damping_grid, grid_search
 from ..thesis.residual_analysis import analyse
 from ..workflow.analysis import analyse_logs
@@ -55,6 +57,7 @@ from .output import (
     family_warnings,
     filter_table,
     grid_table,
+    population_text,
     posterior_table,
     print_criticism,
     residual_table,
@@ -427,6 +430,42 @@ def cmd_compare(args: argparse.Namespace) -> int:
             lambda e: outputs(e.name),
             results=each_experiment,
         )
+
+
+def cmd_population(args: argparse.Namespace) -> int:
+    """Each unit's posterior saved under ``--out``/units as it finishes (reused on a rerun),
+    then population.json and the forest plot."""
+    out = Reporter(args.json)
+    folder = Path(args.out)
+    experiments = load_logs(args)
+    with _executor(args, args.processes) as executor, warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # kept in the result's warnings
+        result = population(
+            experiments,
+            groups=args.groups,
+            covariate=args.covariate,
+            family=args.family,
+            channels=args.channels,
+            noise=args.noise,
+            sensor=args.sensor_noise,
+            engine=args.engine,
+            seed=args.seed,
+            max_steps=args.max_steps,
+            walkers=args.walkers,
+            priors=_prior_overrides(args.prior),
+            robot=robot_profile(args),
+            executor=executor,
+            out=folder,
+            progress=not args.no_progress and args.scheduler is None,
+            say=out.say,
+        )
+    summary = result.to_dict()
+    write_json(folder / "population.json", summary)
+    save_population_plot(summary, folder / "population.png")
+    population_text(summary, out.say)
+    out.say(f"wrote {folder}/population.json, population.png and units/")
+    out.result(summary)
+    return EXIT_OK
 
 
 def cmd_export_prior(args: argparse.Namespace) -> int:

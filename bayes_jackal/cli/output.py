@@ -202,6 +202,40 @@ def comparison_table(result: dict, say: Callable[[str], None]) -> None:
     say(f"best: {result['best']}. Verdict: {result['verdict_text']}")
 
 
+def population_text(result: dict, say: Callable[[str], None]) -> None:
+    """``population``'s evidence table, each group's damping, the population and the verdicts."""
+    say(f"{'structure':22s} {'log Z':>14s} {'+-':>6s} {'lnB best':>9s}")
+    for name, row in result["evidence"].items():
+        say(
+            f"{name:22s} {row['log_evidence']:14.2f} {row['log_evidence_err']:6.3f} "
+            f"{row['log_bayes_factor_vs_best']:9.2f}"
+        )
+    say(f"best: {result['best']}. Verdict: {result['verdict']}")
+    say(f"each group's damping, mean [94 % HDI] (N s/m), {result['model']}:")
+    for label, group in result["groups"].items():
+        say(
+            f"  {label:20s} "
+            + "; ".join(f"{name} {_interval(group[name])}" for name in ("d_lat", "d_long"))
+        )
+    population = result["population"]
+    say(
+        "population mean: "
+        + "; ".join(
+            f"{name} {_interval(population[name]['mean']['N s/m'])}, a new group "
+            f"{_interval(population[name]['new_group'])}"
+            for name in ("d_lat", "d_long")
+        )
+    )
+    if result["speed_dependence"] is not None:
+        say(f"speed dependence: {result['speed_dependence']['verdict']}")
+    for warning in result["warnings"]:
+        print(f"bayes-jackal: WARNING: {warning['message']}", file=sys.stderr)
+
+
+def _interval(row: dict) -> str:
+    return f"{row['mean']:.4g} [{row['hdi_3%']:.4g}, {row['hdi_97%']:.4g}]"
+
+
 def state_estimation_text(state: dict, say: Callable[[str], None]) -> None:
     """analyse's filter scores on each run left out of the prior; its failures on stderr."""
     if state["skipped"]:

@@ -449,6 +449,40 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_flags(compare)
     _add_common(compare)
 
+    population = commands.add_parser(
+        "population",
+        help="each group's damping, their population and its dependence on speed",
+    )
+    population.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
+    population.add_argument(
+        "--groups",
+        metavar="GROUPS.csv",
+        help="CSV of each run's group: columns run, group and numeric covariates such as "
+        "speed (default: the experiments' own 'group')",
+    )
+    population.add_argument(
+        "--covariate",
+        metavar="NAME",
+        help="covariate of the state dependence log d = a + b (x - x0) (default: speed, "
+        "when every run has one)",
+    )
+    population.add_argument(
+        "--out", required=True, metavar="DIR", help="population.json, the forest plot, units/"
+    )
+    population.add_argument(
+        "--family", type=_family, default=FAMILY, help=f"noise family of every unit ({FAMILY})"
+    )
+    population.add_argument(
+        "--processes",
+        type=_count,
+        default=os.cpu_count() or 1,
+        help="units sampled at once (default: the number of cores; not with --scheduler)",
+    )
+    _add_bag_flags(population, max_gap=None)
+    _add_input_flags(population)
+    _add_model_flags(population, pooling=False)
+    _add_common(population)
+
     export = commands.add_parser("export-prior", help="Active Inference (DEM) prior as JSON")
     export.add_argument("posterior", metavar="POSTERIOR.nc", help="posterior file from sample")
     export.add_argument("--out", required=True, metavar="prior.json", help="output JSON")

@@ -24,7 +24,7 @@ PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 def planned_outputs(args: argparse.Namespace) -> list[Output]:
     """What the command writes under the names the user gave; the main output first."""
     command, out = args.command, getattr(args, "out", None)
-    if command in ("simulate", "ingest", "analyse", "demo") or (
+    if command in ("simulate", "ingest", "analyse", "demo", "population") or (
         command in ("compare", "noise") and out
     ):
         return [Output(Path(out), "folder")]
@@ -49,7 +49,11 @@ def planned_outputs(args: argparse.Namespace) -> list[Output]:
 
 def command_inputs(args: argparse.Namespace) -> list[str]:
     """The files and folders the command reads: never to be replaced by an output."""
-    inputs = [getattr(args, "posterior", None), getattr(args, "prior_file", None)]
+    inputs = [
+        getattr(args, "posterior", None),
+        getattr(args, "prior_file", None),
+        getattr(args, "groups", None),
+    ]
     for name in ("experiments", "posteriors", "bags", "inputs", "series"):
         inputs += getattr(args, name, None) or []
     inputs.append(getattr(args, "robot", None))  # last: failures name the data first

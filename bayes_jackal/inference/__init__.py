@@ -28,6 +28,17 @@ from .executors import (
     executor_for,
     in_processes,
 )
+from .hierarchy import (
+    DAMPING_NAMES,
+    FROM_SCALE_RATIO,
+    POPULATION_STRUCTURES,
+    SLOPE_RANGE,
+    TAU_RANGE,
+    TO_SCALE_RATIO,
+    Hierarchy,
+    UnitPosterior,
+    unit_posterior,
+)
 from .map_search import climb, find_map, laplace_walkers, ridge_mixture, scan_posterior
 from .moves import (
     INDEPENDENCE_WEIGHT,
@@ -42,15 +53,30 @@ from .moves import (
     moment_matched,
     proposal_efficiency,
 )
+from .population import (
+    POPULATION_DRAWS,
+    SENSITIVITY_TAU_RANGES,
+    Population,
+    population,
+    unit_files,
+)
 from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
 from .sampling import chain_path, run_identity, sample, sample_posterior
 from .starts import profile_starts, series_profile
 
 __all__ = [
     "COLOURED_LOG_BF",
+    "DAMPING_NAMES",
+    "FROM_SCALE_RATIO",
     "INDEPENDENCE_WEIGHT",
     "MIN_MATCHED_EFFICIENCY",
     "MIN_PROPOSAL_EFFICIENCY",
+    "POPULATION_DRAWS",
+    "POPULATION_STRUCTURES",
+    "SENSITIVITY_TAU_RANGES",
+    "SLOPE_RANGE",
+    "TAU_RANGE",
+    "TO_SCALE_RATIO",
     "WHITE_LOG_BF",
     "BufferedHDFBackend",
     "Chain",
@@ -58,14 +84,17 @@ __all__ = [
     "ConvergenceWarning",
     "DaskExecutor",
     "Executor",
+    "Hierarchy",
     "IndependenceMove",
     "KeptWarnings",
     "LaplaceApproximation",
     "MixtureApproximation",
+    "Population",
     "ProcessExecutor",
     "SamplerSettings",
     "SerialExecutor",
     "Start",
+    "UnitPosterior",
     "as_mixture",
     "autocorrelation_time",
     "bridge_sampling",
@@ -86,6 +115,7 @@ __all__ = [
     "laplace_walkers",
     "moment_matched",
     "nested_sampling",
+    "population",
     "profile_starts",
     "proposal_efficiency",
     "ridge_mixture",
@@ -95,4 +125,6 @@ __all__ = [
     "sample_posterior",
     "scan_posterior",
     "series_profile",
+    "unit_files",
+    "unit_posterior",
 ]

@@ -37,6 +37,7 @@ from .experiment import (
     steady_smoothing,
     write_netcdf,
 )
+from .groups import RunGroups, group_runs, read_groups, run_group
 from .logs import ReadOptions, ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
@@ -125,6 +126,7 @@ __all__ = [
     "NoiseSettings",
     "PoseTrack",
     "ReadOptions",
+    "RunGroups",
     "Series",
     "TickPoses",
     "UniformClock",
@@ -143,6 +145,7 @@ __all__ = [
     "check_values",
     "command_profile",
     "detect_steady",
+    "group_runs",
     "header_stamp",
     "ingest_logs",
     "load_experiment",
@@ -156,11 +159,13 @@ __all__ = [
     "read_bag",
     "read_csv",
     "read_csv_table",
+    "read_groups",
     "read_log",
     "read_logs",
     "read_mat",
     "read_netcdf",
     "receive_time_for_zero",
+    "run_group",
     "simulate_experiment",
     "simulate_series",
     "sort_stamps",

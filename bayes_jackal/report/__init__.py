@@ -34,6 +34,7 @@ from .plots import (
     plot_sigma_h,
     plot_traces,
 )
+from .population_plots import plot_population, save_population_plot
 from .predictive_plots import (
     band_statistics,
     plot_autocorrelation,
@@ -61,6 +62,7 @@ __all__ = [
     "plot_noise_autocorrelation",
     "plot_noise_spectrum",
     "plot_noise_widths",
+    "plot_population",
     "plot_residuals",
     "plot_sigma_h",
     "plot_spectrum",
@@ -73,6 +75,7 @@ __all__ = [
     "replicate_statistics",
     "report_page",
     "save_grid_plot",
+    "save_population_plot",
     "save_report",
     "shown_window",
     "slug",

@@ -6,9 +6,13 @@ Private to :mod:`bayes_jackal.report.plots`, :mod:`bayes_jackal.report.grid_plot
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+
+from .._runtime.files import atomic_path
 
 #: Credible band drawn around posterior-predictive medians (the HDI mass).
 BAND = (3.0, 97.0)
@@ -33,3 +37,11 @@ def draw_band(ax: Axes, x: np.ndarray, draws: np.ndarray, *, color, label: str) 
     low, median, high = np.percentile(draws, [BAND[0], 50.0, BAND[1]], axis=0)
     ax.fill_between(x, low, high, color=color, alpha=0.3, label=label)
     ax.plot(x, median, color=color, lw=1)
+
+
+def save_figure(fig: Figure, path: str | Path, dpi: int) -> Path:
+    """Write ``fig`` to ``path`` atomically, in the format of its suffix (png, svg, pdf)."""
+    path = Path(path)
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary, dpi=dpi, format=path.suffix.lstrip(".").lower() or None)
+    return path

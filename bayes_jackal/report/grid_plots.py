@@ -13,9 +13,8 @@ from matplotlib.axes import Axes
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from .._runtime.files import atomic_path
 from ..thesis.gridsearch import GridResult
-from ._layout import new_axes
+from ._layout import new_axes, save_figure
 
 __all__ = ["plot_grid", "save_grid_plot"]
 
@@ -97,7 +96,4 @@ def save_grid_plot(result: GridResult, path: str | Path, dpi: int = 120) -> Path
     grid.svg True
     """
     fig, _ = plot_grid(result)
-    path = Path(path)
-    with atomic_path(path) as temporary:
-        fig.savefig(temporary, dpi=dpi, format=path.suffix.lstrip(".").lower() or None)
-    return path
+    return save_figure(fig, path, dpi)

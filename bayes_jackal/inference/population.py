@@ -1,0 +1,608 @@
+"""A campaign's population: each group's damping, their spread and their dependence on speed.
+
+:func:`population` runs the two stages of docs/guide/population.md. Stage 1
+samples each unit with emcee and bridge-samples its evidence
+(:func:`~bayes_jackal.inference.compare_groups`, one family): a unit is a
+group's runs pooled with their noise shared (``noise="shared"`` or
+``"one-width"``, the noise per group), or one run (``"per-experiment"``,
+the noise per run). Stage 2 combines the units' damping posteriors in
+:class:`~bayes_jackal.inference.Hierarchy`: pooled, hierarchical and
+independent structures, each with and without a slope in the covariate,
+ranked by evidence.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._runtime.arviz_quiet import az
+from .._runtime.defaults import ENGINE, FAMILY, HDI_PROB, MAX_STEPS, NOISE, SENSOR, WALKERS
+from .._runtime.errors import InputError
+from .._runtime.rng import as_rng
+from ..io.experiment import Experiment, as_experiments
+from ..io.groups import RunGroups, group_runs, read_groups, run_group
+from ..likelihood.residual_likelihood import LikelihoodOptions
+from ..model.robot import RobotProfile, as_profile
+from ..posterior.posterior import Posterior, save_posterior
+from ..posterior.records import Evidence
+from .chains import SamplerSettings
+from .comparison import Comparison, compare_groups
+from .evidence import evidence_strength
+from .executors import Executor
+from .hierarchy import (
+    DAMPING_NAMES,
+    FROM_SCALE_RATIO,
+    TAU_RANGE,
+    Hierarchy,
+    UnitPosterior,
+    unit_posterior,
+)
+
+__all__ = ["POPULATION_DRAWS", "SENSITIVITY_TAU_RANGES", "Population", "population", "unit_files"]
+
+#: The population's two spreads (:data:`~bayes_jackal.inference.TO_SCALE_RATIO`).
+SPREADS = ("scale", "ratio")
+#: Posterior draws of each structure's parameters.
+POPULATION_DRAWS = 4000
+#: Other priors of the population spread the result is checked against:
+#: log-uniform over a range 10 times wider at each end, and one 10 times
+#: narrower at the top (at most 10 % spread per sd).
+SENSITIVITY_TAU_RANGES = {"wide": (0.001, 10.0), "narrow": (0.01, 0.1)}
+#: A unit's normal summary is doubted when the share of its draws in the
+#: normal's 94 % ellipse is off by more than this: 3 sd of that share over
+#: the 400 effective draws a converged chain has at least.
+COVERAGE_TOLERANCE = 0.036
+#: The population mean is called prior-sensitive when another spread prior
+#: moves it by more than half its posterior sd.
+SENSITIVITY_SHIFT = 0.5
+
+
+def _summary(values: np.ndarray) -> dict:
+    """Mean, sd and 94 % HDI of 1-d draws (the keys of :func:`bayes_jackal.summarize`)."""
+    low, high = az.hdi(np.asarray(values, float), hdi_prob=HDI_PROB)
+    return {
+        "mean": float(np.mean(values)),
+        "sd": float(np.std(values, ddof=1)),
+        "hdi_3%": float(low),
+        "hdi_97%": float(high),
+    }
+
+
+def _damping(log_values: np.ndarray) -> dict:
+    """``d_lat`` and ``d_long`` summaries [N s/m] of (..., 2) log-damping draws."""
+    return {name: _summary(np.exp(log_values[..., i])) for i, name in enumerate(DAMPING_NAMES)}
+
+
+@dataclass
+class Population:
+    """The result of :func:`population`: each structure's evidence, the population's draws.
+
+    Attributes
+    ----------
+    family : str
+        The noise family of every unit.
+    covariate : str or None
+        The covariate of the state dependence (e.g. ``speed``), when given.
+    hierarchy : Hierarchy
+        The units' normal summaries and the structures.
+    evidence : dict of str to Evidence
+        Log evidence of each structure.
+    bayes_factors : dict of str to (float, float)
+        ln B of each structure over the best and its Monte Carlo error.
+    draws : dict of str to dict
+        :meth:`Hierarchy.draws` of the hierarchical structure(s) and of the
+        independent one.
+    posteriors : dict of str to Posterior
+        Stage 1's posterior of each unit.
+    sensitivity : dict
+        The population under the other spread priors
+        (:data:`SENSITIVITY_TAU_RANGES`).
+    warnings : list of dict
+        ``kind``, ``message`` and, where one is concerned, ``unit``.
+    """
+
+    family: str
+    covariate: str | None
+    hierarchy: Hierarchy
+    evidence: dict[str, Evidence]
+    bayes_factors: dict[str, tuple[float, float]]
+    draws: dict[str, dict]
+    posteriors: dict[str, Posterior]
+    sensitivity: dict = field(default_factory=dict)
+    warnings: list[dict] = field(default_factory=list)
+
+    @property
+    def best(self) -> str:
+        """The structure of highest evidence."""
+        return max(self.evidence, key=lambda name: self.evidence[name].log_evidence)
+
+    @property
+    def model(self) -> str:
+        """The hierarchical structure reported: with the slope when its evidence is higher."""
+        candidates = [name for name in self.evidence if name.startswith("hierarchical")]
+        return max(candidates, key=lambda name: self.evidence[name].log_evidence)
+
+    def log_bayes_factor(self, structure: str, other: str) -> tuple[float, float]:
+        """ln B of ``structure`` over ``other`` and its error [nats]."""
+        value, error = self.bayes_factors[structure]
+        against, against_error = self.bayes_factors[other]
+        return value - against, float(np.hypot(error, against_error))
+
+    def group_summaries(self, structure: str | None = None) -> dict[str, dict]:
+        """Each group's ``d_lat`` and ``d_long`` [N s/m] under ``structure`` (the model's)."""
+        levels = self.draws[structure or self.model]["groups"]
+        return {g: _damping(levels[:, i]) for i, g in enumerate(self.hierarchy.groups)}
+
+    def population_summary(self) -> dict:
+        """The population of the model: its mean and sd, on the log scale and in N s/m.
+
+        Per damping, ``mean.log`` is mu and ``sd.log`` the sd of log d
+        across groups, sqrt(tau_scale^2 + tau_ratio^2 / 4); in N s/m the
+        log-normal's mean exp(mu + sd^2 / 2) and sd; ``new_group`` is the
+        damping [N s/m] a new group would have, what to expect of a new
+        floor. ``spread`` holds the two spreads, of the scale and of the
+        ratio (:data:`~bayes_jackal.inference.TO_SCALE_RATIO`).
+        """
+        draws = self.draws[self.model]
+        mu, tau = draws["mu"], draws["tau"]
+        rng = as_rng(0)
+        new_group = (rng.standard_normal(mu.shape) * tau) @ FROM_SCALE_RATIO.T + mu
+        sd = np.sqrt(tau[:, 0] ** 2 + tau[:, 1] ** 2 / 4)
+        result = {}
+        for i, name in enumerate(DAMPING_NAMES):
+            mean = np.exp(mu[:, i] + sd**2 / 2)
+            result[name] = {
+                "mean": {"log": _summary(mu[:, i]), "N s/m": _summary(mean)},
+                "sd": {"log": _summary(sd), "N s/m": _summary(mean * np.sqrt(np.expm1(sd**2)))},
+                "new_group": _summary(np.exp(new_group[:, i])),
+            }
+        result["spread"] = {name: _summary(tau[:, i]) for i, name in enumerate(SPREADS)}
+        return result
+
+    def speed_dependence(self) -> dict | None:
+        """The slope of log d in the covariate and ln B of a slope over none; None without one."""
+        if self.covariate is None:
+            return None
+        sloped = max(
+            (name for name in self.evidence if name.endswith(" + slope")),
+            key=lambda name: self.evidence[name].log_evidence,
+        )
+        constant = max(
+            (name for name in self.evidence if not name.endswith(" + slope")),
+            key=lambda name: self.evidence[name].log_evidence,
+        )
+        slope = self._structure_draws(sloped)["slope"]
+        span = self.hierarchy.covariate_span
+        value, error = self.log_bayes_factor(sloped, constant)
+        slopes = {}
+        excludes_zero = False
+        for i, name in enumerate(DAMPING_NAMES):
+            per_unit = _summary(slope[:, i] / span)
+            excludes_zero |= not per_unit["hdi_3%"] <= 0 <= per_unit["hdi_97%"]
+            slopes[name] = {
+                "log_per_unit": per_unit,
+                "ratio_across_range": _summary(np.exp(slope[:, i])),
+            }
+        values = [unit.covariate for unit in self.hierarchy.units]
+        detected = excludes_zero and value > 3
+        return {
+            "covariate": self.covariate,
+            "range": [min(values), max(values)],
+            "structure": sloped,
+            "against": constant,
+            "slope": slopes,
+            "log_bayes_factor": value,
+            "error": error,
+            "detected": bool(detected),
+            "verdict": (
+                f"the damping {'depends' if detected else 'is not shown to depend'} on "
+                f"{self.covariate}: {sloped} over {constant}, ln B = {value:.1f} +- {error:.2f}, "
+                f"{evidence_strength(value)}"
+            ),
+        }
+
+    def _structure_draws(self, structure: str) -> dict:
+        if structure not in self.draws:
+            self.draws[structure] = self.hierarchy.draws(structure, POPULATION_DRAWS, rng=1)
+        return self.draws[structure]
+
+    def verdict(self) -> str:
+        """The best structure, in words."""
+        best = self.best
+        kind = best.partition(" + ")[0]
+        others = [name for name in self.evidence if name.partition(" + ")[0] != kind]
+        runner_up = max(others, key=lambda name: self.evidence[name].log_evidence)
+        value, error = self.log_bayes_factor(best, runner_up)
+        meaning = {
+            "pooled": "one damping fits every group",
+            "hierarchical": "the groups' dampings differ, drawn from one population",
+            "independent": "the groups' dampings differ, each its own",
+        }[kind]
+        return (
+            f"{meaning}: {best} over {runner_up}, ln B = {value:.1f} +- {error:.2f}, "
+            f"{evidence_strength(value)}"
+        )
+
+    def unit_summaries(self) -> dict[str, dict]:
+        """Each unit alone (stage 1): group, runs, covariate, damping [N s/m], evidence."""
+        result = {}
+        for unit in self.hierarchy.units:
+            posterior = self.posteriors[unit.name].posterior
+            result[unit.name] = {
+                "group": unit.group,
+                "runs": list(unit.runs),
+                "covariate": unit.covariate,
+                **{name: _summary(posterior[name].values.ravel()) for name in DAMPING_NAMES},
+                "log_evidence": unit.log_evidence,
+                "error": unit.evidence_error,
+                "normal_coverage": unit.coverage,
+            }
+        return result
+
+    def to_dict(self) -> dict:
+        """The ``population --json`` object (docs/guide/population.md)."""
+        independent = self.group_summaries("independent")
+        groups = {
+            label: summary | {"independent": independent[label]}
+            for label, summary in self.group_summaries().items()
+        }
+        return {
+            "family": self.family,
+            "model": self.model,
+            "groups": groups,
+            "population": self.population_summary(),
+            "speed_dependence": self.speed_dependence(),
+            "evidence": {
+                name: evidence.to_dict()
+                | {"log_bayes_factor_vs_best": self.log_bayes_factor(name, self.best)[0]}
+                for name, evidence in self.evidence.items()
+            },
+            "best": self.best,
+            "verdict": self.verdict(),
+            "units": self.unit_summaries(),
+            "sensitivity": self.sensitivity,
+            "warnings": self.warnings,
+        }
+
+
+def unit_files(folder: str | Path, names: Sequence[str], family: str) -> dict[str, Path]:
+    """Where :func:`population` keeps each unit's posterior under ``folder`` (``units/``).
+
+    Examples
+    --------
+    >>> from bayes_jackal.inference import unit_files
+    >>> unit_files("campaign", ["floor A", "v1_01"], "gaussian")["floor A"].as_posix()
+    'campaign/units/floor_A.gaussian.nc'
+    """
+    return {
+        name: Path(folder) / "units" / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}.{family}.nc"
+        for name in names
+    }
+
+
+def _covariate_name(
+    experiments: Sequence[Experiment], table: RunGroups | None, covariate: str | None
+) -> str | None:
+    """The covariate to use: as named, else ``speed`` when every run has one."""
+    name = covariate or "speed"
+    given = [name in run_group(experiment, table)[1] for experiment in experiments]
+    if all(given):
+        return name
+    if covariate is None:
+        return None
+    missing = experiments[given.index(False)]
+    raise InputError(
+        f"run {missing.name!r} has no {covariate!r}",
+        source=getattr(table, "source", None) or missing.source,
+        field=covariate,
+    )
+
+
+def _units(
+    grouped: Mapping[str, list[Experiment]],
+    table: RunGroups | None,
+    covariate: str | None,
+    per_run: bool,
+) -> dict[str, tuple[str, list[Experiment], float | None]]:
+    """Unit name -> (group, experiments, covariate): one per run, or one per group."""
+    units = {}
+    for label, runs in grouped.items():
+        for members in [[run] for run in runs] if per_run else [runs]:
+            name = members[0].name if per_run else label
+            if name in units:
+                raise InputError(f"two runs are named {name!r}", field="run")
+            values = sorted({run_group(run, table)[1][covariate] for run in members if covariate})
+            if len(values) > 1:
+                raise InputError(
+                    f"group {label!r} pools runs at {covariate} {values} with the noise shared: "
+                    "give each operating point its own group, or use noise='per-experiment'",
+                    field=covariate,
+                )
+            units[name] = (label, members, values[0] if values else None)
+    return units
+
+
+def population(
+    experiments: Experiment | Sequence[Experiment],
+    *,
+    groups: RunGroups | Mapping[str, str] | str | Path | None = None,
+    covariate: str | None = None,
+    family: str = FAMILY,
+    channels: Sequence[str] | None = None,
+    noise: str = NOISE,
+    sensor: str = SENSOR,
+    engine: str = ENGINE,
+    seed: int | None = None,
+    max_steps: int = MAX_STEPS,
+    walkers: int = WALKERS,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    robot: RobotProfile | str | Path | None = None,
+    executor: Executor | None = None,
+    out: str | Path | None = None,
+    progress: bool = True,
+    tau_range: tuple[float, float] = TAU_RANGE,
+    say: Callable[[str], None] = lambda text: None,
+) -> Population:
+    """The damping of a campaign's groups of runs, their population and its speed dependence.
+
+    Parameters
+    ----------
+    experiments : Experiment or sequence of them
+        Every run of the campaign.
+    groups : RunGroups, mapping, str or Path, optional
+        Each run's group: a groups CSV (:func:`bayes_jackal.io.read_groups`),
+        a table read from one, or a mapping run -> label. Default: each
+        experiment's ``provenance["group"]``.
+    covariate : str, optional
+        The covariate of the state dependence log d = a + b (x - x0); by
+        default ``speed`` when every run has one, else none.
+    family, channels, noise, sensor, engine
+        The likelihood, as in :func:`bayes_jackal.sample`. ``noise``
+        decides the units: ``"shared"`` or ``"one-width"`` pool each
+        group's runs, their noise shared; ``"per-experiment"`` samples each
+        run alone, its own noise.
+    seed : int, optional
+        Seeds every unit's chain and the stage 2 draws: same seed, same result.
+    max_steps, walkers, priors, robot
+        As in :func:`bayes_jackal.sample`.
+    executor : Executor, optional
+        Where the units' chains run (e.g. ``ProcessExecutor(2)``); default:
+        this process, one after the other.
+    out : str or Path, optional
+        Folder where each unit's posterior is saved as it finishes
+        (``units/<unit>.<family>.nc``) and read back on a rerun with the
+        same task.
+    progress : bool
+        Show each chain's progress.
+    tau_range : (float, float)
+        Log-uniform prior range of the population spread [log d].
+    say : callable
+        Told which units are reused, and each unit's evidence.
+
+    Returns
+    -------
+    Population
+
+    Raises
+    ------
+    InputError
+        For a run without a group or covariate, a group pooling runs at
+        different operating points with the noise shared, two runs of one
+        name, or a bad option.
+
+    Examples
+    --------
+    Two floors of two runs each, whose dampings differ by 30 %; chains of
+    white noise on the yaw rate, short for the example:
+
+    >>> import bayes_jackal as bj
+    >>> robot = bj.load_profile()
+    >>> runs = [
+    ...     bj.simulate_experiment(robot, d, d / 3.7, rng=seed, name=f"run{seed}")
+    ...     for seed, d in enumerate([100.0, 100.0, 130.0, 130.0])
+    ... ]
+    >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
+    >>> result = bj.population(
+    ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
+    ...     max_steps=3000, progress=False,
+    ... )
+    >>> result.best, sorted(result.to_dict()["groups"])
+    ('independent', ['carpet', 'tiles'])
+    """
+    experiments = as_experiments(experiments)
+    robot = as_profile(robot)
+    table = read_groups(groups) if isinstance(groups, (str, Path)) else groups
+    table = RunGroups(dict(table)) if isinstance(table, Mapping) else table
+    grouped = group_runs(experiments, table)
+    name = _covariate_name(experiments, table, covariate)
+    options = LikelihoodOptions(channels=channels, noise=noise, sensor=sensor, engine=engine)
+    units = _units(grouped, table, name, per_run=noise == "per-experiment")
+    notes = []
+    if name is not None and len({value for _, _, value in units.values()}) < 2:
+        notes.append(
+            {
+                "kind": "one_operating_point",
+                "message": f"every unit has the same {name}: no state dependence is fitted",
+            }
+        )
+        units = {key: (label, members, None) for key, (label, members, _) in units.items()}
+        name = None
+    files = unit_files(out, list(units), family) if out is not None else {}
+
+    def finished(key: str, _family: str, evidence: Evidence, idata) -> None:
+        say(f"  {key}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+        if key in files:
+            files[key].parent.mkdir(parents=True, exist_ok=True)
+            save_posterior(idata, files[key])
+
+    comparisons = dict(
+        compare_groups(
+            {key: members for key, (_, members, _) in units.items()},
+            robot,
+            families=[family],
+            settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
+            seed=seed,
+            prior_overrides=dict(priors) if priors else None,
+            likelihood_options=options,
+            executor=executor,
+            reuse={key: {family: path} for key, path in files.items()},
+            on_family=finished,
+            say=say,
+        )
+    )
+    return combine_units(
+        {key: comparisons[key] for key in units},
+        {key: (label, value) for key, (label, _, value) in units.items()},
+        family=family,
+        covariate=name,
+        tau_range=tau_range,
+        seed=seed,
+        notes=notes,
+    )
+
+
+def combine_units(
+    comparisons: Mapping[str, Comparison],
+    labels: Mapping[str, tuple[str, float | None]],
+    *,
+    family: str,
+    covariate: str | None,
+    tau_range: tuple[float, float],
+    seed: int | None,
+    notes: Sequence[dict] = (),
+) -> Population:
+    """Stage 2: the units' posteriors (stage 1's comparisons) combined in every structure.
+
+    ``labels`` gives each unit's (group, covariate); ``notes`` are warnings
+    to keep.
+    """
+    summaries, warnings = [], list(notes)
+    posteriors = {}
+    for key, comparison in comparisons.items():
+        label, value = labels[key]
+        posterior = Posterior.of(comparison.posteriors[family])
+        posteriors[key] = posterior
+        metadata = posterior.metadata
+        columns = [metadata.prior.names.index(name) for name in DAMPING_NAMES]
+        bounds = np.stack([metadata.prior.low[columns], metadata.prior.high[columns]], axis=1)
+        evidence = comparison.evidence[family]
+        draws = np.stack([posterior.posterior[n].values.ravel() for n in DAMPING_NAMES], axis=1)
+        ess = min(metadata.convergence.ess_autocorr.get(n, math.inf) for n in DAMPING_NAMES)
+        unit = unit_posterior(
+            key,
+            label,
+            draws,
+            bounds,
+            runs=list(comparison.experiments),
+            covariate=value,
+            log_evidence=evidence.log_evidence,
+            evidence_error=evidence.error,
+            ess=ess,
+        )
+        summaries.append(unit)
+        warnings += _unit_warnings(unit, comparison.convergence_messages())
+    hierarchy = Hierarchy(summaries, bounds, tau_range=tau_range)
+    rng = as_rng(seed)
+    evidence = {}
+    for structure in hierarchy.structures:
+        value, error = hierarchy.log_evidence(structure)
+        evidence[structure] = Evidence(value, error, "population (normal summaries)")
+    best = max(evidence, key=lambda name: evidence[name].log_evidence)
+    bayes_factors = {
+        name: hierarchy.log_bayes_factor(name, best, rng=rng) if name != best else (0.0, 0.0)
+        for name in evidence
+    }
+    draws = {
+        name: hierarchy.draws(name, POPULATION_DRAWS, rng=rng)
+        for name in hierarchy.structures
+        if name.startswith(("hierarchical", "independent"))
+    }
+    result = Population(family, covariate, hierarchy, evidence, bayes_factors, draws, posteriors)
+    result.sensitivity = _sensitivity(result, rng)
+    result.warnings = warnings + _population_warnings(result)
+    return result
+
+
+def _unit_warnings(unit: UnitPosterior, convergence: list[str]) -> list[dict]:
+    warnings = [
+        {"kind": "convergence", "unit": unit.name, "message": message} for message in convergence
+    ]
+    if abs(unit.coverage - HDI_PROB) > COVERAGE_TOLERANCE:
+        warnings.append(
+            {
+                "kind": "normal_summary",
+                "unit": unit.name,
+                "message": (
+                    f"{unit.name}: {unit.coverage:.1%} of its damping draws lie in the 94 % "
+                    "ellipse of their normal summary: the population's combination is approximate"
+                ),
+            }
+        )
+    for name in unit.at_bound:
+        warnings.append(
+            {
+                "kind": "prior_bound",
+                "unit": unit.name,
+                "message": (
+                    f"{unit.name}: {name}'s posterior reaches its prior's bound; widen the "
+                    f"range (--prior {name} LOW HIGH)"
+                ),
+            }
+        )
+    return warnings
+
+
+def _sensitivity(result: Population, rng: np.random.Generator) -> dict:
+    """The population mean and spread under each of :data:`SENSITIVITY_TAU_RANGES`."""
+    hierarchy = result.hierarchy
+    checked = {"default": hierarchy.tau_range} | SENSITIVITY_TAU_RANGES
+    sensitivity = {}
+    for label, tau_range in checked.items():
+        other = Hierarchy(hierarchy.units, hierarchy.bounds, tau_range=tau_range)
+        draws = result.draws[result.model] if label == "default" else None
+        draws = draws or other.draws(result.model, POPULATION_DRAWS, rng=rng)
+        sensitivity[label] = {
+            "tau_range": list(tau_range),
+            "log_bayes_factor_vs_pooled": other.log_integral(result.model)
+            - other.log_integral("pooled" + result.model[len("hierarchical") :]),
+            **{name: _summary(draws["mu"][:, i]) for i, name in enumerate(DAMPING_NAMES)},
+            **{f"tau_{name}": _summary(draws["tau"][:, i]) for i, name in enumerate(SPREADS)},
+        }
+    return sensitivity
+
+
+def _population_warnings(result: Population) -> list[dict]:
+    warnings = []
+    groups = len(result.hierarchy.groups)
+    if groups < 3:
+        warnings.append(
+            {
+                "kind": "few_groups",
+                "message": (
+                    f"{groups} group{'s' if groups > 1 else ''}: the population's spread is "
+                    "barely determined; its mean's interval is wide by right"
+                ),
+            }
+        )
+    default = result.sensitivity["default"]
+    for label, other in result.sensitivity.items():
+        for name in DAMPING_NAMES:
+            shift = abs(other[name]["mean"] - default[name]["mean"])
+            if shift > SENSITIVITY_SHIFT * default[name]["sd"]:
+                warnings.append(
+                    {
+                        "kind": "prior_sensitivity",
+                        "message": (
+                            f"the population mean of log {name} moves by {shift:.3f} "
+                            f"({shift / default[name]['sd']:.1f} sd) under the {label} "
+                            f"spread prior {other['tau_range']}"
+                        ),
+                    }
+                )
+    return warnings

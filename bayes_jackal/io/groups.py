@@ -1,0 +1,246 @@
+"""Which group each run belongs to, and its covariates: the groups CSV of a campaign.
+
+A campaign's runs fall into groups (a floor, a speed, a day). The groups
+file is a small CSV with a header: a ``run`` column naming each run (its
+experiment's name, or its file's name or path), a ``group`` column with its
+label, and any number of numeric covariate columns, such as ``speed``
+[m/s]; other text columns (``surface``, ``notes``) are kept as labels and
+not used. Without a file, each experiment's ``provenance`` may carry its
+``group`` and a ``covariates`` mapping.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .._runtime.errors import InputError
+from .._runtime.files import require_file
+from .experiment import Experiment
+
+__all__ = ["RunGroups", "group_runs", "read_groups", "run_group"]
+
+#: Accepted headers of the run and group columns (case and spaces ignored).
+_RUN_HEADERS = ("run", "experiment", "file", "bag", "name")
+_GROUP_HEADERS = ("group", "label", "condition")
+
+
+@dataclass(frozen=True)
+class RunGroups:
+    """Each run's group label and numeric covariates.
+
+    Attributes
+    ----------
+    groups : dict of str to str
+        Run -> group label.
+    covariates : dict of str to dict of str to float
+        Run -> {covariate name: value}.
+    source : str
+        Where the table was read from.
+
+    Examples
+    --------
+    >>> from bayes_jackal.io import RunGroups
+    >>> table = RunGroups({"v1_01": "concrete", "v1_02": "carpet"}, {"v1_01": {"speed": 0.3}})
+    >>> table.label_of("data/v1_01.bag"), table.covariate_of("v1_01.bag", "speed")
+    ('concrete', 0.3)
+    """
+
+    groups: dict[str, str]
+    covariates: dict[str, dict[str, float]] = field(default_factory=dict)
+    source: str = "<memory>"
+
+    def _key(self, run: str) -> str | None:
+        """The table's row of ``run``: by name, file name or stem."""
+        path = Path(run)
+        for key in (run, path.name, path.stem):
+            if key in self.groups:
+                return key
+        return None
+
+    def label_of(self, run: str) -> str | None:
+        """The group of ``run`` (an experiment's name or source), None when not listed."""
+        key = self._key(run)
+        return None if key is None else self.groups[key]
+
+    def covariate_of(self, run: str, name: str) -> float | None:
+        """The covariate ``name`` of ``run``, None when not given."""
+        key = self._key(run)
+        return None if key is None else self.covariates.get(key, {}).get(name)
+
+    def of(self, experiment: Experiment) -> tuple[str | None, dict[str, float]]:
+        """(group label, covariates) of an experiment, by its name or its file."""
+        for run in (experiment.name, experiment.source):
+            key = self._key(run)
+            if key is not None:
+                return self.groups[key], self.covariates.get(key, {})
+        return None, {}
+
+    @property
+    def covariate_names(self) -> tuple[str, ...]:
+        """Covariates given for at least one run, in the order first seen."""
+        return tuple(dict.fromkeys(name for row in self.covariates.values() for name in row))
+
+
+def read_groups(path: str | Path) -> RunGroups:
+    """Read a groups CSV: run, group and numeric covariate columns.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV with a header row. The run column is headed ``run`` (or
+        ``experiment``, ``file``, ``bag``, ``name``), the group column
+        ``group`` (or ``label``, ``condition``); headers are matched without
+        case or surrounding spaces. A column whose every value is a number
+        is a covariate (an empty cell: not given for that run).
+
+    Returns
+    -------
+    RunGroups
+
+    Raises
+    ------
+    InputError
+        Naming the file, row and column: a missing run or group column, an
+        empty or repeated run, an empty group label, a covariate that is not
+        a finite number.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from bayes_jackal.io import read_groups
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "groups.csv"
+    ...     rows = ["Run, Group, Speed, floor", "v1_01, A, 0.3, tile", "v2_01.bag, B, 0.4, mat"]
+    ...     _ = path.write_text("\\n".join(rows))
+    ...     table = read_groups(path)
+    >>> table.groups, table.covariates["v2_01.bag"]
+    ({'v1_01': 'A', 'v2_01.bag': 'B'}, {'speed': 0.4})
+    """
+    source = str(path)
+    require_file(Path(path), source)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as stream:
+            rows = list(csv.reader(stream))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read the groups CSV ({exc})", source=source) from None
+    rows = [row for row in rows if any(cell.strip() for cell in row)]
+    if not rows:
+        raise InputError("the groups CSV is empty", source=source)
+    header = [cell.strip().lower() for cell in rows[0]]
+    run_column = _column(header, _RUN_HEADERS, source)
+    group_column = _column(header, _GROUP_HEADERS, source)
+    body = [[cell.strip() for cell in row] + [""] * (len(header) - len(row)) for row in rows[1:]]
+    groups: dict[str, str] = {}
+    for line, row in enumerate(body, start=2):
+        run, label = row[run_column], row[group_column]
+        where = f"row {line}"
+        if not run or not label:
+            empty = header[run_column] if not run else header[group_column]
+            raise InputError(f"empty {empty!r}", source=source, field=where)
+        if run in groups:
+            raise InputError(f"run {run!r} is listed twice", source=source, field=where)
+        groups[run] = label
+    covariates: dict[str, dict[str, float]] = {run: {} for run in groups}
+    for column, name in enumerate(header):
+        if column in (run_column, group_column) or not _numeric(body, column):
+            continue
+        for line, row in enumerate(body, start=2):
+            if row[column]:
+                value = float(row[column])
+                if not math.isfinite(value):
+                    raise InputError(
+                        f"{name} must be a finite number, got {row[column]!r}",
+                        source=source,
+                        field=f"row {line}, column {name!r}",
+                    )
+                covariates[row[run_column]][name] = value
+    return RunGroups(groups, covariates, source)
+
+
+def _column(header: list[str], names: tuple[str, ...], source: str) -> int:
+    for name in names:
+        if name in header:
+            return header.index(name)
+    raise InputError(
+        f"no column headed {' or '.join(repr(n) for n in names)}; the header is {header}",
+        source=source,
+        field="header",
+    )
+
+
+def _numeric(body: list[list[str]], column: int) -> bool:
+    """Every non-empty cell of the column parses as a number (and one at least is there)."""
+    cells = [row[column] for row in body if row[column]]
+    try:
+        [float(cell) for cell in cells]
+    except ValueError:
+        return False
+    return bool(cells)
+
+
+def group_runs(
+    experiments: Sequence[Experiment], groups: RunGroups | Mapping[str, str] | None = None
+) -> dict[str, list[Experiment]]:
+    """The experiments by group label, in the order their groups first appear.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+    groups : RunGroups or mapping of str to str, optional
+        Run (experiment name, file name or path) -> group label. Default:
+        each experiment's ``provenance["group"]``.
+
+    Raises
+    ------
+    InputError
+        Naming an experiment that has no group.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.io import group_runs
+    >>> robot = bj.load_profile()
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=s, name=f"r{s}") for s in (1, 2, 3)]
+    >>> grouped = group_runs(runs, {"r1": "tiles", "r2": "carpet", "r3": "tiles"})
+    >>> {label: [run.name for run in group] for label, group in grouped.items()}
+    {'tiles': ['r1', 'r3'], 'carpet': ['r2']}
+    """
+    table = groups if isinstance(groups, RunGroups) or groups is None else RunGroups(dict(groups))
+    grouped: dict[str, list[Experiment]] = {}
+    for experiment in experiments:
+        label, _ = run_group(experiment, table)
+        if label is None:
+            where = "its provenance has no 'group'" if table is None else f"not in {table.source}"
+            raise InputError(
+                f"experiment {experiment.name!r} has no group ({where})",
+                source=experiment.source,
+                field="group",
+            )
+        grouped.setdefault(str(label), []).append(experiment)
+    return grouped
+
+
+def run_group(
+    experiment: Experiment, table: RunGroups | None
+) -> tuple[str | None, dict[str, float]]:
+    """(group label, covariates) of an experiment: from the table, else its provenance.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.io import run_group
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1, name="r1")
+    >>> run.provenance.update(group="tiles", covariates={"speed": 0.3})
+    >>> run_group(run, None)
+    ('tiles', {'speed': 0.3})
+    """
+    if table is not None:
+        return table.of(experiment)
+    label = experiment.provenance.get("group")
+    covariates = experiment.provenance.get("covariates", {})
+    return (None if label is None else str(label)), {k: float(v) for k, v in covariates.items()}
