@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.special
+import scipy.stats
 
 from .._runtime.chunks import chunks
 from .._runtime.defaults import HDI_PROB
@@ -113,6 +114,9 @@ class UnitPosterior:
     coverage : float
         Fraction of the draws inside the normal's 94 % ellipse (0.94 when
         the normal summary holds).
+    skewness : float
+        The larger absolute skewness of the two log-dampings' draws (0 when
+        the normal summary holds).
     at_bound : tuple of str
         The dampings whose draws reach the edge of the prior range.
     """
@@ -127,6 +131,7 @@ class UnitPosterior:
     evidence_error: float = math.nan
     ess: float = math.inf
     coverage: float = HDI_PROB
+    skewness: float = 0.0
     at_bound: tuple[str, ...] = ()
 
 
@@ -172,8 +177,8 @@ def unit_posterior(
     >>> rng = np.random.default_rng(1)
     >>> draws = np.exp(rng.multivariate_normal([4.7, 3.4], [[0.01, 0.009], [0.009, 0.01]], 4000))
     >>> unit = unit_posterior("v1_01", "floor A", draws, np.array([[10, 1000], [10, 1000]]))
-    >>> np.round(unit.mean, 2).tolist(), round(unit.coverage, 2), unit.at_bound
-    ([4.7, 3.4], 0.94, ())
+    >>> np.round(unit.mean, 2).tolist(), round(unit.coverage, 2), unit.skewness < 0.1, unit.at_bound
+    ([4.7, 3.4], 0.94, True, ())
     """
     log_draws = np.log(np.asarray(draws, float))
     mean = log_draws.mean(axis=0)
@@ -195,6 +200,7 @@ def unit_posterior(
         evidence_error=float(evidence_error),
         ess=float(ess),
         coverage=float(np.mean(distance <= _ELLIPSE)),
+        skewness=float(np.max(np.abs(scipy.stats.skew(log_draws, axis=0)))),
         at_bound=tuple(np.array(DAMPING_NAMES)[near.mean(axis=0) > 0.01].tolist()),
     )
 

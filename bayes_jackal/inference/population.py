@@ -58,6 +58,9 @@ SENSITIVITY_TAU_RANGES = {"wide": (0.001, 10.0), "narrow": (0.01, 0.1)}
 #: normal's 94 % ellipse is off by more than this: 3 sd of that share over
 #: the 400 effective draws a converged chain has at least.
 COVERAGE_TOLERANCE = 0.036
+#: A unit's normal summary is doubted when a log-damping's skewness is above this: 4 sd
+#: of the skewness of 400 effective normal draws, sqrt(6 / 400) = 0.12.
+SKEWNESS_TOLERANCE = 0.5
 #: The population mean is called prior-sensitive when another spread prior
 #: moves it by more than half its posterior sd.
 SENSITIVITY_SHIFT = 0.5
@@ -242,6 +245,7 @@ class Population:
                 "log_evidence": unit.log_evidence,
                 "error": unit.evidence_error,
                 "normal_coverage": unit.coverage,
+                "skewness": unit.skewness,
             }
         return result
 
@@ -533,14 +537,15 @@ def _unit_warnings(unit: UnitPosterior, convergence: list[str]) -> list[dict]:
     warnings = [
         {"kind": "convergence", "unit": unit.name, "message": message} for message in convergence
     ]
-    if abs(unit.coverage - HDI_PROB) > COVERAGE_TOLERANCE:
+    if abs(unit.coverage - HDI_PROB) > COVERAGE_TOLERANCE or unit.skewness > SKEWNESS_TOLERANCE:
         warnings.append(
             {
                 "kind": "normal_summary",
                 "unit": unit.name,
                 "message": (
-                    f"{unit.name}: {unit.coverage:.1%} of its damping draws lie in the 94 % "
-                    "ellipse of their normal summary: the population's combination is approximate"
+                    f"{unit.name}: its damping posterior is not normal on the log scale "
+                    f"({unit.coverage:.1%} of the draws in the 94 % ellipse, skewness "
+                    f"{unit.skewness:.2f}): the population's combination is approximate"
                 ),
             }
         )

@@ -59,7 +59,8 @@ class RunGroups:
         for key in (run, path.name, path.stem):
             if key in self.groups:
                 return key
-        return None
+        # a row naming the run's file (v1_02.bag) for an experiment named by its stem
+        return next((key for key in self.groups if Path(key).stem == path.stem), None)
 
     def label_of(self, run: str) -> str | None:
         """The group of ``run`` (an experiment's name or source), None when not listed."""

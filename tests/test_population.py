@@ -1,0 +1,306 @@
+"""The population of the damping across groups of runs: stage 2's algebra, the groups CSV,
+``bj.population`` and the ``population`` command (issue 27).
+
+Stage 2's closed forms are checked against integrals computed here another
+way: quadrature on a grid for the pooled and independent structures, plain
+Monte Carlo over the hierarchy written out (mu, tau and each a_g drawn from
+their priors) for the hierarchical one. The calibration over simulated
+campaigns is in test_population_calibration.py.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import scipy.special
+import scipy.stats
+
+import bayes_jackal as bj
+from bayes_jackal._runtime.errors import InputError
+from bayes_jackal.inference import Hierarchy, UnitPosterior, unit_files, unit_posterior
+from bayes_jackal.inference.population import SKEWNESS_TOLERANCE
+from bayes_jackal.io import RunGroups, group_runs, read_groups
+
+BOUNDS = np.array([[10.0, 1000.0], [10.0, 1000.0]])  # the Jackal's prior ranges [N s/m]
+LOG_WIDTH = math.log(100.0)  # each range's width on the log scale
+
+
+def _units(covariates=(None, None, None)) -> list[UnitPosterior]:
+    """Three units in two groups with correlated normal summaries, as one run's would be."""
+    rng = np.random.default_rng(3)
+    units = []
+    for i, (group, covariate) in enumerate(zip("AAB", covariates, strict=True)):
+        root = rng.normal(size=(2, 2)) * 0.05
+        cov = root @ root.T + 0.002 * np.eye(2)
+        mean = np.log([110.0, 30.0]) + rng.normal(0, 0.1, 2)
+        units.append(UnitPosterior(f"u{i}", group, (f"u{i}",), mean, cov, covariate=covariate))
+    return units
+
+
+def _log_likelihood(units: list[UnitPosterior], theta: np.ndarray) -> np.ndarray:
+    """sum_u log N(m_u | theta_u, S_u) for theta of shape (N, U, 2)."""
+    return sum(
+        scipy.stats.multivariate_normal(u.mean, u.cov).logpdf(theta[:, i])
+        for i, u in enumerate(units)
+    )
+
+
+def _quadrature(log_values: np.ndarray, cell: float) -> float:
+    return float(scipy.special.logsumexp(log_values) + math.log(cell))
+
+
+def test_pooled_evidence_is_the_integral_over_the_one_damping():
+    """pooled: the integral over mu, uniform on the box, of prod_u N(m_u | mu, S_u), on a
+    0.0025-wide grid that resolves the summaries' sd of 0.04 and more."""
+    units = _units()
+    axis_lat = np.arange(3.8, 5.6, 0.0025)
+    axis_long = np.arange(2.5, 4.3, 0.0025)
+    grid = np.stack(np.meshgrid(axis_lat, axis_long, indexing="ij"), -1).reshape(-1, 2)
+    theta = np.repeat(grid[:, None, :], len(units), axis=1)
+    expected = _quadrature(_log_likelihood(units, theta), 0.0025**2) - 2 * math.log(LOG_WIDTH)
+    assert Hierarchy(units, BOUNDS).log_integral("pooled") == pytest.approx(expected, abs=1e-6)
+
+
+def test_independent_evidence_is_each_groups_integral():
+    """independent: each group's damping uniform on the box; group B's one unit integrates to
+    1 / W^2, group A's two units to the overlap of their normals (closed form)."""
+    units = _units()
+    a0, a1 = units[0], units[1]
+    overlap = scipy.stats.multivariate_normal(a1.mean, a0.cov + a1.cov).logpdf(a0.mean)
+    expected = overlap - 4 * math.log(LOG_WIDTH)
+    value = Hierarchy(units, BOUNDS).log_integral("independent")
+    assert value == pytest.approx(expected, abs=1e-9)
+
+
+def test_slope_evidence_matches_monte_carlo():
+    """pooled + slope: mu uniform on the box, each slope uniform on +-ln 10 per covariate span.
+    Monte Carlo with 400 000 prior draws, importance-sampled near the data; its standard error
+    (from the weights) sets the tolerance, 4 se."""
+    units = _units(covariates=(0.3, 0.5, 0.4))
+    z = (np.array([0.3, 0.5, 0.4]) - 0.4) / 0.2
+    rng = np.random.default_rng(7)
+    n = 400_000
+    # proposal: a wide normal around the least-squares fit, truncated to the priors by weight
+    centre = np.concatenate([np.mean([u.mean for u in units], axis=0), [0.0, 0.0]])
+    proposal = scipy.stats.multivariate_normal(centre, np.diag([0.3, 0.3, 1.0, 1.0]) ** 2)
+    draws = proposal.rvs(n, random_state=rng)
+    inside = np.all(np.abs(draws[:, 2:]) < math.log(10.0), axis=1)
+    theta = draws[:, None, :2] + z[None, :, None] * draws[:, None, 2:]
+    log_prior = -2 * math.log(LOG_WIDTH) - 2 * math.log(2 * math.log(10.0))
+    log_w = np.where(
+        inside, _log_likelihood(units, theta) + log_prior - proposal.logpdf(draws), -np.inf
+    )
+    estimate = scipy.special.logsumexp(log_w) - math.log(n)
+    weights = np.exp(log_w - log_w.max())
+    standard_error = np.std(weights) / np.mean(weights) / math.sqrt(n)
+    value = Hierarchy(units, BOUNDS).log_integral("pooled + slope")
+    assert value == pytest.approx(estimate, abs=4 * standard_error + 1e-3)
+
+
+def test_hierarchical_evidence_matches_the_hierarchy_written_out():
+    """hierarchical: mu uniform, log tau_scale and log tau_ratio uniform on [ln 0.01, 0],
+    each group's (scale, ratio) ~ N(mu, diag(tau^2)): 2 000 000 draws of (mu near the data,
+    tau, a_g) and the units' likelihood of them. Tolerance: 4 Monte Carlo se."""
+    units = _units()
+    rng = np.random.default_rng(11)
+    n = 2_000_000
+    to_scale_ratio = np.array([[0.5, 0.5], [1.0, -1.0]])
+    centre = np.mean([to_scale_ratio @ u.mean for u in units], axis=0)
+    mu = centre + 0.3 * rng.standard_normal((n, 2))
+    log_q = scipy.stats.norm(centre, 0.3).logpdf(mu).sum(axis=1)
+    tau = np.exp(rng.uniform(math.log(0.01), 0.0, (n, 2)))
+    levels = mu[:, None, :] + tau[:, None, :] * rng.standard_normal((n, 2, 2))  # groups A, B
+    theta = levels[:, [0, 0, 1], :] @ np.linalg.inv(to_scale_ratio).T
+    # mu's prior: uniform on the box of (log d_lat, log d_long), area W^2, kept by the map
+    log_w = _log_likelihood(units, theta) - 2 * math.log(LOG_WIDTH) - log_q
+    estimate = scipy.special.logsumexp(log_w) - math.log(n)
+    weights = np.exp(log_w - log_w.max())
+    standard_error = np.std(weights) / np.mean(weights) / math.sqrt(n)
+    value = Hierarchy(units, BOUNDS).log_integral("hierarchical")
+    assert value == pytest.approx(estimate, abs=4 * standard_error + 2e-3)
+
+
+def test_a_vanishing_spread_is_the_pooled_structure():
+    """With tau below 1e-5, far under every summary's sd, the hierarchy is one damping."""
+    units = _units()
+    narrow = Hierarchy(units, BOUNDS, tau_range=(1e-6, 1e-5))
+    assert narrow.log_integral("hierarchical") == pytest.approx(
+        narrow.log_integral("pooled"), abs=1e-3
+    )
+
+
+def test_pooled_draws_follow_the_product_of_the_normals():
+    """pooled: mu's posterior is the product of the units' normals (precision-weighted mean);
+    20 000 draws give its mean to 0.05 sd and its sd to 2 % (about 5 Monte Carlo se)."""
+    units = _units()
+    precision = sum(np.linalg.inv(u.cov) for u in units)
+    cov = np.linalg.inv(precision)
+    mean = cov @ sum(np.linalg.inv(u.cov) @ u.mean for u in units)
+    draws = Hierarchy(units, BOUNDS).draws("pooled", 20_000, rng=1)
+    sd = np.sqrt(np.diag(cov))
+    np.testing.assert_allclose(draws["mu"].mean(axis=0), mean, atol=0.05 * sd.min())
+    np.testing.assert_allclose(draws["mu"].std(axis=0), sd, rtol=0.02)
+    np.testing.assert_allclose(draws["groups"][:, 0], draws["mu"])
+    assert draws["tau"] is None and draws["slope"] is None
+
+
+def test_hierarchical_draws_shrink_groups_toward_each_other():
+    """Group B (one unit) pulled toward group A: its mean lies between its own summary
+    and the pooled damping, and its sd is no larger than its own."""
+    units = _units()
+    model = Hierarchy(units, BOUNDS)
+    group_b = model.draws("hierarchical", 20_000, rng=2)["groups"][:, 1]
+    pooled = model.draws("pooled", 20_000, rng=2)["mu"].mean(axis=0)
+    own = units[2].mean
+    between = (group_b.mean(axis=0) - own) * (pooled - own)
+    assert np.all(between >= 0)
+    assert np.all(group_b.std(axis=0) <= np.sqrt(np.diag(units[2].cov)) * 1.02)
+
+
+def test_unit_posterior_flags_what_a_normal_cannot_summarise():
+    """Skewed draws (log-damping gamma-distributed, shape 2: skewness sqrt 2) are flagged by
+    their skewness (their 94 % ellipse still holds 93.7 % of them); draws piled at the prior's
+    floor are flagged."""
+    rng = np.random.default_rng(4)
+    skewed = np.exp(
+        np.stack([4.0 + rng.gamma(2.0, 0.1, 8000), 3.4 + rng.normal(0, 0.05, 8000)], 1)
+    )
+    unit = unit_posterior("r1", "A", skewed, BOUNDS)
+    # Sample skewness of a gamma varies far more than a normal's sqrt(6 / n): 1.26 here.
+    assert unit.skewness > 2 * SKEWNESS_TOLERANCE
+    floor = np.exp(
+        np.stack([rng.uniform(np.log(10.0), np.log(12.0), 8000), np.full(8000, 3.4)], 1)
+    )
+    assert unit_posterior("r2", "A", floor, BOUNDS).at_bound == ("d_lat",)
+
+
+def test_a_covariate_must_be_given_for_every_unit_and_vary():
+    with pytest.raises(InputError, match="unit 'u2' has none"):
+        Hierarchy(_units(covariates=(0.3, 0.4, None)), BOUNDS)
+    with pytest.raises(InputError, match=r"two finite values at least, got \[0.3\]"):
+        Hierarchy(_units(covariates=(0.3, 0.3, 0.3)), BOUNDS)
+    with pytest.raises(InputError, match="unknown structure 'pooled \\+ slope'"):
+        Hierarchy(_units(), BOUNDS).log_integral("pooled + slope")
+
+
+# -- the groups CSV ---------------------------------------------------------------------
+
+
+def test_read_groups_takes_odd_headers_blank_lines_and_a_byte_order_mark(tmp_path):
+    path = tmp_path / "groups.csv"
+    text = "\ufeff Bag ,Condition, SPEED ,surface\n\nv1_01.bag,tiles,0.3,ceramic\nv1_02.bag,carpet,,wool\n"
+    path.write_text(text, encoding="utf-8")
+    table = read_groups(path)
+    assert table.groups == {"v1_01.bag": "tiles", "v1_02.bag": "carpet"}
+    assert table.covariates == {"v1_01.bag": {"speed": 0.3}, "v1_02.bag": {}}
+    assert table.label_of("/data/lab/v1_02.bag") == "carpet"
+    assert table.label_of("v1_02") == "carpet"
+    assert table.covariate_names == ("speed",)
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "message"),
+    [
+        ("name,speed\nv1,0.3\n", "header", "no column headed 'group'"),
+        ("run,group\nv1,A\nv1,B\n", "row 3", "run 'v1' is listed twice"),
+        ("run,group\nv1,\n", "row 2", "empty 'group'"),
+        ("run,group,speed\nv1,A,0.3\nv2,A,inf\n", "row 3, column 'speed'", "finite number"),
+        ("", None, "the groups CSV is empty"),
+    ],
+)
+def test_read_groups_refuses_bad_tables_naming_file_row_and_column(tmp_path, text, field, message):
+    path = tmp_path / "groups.csv"
+    path.write_text(text)
+    with pytest.raises(InputError, match=message) as caught:
+        read_groups(path)
+    assert caught.value.source == str(path) and caught.value.field == field
+
+
+def test_group_runs_names_a_run_without_a_group():
+    robot = bj.load_profile()
+    runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=s, name=f"r{s}") for s in (1, 2)]
+    with pytest.raises(InputError, match="experiment 'r2' has no group"):
+        group_runs(runs, RunGroups({"r1": "A"}, source="groups.csv"))
+    runs[1].provenance.update(group="B")
+    runs[0].provenance.update(group="A")
+    assert list(group_runs(runs)) == ["A", "B"]
+
+
+# -- bj.population and the command ------------------------------------------------------
+
+#: Four short runs, two per floor, the second floor 30 % stiffer.
+FLOORS = {"r0": "tiles", "r1": "tiles", "r2": "carpet", "r3": "carpet"}
+
+
+@pytest.fixture(scope="module")
+def floor_runs():
+    robot = bj.load_profile()
+    return [
+        bj.simulate_experiment(robot, d, d / 3.7, rng=seed, name=f"r{seed}")
+        for seed, d in enumerate([100.0, 100.0, 130.0, 130.0])
+    ]
+
+
+def _population(runs, folder, **options):
+    return bj.population(
+        runs,
+        family="white",
+        channels=["yaw"],
+        seed=1,
+        max_steps=3000,
+        progress=False,
+        out=folder,
+        **options,
+    )
+
+
+def test_population_json_and_its_units_saved_and_reused(floor_runs, tmp_path):
+    said = []
+    result = _population(floor_runs, tmp_path, groups=FLOORS, say=said.append)
+    summary = json.loads(json.dumps(result.to_dict()))  # JSON-ready
+    assert {"groups", "population", "speed_dependence", "evidence", "best", "warnings"} <= set(
+        summary
+    )
+    assert sorted(summary["groups"]) == ["carpet", "tiles"]
+    assert summary["speed_dependence"] is None
+    assert set(summary["evidence"]) == {"pooled", "hierarchical", "independent"}
+    assert summary["population"]["d_lat"]["mean"]["N s/m"]["mean"] > 0
+    assert {w["kind"] for w in summary["warnings"]} >= {"few_groups"}
+    for path in unit_files(tmp_path, ["tiles", "carpet"], "white").values():
+        assert path.is_file()
+    again = []
+    rerun = _population(floor_runs, tmp_path, groups=FLOORS, say=again.append)
+    assert any("reus" in line for line in again) and not any("log Z" in line for line in again)
+    assert rerun.to_dict()["evidence"] == summary["evidence"]
+
+
+def test_shared_noise_refuses_a_group_of_several_speeds_before_sampling(floor_runs, tmp_path):
+    table = RunGroups(FLOORS, {name: {"speed": 0.2 + 0.1 * i} for i, name in enumerate(FLOORS)})
+    with pytest.raises(InputError, match="group 'tiles' pools runs at speed"):
+        _population(floor_runs, tmp_path, groups=table)
+    assert not (tmp_path / "units").exists()
+
+
+def test_population_command_writes_json_plot_and_refuses_a_bad_table(cli, tmp_path, floor_runs):
+    from bayes_jackal.io.experiment import write_netcdf
+
+    for run in floor_runs:
+        write_netcdf(run, tmp_path / f"{run.name}.nc")
+    (tmp_path / "groups.csv").write_text(
+        "run,group\n" + "".join(f"{run}.nc,{label}\n" for run, label in FLOORS.items())
+    )
+    args = ["population", *[f"{r}.nc" for r in FLOORS], "--groups", "groups.csv"]
+    flags = ["--family", "white", "--channels", "yaw", "--max-steps", "3000", "--seed", "1"]
+    result = cli([*args, "--out", "pop", *flags, "--json", "--no-progress"], tmp_path, timeout=300)
+    assert result.code == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["best"] in summary["evidence"]
+    assert json.loads((tmp_path / "pop" / "population.json").read_text()) == summary
+    assert (tmp_path / "pop" / "population.png").stat().st_size > 0
+    (tmp_path / "bad.csv").write_text("run,group\nr0.nc,tiles\n")
+    bad = cli([*args[:-1], "bad.csv", "--out", "pop2", *flags], tmp_path)
+    assert bad.code == 2
+    assert "experiment 'r1' has no group" in bad.stderr and "Traceback" not in bad.stderr
