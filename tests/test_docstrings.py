@@ -115,6 +115,8 @@ MEMOISED: list[Callable] = [
     inference.compare,
     inference.compare_families,
     inference.compare_groups,
+    inference.population,
+    inference.population_posterior,
     noise.characterise_noise,
     noise.fit_family,
 ]
@@ -158,7 +160,12 @@ def shared_calls() -> Iterator[Call]:
     import numpy as np
 
     import bayes_jackal as bj
-    from bayes_jackal.inference import compare_families, compare_groups, sample_posterior
+    from bayes_jackal.inference import (
+        compare_families,
+        compare_groups,
+        population_posterior,
+        sample_posterior,
+    )
     from bayes_jackal.io import Series
     from bayes_jackal.likelihood import LikelihoodOptions, ResidualLikelihood
     from bayes_jackal.model import get_family
@@ -200,6 +207,21 @@ def shared_calls() -> Iterator[Call]:
     yield call(
         compare_groups, groups, robot, families=["white"],
         settings=bj.SamplerSettings(max_steps=20), seed=1,
+        likelihood_options=LikelihoodOptions(channels=["yaw"]),
+    )  # fmt: skip
+    # population (its example, Population's and the forest plot's): two floors.
+    runs = [
+        bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
+        for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
+    ]
+    floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
+    yield call(
+        bj.population, runs, groups=floors, family="white", channels=["yaw"], seed=1,
+        max_steps=3000, progress=False,
+    )  # fmt: skip
+    yield call(
+        population_posterior, runs, robot, groups=floors, family="white", seed=1,
+        settings=bj.SamplerSettings(max_steps=3000),
         likelihood_options=LikelihoodOptions(channels=["yaw"]),
     )  # fmt: skip
     # characterise_noise (its own example and NoiseCharacterisation's), fit_family.

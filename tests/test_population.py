@@ -191,7 +191,8 @@ def test_a_covariate_must_be_given_for_every_unit_and_vary():
 
 def test_read_groups_takes_odd_headers_blank_lines_and_a_byte_order_mark(tmp_path):
     path = tmp_path / "groups.csv"
-    text = "\ufeff Bag ,Condition, SPEED ,surface\n\nv1_01.bag,tiles,0.3,ceramic\nv1_02.bag,carpet,,wool\n"
+    text = "\ufeff Bag ,Condition, SPEED ,surface\n\nv1_01.bag,tiles,0.3,ceramic\n"
+    text += "v1_02.bag,carpet,,wool\n"
     path.write_text(text, encoding="utf-8")
     table = read_groups(path)
     assert table.groups == {"v1_01.bag": "tiles", "v1_02.bag": "carpet"}

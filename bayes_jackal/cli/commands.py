@@ -551,6 +551,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             likelihood_options=_likelihood_options(args),
             read_options=read_options(args),
             state_estimation=args.state_estimation,
+            groups=args.groups,
             say=out.say,
         )
     return analysis_text(result, out)

@@ -268,6 +268,8 @@ def analysis_text(result: dict, out: Reporter) -> int:
     posterior_table(result["posterior"], out.say)
     out.say(f"Is the noise coloured? {result['comparison']['verdict_text']}")
     state_estimation_text(result["state_estimation"], out.say)
+    if result["population"] is not None:
+        population_text(result["population"], out.say)
     files = result["files"]
     out.say(
         f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "

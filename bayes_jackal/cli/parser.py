@@ -278,6 +278,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=os.cpu_count() or 1,
         help="families sampled at once (default: the number of cores; not with --scheduler)",
     )
+    analysis.add_argument(
+        "--groups",
+        metavar="GROUPS.csv",
+        help="CSV of each run's group (run, group, numeric covariates such as speed): also "
+        "each group's damping, their population and its speed dependence (as `population`)",
+    )
     _add_state_estimation(analysis)
     _add_bag_flags(analysis, max_gap=None)
     _add_input_flags(analysis)

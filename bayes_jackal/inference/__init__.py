@@ -58,6 +58,7 @@ from .population import (
     SENSITIVITY_TAU_RANGES,
     Population,
     population,
+    population_posterior,
     unit_files,
 )
 from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
@@ -116,6 +117,7 @@ __all__ = [
     "moment_matched",
     "nested_sampling",
     "population",
+    "population_posterior",
     "profile_starts",
     "proposal_efficiency",
     "ridge_mixture",

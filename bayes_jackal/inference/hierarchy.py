@@ -119,6 +119,18 @@ class UnitPosterior:
         the normal summary holds).
     at_bound : tuple of str
         The dampings whose draws reach the edge of the prior range.
+
+    Examples
+    --------
+    A run's summary as :func:`unit_posterior` makes it from its draws, here
+    written by hand (log-dampings of a posterior correlated at 0.9):
+
+    >>> import numpy as np
+    >>> from bayes_jackal.inference import UnitPosterior
+    >>> cov = 0.05**2 * np.array([[1.0, 0.9], [0.9, 1.0]])
+    >>> unit = UnitPosterior("v1_01", "tiles", ("v1_01",), np.log([110.0, 30.0]), cov)
+    >>> np.exp(unit.mean).round(1).tolist(), unit.covariate
+    ([110.0, 30.0], None)
     """
 
     name: str
@@ -177,8 +189,10 @@ def unit_posterior(
     >>> rng = np.random.default_rng(1)
     >>> draws = np.exp(rng.multivariate_normal([4.7, 3.4], [[0.01, 0.009], [0.009, 0.01]], 4000))
     >>> unit = unit_posterior("v1_01", "floor A", draws, np.array([[10, 1000], [10, 1000]]))
-    >>> np.round(unit.mean, 2).tolist(), round(unit.coverage, 2), unit.skewness < 0.1, unit.at_bound
-    ([4.7, 3.4], 0.94, True, ())
+    >>> np.round(unit.mean, 2).tolist(), round(unit.coverage, 2), unit.at_bound
+    ([4.7, 3.4], 0.94, ())
+    >>> bool(unit.skewness < 0.1)
+    True
     """
     log_draws = np.log(np.asarray(draws, float))
     mean = log_draws.mean(axis=0)
@@ -289,7 +303,8 @@ class Hierarchy:
         low, high = values.min(), values.max()
         if not np.all(np.isfinite(values)) or high == low:
             raise InputError(
-                f"the covariate must take two finite values at least, got {sorted(set(values.tolist()))}",
+                "the covariate must take two finite values at least, got "
+                f"{sorted(set(values.tolist()))}",
                 field="covariate",
             )
         self.covariate_span = float(high - low)

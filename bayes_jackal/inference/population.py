@@ -44,7 +44,14 @@ from .hierarchy import (
     unit_posterior,
 )
 
-__all__ = ["POPULATION_DRAWS", "SENSITIVITY_TAU_RANGES", "Population", "population", "unit_files"]
+__all__ = [
+    "POPULATION_DRAWS",
+    "SENSITIVITY_TAU_RANGES",
+    "Population",
+    "population",
+    "population_posterior",
+    "unit_files",
+]
 
 #: The population's two spreads (:data:`~bayes_jackal.inference.TO_SCALE_RATIO`).
 SPREADS = ("scale", "ratio")
@@ -108,6 +115,30 @@ class Population:
         (:data:`SENSITIVITY_TAU_RANGES`).
     warnings : list of dict
         ``kind``, ``message`` and, where one is concerned, ``unit``.
+
+    Examples
+    --------
+    Two floors of two runs each, whose d_long differ by a third; chains of
+    white noise on the yaw rate, which pins the ratio d_lat / d_long:
+
+    >>> import bayes_jackal as bj
+    >>> robot = bj.load_profile()
+    >>> runs = [
+    ...     bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
+    ...     for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
+    ... ]
+    >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
+    >>> result = bj.population(
+    ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
+    ...     max_steps=3000, progress=False,
+    ... )
+    >>> result.best, result.model, list(result.hierarchy.groups)
+    ('hierarchical', 'hierarchical', ['tiles', 'carpet'])
+    >>> value, error = result.log_bayes_factor("hierarchical", "pooled")
+    >>> value > 3
+    True
+    >>> sorted(result.population_summary()["d_lat"])
+    ['mean', 'new_group', 'sd']
     """
 
     family: str
@@ -402,14 +433,14 @@ def population(
 
     Examples
     --------
-    Two floors of two runs each, whose dampings differ by 30 %; chains of
-    white noise on the yaw rate, short for the example:
+    Two floors of two runs each, whose d_long differ by a third; chains of
+    white noise on the yaw rate, which pins the ratio d_lat / d_long:
 
     >>> import bayes_jackal as bj
     >>> robot = bj.load_profile()
     >>> runs = [
-    ...     bj.simulate_experiment(robot, d, d / 3.7, rng=seed, name=f"run{seed}")
-    ...     for seed, d in enumerate([100.0, 100.0, 130.0, 130.0])
+    ...     bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
+    ...     for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
     ... ]
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     >>> result = bj.population(
@@ -417,16 +448,89 @@ def population(
     ...     max_steps=3000, progress=False,
     ... )
     >>> result.best, sorted(result.to_dict()["groups"])
-    ('independent', ['carpet', 'tiles'])
+    ('hierarchical', ['carpet', 'tiles'])
     """
-    experiments = as_experiments(experiments)
-    robot = as_profile(robot)
+    return population_posterior(
+        as_experiments(experiments),
+        as_profile(robot),
+        groups=groups,
+        covariate=covariate,
+        family=family,
+        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
+        seed=seed,
+        prior_overrides=dict(priors) if priors else None,
+        likelihood_options=LikelihoodOptions(
+            channels=channels, noise=noise, sensor=sensor, engine=engine
+        ),
+        executor=executor,
+        out=out,
+        tau_range=tau_range,
+        say=say,
+    )
+
+
+def population_posterior(
+    experiments: Sequence[Experiment],
+    robot: RobotProfile,
+    *,
+    groups: RunGroups | Mapping[str, str] | str | Path | None = None,
+    covariate: str | None = None,
+    family: str = FAMILY,
+    settings: SamplerSettings | None = None,
+    seed: int | None = None,
+    prior_overrides: Mapping[str, tuple[float, float]] | None = None,
+    likelihood_options: LikelihoodOptions | None = None,
+    executor: Executor | None = None,
+    out: str | Path | None = None,
+    tau_range: tuple[float, float] = TAU_RANGE,
+    say: Callable[[str], None] = lambda text: None,
+) -> Population:
+    """:func:`population` with its options as objects, as ``analyse --groups`` runs it.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+    robot : RobotProfile
+    settings : SamplerSettings, optional
+        Every unit's chain's.
+    prior_overrides : mapping, optional
+        As in :func:`bayes_jackal.inference.sample_posterior`.
+    likelihood_options : LikelihoodOptions, optional
+        Every unit's likelihood's; ``noise`` decides the units.
+    groups, covariate, family, seed, executor, out, tau_range, say
+        As in :func:`population`.
+
+    Returns
+    -------
+    Population
+
+    Examples
+    --------
+    The call :func:`population`'s example makes:
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import population_posterior
+    >>> from bayes_jackal.likelihood import LikelihoodOptions
+    >>> robot = bj.load_profile()
+    >>> runs = [
+    ...     bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
+    ...     for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
+    ... ]
+    >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
+    >>> result = population_posterior(
+    ...     runs, robot, groups=floors, family="white", seed=1,
+    ...     settings=bj.SamplerSettings(max_steps=3000),
+    ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
+    ... )
+    >>> result.best
+    'hierarchical'
+    """
+    options = LikelihoodOptions.of(likelihood_options)
     table = read_groups(groups) if isinstance(groups, (str, Path)) else groups
     table = RunGroups(dict(table)) if isinstance(table, Mapping) else table
     grouped = group_runs(experiments, table)
     name = _covariate_name(experiments, table, covariate)
-    options = LikelihoodOptions(channels=channels, noise=noise, sensor=sensor, engine=engine)
-    units = _units(grouped, table, name, per_run=noise == "per-experiment")
+    units = _units(grouped, table, name, per_run=options.noise == "per-experiment")
     notes = []
     if name is not None and len({value for _, _, value in units.values()}) < 2:
         notes.append(
@@ -450,9 +554,9 @@ def population(
             {key: members for key, (_, members, _) in units.items()},
             robot,
             families=[family],
-            settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
+            settings=settings,
             seed=seed,
-            prior_overrides=dict(priors) if priors else None,
+            prior_overrides=dict(prior_overrides) if prior_overrides else None,
             likelihood_options=options,
             executor=executor,
             reuse={key: {family: path} for key, path in files.items()},

@@ -60,14 +60,22 @@ def plot_population(summary: Mapping, *, axes=None) -> tuple[Figure, np.ndarray]
 
     Examples
     --------
+    Two floors of two runs each, chains short for the example:
+
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.report import plot_population
-    >>> summary = bj.population(
+    >>> robot = bj.load_profile()
+    >>> runs = [
+    ...     bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
+    ...     for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
+    ... ]
+    >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
+    >>> result = bj.population(
     ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
     ...     max_steps=3000, progress=False,
-    ... ).to_dict()  # doctest: +SKIP
-    >>> fig, axes = plot_population(summary)  # doctest: +SKIP
-    >>> [ax.get_xlabel() for ax in axes]  # doctest: +SKIP
+    ... )
+    >>> from bayes_jackal.report import plot_population
+    >>> fig, axes = plot_population(result.to_dict())
+    >>> [ax.get_xlabel() for ax in axes]
     ['d_lat [N s/m]', 'd_long [N s/m]']
     """
     missing = [key for key in ("groups", "units", "population") if key not in summary]
@@ -127,11 +135,26 @@ def save_population_plot(summary: Mapping, path: str | Path, dpi: int = 120) -> 
 
     Examples
     --------
+    The forest plot of two floors of two runs each, as SVG:
+
+    >>> import bayes_jackal as bj
+    >>> robot = bj.load_profile()
+    >>> runs = [
+    ...     bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
+    ...     for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
+    ... ]
+    >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
+    >>> result = bj.population(
+    ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
+    ...     max_steps=3000, progress=False,
+    ... )
     >>> import tempfile
     >>> from pathlib import Path
     >>> from bayes_jackal.report import save_population_plot
-    >>> with tempfile.TemporaryDirectory() as folder:  # doctest: +SKIP
-    ...     path = save_population_plot(summary, Path(folder) / "population.svg")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = save_population_plot(result.to_dict(), Path(folder) / "population.svg")
+    ...     print(path.name, path.read_text().startswith("<?xml"))
+    population.svg True
     """
     fig, _ = plot_population(summary)
     return save_figure(fig, path, dpi)

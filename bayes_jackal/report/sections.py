@@ -11,6 +11,8 @@ and sigma_h beside thesis table 7-1). :func:`evidence_section` tables the
 evidence of posteriors that carry one (``bayes-jackal compare --out``), one
 table per data set. :func:`bayes_jackal.report.render_report` assembles
 them into the page; these are its parts, not an API of their own.
+:func:`population_section` is the section on a campaign's groups of runs
+(:func:`bayes_jackal.population`), which ``analyse --groups`` adds.
 :func:`state_estimation_section` is the analysis' section on the filters
 its prior drives, on runs left out of the prior
 (:mod:`bayes_jackal.filters.left_out`), with how each posterior without a run
@@ -36,7 +38,7 @@ from ..posterior.criticism import KIND_MEANINGS
 from ..posterior.posterior import Posterior
 from ..posterior.reweighting import PARETO_K_THRESHOLD
 from ..posterior.summary import summarize
-from . import estimate_plots, plots, predictive_plots
+from . import estimate_plots, plots, population_plots, predictive_plots
 from .figures import ReportFigures
 
 # The page's parts are for :mod:`bayes_jackal.report.page` only; its table serves every report.
@@ -649,3 +651,42 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
         )
     parts.append("</section>")
     return "".join(parts)
+
+
+def population_highlight(summary: dict) -> str:
+    """The summary's line on the groups: the best structure's verdict, and the speed's."""
+    speed = summary["speed_dependence"]
+    return (
+        f"<b>Groups of runs</b>: {html.escape(summary['verdict'])}"
+        + ("" if speed is None else f"; {html.escape(speed['verdict'])}")
+        + " (section <i>Groups of runs</i> below)."
+    )
+
+
+def population_section(summary: dict, figures: ReportFigures) -> str:
+    """The section "Groups of runs": each structure's evidence and the forest plot.
+
+    ``summary`` is :meth:`bayes_jackal.Population.to_dict`'s.
+    """
+    evidence = [
+        [name, row["log_evidence"], row["log_evidence_err"], row["log_bayes_factor_vs_best"]]
+        for name, row in summary["evidence"].items()
+    ]
+    warnings = "".join(f"<li>{html.escape(w['message'])}</li>" for w in summary["warnings"])
+    return (
+        "<section><h2>Groups of runs</h2><p>Each group's damping, and how the groups relate: "
+        "one damping for all (<b>pooled</b>), each group's own drawn from one population "
+        "(<b>hierarchical</b>), or each its own (<b>independent</b>); with a covariate, each "
+        "also with log d linear in it (<b>+ slope</b>). Each unit (a group's runs, or a run) "
+        "was sampled alone with the best family, then combined (docs/guide/population.md); "
+        f"the result is in <code>population.json</code>. "
+        f"<b>Verdict</b>: {html.escape(summary['verdict'])}.</p>"
+        + html_table(["structure", "log Z", "+-", "ln B vs best"], evidence)
+        + (f'<ul class="warnings">{warnings}</ul>' if warnings else "")
+        + figures.html(
+            "population",
+            "each unit's and group's damping (94 % HDI) with the population's band",
+            lambda: population_plots.plot_population(summary),
+        )
+        + "</section>"
+    )

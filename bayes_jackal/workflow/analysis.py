@@ -27,8 +27,12 @@ folder:
   cost). The posterior without each run is the best family's pooled
   posterior reweighted by PSIS, or, where its Pareto k-hat is above 0.7,
   a new posterior on the other runs; ``state_estimation=False`` skips it;
+- with ``groups``: ``population/units/``, ``population.json`` and
+  ``population.png``, each group's damping and their population with the
+  best family (:func:`bayes_jackal.population`);
 - ``report.html``: the report of every family's posterior, best first,
-  with the section "State estimation with this prior".
+  with the sections "Groups of runs" (with ``groups``) and "State
+  estimation with this prior".
 
 The demo (:mod:`bayes_jackal.workflow.demo`) is this function on the shipped bags.
 Not to be confused with :func:`bayes_jackal.thesis.analyse`, the thesis'
@@ -51,8 +55,10 @@ from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
 from ..inference.chains import SamplerSettings
 from ..inference.comparison import compare_families
 from ..inference.executors import Executor, ProcessExecutor
+from ..inference.population import population_posterior
 from ..inference.sampler_warnings import keep_warnings
 from ..io.experiment import Experiment
+from ..io.groups import RunGroups
 from ..io.logs import ReadOptions, ingest_logs
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.robot import RobotProfile, load_profile
@@ -61,7 +67,13 @@ from ..posterior.posterior import save_posterior
 from ..posterior.summary import summarize
 from ..report.grid_plots import save_grid_plot
 from ..report.page import write_report
-from ..report.sections import state_estimation_highlight, state_estimation_section
+from ..report.population_plots import save_population_plot
+from ..report.sections import (
+    population_highlight,
+    population_section,
+    state_estimation_highlight,
+    state_estimation_section,
+)
 from ..thesis.gridsearch import damping_grid, grid_search
 
 __all__ = ["analyse_logs"]
@@ -107,6 +119,7 @@ def analyse_logs(
     read_options: ReadOptions | None = None,
     labels: Mapping[str, Mapping] | None = None,
     state_estimation: bool = STATE_ESTIMATION,
+    groups: RunGroups | Mapping[str, str] | str | Path | None = None,
     say: Callable[[str], None] = lambda text: None,
 ) -> dict:
     """Ingest logs, run the grids, compare the noise families, export the prior, report.
@@ -148,6 +161,11 @@ def analyse_logs(
         posterior reweighted by PSIS, or refit with this analysis' sampler
         settings, seed, priors, likelihood options and executor where the
         reweighting's Pareto k-hat is above 0.7. False skips it.
+    groups : RunGroups, mapping, str or Path, optional
+        Each run's group (a groups CSV, as in :func:`bayes_jackal.population`):
+        each group's damping and their population with the best family,
+        saved as ``population.json``, ``population.png`` and
+        ``population/units/``, and a section of the report.
     say : callable
         Receives the progress and summary lines.
 
@@ -295,13 +313,27 @@ def analyse_logs(
                                  say=say)  # fmt: skip
     else:
         left_out = LeaveOneOut(best, skipped="turned off (--no-state-estimation)")
+    sections = [functools.partial(state_estimation_section, left_out)]
+    highlights = [state_estimation_highlight(left_out)]
+    campaign = None
+    if groups is not None:
+        say(f"each group's damping and their population ({best} noise):")
+        campaign = population_posterior(
+            experiments, robot, groups=groups, family=best, settings=settings, seed=seed,
+            prior_overrides=prior_overrides, likelihood_options=options, executor=executor,
+            out=folder / "population", say=say,
+        ).to_dict()  # fmt: skip
+        write_json(folder / "population.json", campaign)
+        save_population_plot(campaign, folder / "population.png")
+        sections.insert(0, functools.partial(population_section, campaign))
+        highlights.insert(0, population_highlight(campaign))
     say("writing the report (figures as PNG and SVG)...")
     ranked = [best, *(family for family in families if family != best)]
     report = write_report(
         [paths_by_family[family] for family in ranked],
         folder / "report.html",
-        sections=[functools.partial(state_estimation_section, left_out)],
-        highlights=[line for line in [state_estimation_highlight(left_out)] if line],
+        sections=sections,
+        highlights=[line for line in highlights if line],
         say=say,
     )
     convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
@@ -330,11 +362,13 @@ def analyse_logs(
         "posterior": summary,
         "warnings": convergence + result["warnings"] + convergence_left_out,
         "state_estimation": left_out.to_dict(),
+        "population": campaign,
         "files": {
             "report": str(report),
             "prior": str(prior),
             "posterior": str(folder / "posterior.nc"),
             "state_estimation": str(folder / SUMMARY) if left_out.skipped is None else None,
+            "population": None if campaign is None else str(folder / "population.json"),
             "folder": str(folder),
         },
     }
