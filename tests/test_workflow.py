@@ -298,9 +298,13 @@ def test_analyse_two_bags_and_a_corrupt_one(short_runs, tmp_path, capsys):
     model = ["--prior", "sigma_c", "1e-5", "0.5", "--sensor-noise", "diagonal"]
     # Without the leave-one-out (two more posteriors, ~30 s of CI's budget):
     # tests/test_leave_one_out.py runs it through analyse.
-    code = main(["analyse", *inputs, "--out", str(out), *quick, *model, "--no-state-estimation"])
+    # Each bag its own floor (named by its file): the population section too.
+    groups = tmp_path / "groups.csv"
+    groups.write_text("bag,group\nrun0.bag,tiles\nrun1.bag,carpet\ncorrupt.bag,tiles\n")
+    flags = ["--no-state-estimation", "--groups", str(groups)]
+    code = main(["analyse", *inputs, "--out", str(out), *quick, *model, *flags])
     captured = capsys.readouterr()
-    assert code == 2 and "Traceback" not in captured.err
+    assert code == 2 and "Traceback" not in captured.err, captured.err
     assert "WARNING: white: NOT CONVERGED" in captured.err
     assert re.search(rf"bayes-jackal: error: {re.escape(str(corrupt))}: cannot read", captured.err)
     assert f"skipped {corrupt}: cannot read" in captured.err
@@ -331,6 +335,14 @@ def test_analyse_two_bags_and_a_corrupt_one(short_runs, tmp_path, capsys):
     report = (out / "report.html").read_text()
     assert "<h2>Evidence</h2>" in report and report.count("data:image/png;base64,") >= 10
     assert "NOT CONVERGED" in report
+    population = json.loads((out / "population.json").read_text())
+    assert population == result["population"] and sorted(population["groups"]) == [
+        "carpet",
+        "tiles",
+    ]
+    assert population["units"]["tiles"]["runs"] == ["run0"]
+    assert "<h2>Groups of runs</h2>" in report and "Groups of runs</b>:" in report
+    assert (out / "population.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 # --------------------------------------------------------------------------- the demo

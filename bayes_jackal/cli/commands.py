@@ -438,8 +438,7 @@ def cmd_population(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     folder = Path(args.out)
     experiments = load_logs(args)
-    with _executor(args, args.processes) as executor, warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)  # kept in the result's warnings
+    with _executor(args, args.processes) as executor:
         result = population(
             experiments,
             groups=args.groups,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,7 @@ from .hierarchy import (
     UnitPosterior,
     unit_posterior,
 )
+from .sampler_warnings import ConvergenceWarning
 
 __all__ = [
     "POPULATION_DRAWS",
@@ -549,8 +551,10 @@ def population_posterior(
             files[key].parent.mkdir(parents=True, exist_ok=True)
             save_posterior(idata, files[key])
 
-    comparisons = dict(
-        compare_groups(
+    with warnings.catch_warnings():
+        # A chain that hit its cap is in the result's warnings (kind "convergence").
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        units_sampled = compare_groups(
             {key: members for key, (_, members, _) in units.items()},
             robot,
             families=[family],
@@ -563,7 +567,7 @@ def population_posterior(
             on_family=finished,
             say=say,
         )
-    )
+        comparisons = dict(units_sampled)  # the jobs run as this consumes them
     return combine_units(
         {key: comparisons[key] for key in units},
         {key: (label, value) for key, (label, _, value) in units.items()},
