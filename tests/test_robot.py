@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 
 from bayes_jackal._runtime.errors import InputError, ProfileError
+from bayes_jackal.io import PLAUSIBLE_RATES
+from bayes_jackal.model import robot
 from bayes_jackal.model.robot import RobotProfile, default_profile_path, load_profile
 
 #: A valid profile as TOML sections of raw TOML values.
@@ -268,3 +270,77 @@ def test_wrong_type_in_a_profile_is_a_profile_error(tmp_path, changes, field, va
     path = write_profile(tmp_path, changes)
     with pytest.raises(ProfileError, match=error_pattern(path, field, value)):
         load_profile(path)
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "value"),
+    [
+        # The Jackal's a = 0.131 m: wheels of that radius touch their neighbours.
+        ({"body.wheel_radius": "0.131"}, "body.wheel_radius", "0.131 m is not smaller than"),
+        # A longer wheelbase passes a, and then the half track b = 0.2078 m refuses.
+        (
+            {"body.wheel_radius": "0.25", "body.half_wheelbase": "0.3"},
+            "body.wheel_radius",
+            "0.25 m is not smaller than the half track b = 0.2078 m",
+        ),
+        # I in kg cm^2 (x 1e4): sqrt(I/m) = 18 m on a 0.25 m footprint.
+        ({"body.yaw_inertia": "5485.0"}, "body.yaw_inertia", "5485 kg m^2 at 16.523 kg"),
+        # m in grams: sqrt(I/m) = 6 mm, 2 % of the footprint's half-diagonal.
+        ({"body.mass": "16523.0"}, "body.yaw_inertia", "0.5485 kg m^2 at 16523 kg"),
+        # Twice the track 2b = 0.4156 m and more, and half the track and less.
+        ({"diff_drive.wheel_separation": "0.9"}, "diff_drive.wheel_separation", "0.9 m: 2.17 x"),
+        (
+            {"diff_drive.wheel_separation": "0.18779"},
+            "diff_drive.wheel_separation",
+            "0.18779 m: 0.452 x",
+        ),
+        (
+            {"diff_drive.wheel_separation_multiplier": "0.5"},
+            "diff_drive.wheel_separation_multiplier",
+            "0.5, outside [1, 10]",
+        ),
+        (
+            {"diff_drive.wheel_separation_multiplier": "12.0"},
+            "diff_drive.wheel_separation_multiplier",
+            "12, outside [1, 10]",
+        ),
+        # A rate in mHz or as a period, and one in kHz.
+        ({"sampling.rate": "0.072"}, "sampling.rate", "0.072 Hz, outside [1, 10000]"),
+        ({"sampling.rate": "72000.0"}, "sampling.rate", "72000 Hz, outside [1, 10000]"),
+    ],
+)
+def test_impossible_constants_name_file_field_and_value(tmp_path, changes, field, value):
+    path = write_profile(tmp_path, changes)
+    with pytest.raises(ProfileError, match=error_pattern(path, field, value)) as info:
+        load_profile(path)
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        # The bounds are inclusive: k = 1 (ROS' default), k = 10, 1 Hz, 10 kHz.
+        {"diff_drive.wheel_separation_multiplier": "1.0"},
+        {"diff_drive.wheel_separation_multiplier": "10.0"},
+        {"sampling.rate": "1.0"},
+        {"sampling.rate": "10000.0"},
+        # s = 2b exactly (the wheels' outer edges) and 2 x 2b.
+        {"diff_drive.wheel_separation": "0.4156"},
+        {"diff_drive.wheel_separation": "0.8312"},
+    ],
+)
+def test_constants_at_the_bounds_are_possible(tmp_path, changes):
+    load_profile(write_profile(tmp_path, changes))
+
+
+def test_replace_refuses_impossible_constants():
+    profile = load_profile()
+    with pytest.raises(ProfileError, match=r"body\.wheel_radius: 0\.2 m is not smaller"):
+        profile.replace(wheel_radius=0.2)
+    with pytest.raises(ProfileError, match=r"sampling\.rate: 1e\+06 Hz, outside"):
+        profile.replace(rate=1e6)
+
+
+def test_profile_rates_are_those_of_sensor_logs():
+    # The model cannot import the io layer's bound; the two must not drift apart.
+    assert robot._RATES == PLAUSIBLE_RATES
