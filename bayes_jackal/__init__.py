@@ -54,6 +54,7 @@ _LAZY = {
     "Posterior": ".posterior",
     "load_posterior": ".posterior",
     "load_profile": ".model",
+    "packaged_profiles": ".model",
     "save_posterior": ".posterior",
     "simulate_experiment": ".io",
     "summarize": ".posterior",

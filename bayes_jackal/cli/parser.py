@@ -100,7 +100,7 @@ _EXP_HELP = "experiment files (.csv, .mat, .nc) and bags (.bag, .mcap, .db3, bag
 
 def _add_common(parser: argparse.ArgumentParser, json_flag: bool = True) -> None:
     parser.add_argument(
-        "--robot", metavar="PROFILE", help="robot profile TOML (default: models/jackal.toml)"
+        "--robot", metavar="PROFILE", help="profile: jackal (default), husky, warthog or TOML file"
     )
     if json_flag:
         parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")

@@ -39,7 +39,16 @@ from .physics import (
     step_integrals,
     wheel_speeds,
 )
-from .robot import DEFAULT_PRIORS, RobotProfile, as_profile, default_profile_path, load_profile
+from .robot import (
+    DEFAULT_PRIORS,
+    PRIOR_REFERENCE_MASS,
+    RobotProfile,
+    as_profile,
+    default_profile_path,
+    load_profile,
+    mass_scaled_priors,
+    packaged_profiles,
+)
 
 __all__ = [
     "DAMPING",
@@ -47,6 +56,7 @@ __all__ = [
     "FAMILIES",
     "POSE_SENSOR",
     "PRIOR_KEYS",
+    "PRIOR_REFERENCE_MASS",
     "SHARED_GROUP",
     "WIDTH_ALIAS",
     "WIDTH_PRIOR",
@@ -69,8 +79,10 @@ __all__ = [
     "gaussian_kernel",
     "get_family",
     "load_profile",
+    "mass_scaled_priors",
     "one_step_prediction",
     "one_step_residuals",
+    "packaged_profiles",
     "prior_overrides",
     "prior_range",
     "propagate",

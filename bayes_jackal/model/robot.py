@@ -2,20 +2,24 @@
 
 A profile holds the body constants of the thesis' model (ch. 4), the
 diff-drive settings that turn a velocity command into wheel speeds, the
-sampling rate, prior ranges and the ROS topic names. ``models/jackal.toml``
-is the default; any path can be passed instead.
+sampling rate, prior ranges and the ROS topic names. The package ships
+profiles of Clearpath's Jackal (the default, ``models/jackal.toml``), Husky
+and Warthog (:func:`packaged_profiles`), each loaded by its name; any path
+can be passed instead. A profile that gives no damping priors gets the
+Jackal's scaled to its mass (:func:`mass_scaled_priors`).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
 from .._runtime.defaults import CONVERSIONS
-from .._runtime.errors import ProfileError
+from .._runtime.errors import InputError, ProfileError
 from .._runtime.files import require_file
 
 if sys.version_info >= (3, 11):
@@ -23,7 +27,16 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["DEFAULT_PRIORS", "RobotProfile", "as_profile", "default_profile_path", "load_profile"]
+__all__ = [
+    "DEFAULT_PRIORS",
+    "PRIOR_REFERENCE_MASS",
+    "RobotProfile",
+    "as_profile",
+    "default_profile_path",
+    "load_profile",
+    "mass_scaled_priors",
+    "packaged_profiles",
+]
 
 
 _BODY_KEYS = ("mass", "yaw_inertia", "half_wheelbase", "half_track", "wheel_radius")
@@ -38,7 +51,9 @@ _WHEEL_SIDES = ("right", "left")
 #: position noise per recorded pose [m], spans 1 um to 1 cm: its log-centre,
 #: 0.1 mm, is the specification of lab systems (OptiTrack, Vicon: 0.1-0.5 mm),
 #: and its floor keeps the pose channels' covariance away from singular as
-#: sigma_n's does (docs/design.md §2.2).
+#: sigma_n's does (docs/design.md §2.2). The damping ranges are the Jackal's,
+#: a robot of :data:`PRIOR_REFERENCE_MASS`; :func:`mass_scaled_priors` gives
+#: another robot's.
 DEFAULT_PRIORS = {
     "d_lat": (10.0, 1000.0),
     "d_long": (10.0, 1000.0),
@@ -47,6 +62,9 @@ DEFAULT_PRIORS = {
     "sigma_n": (1e-4, 1.0),
     "sigma_p": (1e-6, 1e-2),
 }
+#: The body mass [kg] the damping ranges of :data:`DEFAULT_PRIORS` are set
+#: for: the Jackal's (models/jackal.toml, as the thesis' eq. 6-7 uses it).
+PRIOR_REFERENCE_MASS = 16.523
 _DEFAULT_TOPICS = {
     "imu": "/imu/data",
     "joint_states": "/joint_states",
@@ -64,6 +82,39 @@ _TABLE_KEYS = {
     "topics": tuple(_DEFAULT_TOPICS),
     "wheels": _WHEEL_SIDES,
 }
+#: The packaged profile read when none is named.
+_DEFAULT_PROFILE = "jackal"
+#: Where each constant lives in a profile file, as errors name it.
+_FIELDS = {key: f"body.{key}" for key in _BODY_KEYS}
+_FIELDS |= {key: f"diff_drive.{key}" for key in _DIFF_DRIVE_KEYS} | {"rate": "sampling.rate"}
+
+# The bounds of the impossibility check (_check_constants; docs/guide/robots.md).
+#: Radius of gyration sqrt(I/m) over the footprint's half-diagonal sqrt(a^2 + b^2).
+#: Above: mass placed at the corners of a rectangle of half-sides (A, B) gives
+#: the largest sqrt(I/m) of any body in it, sqrt(A^2 + B^2), and a skid-steer's
+#: body overhangs its wheels by less than they are apart (the Husky: 0.99 m
+#: long on a 0.512 m wheelbase, A = 1.93 a), so A < 2a, B < 2b. Below: the
+#: four wheels alone, at the corners (at least b/2 out, as a wheel is narrower
+#: than the track), give more than 0.05 sqrt(a^2 + b^2) as soon as each weighs
+#: 1/400 of the body (the Jackal's 1/35, the Husky's 1/17, the Warthog's 1/13;
+#: I counts the wheels, eq. 3-1). The three packaged robots lie at 0.65-0.82.
+_GYRATION_RATIO = (0.05, 2.0)
+#: wheel_separation over the track 2b. s is the distance of the wheels' centre
+#: planes, 2b adds a wheel's width (a wheel is narrower than the track, so
+#: s <= 2b < 2s); a controller's effective track may exceed the geometric one
+#: (the Warthog's ROS 2 control.yaml: 1.5 m on a 1.136 m track). The packaged
+#: profiles lie at 0.78-0.90.
+_SEPARATION_RATIO = (0.5, 2.0)
+#: wheel_separation_multiplier k: a skid-steer's wheels scrub sideways in a
+#: turn, which only slows it, so its effective track s k is no narrower than
+#: the wheels are apart (k >= 1, ROS' default); k = 10 would turn it at a
+#: tenth of the rate its wheels command. Clearpath's values: 1.0 (Warthog,
+#: ROS 1), 1.5 (Jackal), 1.875 (Husky).
+_MULTIPLIER = (1.0, 10.0)
+#: Sample rates [Hz] of a profile's IMU: those of sensor logs,
+#: :data:`bayes_jackal.io.PLAUSIBLE_RATES` (a layer above the model, so its
+#: value is repeated here; a test keeps the two equal). Outside is a unit slip.
+_RATES = (1.0, 10_000.0)
 
 
 @dataclass(frozen=True)
@@ -96,7 +147,8 @@ class RobotProfile:
         Prior ranges, each log-uniform: ``d_lat``, ``d_long`` [N s/m],
         ``sigma_h`` [s] (the width of every noise family), ``sigma_c`` and
         ``sigma_n`` [channel units] and ``sigma_p`` [m] (the pose noise of
-        vx, vy recorded as poses).
+        vx, vy recorded as poses). Omitted (or empty): the defaults for the
+        robot's mass, :func:`mass_scaled_priors`.
     topics : dict of str to str
         ROS topic names (``imu``, ``joint_states``, ``cmd_vel``, ``pose``).
     wheels : dict of str to list of str
@@ -107,7 +159,7 @@ class RobotProfile:
     Examples
     --------
     The packaged Jackal, and a copy with one constant changed, validated as a
-    file would be:
+    file would be (its priors are kept as they are):
 
     >>> from bayes_jackal.model import load_profile
     >>> robot = load_profile()
@@ -122,6 +174,14 @@ class RobotProfile:
     ... except ValueError as error:
     ...     print(type(error).__name__)
     ProfileError
+
+    A profile built in code without priors gets those of its mass: the
+    Jackal's damping range, twice as wide for a robot twice as heavy.
+
+    >>> from bayes_jackal.model import RobotProfile
+    >>> twice = RobotProfile("twice", 2 * 16.523, 1.097, 0.131, 0.2078, 0.098, 0.37559, 1.5)
+    >>> twice.priors["d_lat"], twice.priors["sigma_h"]
+    ((20.0, 2000.0), (0.001, 1.0))
     """
 
     name: str
@@ -134,10 +194,14 @@ class RobotProfile:
     wheel_separation_multiplier: float
     conversion: str = "ros"
     rate: float = 72.0
-    priors: dict[str, tuple[float, float]] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
+    priors: dict[str, tuple[float, float]] = field(default_factory=dict)
     topics: dict[str, str] = field(default_factory=lambda: dict(_DEFAULT_TOPICS))
     wheels: dict[str, list[str]] = field(default_factory=dict)
     source: str = "<memory>"
+
+    def __post_init__(self) -> None:
+        if not self.priors:
+            object.__setattr__(self, "priors", mass_scaled_priors(self.mass))
 
     @property
     def dt(self) -> float:
@@ -152,6 +216,81 @@ class RobotProfile:
         return profile
 
 
+def mass_scaled_priors(mass: float) -> dict[str, tuple[float, float]]:
+    """The default prior ranges of a robot of this mass.
+
+    :data:`DEFAULT_PRIORS` with the damping ranges (``d_lat``, ``d_long``)
+    times mass / :data:`PRIOR_REFERENCE_MASS`: the same range of time
+    constants m / d as the Jackal's [10, 1000] N s/m (the model's poles are
+    -4 d / m, thesis eq. 4-29/30). The noise ranges are in the channels'
+    units and do not scale. A profile without ``[priors] d_lat`` or
+    ``d_long`` gets these.
+
+    Parameters
+    ----------
+    mass : float
+        Body mass m [kg], as the profile's ``[body] mass``.
+
+    Returns
+    -------
+    dict of str to (float, float)
+        Every prior range, keyed as :data:`DEFAULT_PRIORS`.
+
+    Raises
+    ------
+    InputError
+        When the mass is not a positive finite number.
+
+    Examples
+    --------
+    The Jackal's own ranges, and a Husky's (46.034 kg: x 2.786):
+
+    >>> from bayes_jackal.model import mass_scaled_priors
+    >>> mass_scaled_priors(16.523)["d_lat"]
+    (10.0, 1000.0)
+    >>> [round(value, 2) for value in mass_scaled_priors(46.034)["d_long"]]
+    [27.86, 2786.06]
+    >>> mass_scaled_priors(46.034)["sigma_c"]
+    (1e-05, 1.0)
+    """
+    try:
+        value = float(mass)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"must be a positive finite number [kg], got {mass!r}", field="mass")
+    scale = value / PRIOR_REFERENCE_MASS
+    priors = dict(DEFAULT_PRIORS)
+    for key in ("d_lat", "d_long"):  # the damping (model.DAMPING; that module imports this one)
+        low, high = DEFAULT_PRIORS[key]
+        priors[key] = (low * scale, high * scale)
+    return priors
+
+
+def packaged_profiles() -> dict[str, Path]:
+    """The profiles shipped with the package, by name: their TOML files.
+
+    A name (the file's stem: ``"jackal"``, ``"husky"``, ``"warthog"``) is
+    what :func:`load_profile` and the command line's ``--robot`` take
+    instead of a path.
+
+    Returns
+    -------
+    dict of str to Path
+        Name -> file, sorted by name.
+
+    Examples
+    --------
+    >>> from bayes_jackal.model import default_profile_path, packaged_profiles
+    >>> profiles = packaged_profiles()
+    >>> profiles["jackal"] == default_profile_path()
+    True
+    >>> all(path.suffix == ".toml" for path in profiles.values())
+    True
+    """
+    return {path.stem: path for path in sorted(_packaged_folder().glob("*.toml"))}
+
+
 def default_profile_path() -> Path:
     """Path of the packaged Jackal profile (``models/jackal.toml``).
 
@@ -161,7 +300,34 @@ def default_profile_path() -> Path:
     >>> default_profile_path().name
     'jackal.toml'
     """
-    return Path(str(resources.files("bayes_jackal.models") / "jackal.toml"))
+    return _packaged_folder() / f"{_DEFAULT_PROFILE}.toml"
+
+
+def _packaged_folder() -> Path:
+    """The folder of the packaged profiles (``models/``, installed as ``bayes_jackal.models``)."""
+    return Path(str(resources.files("bayes_jackal.models")))
+
+
+def _profile_file(profile: str | Path | None) -> Path:
+    """The file of a profile given by name, path or nothing (the Jackal's).
+
+    A string without a path separator and without the ``.toml`` suffix is a
+    packaged profile's name when one has it; anything else is a path.
+    """
+    if profile is None:
+        return default_profile_path()
+    is_name = isinstance(profile, str) and Path(profile).name == profile
+    if not is_name or profile.endswith(".toml"):
+        return Path(profile)
+    packaged = packaged_profiles()
+    if profile in packaged:
+        return packaged[profile]
+    if not Path(profile).exists():
+        raise ProfileError(
+            f"no such file, nor a packaged profile of that name (those are {sorted(packaged)})",
+            source=profile,
+        )
+    return Path(profile)
 
 
 def load_profile(path: str | Path | None = None) -> RobotProfile:
@@ -170,7 +336,11 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     Parameters
     ----------
     path : str or Path, optional
-        TOML file; the packaged Jackal profile when omitted.
+        A packaged profile's name (``"jackal"``, ``"husky"``, ``"warthog"``:
+        :func:`packaged_profiles`; a string without a path separator and
+        without the ``.toml`` suffix), or a TOML file (``"./husky"`` for a
+        file of a packaged profile's name); the packaged Jackal profile when
+        omitted.
 
     Returns
     -------
@@ -181,15 +351,23 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     ProfileError
         When the file cannot be read or parsed, a key is unknown, a value has
         the wrong type, a constant is missing, not a number, not finite or
-        not positive, or a prior range is empty.
+        not positive, the constants cannot belong to one robot (the
+        impossibility check of docs/guide/robots.md), or a prior range is
+        empty.
 
     Examples
     --------
+    A packaged profile by its name:
+
+    >>> from bayes_jackal.model import load_profile
+    >>> load_profile("jackal") == load_profile()
+    True
+
     A profile of your own: here the packaged one with another mass.
 
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from bayes_jackal.model import default_profile_path, load_profile
+    >>> from bayes_jackal.model import default_profile_path
     >>> text = default_profile_path().read_text()
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     path = Path(folder) / "heavy.toml"
@@ -209,8 +387,21 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     ...         print(error.field, "-", str(error).split("body.mas: ")[1])
     body.mas - unknown key 'mas'; the keys allowed here are
     ['mass', 'yaw_inertia', 'half_wheelbase', 'half_track', 'wheel_radius']
+
+    So are constants no robot can have: wheels larger than half the wheelbase
+    would overlap.
+
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "big_wheels.toml"
+    ...     _ = path.write_text(text.replace("wheel_radius = 0.098", "wheel_radius = 0.2"))
+    ...     try:
+    ...         load_profile(path)
+    ...     except ValueError as error:
+    ...         print(error.field, "-", str(error).split("wheel_radius: ")[1])
+    body.wheel_radius - 0.2 m is not smaller than the half wheelbase a = 0.131 m:
+    the front and rear wheels of a side would touch or overlap
     """
-    path = Path(path) if path is not None else default_profile_path()
+    path = _profile_file(path)
     source = str(path)
     require_file(path, source, error=ProfileError)
     try:
@@ -232,19 +423,25 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     body = _table(doc, "body", source)
     diff_drive = _table(doc, "diff_drive", source)
     sampling = _table(doc, "sampling", source, required=False)
+    name = _text(doc, "", "name", source, path.stem)
     values = {key: _number(body, "body", key, source) for key in _BODY_KEYS}
     values |= {key: _number(diff_drive, "diff_drive", key, source) for key in _DIFF_DRIVE_KEYS}
+    values["rate"] = _number(sampling, "sampling", "rate", source) if "rate" in sampling else 72.0
+    conversion = _text(diff_drive, "diff_drive", "conversion", source, "ros")
+    priors = _priors(_table(doc, "priors", source, required=False), source)
+    topics = _topics(_table(doc, "topics", source, required=False), source)
+    wheels = _wheels(_table(doc, "wheels", source, required=False), source)
+    _check_constants(values, source)
     profile = RobotProfile(
-        name=_text(doc, "", "name", source, path.stem),
-        conversion=_text(diff_drive, "diff_drive", "conversion", source, "ros"),
-        rate=_number(sampling, "sampling", "rate", source) if "rate" in sampling else 72.0,
-        priors=_priors(_table(doc, "priors", source, required=False), source),
-        topics=_topics(_table(doc, "topics", source, required=False), source),
-        wheels=_wheels(_table(doc, "wheels", source, required=False), source),
+        name=name,
+        conversion=conversion,
+        priors=mass_scaled_priors(values["mass"]) | priors,
+        topics=topics,
+        wheels=wheels,
         source=source,
         **values,
     )
-    _validate(profile)
+    _check_settings(profile)
     return profile
 
 
@@ -313,7 +510,8 @@ def _number(table: dict, table_name: str, key: str, source: str) -> float:
 
 
 def _priors(table: dict, source: str) -> dict[str, tuple[float, float]]:
-    priors = dict(DEFAULT_PRIORS)
+    """The prior ranges a profile's ``[priors]`` table gives (the others are defaults)."""
+    priors = {}
     for key, value in table.items():
         if not (isinstance(value, list) and len(value) == 2):
             raise ProfileError(
@@ -324,15 +522,92 @@ def _priors(table: dict, source: str) -> dict[str, tuple[float, float]]:
 
 
 def _validate(profile: RobotProfile) -> None:
-    source = profile.source
-    qualified = {key: f"body.{key}" for key in _BODY_KEYS}
-    qualified |= {key: f"diff_drive.{key}" for key in _DIFF_DRIVE_KEYS} | {"rate": "sampling.rate"}
-    for key, name in qualified.items():
-        value = getattr(profile, key)
+    """Refuse a profile's impossible constants, unknown conversion or empty priors."""
+    _check_constants({key: getattr(profile, key) for key in _FIELDS}, profile.source)
+    _check_settings(profile)
+
+
+def _check_constants(values: Mapping[str, float], source: str) -> None:
+    """Refuse constants that are not positive and finite, or that no robot can have.
+
+    Each bound is argued where it is defined (:data:`_GYRATION_RATIO`,
+    :data:`_SEPARATION_RATIO`, :data:`_MULTIPLIER`, :data:`_RATES`) and in
+    docs/guide/robots.md; the packaged profiles lie well inside them. The
+    wheel radius must be smaller than both lever arms: the front and rear
+    wheels of a side are 2a apart, and a robot whose wheels are as tall as
+    its track is wide (r_w >= b, the centre of mass at least r_w high) tips
+    over in a skid turn on a grippy floor before its wheels slide sideways.
+
+    Raises
+    ------
+    ProfileError
+        Naming ``source``, the field (``body.wheel_radius``) and its value.
+    """
+    for key, name in _FIELDS.items():
+        value = values[key]
         if not (math.isfinite(value) and value > 0):
             raise ProfileError(
                 f"must be a positive finite number, got {value!r}", source=source, field=name
             )
+    a, b, r_w = values["half_wheelbase"], values["half_track"], values["wheel_radius"]
+    for lever, named, why in (
+        (a, "half wheelbase a", "the front and rear wheels of a side would touch or overlap"),
+        (b, "half track b", "a robot with wheels that tall rolls over in a skid turn"),
+    ):
+        if r_w >= lever:
+            raise ProfileError(
+                f"{r_w:g} m is not smaller than the {named} = {lever:g} m: {why}",
+                source=source,
+                field=_FIELDS["wheel_radius"],
+            )
+    inertia, mass = values["yaw_inertia"], values["mass"]
+    gyration, half_diagonal = math.sqrt(inertia / mass), math.hypot(a, b)
+    _check_bounds(
+        gyration / half_diagonal,
+        _GYRATION_RATIO,
+        f"{inertia:g} kg m^2 at {mass:g} kg: a radius of gyration sqrt(I/m) = {gyration:.3g} m, "
+        f"{gyration / half_diagonal:.3g} x the footprint's half-diagonal sqrt(a^2 + b^2) = "
+        f"{half_diagonal:.3g} m",
+        "is I in kg m^2 and m in kg?",
+        source,
+        "yaw_inertia",
+    )
+    separation = values["wheel_separation"]
+    _check_bounds(
+        separation / (2 * b),
+        _SEPARATION_RATIO,
+        f"{separation:g} m: {separation / (2 * b):.3g} x the track 2b = {2 * b:.4g} m",
+        "the distance of the left and right wheels (a diameter for a radius?)",
+        source,
+        "wheel_separation",
+    )
+    multiplier = values["wheel_separation_multiplier"]
+    _check_bounds(
+        multiplier,
+        _MULTIPLIER,
+        f"{multiplier:g}",
+        "a skid-steer turns no faster than its wheels command (k >= 1), nor ten times slower",
+        source,
+        "wheel_separation_multiplier",
+    )
+    rate = values["rate"]
+    _check_bounds(rate, _RATES, f"{rate:g} Hz", "the rates of sensor logs, in Hz", source, "rate")
+
+
+def _check_bounds(
+    value: float, bounds: tuple[float, float], said: str, why: str, source: str, key: str
+) -> None:
+    """Refuse ``value`` outside ``bounds`` (inclusive): ``<said>, outside [low, high]: <why>``."""
+    low, high = bounds
+    if not low <= value <= high:
+        raise ProfileError(
+            f"{said}, outside [{low:g}, {high:g}]: {why}", source=source, field=_FIELDS[key]
+        )
+
+
+def _check_settings(profile: RobotProfile) -> None:
+    """Refuse an unknown conversion and a missing or empty prior range."""
+    source = profile.source
     if profile.conversion not in CONVERSIONS:
         raise ProfileError(
             f"must be one of {CONVERSIONS}, got {profile.conversion!r}",
@@ -352,14 +627,14 @@ def _validate(profile: RobotProfile) -> None:
 
 
 def as_profile(robot: RobotProfile | str | Path | None) -> RobotProfile:
-    """A robot profile as given, or read from its TOML file (None: the Jackal's).
+    """A robot profile as given, or read from its TOML file or name (None: the Jackal's).
 
     Examples
     --------
     >>> from bayes_jackal.model import as_profile, default_profile_path, load_profile
     >>> jackal = load_profile()
-    >>> as_profile(jackal) is jackal, as_profile(None).name
-    (True, 'jackal')
+    >>> as_profile(jackal) is jackal, as_profile(None).name, as_profile("jackal").name
+    (True, 'jackal', 'jackal')
     >>> as_profile(default_profile_path()) == jackal
     True
     """
