@@ -856,7 +856,7 @@ print(len(commands.choices), heavy)
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
     )
     assert process.returncode == 0, process.stderr
-    assert process.stdout == "12 []\n"  # ten commands, filter (issue 14) and noise (15)
+    assert process.stdout == "13 []\n"  # ten commands, filter (14), noise (15), population (27)
 
 
 def test_parser_defaults_are_the_librarys():
