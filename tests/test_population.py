@@ -160,6 +160,44 @@ def test_hierarchical_draws_shrink_groups_toward_each_other():
     assert np.all(group_b.std(axis=0) <= np.sqrt(np.diag(units[2].cov)) * 1.02)
 
 
+def test_stage_2_is_calibrated_and_shrinks_on_normal_units():
+    """Stage 2 alone, on 120 campaigns of 3 floors whose units are exact normals (sd 0.023 per
+    log damping, correlated at 0.99, as 5 pooled runs give): the floors' log dampings drawn
+    with sd 0.03 around log(110, 30).
+
+    - The 94 % HDIs hold the truth in 360 floors within the binomial bound (d_lat alone:
+      d_long moves with it).
+    - Shrinkage: the intervals are narrower than alone on average, the errors smaller on
+      average. An outlying floor's interval can be wider, by how uncertain the spread leaves
+      its pull; never by more than 8 % here.
+    """
+    rng = np.random.default_rng(27)
+    cov = 0.023**2 * np.array([[1.0, 0.99], [0.99, 1.0]])
+    inside, widths, errors = [], [], []
+    for _ in range(120):
+        truth = np.log([110.0, 30.0]) + 0.03 * rng.standard_normal((3, 2))
+        units = [
+            UnitPosterior(g, g, (g,), rng.multivariate_normal(truth[i], cov), cov)
+            for i, g in enumerate("ABC")
+        ]
+        model = Hierarchy(units, BOUNDS)
+        joint = model.draws("hierarchical", 4000, rng=1)["groups"][..., 0]
+        alone = model.draws("independent", 4000, rng=1)["groups"][..., 0]
+        for g in range(3):
+            low, high = np.percentile(joint[:, g], [3, 97])
+            low_alone, high_alone = np.percentile(alone[:, g], [3, 97])
+            inside.append(low <= truth[g, 0] <= high)
+            widths.append((high - low) / (high_alone - low_alone))
+            errors.append(
+                (abs(joint[:, g].mean() - truth[g, 0]), abs(alone[:, g].mean() - truth[g, 0]))
+            )
+    # 0.1 % quantile of Binomial(360, 0.94)
+    assert sum(inside) >= scipy.stats.binom.ppf(0.001, len(inside), 0.94)
+    assert np.mean(widths) < 0.95 and max(widths) < 1.1
+    joint_error, alone_error = np.mean(errors, axis=0)
+    assert joint_error < 0.9 * alone_error
+
+
 def test_unit_posterior_flags_what_a_normal_cannot_summarise():
     """Skewed draws (log-damping gamma-distributed, shape 2: skewness sqrt 2) are flagged by
     their skewness (their 94 % ellipse still holds 93.7 % of them); draws piled at the prior's

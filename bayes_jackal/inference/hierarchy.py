@@ -254,7 +254,7 @@ class Hierarchy:
     True
     >>> draws = model.draws("hierarchical", 2000, rng=1)
     >>> sorted(draws), draws["groups"].shape
-    (['groups', 'mu', 'slope', 'tau'], (2000, 3, 2))
+    (['groups', 'mu', 'new_group', 'slope', 'tau'], (2000, 3, 2))
     """
 
     def __init__(
@@ -457,7 +457,9 @@ class Hierarchy:
             ``mu`` (count, 2): the population mean of (log d_lat, log d_long)
             (pooled: the one damping; independent: None); ``tau`` (count, 2):
             the population's spreads of the scale and of the ratio
-            (:data:`TO_SCALE_RATIO`; hierarchical only); ``slope`` (count, 2):
+            (:data:`TO_SCALE_RATIO`; hierarchical only); ``new_group``
+            (count, 2): a new group's (log d_lat, log d_long) at the
+            reference covariate (hierarchical only); ``slope`` (count, 2):
             of (log d_lat, log d_long) per covariate span (with a slope);
             ``groups`` (count, G, 2): each group's (log d_lat, log d_long) at
             its units' mean covariate.
@@ -483,9 +485,11 @@ class Hierarchy:
         z = np.zeros(len(self.units)) if self.covariates is None else self.covariates
         at_own = np.array([z[members].mean() for members in self._members])
         back = FROM_SCALE_RATIO.T  # row vectors of (scale, ratio) -> (log d_lat, log d_long)
+        new_group = beta[:, :2] + np.sqrt(tau2) * rng.standard_normal((count, 2))
         return {
             "mu": None if kind == "independent" else beta[:, :2] @ back,
             "tau": np.sqrt(tau2) if kind == "hierarchical" else None,
+            "new_group": new_group @ back if kind == "hierarchical" else None,
             "slope": b @ back if slope else None,
             "groups": (levels + at_own[None, :, None] * b[:, None, :]) @ back,
         }

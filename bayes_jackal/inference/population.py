@@ -38,7 +38,6 @@ from .evidence import evidence_strength
 from .executors import Executor
 from .hierarchy import (
     DAMPING_NAMES,
-    FROM_SCALE_RATIO,
     TAU_RANGE,
     Hierarchy,
     UnitPosterior,
@@ -108,8 +107,7 @@ class Population:
     bayes_factors : dict of str to (float, float)
         ln B of each structure over the best and its Monte Carlo error.
     draws : dict of str to dict
-        :meth:`Hierarchy.draws` of the hierarchical structure(s) and of the
-        independent one.
+        :meth:`Hierarchy.draws` of each structure.
     posteriors : dict of str to Posterior
         Stage 1's posterior of each unit.
     sensitivity : dict
@@ -186,9 +184,7 @@ class Population:
         ratio (:data:`~bayes_jackal.inference.TO_SCALE_RATIO`).
         """
         draws = self.draws[self.model]
-        mu, tau = draws["mu"], draws["tau"]
-        rng = as_rng(0)
-        new_group = (rng.standard_normal(mu.shape) * tau) @ FROM_SCALE_RATIO.T + mu
+        mu, tau, new_group = draws["mu"], draws["tau"], draws["new_group"]
         sd = np.sqrt(tau[:, 0] ** 2 + tau[:, 1] ** 2 / 4)
         result = {}
         for i, name in enumerate(DAMPING_NAMES):
@@ -213,7 +209,7 @@ class Population:
             (name for name in self.evidence if not name.endswith(" + slope")),
             key=lambda name: self.evidence[name].log_evidence,
         )
-        slope = self._structure_draws(sloped)["slope"]
+        slope = self.draws[sloped]["slope"]
         span = self.hierarchy.covariate_span
         value, error = self.log_bayes_factor(sloped, constant)
         slopes = {}
@@ -242,11 +238,6 @@ class Population:
                 f"{evidence_strength(value)}"
             ),
         }
-
-    def _structure_draws(self, structure: str) -> dict:
-        if structure not in self.draws:
-            self.draws[structure] = self.hierarchy.draws(structure, POPULATION_DRAWS, rng=1)
-        return self.draws[structure]
 
     def verdict(self) -> str:
         """The best structure, in words."""
@@ -631,9 +622,7 @@ def combine_units(
         for name in evidence
     }
     draws = {
-        name: hierarchy.draws(name, POPULATION_DRAWS, rng=rng)
-        for name in hierarchy.structures
-        if name.startswith(("hierarchical", "independent"))
+        name: hierarchy.draws(name, POPULATION_DRAWS, rng=rng) for name in hierarchy.structures
     }
     result = Population(family, covariate, hierarchy, evidence, bayes_factors, draws, posteriors)
     result.sensitivity = _sensitivity(result, rng)
@@ -678,12 +667,15 @@ def _sensitivity(result: Population, rng: np.random.Generator) -> dict:
     sensitivity = {}
     for label, tau_range in checked.items():
         other = Hierarchy(hierarchy.units, hierarchy.bounds, tau_range=tau_range)
-        draws = result.draws[result.model] if label == "default" else None
-        draws = draws or other.draws(result.model, POPULATION_DRAWS, rng=rng)
+        draws = (
+            result.draws[result.model]
+            if label == "default"
+            else other.draws(result.model, POPULATION_DRAWS, rng=rng)
+        )
         sensitivity[label] = {
             "tau_range": list(tau_range),
             "log_bayes_factor_vs_pooled": other.log_integral(result.model)
-            - other.log_integral("pooled" + result.model[len("hierarchical") :]),
+            - other.log_integral(result.model.replace("hierarchical", "pooled")),
             **{name: _summary(draws["mu"][:, i]) for i, name in enumerate(DAMPING_NAMES)},
             **{f"tau_{name}": _summary(draws["tau"][:, i]) for i, name in enumerate(SPREADS)},
         }
