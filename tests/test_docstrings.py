@@ -217,11 +217,11 @@ def shared_calls() -> Iterator[Call]:
     floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     yield call(
         bj.population, runs, groups=floors, family="white", channels=["yaw"], seed=1,
-        max_steps=3000, progress=False,
+        max_steps=400, progress=False,
     )  # fmt: skip
     yield call(
         population_posterior, runs, robot, groups=floors, family="white", seed=1,
-        settings=bj.SamplerSettings(max_steps=3000),
+        settings=bj.SamplerSettings(max_steps=400),
         likelihood_options=LikelihoodOptions(channels=["yaw"]),
     )  # fmt: skip
     # characterise_noise (its own example and NoiseCharacterisation's), fit_family.

@@ -289,7 +289,7 @@ def _population(runs, folder, **options):
         family="white",
         channels=["yaw"],
         seed=1,
-        max_steps=3000,
+        max_steps=400,
         progress=False,
         out=folder,
         **options,
@@ -332,7 +332,7 @@ def test_population_command_writes_json_plot_and_refuses_a_bad_table(cli, tmp_pa
         "run,group\n" + "".join(f"{run}.nc,{label}\n" for run, label in FLOORS.items())
     )
     args = ["population", *[f"{r}.nc" for r in FLOORS], "--groups", "groups.csv"]
-    flags = ["--family", "white", "--channels", "yaw", "--max-steps", "3000", "--seed", "1"]
+    flags = ["--family", "white", "--channels", "yaw", "--max-steps", "400", "--seed", "1"]
     result = cli([*args, "--out", "pop", *flags, "--json", "--no-progress"], tmp_path, timeout=300)
     assert result.code == 0, result.stderr
     summary = json.loads(result.stdout)

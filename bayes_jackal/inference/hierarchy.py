@@ -420,21 +420,18 @@ class Hierarchy:
         error = math.sqrt(sum(unit.evidence_error**2 for unit in self.units))
         return offset + self.log_integral(structure), error
 
-    def log_bayes_factor(
-        self, structure: str, other: str, *, rng=None, repeats: int = 40
-    ) -> tuple[float, float]:
-        """ln B of ``structure`` over ``other`` and its Monte Carlo error [nats].
+    def log_integral_replicas(self, *, rng=None, repeats: int = 40) -> dict[str, np.ndarray]:
+        """:meth:`log_integral` of every structure, each unit's mean redrawn ``repeats`` times.
 
-        The error is the spread of ln B when each unit's mean is redrawn
-        within its Monte Carlo error, N(m_u, S_u / ESS_u): the part of the
-        units' evidence common to both structures cancels.
+        Each replica draws every unit's mean from N(m_u, S_u / ESS_u), its
+        Monte Carlo error; the spread of a difference of two structures'
+        replicas is the error of their ln B (the part of the units' evidence
+        common to both cancels). Empty arrays when a unit's ESS is unknown.
         """
-        value = self.log_integral(structure) - self.log_integral(other)
         rng = as_rng(rng)
-        finite = [unit for unit in self.units if math.isfinite(unit.ess)]
-        if len(finite) < len(self.units):
-            return value, math.nan
-        replicas = []
+        if not all(math.isfinite(unit.ess) for unit in self.units):
+            return {structure: np.array([]) for structure in self.structures}
+        replicas = {structure: [] for structure in self.structures}
         for _ in range(repeats):
             units = [
                 dataclasses.replace(
@@ -445,8 +442,9 @@ class Hierarchy:
             again = Hierarchy(
                 units, self.bounds, tau_range=self.tau_range, slope_range=self.slope_range
             )
-            replicas.append(again.log_integral(structure) - again.log_integral(other))
-        return value, float(np.std(replicas, ddof=1))
+            for structure in self.structures:
+                replicas[structure].append(again.log_integral(structure))
+        return {structure: np.array(values) for structure, values in replicas.items()}
 
     def draws(self, structure: str, count: int, rng=None) -> dict[str, np.ndarray | None]:
         """Posterior draws of the structure's parameters, on the log scale.

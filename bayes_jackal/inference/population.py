@@ -104,8 +104,9 @@ class Population:
         The units' normal summaries and the structures.
     evidence : dict of str to Evidence
         Log evidence of each structure.
-    bayes_factors : dict of str to (float, float)
-        ln B of each structure over the best and its Monte Carlo error.
+    replicas : dict of str to ndarray
+        Each structure's :meth:`Hierarchy.log_integral_replicas`, for the
+        errors of Bayes factors.
     draws : dict of str to dict
         :meth:`Hierarchy.draws` of each structure.
     posteriors : dict of str to Posterior
@@ -130,7 +131,7 @@ class Population:
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     >>> result = bj.population(
     ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
-    ...     max_steps=3000, progress=False,
+    ...     max_steps=400, progress=False,
     ... )
     >>> result.best, result.model, list(result.hierarchy.groups)
     ('hierarchical', 'hierarchical', ['tiles', 'carpet'])
@@ -145,7 +146,7 @@ class Population:
     covariate: str | None
     hierarchy: Hierarchy
     evidence: dict[str, Evidence]
-    bayes_factors: dict[str, tuple[float, float]]
+    replicas: dict[str, np.ndarray]
     draws: dict[str, dict]
     posteriors: dict[str, Posterior]
     sensitivity: dict = field(default_factory=dict)
@@ -164,9 +165,9 @@ class Population:
 
     def log_bayes_factor(self, structure: str, other: str) -> tuple[float, float]:
         """ln B of ``structure`` over ``other`` and its error [nats]."""
-        value, error = self.bayes_factors[structure]
-        against, against_error = self.bayes_factors[other]
-        return value - against, float(np.hypot(error, against_error))
+        value = self.evidence[structure].log_evidence - self.evidence[other].log_evidence
+        difference = self.replicas[structure] - self.replicas[other]
+        return value, float(np.std(difference, ddof=1)) if len(difference) > 1 else math.nan
 
     def group_summaries(self, structure: str | None = None) -> dict[str, dict]:
         """Each group's ``d_lat`` and ``d_long`` [N s/m] under ``structure`` (the model's)."""
@@ -438,7 +439,7 @@ def population(
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     >>> result = bj.population(
     ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
-    ...     max_steps=3000, progress=False,
+    ...     max_steps=400, progress=False,
     ... )
     >>> result.best, sorted(result.to_dict()["groups"])
     ('hierarchical', ['carpet', 'tiles'])
@@ -512,7 +513,7 @@ def population_posterior(
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     >>> result = population_posterior(
     ...     runs, robot, groups=floors, family="white", seed=1,
-    ...     settings=bj.SamplerSettings(max_steps=3000),
+    ...     settings=bj.SamplerSettings(max_steps=400),
     ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
     ... )
     >>> result.best
@@ -616,15 +617,11 @@ def combine_units(
     for structure in hierarchy.structures:
         value, error = hierarchy.log_evidence(structure)
         evidence[structure] = Evidence(value, error, "population (normal summaries)")
-    best = max(evidence, key=lambda name: evidence[name].log_evidence)
-    bayes_factors = {
-        name: hierarchy.log_bayes_factor(name, best, rng=rng) if name != best else (0.0, 0.0)
-        for name in evidence
-    }
+    replicas = hierarchy.log_integral_replicas(rng=rng)
     draws = {
         name: hierarchy.draws(name, POPULATION_DRAWS, rng=rng) for name in hierarchy.structures
     }
-    result = Population(family, covariate, hierarchy, evidence, bayes_factors, draws, posteriors)
+    result = Population(family, covariate, hierarchy, evidence, replicas, draws, posteriors)
     result.sensitivity = _sensitivity(result, rng)
     result.warnings = warnings + _population_warnings(result)
     return result

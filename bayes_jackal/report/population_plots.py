@@ -71,7 +71,7 @@ def plot_population(summary: Mapping, *, axes=None) -> tuple[Figure, np.ndarray]
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     >>> result = bj.population(
     ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
-    ...     max_steps=3000, progress=False,
+    ...     max_steps=400, progress=False,
     ... )
     >>> from bayes_jackal.report import plot_population
     >>> fig, axes = plot_population(result.to_dict())
@@ -146,7 +146,7 @@ def save_population_plot(summary: Mapping, path: str | Path, dpi: int = 120) -> 
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
     >>> result = bj.population(
     ...     runs, groups=floors, family="white", channels=["yaw"], seed=1,
-    ...     max_steps=3000, progress=False,
+    ...     max_steps=400, progress=False,
     ... )
     >>> import tempfile
     >>> from pathlib import Path
