@@ -53,7 +53,7 @@ __all__ = [
     "DAMPING_NAMES",
     "FROM_SCALE_RATIO",
     "POPULATION_STRUCTURES",
-    "SLOPE_RANGE",
+    "SLOPE_SD",
     "TAU_RANGE",
     "TO_SCALE_RATIO",
     "Hierarchy",
@@ -70,10 +70,14 @@ POPULATION_STRUCTURES = ("pooled", "hierarchical", "independent")
 #: log-uniform form is Jeffreys' prior of a scale, under which the
 #: population mean's interval is the calibrated Student-t interval.
 TAU_RANGE = (0.01, 1.0)
-#: Half-width of the uniform prior of each slope b [log d per covariate
-#: span]: the damping may change by up to a factor 10 either way between the
-#: campaign's lowest and highest operating points.
-SLOPE_RANGE = math.log(10.0)
+#: Standard deviation of the normal prior of each slope b, of the scale and of
+#: the ratio [log d per covariate span]: the damping changes by less than a
+#: factor 10 either way between the campaign's lowest and highest operating
+#: points with 95 % prior probability (ln 10 is 2 sd). Normal, not uniform:
+#: a slope the data cannot see (a covariate constant within every group,
+#: beside the groups' own levels) then integrates to its prior, and costs
+#: nothing, instead of leaving the evidence's integral unbounded.
+SLOPE_SD = math.log(10.0) / 2
 #: (log d_lat, log d_long) -> (scale, ratio): s = (log d_lat + log d_long) / 2, the log of
 #: their geometric mean, and rho = log(d_lat / d_long). A floor scales both dampings, and
 #: one run's yaw rate pins their ratio far better than their scale (thesis ch. 7), so the
@@ -231,8 +235,8 @@ class Hierarchy:
         population mean's prior is uniform on the same box (log scale).
     tau_range : (float, float)
         Log-uniform prior range of each population spread [log d].
-    slope_range : float
-        Half-width of each slope's uniform prior [log d per covariate span].
+    slope_sd : float
+        Standard deviation of each slope's normal prior [log d per covariate span].
 
     Examples
     --------
@@ -263,7 +267,7 @@ class Hierarchy:
         bounds: np.ndarray,
         *,
         tau_range: tuple[float, float] = TAU_RANGE,
-        slope_range: float = SLOPE_RANGE,
+        slope_sd: float = SLOPE_SD,
     ) -> None:
         self.units = tuple(units)
         if not self.units:
@@ -275,7 +279,7 @@ class Hierarchy:
                 f"tau_range must satisfy 0 < low < high, got {list(tau_range)}",
                 field="tau_range",
             )
-        self.slope_range = float(slope_range)
+        self.slope_sd = float(slope_sd)
         self.bounds = np.asarray(bounds, float)
         log_bounds = np.log(self.bounds)
         #: Log area of the box of (log d_lat, log d_long) [log of log-units^2].
@@ -339,10 +343,26 @@ class Hierarchy:
                 X[u, :, 2 * levels :] = self.covariates[u] * np.eye(2)
         return X.reshape(2 * n, -1)
 
-    def _log_volume(self, kind: str, slope: bool) -> float:
-        """Log prior volume of beta: the box per mean (mu, or each a_g), the slopes' square."""
+    def _prior_precision(self, X: np.ndarray, slope: bool) -> np.ndarray:
+        """Lambda_0 of beta: 0 for the means (flat on the box), 1 / SLOPE_SD^2 for each slope."""
+        precision = np.zeros(X.shape[1])
+        if slope:
+            precision[-2:] = 1.0 / self.slope_sd**2
+        return np.diag(precision)
+
+    def _log_prior_normalisation(self, kind: str, slope: bool) -> float:
+        """log of beta's prior density factors: 1 / W per mean (mu, or each a_g), and the
+        slopes' normal normalisation, (2 pi)^-1 / SLOPE_SD^2."""
         levels = len(self.groups) if kind == "independent" else 1
-        return levels * self.log_box + slope * 2 * math.log(2 * self.slope_range)
+        return -levels * self.log_box - slope * 2 * math.log(
+            math.sqrt(2 * math.pi) * self.slope_sd
+        )
+
+    def _posterior_of_beta(self, kind: str, slope: bool, tau2: np.ndarray) -> tuple:
+        """beta's normal posterior given tau: precision A + Lambda_0, its c, m'C^-1 m, log|C|."""
+        X = self._design(kind, slope)
+        A, c, quadratic, log_det = self._generalised_least_squares(X, tau2)
+        return A + self._prior_precision(X, slope), c, quadratic, log_det, X.shape[0]
 
     def _generalised_least_squares(self, X: np.ndarray, tau2: np.ndarray) -> tuple:
         """Per tau^2 row: A = X'C^-1 X, c = X'C^-1 m, m'C^-1 m and log|C|, group by group.
@@ -359,12 +379,12 @@ class Hierarchy:
             S = np.zeros((size, size))
             for i, u in enumerate(members):
                 S[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = self._covs[u]
-            # J (x) diag(tau^2): tau_lat^2 between the d_lat rows of every two units, tau_long^2
-            # between their d_long rows.
+            # J (x) diag(tau^2): tau_scale^2 between the scale rows of every two units,
+            # tau_ratio^2 between their ratio rows.
             together = np.ones((len(members), len(members)))
-            lat, long = (np.kron(together, np.diag(e)) for e in np.eye(2))
+            scale, ratio = (np.kron(together, np.diag(e)) for e in np.eye(2))
             for part in chunks(K, size * (size + k + 1), budget=_BUDGET):
-                C = S + tau2[part, 0, None, None] * lat + tau2[part, 1, None, None] * long
+                C = S + tau2[part, 0, None, None] * scale + tau2[part, 1, None, None] * ratio
                 rhs = np.concatenate([X[rows], self._means[rows, None]], axis=1)
                 solved = np.linalg.solve(C, np.broadcast_to(rhs, (len(C), size, k + 1)))
                 A[part] += np.einsum("ia,kib->kab", X[rows], solved[..., :k])
@@ -374,17 +394,20 @@ class Hierarchy:
         return A, c, quadratic, log_det
 
     def _log_integrand(self, kind: str, slope: bool, tau2: np.ndarray) -> np.ndarray:
-        """log of the integral over beta of prod_u N(m_u | X beta, C(tau)) / volume, per tau^2."""
-        X = self._design(kind, slope)
-        A, c, quadratic, log_det = self._generalised_least_squares(X, tau2)
-        n, k = X.shape
-        explained = np.einsum("ka,ka->k", c, np.linalg.solve(A, c[..., None])[..., 0])
+        """log of the integral over beta of prod_u N(m_u | X beta, C(tau)) p(beta), per tau^2.
+
+        With P = A + Lambda_0: (2 pi)^((k - n) / 2) |C|^-1/2 |P|^-1/2
+        exp(-(m'C^-1 m - c'P^-1 c) / 2) times beta's prior normalisation.
+        """
+        P, c, quadratic, log_det, n = self._posterior_of_beta(kind, slope, tau2)
+        k = P.shape[-1]
+        explained = np.einsum("ka,ka->k", c, np.linalg.solve(P, c[..., None])[..., 0])
         return (
             -0.5 * (n - k) * math.log(2 * math.pi)
             - 0.5 * log_det
-            - 0.5 * np.linalg.slogdet(A)[1]
+            - 0.5 * np.linalg.slogdet(P)[1]
             - 0.5 * (quadratic - explained)
-            - self._log_volume(kind, slope)
+            + self._log_prior_normalisation(kind, slope)
         )
 
     def _tau_grid(self) -> tuple[np.ndarray, float]:
@@ -439,9 +462,7 @@ class Hierarchy:
                 )
                 for unit in self.units
             ]
-            again = Hierarchy(
-                units, self.bounds, tau_range=self.tau_range, slope_range=self.slope_range
-            )
+            again = Hierarchy(units, self.bounds, tau_range=self.tau_range, slope_sd=self.slope_sd)
             for structure in self.structures:
                 replicas[structure].append(again.log_integral(structure))
         return {structure: np.array(values) for structure, values in replicas.items()}
@@ -470,9 +491,8 @@ class Hierarchy:
             weights = self._log_integrand(kind, slope, np.exp(2 * log_tau))
             cells = rng.choice(len(log_tau), count, p=scipy.special.softmax(weights))
             tau2 = np.exp(2 * (log_tau[cells] + width * rng.uniform(-0.5, 0.5, (count, 2))))
-        X = self._design(kind, slope)
-        A, c, _, _ = self._generalised_least_squares(X, tau2)
-        beta = _normal_draws(np.linalg.solve(A, c[..., None])[..., 0], A, rng)
+        P, c, _, _, _ = self._posterior_of_beta(kind, slope, tau2)
+        beta = _normal_draws(np.linalg.solve(P, c[..., None])[..., 0], P, rng)
         b = beta[:, -2:] if slope else np.zeros((count, 2))
         if kind == "independent":
             levels = beta[:, : 2 * len(self.groups)].reshape(count, -1, 2)

@@ -49,6 +49,8 @@ __all__ = [
     "POPULATION_DRAWS",
     "SENSITIVITY_TAU_RANGES",
     "Population",
+    "UnitPlan",
+    "plan_units",
     "population",
     "population_posterior",
     "unit_files",
@@ -227,6 +229,8 @@ class Population:
         return {
             "covariate": self.covariate,
             "range": [min(values), max(values)],
+            # mu and a new group's damping are at this covariate value
+            "reference": self.hierarchy.covariate_centre,
             "structure": sloped,
             "against": constant,
             "slope": slopes,
@@ -252,9 +256,16 @@ class Population:
             "hierarchical": "the groups' dampings differ, drawn from one population",
             "independent": "the groups' dampings differ, each its own",
         }[kind]
+        doubted = {w["kind"] for w in self.warnings} & {"normal_summary", "prior_bound"}
         return (
             f"{meaning}: {best} over {runner_up}, ln B = {value:.1f} +- {error:.2f}, "
             f"{evidence_strength(value)}"
+            + (
+                " (approximate: a unit's damping posterior is not normal or reaches its "
+                "prior's bound; see the warnings)"
+                if doubted
+                else ""
+            )
         )
 
     def unit_summaries(self) -> dict[str, dict]:
@@ -309,10 +320,19 @@ def unit_files(folder: str | Path, names: Sequence[str], family: str) -> dict[st
     >>> unit_files("campaign", ["floor A", "v1_01"], "gaussian")["floor A"].as_posix()
     'campaign/units/floor_A.gaussian.nc'
     """
-    return {
+    files = {
         name: Path(folder) / "units" / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}.{family}.nc"
         for name in names
     }
+    taken: dict[str, str] = {}
+    for name, path in files.items():
+        other = taken.setdefault(path.name.lower(), name)
+        if other != name:
+            raise InputError(
+                f"units {other!r} and {name!r} would share the file {path.name}: rename one",
+                field="group",
+            )
+    return files
 
 
 def _covariate_name(
@@ -355,6 +375,80 @@ def _units(
                 )
             units[name] = (label, members, values[0] if values else None)
     return units
+
+
+@dataclass(frozen=True)
+class UnitPlan:
+    """What :func:`population` will sample: its units, their covariate and the notes on it.
+
+    Attributes
+    ----------
+    units : dict of str to (str, list of Experiment, float or None)
+        Unit name -> (group label, its runs, its covariate).
+    covariate : str or None
+        The covariate of the slope, None without one.
+    notes : list of dict
+        Warnings to keep (``one_operating_point``).
+    """
+
+    units: dict[str, tuple[str, list[Experiment], float | None]]
+    covariate: str | None
+    notes: list[dict]
+
+
+def plan_units(
+    experiments: Sequence[Experiment],
+    groups: RunGroups | Mapping[str, str] | str | Path | None,
+    *,
+    covariate: str | None = None,
+    noise: str = NOISE,
+) -> UnitPlan:
+    """The units of a population, checked before any sampling (``analyse --groups`` first).
+
+    Raises
+    ------
+    InputError
+        For a groups file that cannot be read, a run without a group or
+        covariate, fewer than two groups, a group pooling runs at
+        different operating points with the noise shared, or two units
+        named alike.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import plan_units
+    >>> robot = bj.load_profile()
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=s, name=f"r{s}") for s in range(4)]
+    >>> speeds = {"r0": 0.3, "r1": 0.5, "r2": 0.3, "r3": 0.5}
+    >>> table = bj.io.RunGroups(
+    ...     {"r0": "A", "r1": "A", "r2": "B", "r3": "B"},
+    ...     {run: {"speed": speed} for run, speed in speeds.items()},
+    ... )
+    >>> plan = plan_units(runs, table, noise="per-experiment")
+    >>> list(plan.units), plan.covariate
+    (['r0', 'r1', 'r2', 'r3'], 'speed')
+    """
+    table = read_groups(groups) if isinstance(groups, (str, Path)) else groups
+    table = RunGroups(dict(table)) if isinstance(table, Mapping) else table
+    grouped = group_runs(experiments, table)
+    if len(grouped) < 2:
+        raise InputError(
+            f"a population needs two groups at least, got {list(grouped)}; for one group, "
+            "sample its runs pooled (bayes-jackal sample --pooled)",
+            source=getattr(table, "source", None),
+            field="group",
+        )
+    name = _covariate_name(experiments, table, covariate and covariate.strip().lower())
+    units = _units(grouped, table, name, per_run=noise == "per-experiment")
+    unit_files(".", list(units), "family")  # two unit names that share a file are refused
+    if name is None or len({value for _, _, value in units.values()}) > 1:
+        return UnitPlan(units, name, [])
+    note = {
+        "kind": "one_operating_point",
+        "message": f"every unit has the same {name}: no state dependence is fitted",
+    }
+    units = {key: (label, members, None) for key, (label, members, _) in units.items()}
+    return UnitPlan(units, None, [note])
 
 
 def population(
@@ -520,21 +614,8 @@ def population_posterior(
     'hierarchical'
     """
     options = LikelihoodOptions.of(likelihood_options)
-    table = read_groups(groups) if isinstance(groups, (str, Path)) else groups
-    table = RunGroups(dict(table)) if isinstance(table, Mapping) else table
-    grouped = group_runs(experiments, table)
-    name = _covariate_name(experiments, table, covariate)
-    units = _units(grouped, table, name, per_run=options.noise == "per-experiment")
-    notes = []
-    if name is not None and len({value for _, _, value in units.values()}) < 2:
-        notes.append(
-            {
-                "kind": "one_operating_point",
-                "message": f"every unit has the same {name}: no state dependence is fitted",
-            }
-        )
-        units = {key: (label, members, None) for key, (label, members, _) in units.items()}
-        name = None
+    plan = plan_units(experiments, groups, covariate=covariate, noise=options.noise)
+    units, name = plan.units, plan.covariate
     files = unit_files(out, list(units), family) if out is not None else {}
 
     def finished(key: str, _family: str, evidence: Evidence, idata) -> None:
@@ -567,7 +648,7 @@ def population_posterior(
         covariate=name,
         tau_range=tau_range,
         seed=seed,
-        notes=notes,
+        notes=plan.notes,
     )
 
 
@@ -629,7 +710,8 @@ def combine_units(
 
 def _unit_warnings(unit: UnitPosterior, convergence: list[str]) -> list[dict]:
     warnings = [
-        {"kind": "convergence", "unit": unit.name, "message": message} for message in convergence
+        {"kind": "convergence", "unit": unit.name, "message": f"{unit.name}: {message}"}
+        for message in convergence
     ]
     if abs(unit.coverage - HDI_PROB) > COVERAGE_TOLERANCE or unit.skewness > SKEWNESS_TOLERANCE:
         warnings.append(

@@ -23,6 +23,10 @@ from .experiment import Experiment
 
 __all__ = ["RunGroups", "group_runs", "read_groups", "run_group"]
 
+#: Suffixes of the files a run is read from, dropped when a row is matched to a run's name.
+_DATA_SUFFIXES = (".bag", ".mcap", ".db3", ".csv", ".mat", ".nc")
+#: Covariates that must be numbers: a text column of this name is refused, not ignored.
+_NUMERIC = ("speed",)
 #: Accepted headers of the run and group columns (case and spaces ignored).
 _RUN_HEADERS = ("run", "experiment", "file", "bag", "name")
 _GROUP_HEADERS = ("group", "label", "condition")
@@ -54,13 +58,29 @@ class RunGroups:
     source: str = "<memory>"
 
     def _key(self, run: str) -> str | None:
-        """The table's row of ``run``: by name, file name or stem."""
-        path = Path(run)
-        for key in (run, path.name, path.stem):
-            if key in self.groups:
-                return key
-        # a row naming the run's file (v1_02.bag) for an experiment named by its stem
-        return next((key for key in self.groups if Path(key).stem == path.stem), None)
+        """The table's row of ``run`` (a name or a path), None when no row names it.
+
+        In turn: the row that is ``run`` itself; the row whose path is the end
+        of ``run``'s (``b/v1.bag`` for ``/data/b/v1.bag``); the row whose file
+        name, a data file's suffix dropped, is ``run``'s (``v1.bag`` for the
+        experiment ``v1``). Two rows matching at one step are refused.
+        """
+        steps = (
+            lambda key: key == run,
+            lambda key: Path(run).parts[-len(Path(key).parts) :] == Path(key).parts,
+            lambda key: _bare(key) == _bare(run),
+        )
+        for matches in steps:
+            found = [key for key in self.groups if matches(key)]
+            if len(found) > 1:
+                raise InputError(
+                    f"run {run!r} matches the rows {found}: name it by its path",
+                    source=self.source,
+                    field="run",
+                )
+            if found:
+                return found[0]
+        return None
 
     def label_of(self, run: str) -> str | None:
         """The group of ``run`` (an experiment's name or source), None when not listed."""
@@ -74,7 +94,7 @@ class RunGroups:
 
     def of(self, experiment: Experiment) -> tuple[str | None, dict[str, float]]:
         """(group label, covariates) of an experiment, by its name or its file."""
-        for run in (experiment.name, experiment.source):
+        for run in (experiment.source, experiment.name):  # the file first: names repeat
             key = self._key(run)
             if key is not None:
                 return self.groups[key], self.covariates.get(key, {})
@@ -148,7 +168,7 @@ def read_groups(path: str | Path) -> RunGroups:
         groups[run] = label
     covariates: dict[str, dict[str, float]] = {run: {} for run in groups}
     for column, name in enumerate(header):
-        if column in (run_column, group_column) or not _numeric(body, column):
+        if column in (run_column, group_column) or not _numeric(body, column, name, source):
             continue
         for line, row in enumerate(body, start=2):
             if row[column]:
@@ -163,6 +183,13 @@ def read_groups(path: str | Path) -> RunGroups:
     return RunGroups(groups, covariates, source)
 
 
+def _bare(run: str) -> str:
+    """The file name of ``run``, a data file's suffix dropped (``/a/v1.bag`` -> ``v1``)."""
+    name = Path(run).name
+    suffix = Path(name).suffix
+    return name[: -len(suffix)] if suffix.lower() in _DATA_SUFFIXES else name
+
+
 def _column(header: list[str], names: tuple[str, ...], source: str) -> int:
     for name in names:
         if name in header:
@@ -174,14 +201,28 @@ def _column(header: list[str], names: tuple[str, ...], source: str) -> int:
     )
 
 
-def _numeric(body: list[list[str]], column: int) -> bool:
-    """Every non-empty cell of the column parses as a number (and one at least is there)."""
-    cells = [row[column] for row in body if row[column]]
-    try:
-        [float(cell) for cell in cells]
-    except ValueError:
-        return False
-    return bool(cells)
+def _numeric(body: list[list[str]], column: int, name: str, source: str) -> bool:
+    """Whether the column is a covariate: every non-empty cell a number (one at least).
+
+    A column of numbers and text, or a text column named as a covariate
+    (:data:`_NUMERIC`), is refused, naming its first text cell: a decimal
+    comma or a typo would otherwise drop the covariate without a word.
+    """
+    text = []
+    for line, row in enumerate(body, start=2):
+        try:
+            float(row[column] or "0")
+        except ValueError:
+            text.append((line, row[column]))
+    filled = sum(bool(row[column]) for row in body)
+    if text and (len(text) < filled or name in _NUMERIC):
+        line, value = text[0]
+        raise InputError(
+            f"{name} must be a number, got {value!r} (a decimal comma?)",
+            source=source,
+            field=f"row {line}, column {name!r}",
+        )
+    return filled > 0 and not text
 
 
 def group_runs(

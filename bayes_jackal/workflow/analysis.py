@@ -55,7 +55,7 @@ from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
 from ..inference.chains import SamplerSettings
 from ..inference.comparison import compare_families
 from ..inference.executors import Executor, ProcessExecutor
-from ..inference.population import population_posterior
+from ..inference.population import plan_units, population_posterior
 from ..inference.sampler_warnings import keep_warnings
 from ..io.experiment import Experiment
 from ..io.groups import RunGroups
@@ -257,6 +257,8 @@ def analyse_logs(
     options = dataclasses.replace(
         options, channels=resolve_channels(experiments, options.channels)
     )
+    if groups is not None:  # a bad groups file is refused before any work
+        plan_units(experiments, groups, noise=options.noise)
     channels = options.channels
     say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2):")
     grids = _grids(experiments, robot, folder, say)
