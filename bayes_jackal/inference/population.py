@@ -389,6 +389,23 @@ class UnitPlan:
         The covariate of the slope, None without one.
     notes : list of dict
         Warnings to keep (``one_operating_point``).
+
+    Examples
+    --------
+    Two floors of two runs each, every run at one speed: no slope, and a note
+    that says why.
+
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import plan_units
+    >>> robot = bj.load_profile()
+    >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=s, name=f"r{s}") for s in range(4)]
+    >>> floors = {"r0": "A", "r1": "A", "r2": "B", "r3": "B"}
+    >>> table = bj.io.RunGroups(floors, {run: {"speed": 0.3} for run in floors})
+    >>> plan = plan_units(runs, table)
+    >>> {name: [run.name for run in unit[1]] for name, unit in plan.units.items()}
+    {'A': ['r0', 'r1'], 'B': ['r2', 'r3']}
+    >>> plan.covariate, [note["kind"] for note in plan.notes]
+    (None, ['one_operating_point'])
     """
 
     units: dict[str, tuple[str, list[Experiment], float | None]]
