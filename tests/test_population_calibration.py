@@ -18,9 +18,9 @@ every unit is sampled with the white family, the fast one).
   uncertain (the law of total variance: Var E[a_g | tau] is added);
   ``test_population.py::test_stage_2_is_calibrated_and_shrinks_on_normal_units``
   measures these figures on stage 2 alone.
-- **Evidence**: equal floors are not split (no structure beats pooled by
-  ln B > 3); floors 30 % apart are (hierarchical or independent beats
-  pooled by ln B > 3).
+- **Evidence**: 3 floors of 3 runs. Equal floors are not split (no
+  structure beats pooled by ln B > 3); floors 30 % apart are (hierarchical
+  or independent beats pooled by ln B > 3).
 - **Speed**: two floors, each driven at three speeds (0.2, 0.4 and 0.6 m/s),
   one run each, sampled alone (noise per run). A damping 50 % higher at the top speed is
   detected (slope HDI excludes 0, ln B > 3 over the best constant
@@ -164,7 +164,7 @@ def test_hierarchical_posterior_is_calibrated_and_shrinks():
 def test_evidence_splits_floors_that_differ_and_only_those(apart, split):
     rng = np.random.default_rng([27, 100, int(apart * 10)])
     floors = {label: MEAN * apart**k for k, label in enumerate(("tiles", "carpet", "lino"))}
-    result = _fit(campaign(floors, rng), 1)
+    result = _fit(campaign(floors, rng, runs=3), 1)  # 3 runs a floor: the calibration has 5
     beaten = max(
         result.log_bayes_factor(name, "pooled")[0] for name in ("hierarchical", "independent")
     )
