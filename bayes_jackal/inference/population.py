@@ -528,6 +528,9 @@ def population(
     Returns
     -------
     Population
+        A unit's chain that hit its step cap raises no
+        :class:`~bayes_jackal.inference.ConvergenceWarning`: it is a
+        ``convergence`` entry of its ``warnings``, with the unit's name.
 
     Raises
     ------
