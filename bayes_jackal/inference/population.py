@@ -27,7 +27,7 @@ from .._runtime.defaults import ENGINE, FAMILY, HDI_PROB, MAX_STEPS, NOISE, SENS
 from .._runtime.errors import InputError
 from .._runtime.rng import as_rng
 from ..io.experiment import Experiment, as_experiments
-from ..io.groups import RunGroups, group_runs, read_groups, run_group
+from ..io.groups import RunGroups, as_run_groups, group_runs, run_group
 from ..likelihood.residual_likelihood import LikelihoodOptions
 from ..model.robot import RobotProfile, as_profile
 from ..posterior.posterior import Posterior, save_posterior
@@ -320,19 +320,24 @@ def unit_files(folder: str | Path, names: Sequence[str], family: str) -> dict[st
     >>> unit_files("campaign", ["floor A", "v1_01"], "gaussian")["floor A"].as_posix()
     'campaign/units/floor_A.gaussian.nc'
     """
-    files = {
-        name: Path(folder) / "units" / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}.{family}.nc"
-        for name in names
+    return {
+        name: Path(folder) / "units" / f"{stem}.{family}.nc"
+        for name, stem in _file_stems(names).items()
     }
+
+
+def _file_stems(names: Sequence[str]) -> dict[str, str]:
+    """Each unit's file stem, its name made safe; two names of one stem are refused."""
+    stems = {name: re.sub(r"[^A-Za-z0-9_.-]+", "_", name) for name in names}
     taken: dict[str, str] = {}
-    for name, path in files.items():
-        other = taken.setdefault(path.name.lower(), name)
+    for name, stem in stems.items():
+        other = taken.setdefault(stem.lower(), name)  # one file on a case-blind file system
         if other != name:
             raise InputError(
-                f"units {other!r} and {name!r} would share the file {path.name}: rename one",
+                f"units {other!r} and {name!r} would share the file {stem}.*: rename one",
                 field="group",
             )
-    return files
+    return stems
 
 
 def _covariate_name(
@@ -445,8 +450,7 @@ def plan_units(
     >>> list(plan.units), plan.covariate
     (['r0', 'r1', 'r2', 'r3'], 'speed')
     """
-    table = read_groups(groups) if isinstance(groups, (str, Path)) else groups
-    table = RunGroups(dict(table)) if isinstance(table, Mapping) else table
+    table = as_run_groups(groups)
     grouped = group_runs(experiments, table)
     if len(grouped) < 2:
         raise InputError(
@@ -457,7 +461,7 @@ def plan_units(
         )
     name = _covariate_name(experiments, table, covariate and covariate.strip().lower())
     units = _units(grouped, table, name, per_run=noise == "per-experiment")
-    unit_files(".", list(units), "family")  # two unit names that share a file are refused
+    _file_stems(list(units))  # two unit names that would share a file are refused
     if name is None or len({value for _, _, value in units.values()}) > 1:
         return UnitPlan(units, name, [])
     note = {
@@ -566,7 +570,7 @@ def population(
         family=family,
         settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
         seed=seed,
-        prior_overrides=dict(priors) if priors else None,
+        prior_overrides=priors,
         likelihood_options=LikelihoodOptions(
             channels=channels, noise=noise, sensor=sensor, engine=engine
         ),
@@ -765,12 +769,11 @@ def _sensitivity(result: Population, rng: np.random.Generator) -> dict:
     checked = {"default": hierarchy.tau_range} | SENSITIVITY_TAU_RANGES
     sensitivity = {}
     for label, tau_range in checked.items():
-        other = Hierarchy(hierarchy.units, hierarchy.bounds, tau_range=tau_range)
-        draws = (
-            result.draws[result.model]
-            if label == "default"
-            else other.draws(result.model, POPULATION_DRAWS, rng=rng)
-        )
+        if label == "default":
+            other, draws = hierarchy, result.draws[result.model]
+        else:
+            other = Hierarchy(hierarchy.units, hierarchy.bounds, tau_range=tau_range)
+            draws = other.draws(result.model, POPULATION_DRAWS, rng=rng)
         sensitivity[label] = {
             "tau_range": list(tau_range),
             "log_bayes_factor_vs_pooled": other.log_integral(result.model)
@@ -789,8 +792,8 @@ def _population_warnings(result: Population) -> list[dict]:
             {
                 "kind": "few_groups",
                 "message": (
-                    f"{groups} group{'s' if groups > 1 else ''}: the population's spread is "
-                    "barely determined; its mean's interval is wide by right"
+                    f"{groups} groups: the population's spread is barely determined; its "
+                    "mean's interval is wide by right"
                 ),
             }
         )

@@ -37,7 +37,7 @@ from .experiment import (
     steady_smoothing,
     write_netcdf,
 )
-from .groups import RunGroups, group_runs, read_groups, run_group
+from .groups import RunGroups, as_run_groups, group_runs, read_groups, run_group
 from .logs import ReadOptions, ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
@@ -131,6 +131,7 @@ __all__ = [
     "TickPoses",
     "UniformClock",
     "as_experiments",
+    "as_run_groups",
     "bag_format",
     "bag_messages",
     "bag_truth",

@@ -21,7 +21,7 @@ from .._runtime.errors import InputError
 from .._runtime.files import require_file
 from .experiment import Experiment
 
-__all__ = ["RunGroups", "group_runs", "read_groups", "run_group"]
+__all__ = ["RunGroups", "as_run_groups", "group_runs", "read_groups", "run_group"]
 
 #: Suffixes of the files a run is read from, dropped when a row is matched to a run's name.
 _DATA_SUFFIXES = (".bag", ".mcap", ".db3", ".csv", ".mat", ".nc")
@@ -49,8 +49,8 @@ class RunGroups:
     --------
     >>> from bayes_jackal.io import RunGroups
     >>> table = RunGroups({"v1_01": "concrete", "v1_02": "carpet"}, {"v1_01": {"speed": 0.3}})
-    >>> table.label_of("data/v1_01.bag"), table.covariate_of("v1_01.bag", "speed")
-    ('concrete', 0.3)
+    >>> table.label_of("data/v1_01.bag"), table.label_of("v1_02")
+    ('concrete', 'carpet')
     """
 
     groups: dict[str, str]
@@ -86,11 +86,6 @@ class RunGroups:
         """The group of ``run`` (an experiment's name or source), None when not listed."""
         key = self._key(run)
         return None if key is None else self.groups[key]
-
-    def covariate_of(self, run: str, name: str) -> float | None:
-        """The covariate ``name`` of ``run``, None when not given."""
-        key = self._key(run)
-        return None if key is None else self.covariates.get(key, {}).get(name)
 
     def of(self, experiment: Experiment) -> tuple[str | None, dict[str, float]]:
         """(group label, covariates) of an experiment, by its name or its file."""
@@ -225,6 +220,22 @@ def _numeric(body: list[list[str]], column: int, name: str, source: str) -> bool
     return filled > 0 and not text
 
 
+def as_run_groups(groups: RunGroups | Mapping[str, str] | str | Path | None) -> RunGroups | None:
+    """A groups table as given, read from its CSV, or made from a mapping run -> label.
+
+    None stays None: the groups are then in each experiment's provenance.
+
+    Examples
+    --------
+    >>> from bayes_jackal.io import as_run_groups
+    >>> as_run_groups({"v1_01": "tiles"}).groups, as_run_groups(None)
+    ({'v1_01': 'tiles'}, None)
+    """
+    if isinstance(groups, (str, Path)):
+        return read_groups(groups)
+    return RunGroups(dict(groups)) if isinstance(groups, Mapping) else groups
+
+
 def group_runs(
     experiments: Sequence[Experiment], groups: RunGroups | Mapping[str, str] | None = None
 ) -> dict[str, list[Experiment]]:
@@ -252,7 +263,7 @@ def group_runs(
     >>> {label: [run.name for run in group] for label, group in grouped.items()}
     {'tiles': ['r1', 'r3'], 'carpet': ['r2']}
     """
-    table = groups if isinstance(groups, RunGroups) or groups is None else RunGroups(dict(groups))
+    table = as_run_groups(groups)
     grouped: dict[str, list[Experiment]] = {}
     for experiment in experiments:
         label, _ = run_group(experiment, table)

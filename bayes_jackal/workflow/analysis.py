@@ -58,7 +58,7 @@ from ..inference.executors import Executor, ProcessExecutor
 from ..inference.population import plan_units, population_posterior
 from ..inference.sampler_warnings import keep_warnings
 from ..io.experiment import Experiment
-from ..io.groups import RunGroups
+from ..io.groups import RunGroups, as_run_groups
 from ..io.logs import ReadOptions, ingest_logs
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.robot import RobotProfile, load_profile
@@ -257,7 +257,8 @@ def analyse_logs(
     options = dataclasses.replace(
         options, channels=resolve_channels(experiments, options.channels)
     )
-    if groups is not None:  # a bad groups file is refused before any work
+    if groups is not None:  # read once, and a bad groups file refused before any work
+        groups = as_run_groups(groups)
         plan_units(experiments, groups, noise=options.noise)
     channels = options.channels
     say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2):")
