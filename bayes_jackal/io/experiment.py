@@ -57,6 +57,8 @@ __all__ = [
 ]
 
 FORMAT = "bayes_jackal.experiment/1"
+#: Variable name prefix of a field's mask of measured ticks in an experiment file.
+MEASURED_PREFIX = "measured_"
 UNITS = {
     "t": "s",
     "yaw_rate": "rad/s",
@@ -94,6 +96,9 @@ CHANNEL_FIELDS = {"vx": "vx", "vy": "vy", "yaw": "yaw_rate"}
 MEASUREMENTS = ("rate", "pose")
 #: The channels motion-capture poses record.
 POSE_CHANNELS = ("vx", "vy")
+#: The fields a sensor measures on the experiment's clock, which may miss
+#: ticks (:attr:`Experiment.measured`): the yaw rate, and vx, vy measured as rates.
+RATE_FIELDS = ("yaw_rate", "vx", "vy")
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +131,17 @@ class Experiment:
         Known parameters of a simulated experiment.
     truth_arrays : dict of str to ndarray
         Known noise-free states and noise of a simulated experiment.
+    measured : dict of str to ndarray of bool
+        For a field of :data:`RATE_FIELDS` whose sensor missed ticks of the
+        clock, shape (N,): True where it measured (the other ticks hold a
+        value filled in for plots, which the likelihood does not use). A
+        field without an entry was measured at every tick; a mask of all
+        True is dropped.
+    segments : ndarray of int, optional
+        The first sample of each segment of the run (its command steps, in
+        order, the first 0): where the command changes, e.g. the steps of a
+        calibration drive (:mod:`bayes_jackal.io.segments`). None: one
+        segment.
     provenance : dict
         Where the data came from and what was repaired.
     source : str
@@ -167,6 +183,8 @@ class Experiment:
     truth_arrays: dict[str, np.ndarray] = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     source: str = "<memory>"
+    measured: dict[str, np.ndarray] = field(default_factory=dict)
+    segments: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         columns = {key: getattr(self, key) for key in (*REQUIRED, *OPTIONAL)}
@@ -188,6 +206,10 @@ class Experiment:
                     source=self.source,
                     field=f"truth_{key}",
                 )
+        object.__setattr__(self, "measured", _check_measured(self.measured, columns, self.source))
+        object.__setattr__(
+            self, "segments", _check_segments(self.segments, len(columns["t"]), self.source)
+        )
         for key, value in columns.items():
             value.setflags(write=False)
             object.__setattr__(self, key, value)
@@ -219,6 +241,32 @@ class Experiment:
         """
         self.channel(channel)  # a DataError when it is not in the experiment
         return "pose" if self.pose is not None and channel in POSE_CHANNELS else "rate"
+
+    def observed(self, channel: str) -> np.ndarray:
+        """Where a rate channel was measured: a bool mask of the samples, shape (N,).
+
+        All True unless :attr:`measured` says otherwise (a channel recorded
+        as poses has its own stamps, :attr:`pose`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from bayes_jackal.io import Experiment
+        >>> t = np.arange(6) / 10
+        >>> mask = np.array([1, 1, 0, 1, 1, 1], bool)  # the IMU missed the third tick
+        >>> run = Experiment(t=t, yaw_rate=0 * t, omega_r=1 + 0 * t, omega_l=1 + 0 * t,
+        ...                  measured={"yaw_rate": mask})
+        >>> run.observed("yaw").tolist()
+        [True, True, False, True, True, True]
+        """
+        mask = self.measured.get(CHANNEL_FIELDS[channel])
+        self.channel(channel)  # a DataError when it is not in the experiment
+        return np.ones(len(self.t), bool) if mask is None else mask
+
+    @property
+    def segment_starts(self) -> np.ndarray:
+        """The first sample of each segment (:attr:`segments`; ``[0]`` for one segment)."""
+        return np.zeros(1, int) if self.segments is None else self.segments
 
     def channel(self, name: str) -> np.ndarray:
         """Measured state of one model channel (``"vx"``, ``"vy"`` or ``"yaw"``)."""
@@ -256,11 +304,20 @@ class Experiment:
             if getattr(self, key) is not None
         }
         arrays = {key: value[keep] for key, value in self.truth_arrays.items()}
+        measured = {key: mask[keep] for key, mask in self.measured.items()}
         # The poses around each kept sample too: the pose channels read the
         # poses within half a step of each sample (bayes_jackal.io.pose_increments).
         dt = self.dt
         pose = None if self.pose is None else self.pose.window(start - dt, stop + dt)
-        return dataclasses.replace(self, **cut, pose=pose, truth_arrays=arrays, steady_window=None)
+        return dataclasses.replace(
+            self,
+            **cut,
+            pose=pose,
+            truth_arrays=arrays,
+            steady_window=None,
+            measured=measured,
+            segments=_window_segments(self.segments, keep),
+        )
 
     def steady(self) -> Experiment:
         """The steady-state window, or the whole experiment when none is set."""
@@ -313,6 +370,82 @@ def _check_pose(pose: object, columns: dict[str, np.ndarray], source: str) -> No
             source=source,
             field="pose.t",
         )
+
+
+def _check_measured(
+    measured: object, columns: dict[str, np.ndarray], source: str
+) -> dict[str, np.ndarray]:
+    """The masks of measured ticks, validated; masks of all True dropped."""
+    if not isinstance(measured, dict):
+        raise DataError(
+            f"expected a dict of masks, got {type(measured).__name__}",
+            source=source,
+            field="measured",
+        )
+    masks = {}
+    for key, mask in measured.items():
+        if key not in RATE_FIELDS or key not in columns:
+            raise DataError(
+                f"a mask of measured ticks is for a field among {RATE_FIELDS} that the "
+                f"experiment has, not {key!r}",
+                source=source,
+                field="measured",
+            )
+        values = np.asarray(mask)
+        if values.shape != columns["t"].shape or values.dtype.kind not in "biu":
+            raise DataError(
+                f"expected {len(columns['t'])} booleans, got {values.dtype} of shape "
+                f"{values.shape}",
+                source=source,
+                field=f"measured.{key}",
+            )
+        values = values.astype(bool)
+        if values.sum() < MIN_SAMPLES:
+            raise DataError(
+                f"{int(values.sum())} of {len(values)} samples measured; at least "
+                f"{MIN_SAMPLES} are needed",
+                source=source,
+                field=key,
+            )
+        if not values.all():
+            values.setflags(write=False)
+            masks[key] = values
+    return masks
+
+
+def _check_segments(segments: object, samples: int, source: str) -> np.ndarray | None:
+    """Segment starts as a read-only int array: increasing, from 0, within the samples."""
+    if segments is None:
+        return None
+    starts = np.asarray(segments)
+    if starts.ndim != 1 or starts.size == 0 or starts.dtype.kind not in "iu":
+        raise DataError(
+            f"expected the first sample of each segment (integers), got {starts.dtype} of "
+            f"shape {starts.shape}",
+            source=source,
+            field="segments",
+        )
+    starts = starts.astype(int)
+    if starts[0] != 0 or (np.diff(starts) <= 0).any() or starts[-1] >= samples:
+        raise DataError(
+            f"segment starts must increase from 0 and lie within the {samples} samples, got "
+            f"{starts[:6].tolist()}{' ...' if len(starts) > 6 else ''}",
+            source=source,
+            field="segments",
+        )
+    if len(starts) == 1:
+        return None
+    starts.setflags(write=False)
+    return starts
+
+
+def _window_segments(segments: np.ndarray | None, keep: np.ndarray) -> np.ndarray | None:
+    """The segment starts within a window of the samples (``keep``, a contiguous mask)."""
+    if segments is None:
+        return None
+    first, count = int(np.argmax(keep)), int(keep.sum())
+    inside = segments[(segments > first) & (segments < first + count)] - first
+    return np.concatenate([[0], inside]).astype(int)
 
 
 def _window(window: object, source: str) -> tuple[float, float]:
@@ -574,6 +707,10 @@ def write_netcdf(experiment: Experiment, path: str | Path) -> Path:
         if getattr(experiment, key) is not None
     }
     data |= {f"truth_{key}": ("time", value) for key, value in experiment.truth_arrays.items()}
+    data |= {
+        f"{MEASURED_PREFIX}{key}": ("time", mask.astype(np.uint8))
+        for key, mask in experiment.measured.items()
+    }
     coords = {"time": ("time", experiment.t, {"units": "s"})}
     if experiment.pose is not None:
         coords["pose_time"] = ("pose_time", experiment.pose.t, {"units": "s"})
@@ -591,6 +728,8 @@ def write_netcdf(experiment: Experiment, path: str | Path) -> Path:
     }
     if experiment.steady_window is not None:
         attrs["steady_window"] = list(experiment.steady_window)
+    if experiment.segments is not None:
+        attrs["segments"] = json.dumps(experiment.segments.tolist())
     dataset = xr.Dataset(data, coords=coords, attrs=attrs)
     return write_hdf5(dataset, path)
 
@@ -654,7 +793,27 @@ def read_netcdf(path: str | Path) -> Experiment:
         },
         provenance=_json_attribute(dataset.attrs, "provenance", source),
         source=source,
+        measured={
+            key.removeprefix(MEASURED_PREFIX): dataset[key].values
+            for key in dataset.data_vars
+            if key.startswith(MEASURED_PREFIX)
+        },
+        segments=_segments_attribute(dataset.attrs, source),
     )
+
+
+def _segments_attribute(attrs: dict, source: str) -> np.ndarray | None:
+    """The segment starts of an experiment file (absent in older files: one segment)."""
+    if "segments" not in attrs:
+        return None
+    try:
+        return np.asarray(json.loads(attrs["segments"]), dtype=int)
+    except (TypeError, ValueError):
+        raise DataError(
+            f"expected a JSON list of sample indices, got {str(attrs['segments'])[:80]!r}",
+            source=source,
+            field="segments",
+        ) from None
 
 
 def _pose(dataset: xr.Dataset, source: str) -> PoseTrack | None:

@@ -27,7 +27,7 @@ import numpy as np
 from .. import __version__
 from .._runtime.defaults import CHANNELS, OPTIONAL, REQUIRED
 from .._runtime.errors import DataError, InputError
-from ..io.experiment import CHANNEL_FIELDS, Experiment
+from ..io.experiment import CHANNEL_FIELDS, MEASURED_PREFIX, RATE_FIELDS, Experiment
 from ..io.pose_track import POSE_FIELDS, PoseTrack
 from ..likelihood.priors import Prior
 from ..likelihood.residual_likelihood import ResidualLikelihood
@@ -111,6 +111,7 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
             "truth": e.truth,
             "provenance": e.provenance,
             "pose_samples": likelihood.pose_samples.get(e.name, 1),
+            "segments": None if e.segments is None else e.segments.tolist(),
         }
         for e in likelihood.experiments
     ]
@@ -323,6 +324,9 @@ def experiment_data(experiments: Sequence[Experiment]) -> tuple[dict, dict]:
             if values is not None:
                 arrays[_array_key(field, i)] = np.asarray(values)
                 dims[_array_key(field, i)] = [f"time_{i}"]
+        for field, mask in experiment.measured.items():
+            arrays[_array_key(f"{MEASURED_PREFIX}{field}", i)] = mask.astype(np.uint8)
+            dims[_array_key(f"{MEASURED_PREFIX}{field}", i)] = [f"time_{i}"]
         if experiment.pose is not None:
             for field in POSE_FIELDS:
                 key = _array_key(f"pose_{field}", i)
@@ -362,6 +366,13 @@ def experiment_arrays(idata: az.InferenceData, index: int) -> dict[str, np.ndarr
         for field in (*REQUIRED, *OPTIONAL)
         if _array_key(field, index) in data
     }
+    measured = {
+        field: data[_array_key(f"{MEASURED_PREFIX}{field}", index)].values
+        for field in RATE_FIELDS
+        if _array_key(f"{MEASURED_PREFIX}{field}", index) in data
+    }
+    if measured:
+        arrays["measured"] = measured
     if _array_key("pose_t", index) in data:
         values = [data[_array_key(f"pose_{field}", index)].values for field in POSE_FIELDS]
         arrays["pose"] = PoseTrack(*values)
@@ -454,6 +465,7 @@ def _experiment_record(stored: dict, data: Mapping, index: int) -> ExperimentRec
         provenance=stored.get("provenance") or {},
         channels=tuple(c for c in CHANNELS if _array_key(CHANNEL_FIELDS[c], index) in data),
         pose_samples=int(stored.get("pose_samples", 1)),
+        segments=None if stored.get("segments") is None else tuple(stored["segments"]),
     )
 
 

@@ -305,6 +305,7 @@ class Posterior(az.InferenceData):
                     truth=record.truth,
                     provenance=record.provenance,
                     source=record.source or "<memory>",
+                    segments=record.segments,
                 )
                 for i, record in enumerate(self.metadata.experiments)
             ]

@@ -42,6 +42,9 @@ class ExperimentRecord:
         The recorded poses averaged into each sample of its pose channels in
         the likelihood's window (1 where it has none;
         :func:`bayes_jackal.io.tick_poses`).
+    segments : tuple of int, optional
+        The first sample of each of its segments (command steps;
+        :attr:`bayes_jackal.io.Experiment.segments`); None: one.
 
     Examples
     --------
@@ -68,6 +71,7 @@ class ExperimentRecord:
     provenance: dict
     channels: tuple[str, ...] = ()
     pose_samples: int = 1
+    segments: tuple[int, ...] | None = None
 
 
 @dataclass(frozen=True)
