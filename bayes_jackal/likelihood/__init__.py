@@ -2,6 +2,7 @@
 measured, the likelihood engines (Toeplitz, spectral, Whittle) and the sampler's priors.
 """
 
+from .irregular import IrregularSeries, irregular_loglike
 from .measurements import (
     MEASUREMENT_MODELS,
     ChannelSeries,
@@ -41,6 +42,7 @@ from .toeplitz import (
     FALLBACK_BAND,
     FAST_TOLERANCE,
     SCAN_WORK,
+    banded_loglike,
     banded_toeplitz_loglike,
     fallback_loglike,
     toeplitz_loglike,
@@ -63,6 +65,7 @@ __all__ = [
     "SHORT_GRIDS",
     "WHITE_SD",
     "ChannelSeries",
+    "IrregularSeries",
     "LikelihoodOptions",
     "LogPosterior",
     "Measurement",
@@ -72,6 +75,7 @@ __all__ = [
     "ResidualBlock",
     "ResidualLikelihood",
     "SeriesLikelihood",
+    "banded_loglike",
     "banded_toeplitz_loglike",
     "channel_residuals",
     "check_length",
@@ -83,6 +87,7 @@ __all__ = [
     "expected_periodogram",
     "fallback_loglike",
     "frequency_weights",
+    "irregular_loglike",
     "measurement_of",
     "pose_channels",
     "pose_weights",
