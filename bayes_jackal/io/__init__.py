@@ -41,9 +41,11 @@ from .groups import RunGroups, as_run_groups, group_runs, read_groups, run_group
 from .logs import ReadOptions, ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
+    PoseObservations,
     TickPoses,
     body_displacement,
     body_increments,
+    pose_observations,
     pose_samples,
     tick_poses,
 )
@@ -124,6 +126,7 @@ __all__ = [
     "BagMessage",
     "Experiment",
     "NoiseSettings",
+    "PoseObservations",
     "PoseTrack",
     "ReadOptions",
     "RunGroups",
@@ -155,6 +158,7 @@ __all__ = [
     "numeric_array",
     "numeric_column",
     "open_bag",
+    "pose_observations",
     "pose_path",
     "pose_samples",
     "read_bag",

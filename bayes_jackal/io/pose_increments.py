@@ -32,6 +32,15 @@ smoothing them:
    0.1 mm (0.2 % of the variance), 14 % at 1 m/s; it is left out, and grows
    with the speed.
 
+Poses slower than the samples (lidar ICP at 4-10 Hz, motion capture at 50
+Hz beside a 72 Hz IMU), or dropping out, do not give every sample a pose of
+its own. :func:`pose_observations` says how the likelihood observes an
+experiment's poses: a pose per sample where (nearly) every sample owns
+one, as above, with the samples no pose lies within one step of left out
+(a dropout: the pose channels' residuals split there); otherwise each pose
+at its own stamp, unmoved, for the exact likelihood of
+:mod:`bayes_jackal.likelihood.irregular`.
+
 :mod:`bayes_jackal.likelihood.measurements` relates M_k to the model's state.
 """
 
@@ -43,12 +52,15 @@ import numpy as np
 
 from .._runtime.errors import DataError
 from .experiment import POSE_CHANNELS, Experiment
+from .pose_track import PoseTrack
 
 __all__ = [
     "BORROW_FRACTION",
+    "PoseObservations",
     "TickPoses",
     "body_displacement",
     "body_increments",
+    "pose_observations",
     "pose_samples",
     "tick_poses",
 ]
@@ -93,6 +105,155 @@ class TickPoses:
     borrowed: int
 
 
+@dataclass(frozen=True)
+class PoseObservations:
+    """An experiment's poses as the likelihood observes them (:func:`pose_observations`).
+
+    Attributes
+    ----------
+    regime : {"tick", "stamp"}
+        ``tick``: a pose per sample, the mean of the n nearest moved to it
+        (:func:`tick_poses`); ``stamp``: each recorded pose at its own
+        stamp, unmoved (poses slower than the samples).
+    ticks : ndarray of int, shape (M,)
+        The sample each observation is at (``tick``) or falls after (``stamp``).
+    phases : ndarray, shape (M,)
+        Its time after that sample [s]: 0 for ``tick``, in [0, dt) for ``stamp``.
+    x, y, heading : ndarray, shape (M,)
+        The world pose observed [m, m, rad].
+    samples : int
+        Recorded poses averaged into each observation (1 for ``stamp``).
+    borrowed : int
+        ``tick``: samples that own fewer than n poses and took their neighbours'.
+    rate : float
+        The poses' median rate [Hz].
+
+    Examples
+    --------
+    Poses at 10 Hz beside a 50 Hz clock: each at its own stamp, a fifth of a
+    step past its sample here:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.io import Experiment, PoseTrack, pose_observations
+    >>> t, s = np.arange(500) / 50, np.arange(100) / 10 + 0.004
+    >>> run = Experiment(t=t, yaw_rate=0 * t, omega_r=3 + 0 * t, omega_l=3 + 0 * t,
+    ...                  vx=0.3 + 0 * t, vy=0 * t, pose=PoseTrack(s, 0.3 * s, 0 * s, 0 * s))
+    >>> poses = pose_observations(run)
+    >>> poses.regime, poses.ticks[:3].tolist(), poses.phases[:3].round(6).tolist()
+    ('stamp', [0, 5, 10], [0.004, 0.004, 0.004])
+    """
+
+    regime: str
+    ticks: np.ndarray
+    phases: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray
+    samples: int
+    borrowed: int
+    rate: float
+
+    def increments(self, channel: str) -> np.ndarray:
+        """D_j, the body-frame travel between consecutive observations along an axis [m].
+
+        The world displacement rotated by the mean of the two headings
+        (:func:`body_increments`), shape (M - 1,).
+        """
+        return body_increments(self, channel)
+
+
+def pose_observations(experiment: Experiment) -> PoseObservations:
+    """How the likelihood observes an experiment's poses: a pose per sample, or at their stamps.
+
+    A pose per sample (``tick``, as :func:`tick_poses`) where all but
+    :data:`BORROW_FRACTION` of the samples that have a pose within one
+    step own one; the samples without a pose within one step (a dropout,
+    or before the poses begin) are left out. Otherwise (poses slower than
+    the samples) each pose within the samples' span is observed at its own
+    stamp (``stamp``).
+
+    Raises
+    ------
+    DataError
+        Naming the file: no poses, or fewer than three within the samples.
+
+    Examples
+    --------
+    Motion capture at 360 Hz beside a 72 Hz IMU with a 0.2 s dropout: the
+    13 samples without a pose within one step are left out:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.io import Experiment, PoseTrack, pose_observations
+    >>> t, s = np.arange(720) / 72, np.arange(-2, 3602) / 360 + 0.0011
+    >>> s = s[(s < 4.0) | (s > 4.2)]
+    >>> run = Experiment(t=t, yaw_rate=0 * t, omega_r=3 + 0 * t, omega_l=3 + 0 * t,
+    ...                  vx=0.3 + 0 * t, vy=0 * t, pose=PoseTrack(s, 0.3 * s, 0 * s, 0 * s))
+    >>> poses = pose_observations(run)
+    >>> poses.regime, poses.samples, len(t) - len(poses.ticks)
+    ('tick', 5, 13)
+    """
+    track, t = _track(experiment), experiment.t
+    near = _near_samples(track.t, t, experiment.dt)
+    owners = _owned_counts(track.t, t, experiment.dt)
+    covered = owners[near]
+    if covered.size and np.mean(covered > 0) >= 1 - BORROW_FRACTION:
+        ticks = np.flatnonzero(near)
+        samples = int(np.quantile(covered[covered > 0], BORROW_FRACTION, method="lower"))
+        x, y, heading = _moved_means(track, t[ticks], samples)
+        return PoseObservations("tick", ticks, np.zeros(len(ticks)), x, y, heading, samples,
+                                int(np.sum(covered < samples)), track.rate)  # fmt: skip
+    inside = (track.t >= t[0]) & (track.t < t[-1])
+    if inside.sum() < 3:
+        raise DataError(
+            f"{int(inside.sum())} poses lie within the samples' span "
+            f"({t[0]:.6g}..{t[-1]:.6g} s); at least 3 are needed",
+            source=experiment.source,
+            field="pose",
+        )
+    stamps = track.t[inside]
+    ticks = np.minimum(np.floor((stamps - t[0]) / experiment.dt + 1e-9).astype(int), len(t) - 2)
+    phases = np.clip(stamps - t[ticks], 0.0, experiment.dt * (1 - 1e-12))
+    return PoseObservations("stamp", ticks, phases, track.x[inside], track.y[inside],
+                            track.heading[inside], 1, 0, track.rate)  # fmt: skip
+
+
+def _track(experiment: Experiment) -> PoseTrack:
+    """The experiment's pose track; a DataError naming its file when it has none."""
+    if experiment.pose is None:
+        raise DataError("the experiment holds no poses", source=experiment.source, field="pose")
+    return experiment.pose
+
+
+def _near_samples(stamps: np.ndarray, t: np.ndarray, dt: float) -> np.ndarray:
+    """Which samples have a pose within one step, shape (N,)."""
+    nearest = _nearest_poses(stamps, t, 1)[:, 0]
+    return np.abs(stamps[nearest] - t) <= dt
+
+
+def _owned_counts(stamps: np.ndarray, t: np.ndarray, dt: float) -> np.ndarray:
+    """The poses each sample owns (within half a step of it), shape (N,)."""
+    owners = np.rint((stamps - t[0]) / dt).astype(int)
+    return np.bincount(owners[(owners >= 0) & (owners < len(t))], minlength=len(t))
+
+
+def _moved_means(
+    track: PoseTrack, t: np.ndarray, samples: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """x, y, heading at times t: the mean of the ``samples`` nearest poses, each moved to it.
+
+    Each pose moves by its offset times the smoothed rate halfway between
+    its stamp and the time: exact to the offset^3 times the rate's curvature.
+    """
+    index = _nearest_poses(track.t, t, samples)
+    grid, rates = track.smoothed_rates()
+    offset = track.t[index] - t[:, None]
+    halfway = track.t[index] - offset / 2
+    return tuple(
+        np.mean(values[index] - offset * np.interp(halfway, grid, rate), axis=1)
+        for values, rate in zip((track.x, track.y, track.heading), rates.T, strict=True)
+    )
+
+
 def tick_poses(experiment: Experiment) -> TickPoses:
     """The poses of an experiment at its samples: the mean of the n nearest, moved to each.
 
@@ -129,19 +290,9 @@ def tick_poses(experiment: Experiment) -> TickPoses:
     >>> ticks.samples, ticks.borrowed, bool(np.allclose(ticks.x, 0.3 * t))
     (5, 0, True)
     """
-    track, t = experiment.pose, experiment.t
     samples, borrowed = pose_samples(experiment)
-    index = _nearest_poses(track.t, t, samples)
-    grid, rates = track.smoothed_rates()
-    offset = track.t[index] - t[:, None]
-    # Each pose moved by its offset times the rate halfway between its stamp
-    # and the sample: exact to the offset^3 times the rate's curvature.
-    halfway = track.t[index] - offset / 2
-    moved = [
-        np.mean(values[index] - offset * np.interp(halfway, grid, rate), axis=1)
-        for values, rate in zip((track.x, track.y, track.heading), rates.T, strict=True)
-    ]
-    return TickPoses(*moved, samples=samples, borrowed=borrowed)
+    x, y, heading = _moved_means(experiment.pose, experiment.t, samples)
+    return TickPoses(x, y, heading, samples=samples, borrowed=borrowed)
 
 
 def pose_samples(experiment: Experiment) -> tuple[int, int]:
@@ -179,12 +330,8 @@ def pose_samples(experiment: Experiment) -> tuple[int, int]:
     Hz) are slower than the samples (72 Hz) or drop out too often, and the pose channels need
     a pose of each sample's own (--channels yaw leaves them out)
     """
-    track = experiment.pose
-    if track is None:
-        raise DataError("the experiment holds no poses", source=experiment.source, field="pose")
-    t, dt = experiment.t, experiment.dt
-    nearest = _nearest_poses(track.t, t, 1)[:, 0]
-    far = np.flatnonzero(np.abs(track.t[nearest] - t) > dt)
+    track, t, dt = _track(experiment), experiment.t, experiment.dt
+    far = np.flatnonzero(~_near_samples(track.t, t, dt))
     if far.size:
         raise DataError(
             f"no pose within one step ({dt:.4g} s) of the sample at {t[far[0]]:.6g} s "
@@ -192,8 +339,7 @@ def pose_samples(experiment: Experiment) -> tuple[int, int]:
             source=experiment.source,
             field="pose",
         )
-    owners = np.rint((track.t - t[0]) / dt).astype(int)
-    counts = np.bincount(owners[(owners >= 0) & (owners < len(t))], minlength=len(t))
+    counts = _owned_counts(track.t, t, dt)
     samples = int(np.quantile(counts, BORROW_FRACTION, method="lower"))
     if samples == 0:
         alone = int(np.sum(counts == 0))

@@ -4,7 +4,9 @@ measured, the likelihood engines (Toeplitz, spectral, Whittle) and the sampler's
 
 from .irregular import IrregularSeries, irregular_loglike
 from .measurements import (
+    BRIDGED_GAP,
     MEASUREMENT_MODELS,
+    ChannelObservations,
     ChannelSeries,
     Measurement,
     PoseMeasurement,
@@ -21,7 +23,12 @@ from .residual_likelihood import (
     resolve_channels,
     sample_stationary,
 )
-from .residuals import channel_residuals, check_residual_window, residual_regressors
+from .residuals import (
+    channel_residuals,
+    check_residual_window,
+    residual_count,
+    residual_regressors,
+)
 from .series_likelihood import (
     MIN_LIKELIHOOD_SAMPLES,
     SERIES_SPREAD,
@@ -55,6 +62,7 @@ from .whittle import (
 )
 
 __all__ = [
+    "BRIDGED_GAP",
     "CHUNK_ELEMENTS",
     "FALLBACK_BAND",
     "FAST_TOLERANCE",
@@ -64,6 +72,7 @@ __all__ = [
     "SERIES_SPREAD",
     "SHORT_GRIDS",
     "WHITE_SD",
+    "ChannelObservations",
     "ChannelSeries",
     "IrregularSeries",
     "LikelihoodOptions",
@@ -92,6 +101,7 @@ __all__ = [
     "pose_channels",
     "pose_weights",
     "residual_autocovariance",
+    "residual_count",
     "residual_regressors",
     "resolve_channels",
     "sample_stationary",

@@ -45,25 +45,38 @@ recording a channel is a class here (one per idea), registered in
   38 s run).
 
 Both laws are Toeplitz, so every engine of
-:class:`bayes_jackal.likelihood.ResidualLikelihood` evaluates either.
+:class:`bayes_jackal.likelihood.ResidualLikelihood` evaluates either. They
+need a measurement at every sample (a rate channel) or a pose per sample
+(a pose channel): a rate sensor that missed samples
+(:attr:`bayes_jackal.io.Experiment.measured`) or poses that drop out split
+the series into segments of consecutive ones (:attr:`ChannelSeries.lengths`;
+their log-likelihoods add), and poses slower than the samples have no
+such series at all. :meth:`Measurement.observations` gives every channel
+at its own times instead, for the exact likelihood of
+:mod:`bayes_jackal.likelihood.irregular`, which also serves a damping that
+changes from one segment of the run to the next.
 """
 
 from __future__ import annotations
 
 import abc
+import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from .._runtime.errors import DataError
 from ..io.experiment import Experiment
-from ..io.pose_increments import body_increments, pose_samples, tick_poses
+from ..io.pose_increments import PoseObservations, pose_observations
 from ..model.kernels import Family
 from ..model.physics import channel_coefficients, step_integrals
 from ..model.robot import RobotProfile
 
 __all__ = [
+    "BRIDGED_GAP",
     "MEASUREMENT_MODELS",
+    "ChannelObservations",
     "ChannelSeries",
     "Measurement",
     "PoseMeasurement",
@@ -74,6 +87,12 @@ __all__ = [
 ]
 
 
+#: Longest stretch without an observation that one residual of the irregular
+#: engine bridges [s] (the bag reader's ``max_gap``): a longer one splits the
+#: channel, whose pieces' log-likelihoods add.
+BRIDGED_GAP = 0.25
+
+
 @dataclass(frozen=True)
 class ChannelSeries:
     """The regressors of one channel of one experiment, and its pose count.
@@ -81,20 +100,61 @@ class ChannelSeries:
     Attributes
     ----------
     regressors : ndarray, shape (n, K)
-        Z: the residuals are Z c.
+        Z: the residuals are Z c; the segments' rows one after the other.
     samples : int
         Recorded poses averaged into each sample (1 for a rate channel).
+    lengths : tuple of int
+        The residuals of each segment of consecutive measurements, in
+        order (they add up to n); one segment when nothing was missed.
 
     Examples
     --------
     >>> import numpy as np
     >>> from bayes_jackal.likelihood import ChannelSeries
-    >>> ChannelSeries(np.zeros((100, 4))).samples
-    1
+    >>> ChannelSeries(np.zeros((100, 4))).lengths
+    (100,)
     """
 
     regressors: np.ndarray
     samples: int = 1
+    lengths: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.lengths:
+            object.__setattr__(self, "lengths", (len(self.regressors),))
+
+    def segments(self) -> list[np.ndarray]:
+        """The regressors of each segment."""
+        return np.split(self.regressors, np.cumsum(self.lengths)[:-1])
+
+
+@dataclass(frozen=True)
+class ChannelObservations:
+    """One piece of a channel observed at its own times (the irregular engine's input).
+
+    Attributes
+    ----------
+    ticks, phases : ndarray, shape (M,)
+        The sample each observation falls after, and how long after [s].
+    values : ndarray
+        A rate channel's measurements (M,); a pose channel's body-frame
+        increments between consecutive observations (M - 1,) [m].
+    counts : ndarray of int, shape (M,)
+        Recorded poses averaged into each observation (ones for a rate channel).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.likelihood import ChannelObservations
+    >>> piece = ChannelObservations(np.arange(4), np.zeros(4), np.ones(4), np.ones(4, int))
+    >>> len(piece.ticks)
+    4
+    """
+
+    ticks: np.ndarray
+    phases: np.ndarray
+    values: np.ndarray
+    counts: np.ndarray
 
 
 class Measurement(abc.ABC):
@@ -127,11 +187,19 @@ class Measurement(abc.ABC):
 
     @abc.abstractmethod
     def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
-        """The regressors Z of ``channel`` over the whole ``experiment``."""
+        """The regressors Z of ``channel`` over the whole ``experiment``, by segment."""
 
     def samples(self, experiment: Experiment) -> int:
-        """The recorded poses each sample of ``experiment`` averages (1: none)."""
+        """The recorded poses each observation of ``experiment`` averages (1: none)."""
         return 1
+
+    def regular(self, experiment: Experiment) -> bool:
+        """Whether :meth:`series` holds the channel: a measurement (pose) at each sample."""
+        return True
+
+    @abc.abstractmethod
+    def observations(self, experiment: Experiment, channel: str) -> list[ChannelObservations]:
+        """``channel`` at its own times, in pieces split at gaps over :data:`BRIDGED_GAP`."""
 
     @abc.abstractmethod
     def coefficients(
@@ -190,8 +258,15 @@ class RateMeasurement(Measurement):
     regressor_count = 4
 
     def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
-        y = experiment.channel(channel)
-        return ChannelSeries(np.column_stack([y[1:], y[:-1], experiment.inputs[:-1]]))
+        y, observed = experiment.channel(channel), experiment.observed(channel)
+        rows = np.column_stack([y[1:], y[:-1], experiment.inputs[:-1]])
+        return _segmented(rows, observed[1:] & observed[:-1])
+
+    def observations(self, experiment: Experiment, channel: str) -> list[ChannelObservations]:
+        ticks = np.flatnonzero(experiment.observed(channel))
+        values = experiment.channel(channel)[ticks]
+        ones = np.ones(len(ticks), int)
+        return _pieces(ticks, np.zeros(len(ticks)), values, ones, experiment.dt, increments=False)
 
     def coefficients(self, robot, d_lat, d_long, channel, dt):
         alpha, beta = channel_coefficients(robot, d_lat, d_long, channel, dt)
@@ -234,14 +309,33 @@ class PoseMeasurement(Measurement):
     regressor_count = 6
 
     def samples(self, experiment: Experiment) -> int:
-        return pose_samples(experiment)[0]
+        return observed_poses(experiment).samples
+
+    def regular(self, experiment: Experiment) -> bool:
+        return observed_poses(experiment).regime == "tick"
 
     def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
-        ticks = tick_poses(experiment)
-        increments = body_increments(ticks, channel)
+        poses = observed_poses(experiment)
+        if poses.regime != "tick":
+            raise DataError(
+                f"the poses ({poses.rate:.4g} Hz) are slower than the samples "
+                f"({1 / experiment.dt:.4g} Hz): no pose per sample, so no one-step series; "
+                "the likelihood observes them at their own stamps (observations)",
+                source=experiment.source,
+                field="pose",
+            )
+        increments = np.full(len(experiment.t) - 1, np.nan)
+        consecutive = np.diff(poses.ticks) == 1
+        increments[poses.ticks[:-1][consecutive]] = poses.increments(channel)[consecutive]
         u = experiment.inputs
-        regressors = np.column_stack([increments[1:], increments[:-1], u[1:-1], u[:-2]])
-        return ChannelSeries(regressors, ticks.samples)
+        rows = np.column_stack([increments[1:], increments[:-1], u[1:-1], u[:-2]])
+        return _segmented(rows, np.isfinite(rows[:, :2]).all(axis=1), poses.samples)
+
+    def observations(self, experiment: Experiment, channel: str) -> list[ChannelObservations]:
+        poses = observed_poses(experiment)
+        counts = np.full(len(poses.ticks), poses.samples)
+        return _pieces(poses.ticks, poses.phases, poses.increments(channel), counts,
+                       experiment.dt, increments=True)  # fmt: skip
 
     def coefficients(self, robot, d_lat, d_long, channel, dt):
         alpha, beta = channel_coefficients(robot, d_lat, d_long, channel, dt)
@@ -291,6 +385,48 @@ def pose_weights(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     g, h = step_integrals(alpha, 1.0)
     kappa_0 = h / g
     return kappa_0, g - np.asarray(alpha, float) * kappa_0
+
+
+def _segmented(rows: np.ndarray, valid: np.ndarray, samples: int = 1) -> ChannelSeries:
+    """The valid rows of a one-step series, by segment of consecutive valid rows."""
+    starts = np.flatnonzero(valid & ~np.concatenate([[False], valid[:-1]]))
+    stops = np.flatnonzero(valid & ~np.concatenate([valid[1:], [False]])) + 1
+    return ChannelSeries(rows[valid], samples, tuple(int(n) for n in stops - starts))
+
+
+def _pieces(
+    ticks: np.ndarray,
+    phases: np.ndarray,
+    values: np.ndarray,
+    counts: np.ndarray,
+    dt: float,
+    *,
+    increments: bool,
+) -> list[ChannelObservations]:
+    """Observations split where consecutive ones lie more than :data:`BRIDGED_GAP` apart.
+
+    A piece too short for two residuals (four observations) is left out.
+    """
+    times = ticks * dt + phases
+    cuts = np.flatnonzero(np.diff(times) > BRIDGED_GAP) + 1
+    pieces = []
+    for start, stop in zip([0, *cuts], [*cuts, len(ticks)], strict=True):
+        if stop - start < 4:
+            continue
+        part = slice(start, stop)
+        kept = values[start : stop - 1] if increments else values[part]
+        pieces.append(ChannelObservations(ticks[part], phases[part], kept, counts[part]))
+    return pieces
+
+
+@functools.lru_cache(maxsize=16)
+def observed_poses(experiment: Experiment) -> PoseObservations:
+    """:func:`bayes_jackal.io.pose_observations` of an experiment, kept for its pose channels.
+
+    Experiments are immutable: the last few are remembered by identity, so
+    that vx, vy and every caller share one computation.
+    """
+    return pose_observations(experiment)
 
 
 #: The measurement models by name (:data:`bayes_jackal.io.MEASUREMENTS`).

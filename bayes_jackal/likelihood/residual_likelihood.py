@@ -78,12 +78,14 @@ from .._runtime.threads import one_blas_thread
 from ..io.experiment import Experiment
 from ..model.kernels import get_family
 from ..model.parameters import ParameterLayout
+from ..model.physics import channel_coefficients
 from ..model.robot import RobotProfile
 from . import spectral
-from .measurements import MEASUREMENT_MODELS, measurement_of
+from .irregular import IrregularSeries, irregular_loglike
+from .measurements import MEASUREMENT_MODELS, Measurement, measurement_of
 from .residuals import check_residual_window
 from .spectral import ResidualBlock, spectral_loglike
-from .toeplitz import fallback_loglike, toeplitz_loglike
+from .toeplitz import SCAN_WORK, fallback_loglike, toeplitz_loglike
 from .whittle import debiased_whittle_loglike
 
 __all__ = [
@@ -430,6 +432,7 @@ class ResidualLikelihood:
     shared_width: bool = False
     layout: ParameterLayout = field(init=False)
     blocks: list[ResidualBlock] = field(init=False, repr=False)
+    irregular: list[IrregularSeries] = field(init=False, repr=False)
     pose_samples: dict[str, int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -455,31 +458,39 @@ class ResidualLikelihood:
         self.blocks = self._build_blocks()
 
     def _build_blocks(self) -> list[ResidualBlock]:
+        """The Toeplitz blocks of the regular channels; :attr:`irregular` the others'."""
         series: dict[tuple, list[np.ndarray]] = {}
-        self.pose_samples = {}
+        self.pose_samples, self.irregular = {}, []
         for experiment in self.experiments:
             window = experiment.steady() if self.steady else experiment
             for channel in self.channels:
                 group = self.layout.group(channel, experiment.name)
                 check_residual_window(experiment, channel, MIN_RESIDUALS, self.steady)
                 measurement = measurement_of(window, channel)
-                channel_series = measurement.series(window, channel)
-                regressors = channel_series.regressors
                 if measurement.name == "pose":  # the same for each pose channel
-                    self.pose_samples[experiment.name] = channel_series.samples
-                key = (
-                    channel,
-                    group,
-                    round(experiment.dt, 12),
-                    measurement.name,
-                    channel_series.samples,
-                    len(regressors),
-                )
-                series.setdefault(key, []).append(regressors)
+                    self.pose_samples[experiment.name] = measurement.samples(window)
+                if not measurement.regular(window):
+                    self.irregular += self._irregular(window, channel, measurement, group)
+                    continue
+                channel_series = measurement.series(window, channel)
+                for regressors in channel_series.segments():
+                    key = (channel, group, round(experiment.dt, 12), measurement.name,
+                           channel_series.samples, len(regressors))  # fmt: skip
+                    series.setdefault(key, []).append(regressors)
         return [
             ResidualBlock(channel, group, dt, np.stack(members), measurement, samples)
             for (channel, group, dt, measurement, samples, _), members in series.items()
         ]
+
+    def _irregular(
+        self, experiment: Experiment, channel: str, measurement: Measurement, group: int
+    ) -> list[IrregularSeries]:
+        """The channel's pieces at their own times (the irregular engine's)."""
+        return [
+            IrregularSeries(channel, measurement.name, group, experiment.dt, piece.ticks,
+                            piece.phases, piece.values, piece.counts, experiment.inputs)
+            for piece in measurement.observations(experiment, channel)
+        ]  # fmt: skip
 
     @property
     def noise_groups(self) -> list[tuple[str, str]]:
@@ -535,6 +546,14 @@ class ResidualLikelihood:
             noise = np.column_stack([*self.noise_parameters(theta, block.noise_group), alpha])
             engine = self._fast if self.engine == "fast" else self._reference
             total += engine(block, noise, c)
+        for series in self.irregular:
+            alpha, beta = channel_coefficients(
+                self.robot, theta[:, 0, None], theta[:, 1, None], series.channel, series.dt
+            )
+            noise = self.noise_parameters(theta, series.noise_group)
+            total += irregular_loglike(series, self._family, alpha, beta, noise,
+                                       sensor=self.sensor,
+                                       max_work=None if self.fallback else SCAN_WORK)  # fmt: skip
         return total
 
     def _autocovariance(self, block: ResidualBlock, noise: np.ndarray, lags: int) -> np.ndarray:

@@ -22,7 +22,7 @@ from ..io.experiment import CHANNEL_FIELDS, Experiment
 from ..model.robot import RobotProfile
 from .measurements import measurement_of
 
-__all__ = ["channel_residuals", "check_residual_window", "residual_regressors"]
+__all__ = ["channel_residuals", "check_residual_window", "residual_count", "residual_regressors"]
 
 
 def channel_residuals(
@@ -136,6 +136,26 @@ def residual_regressors(experiment: Experiment, channel: str, steady: bool = Tru
     return measurement_of(window, channel).series(window, channel).regressors
 
 
+def residual_count(experiment: Experiment, channel: str) -> int:
+    """The residuals ``channel`` of ``experiment`` gives: one-step, or at its own times.
+
+    Examples
+    --------
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.likelihood import residual_count
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
+    >>> residual_count(run, "yaw"), len(run.t)
+    (1872, 1873)
+    """
+    measurement = measurement_of(experiment, channel)
+    if measurement.regular(experiment):
+        return len(measurement.series(experiment, channel).regressors)
+    order = 3 if measurement.name == "pose" else 2
+    return sum(
+        len(piece.ticks) - order + 1 for piece in measurement.observations(experiment, channel)
+    )
+
+
 def check_residual_window(
     experiment: Experiment,
     channel: str,
@@ -184,7 +204,7 @@ def check_residual_window(
     window = experiment.steady() if steady else experiment
     y = window.channel(channel)
     span = "the steady-state window" if steady and experiment.steady_window else "the experiment"
-    count = len(y) - (2 if window.measurement(channel) == "pose" else 1)  # two increments each
+    count = residual_count(window, channel)
     if count < minimum:
         raise DataError(
             f"{span} holds {len(y)} samples, {count} one-step residuals; at least "
