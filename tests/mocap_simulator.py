@@ -169,12 +169,12 @@ def unit_residual_variance(poles: np.ndarray, g: np.ndarray, h: float, fine: int
     return np.einsum("ci,ij,cj->c", f, R, f)
 
 
-def _interp(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
+def interp_columns(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Columns of values (on grid) linearly interpolated at times t."""
     return np.stack([np.interp(t, grid, column) for column in values.T], axis=-1)
 
 
-def _clock(rng: np.random.Generator, rate: float, duration: float) -> np.ndarray:
+def free_clock(rng: np.random.Generator, rate: float, duration: float) -> np.ndarray:
     """True sample instants [s] of a free-running clock, from a random phase in [0, 1/rate)."""
     return rng.uniform(0, 1 / rate) + np.arange(math.floor(duration * rate)) / rate
 
@@ -404,11 +404,12 @@ def write_mocap_bag(
     # are exact but within h of a ramp's corner (<= h/4 * 4.2 rad/s^2 there).
     imu_index = burn + fine * np.arange(round(duration * imu_rate) + 1)
     imu_true = t[imu_index]
-    pose_true = _clock(rng, pose_rate, duration)
+    pose_true = free_clock(rng, pose_rate, duration)
     pose_seq = np.flatnonzero(rng.random(len(pose_true)) >= DROP_FRACTION)  # seq gaps: drops
     dropped = len(pose_true) - len(pose_seq)
     pose_true = pose_true[pose_seq]
-    joint_true, cmd_true = _clock(rng, JOINT_RATE, duration), _clock(rng, CMD_RATE, duration)
+    joint_true = free_clock(rng, JOINT_RATE, duration)
+    cmd_true = free_clock(rng, CMD_RATE, duration)
 
     def stamp(instants: np.ndarray, jitter: float) -> np.ndarray:
         noisy = instants + jitter * rng.standard_normal(len(instants))
@@ -417,9 +418,10 @@ def write_mocap_bag(
     imu_stamp, pose_stamp = stamp(imu_true, IMU_JITTER), stamp(pose_true, POSE_JITTER)
     joint_stamp, cmd_stamp = stamp(joint_true, JOINT_JITTER), stamp(cmd_true, 0.0)
     gyro = sim["x"][imu_index, 2] + gyro_sd * rng.standard_normal(len(imu_index))
-    pose_at = _interp(pose_true, t, sim["pose"])
+    pose_at = interp_columns(pose_true, t, sim["pose"])
     measured = pose_at + [pose_sd, pose_sd, heading_sd] * rng.standard_normal(pose_at.shape)
-    speeds, angles = _interp(joint_true, t, sim["wheels"]), _interp(joint_true, t, sim["angles"])
+    speeds = interp_columns(joint_true, t, sim["wheels"])
+    angles = interp_columns(joint_true, t, sim["angles"])
     command = command_profile(cmd_true, v, w, duration)
 
     imu = [
