@@ -21,6 +21,7 @@ import scipy.linalg
 from lab_simulator import (
     DRIVE_COLUMNS,
     DRIVE_LIMITS,
+    POSE_PRESETS,
     ROBOTS,
     SPARSE_ROLES,
     SpeedLaw,
@@ -426,7 +427,7 @@ def test_the_same_seed_writes_the_same_logs(tmp_path):
     np.testing.assert_array_equal(first.x, second.x)
     assert not np.allclose(first.x, other.x)
     for name, write in [
-        ("bag", lambda path, sim, rng: write_lab_bag(path, sim, pose_rate=10.0, rng=rng)),
+        ("bag", lambda path, sim, rng: write_lab_bag(path, sim, **POSE_PRESETS["slow"], rng=rng)),
         ("csv", lambda path, sim, rng: write_sparse_csv(path, sim, rng=rng)),
     ]:
         paths = [tmp_path / f"{name}{i}" for i in range(3)]
