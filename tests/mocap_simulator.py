@@ -103,13 +103,16 @@ class MocapRun:
     poses: np.ndarray
 
 
-def model_matrices(d_lat: float, d_long: float) -> tuple[np.ndarray, np.ndarray]:
+def model_matrices(
+    d_lat: float, d_long: float, robot: dict = JACKAL
+) -> tuple[np.ndarray, np.ndarray]:
     """Diagonal of A [1/s] and B of eq. 4-32 (state vx, vy, r; input omega_r, omega_l).
 
     A is diagonal, so its poles are all it takes; B maps wheel speeds [rad/s]
-    to accelerations [m/s^2, m/s^2, rad/s^2].
+    to accelerations [m/s^2, m/s^2, rad/s^2]. ``robot`` is a profile read from
+    models/*.toml (the Jackal's by default).
     """
-    body = JACKAL["body"]
+    body = robot["body"]
     m, inertia, r_w = body["mass"], body["yaw_inertia"], body["wheel_radius"]
     a, b = body["half_wheelbase"], body["half_track"]
     poles = np.array(
@@ -120,9 +123,12 @@ def model_matrices(d_lat: float, d_long: float) -> tuple[np.ndarray, np.ndarray]
     return poles, B
 
 
-def wheel_speeds(v: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """(omega_r, omega_l) [rad/s] of a command (v [m/s], w [rad/s]): ROS diff_drive_controller."""
-    drive, r_w = JACKAL["diff_drive"], JACKAL["body"]["wheel_radius"]
+def wheel_speeds(v: np.ndarray, w: np.ndarray, robot: dict = JACKAL) -> np.ndarray:
+    """(omega_r, omega_l) [rad/s] of a command (v [m/s], w [rad/s]): ROS diff_drive_controller.
+
+    With the profile's wheel_separation s and multiplier k: (v +- w s k / 2) / r_w.
+    """
+    drive, r_w = robot["diff_drive"], robot["body"]["wheel_radius"]
     half = np.asarray(w) * drive["wheel_separation"] * drive["wheel_separation_multiplier"] / 2
     return np.stack([(v + half) / r_w, (v - half) / r_w], axis=-1)
 
@@ -163,12 +169,12 @@ def unit_residual_variance(poles: np.ndarray, g: np.ndarray, h: float, fine: int
     return np.einsum("ci,ij,cj->c", f, R, f)
 
 
-def _interp(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
+def interp_columns(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Columns of values (on grid) linearly interpolated at times t."""
     return np.stack([np.interp(t, grid, column) for column in values.T], axis=-1)
 
 
-def _clock(rng: np.random.Generator, rate: float, duration: float) -> np.ndarray:
+def free_clock(rng: np.random.Generator, rate: float, duration: float) -> np.ndarray:
     """True sample instants [s] of a free-running clock, from a random phase in [0, 1/rate)."""
     return rng.uniform(0, 1 / rate) + np.arange(math.floor(duration * rate)) / rate
 
@@ -248,6 +254,100 @@ def _truth(rng, d_lat, d_long, sigma_h, sigma_c, command, imu_rate) -> dict:
     }
 
 
+#: The message definitions of ROS1 Noetic, in which the bags are written.
+STORE = get_typestore(Stores.ROS1_NOETIC)
+
+
+def _header(seq: int, stamp_ns: int, frame: str):
+    """std_msgs/Header of a message numbered ``seq`` stamped ``stamp_ns`` [ns]."""
+    sec, nanosec = divmod(int(stamp_ns), 10**9)
+    time = STORE.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+    return STORE.types["std_msgs/msg/Header"](seq=int(seq), stamp=time, frame_id=frame)
+
+
+def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0):
+    return STORE.types["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
+
+
+def _heading(psi: float):
+    """The unit quaternion of a rotation by psi [rad] about z."""
+    quaternion = STORE.types["geometry_msgs/msg/Quaternion"]
+    return quaternion(x=0.0, y=0.0, z=math.sin(psi / 2), w=math.cos(psi / 2))
+
+
+def imu_message(seq: int, stamp_ns: int, psi: float, gyro_z: float):
+    """sensor_msgs/Imu: heading psi [rad], yaw rate gyro_z [rad/s], gravity, no covariances."""
+    zeros = np.zeros(9)
+    return STORE.types["sensor_msgs/msg/Imu"](
+        header=_header(seq, stamp_ns, "imu_link"),
+        orientation=_heading(psi),
+        orientation_covariance=zeros,
+        angular_velocity=_vector(z=gyro_z),
+        angular_velocity_covariance=zeros,
+        linear_acceleration=_vector(z=9.81),
+        linear_acceleration_covariance=zeros,
+    )
+
+
+def pose_message(seq: int, stamp_ns: int, x: float, y: float, psi: float):
+    """geometry_msgs/PoseStamped in the world frame: position (x, y, 0) [m], heading psi [rad]."""
+    T = STORE.types
+    point = T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0)
+    return T["geometry_msgs/msg/PoseStamped"](
+        header=_header(seq, stamp_ns, "world"),
+        pose=T["geometry_msgs/msg/Pose"](position=point, orientation=_heading(psi)),
+    )
+
+
+def joint_message(seq: int, stamp_ns: int, angles: np.ndarray, speeds: np.ndarray):
+    """sensor_msgs/JointState of the four wheels, WHEELS order: angles [rad], speeds [rad/s]."""
+    return STORE.types["sensor_msgs/msg/JointState"](
+        header=_header(seq, stamp_ns, ""),
+        name=list(WHEELS),
+        position=angles,
+        velocity=speeds,
+        effort=np.zeros(4),
+    )
+
+
+def twist_message(v: float, w: float):
+    """geometry_msgs/Twist of a command: v [m/s] along x, w [rad/s] about z."""
+    return STORE.types["geometry_msgs/msg/Twist"](linear=_vector(x=v), angular=_vector(z=w))
+
+
+def received(rng: np.random.Generator, streams: dict) -> tuple[list, int]:
+    """(receive time [ns], role, message) of every message in receive-time order; duplicates.
+
+    ``streams`` maps a role of TOPICS to (header stamps [ns], messages). Receive
+    time = stamp + a latency uniform in LATENCY. A fraction DUPLICATE_FRACTION
+    of the poses is published twice, the copy's latency between the original's
+    and 3 ms: before the next pose.
+    """
+    twice = np.flatnonzero(rng.random(len(streams["pose"][1])) < DUPLICATE_FRACTION)
+    lag = {role: rng.uniform(*LATENCY, len(messages)) for role, (_, messages) in streams.items()}
+    again = rng.uniform(lag["pose"][twice], LATENCY[1])
+    rows = []
+    for role, (stamps, messages) in streams.items():
+        rows.extend(zip(stamps, lag[role], [role] * len(messages), messages, strict=True))
+        if role == "pose":
+            copies = [messages[i] for i in twice]
+            rows.extend(zip(stamps[twice], again, [role] * len(twice), copies, strict=True))
+    rows = [(int(s) + round(delay * 1e9), role, message) for s, delay, role, message in rows]
+    rows.sort(key=lambda row: row[0])
+    return rows, len(twice)
+
+
+def write_ros1(path: Path, rows: list, topics: dict = TOPICS) -> None:
+    """Write (receive time [ns], role, message) rows to a ROS1 bag, a connection per role."""
+    with Writer(path) as writer:
+        connections = {
+            role: writer.add_connection(topic, msgtype, typestore=STORE)
+            for role, (topic, msgtype) in topics.items()
+        }
+        for recv, role, message in rows:
+            writer.write(connections[role], recv, STORE.serialize_ros1(message, topics[role][1]))
+
+
 def write_mocap_bag(
     path: str | Path,
     *,
@@ -304,11 +404,12 @@ def write_mocap_bag(
     # are exact but within h of a ramp's corner (<= h/4 * 4.2 rad/s^2 there).
     imu_index = burn + fine * np.arange(round(duration * imu_rate) + 1)
     imu_true = t[imu_index]
-    pose_true = _clock(rng, pose_rate, duration)
+    pose_true = free_clock(rng, pose_rate, duration)
     pose_seq = np.flatnonzero(rng.random(len(pose_true)) >= DROP_FRACTION)  # seq gaps: drops
     dropped = len(pose_true) - len(pose_seq)
     pose_true = pose_true[pose_seq]
-    joint_true, cmd_true = _clock(rng, JOINT_RATE, duration), _clock(rng, CMD_RATE, duration)
+    joint_true = free_clock(rng, JOINT_RATE, duration)
+    cmd_true = free_clock(rng, CMD_RATE, duration)
 
     def stamp(instants: np.ndarray, jitter: float) -> np.ndarray:
         noisy = instants + jitter * rng.standard_normal(len(instants))
@@ -317,86 +418,31 @@ def write_mocap_bag(
     imu_stamp, pose_stamp = stamp(imu_true, IMU_JITTER), stamp(pose_true, POSE_JITTER)
     joint_stamp, cmd_stamp = stamp(joint_true, JOINT_JITTER), stamp(cmd_true, 0.0)
     gyro = sim["x"][imu_index, 2] + gyro_sd * rng.standard_normal(len(imu_index))
-    pose_at = _interp(pose_true, t, sim["pose"])
+    pose_at = interp_columns(pose_true, t, sim["pose"])
     measured = pose_at + [pose_sd, pose_sd, heading_sd] * rng.standard_normal(pose_at.shape)
-    speeds, angles = _interp(joint_true, t, sim["wheels"]), _interp(joint_true, t, sim["angles"])
+    speeds = interp_columns(joint_true, t, sim["wheels"])
+    angles = interp_columns(joint_true, t, sim["angles"])
     command = command_profile(cmd_true, v, w, duration)
 
-    store = get_typestore(Stores.ROS1_NOETIC)
-    T = store.types
-    Vector3, Quaternion = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
-
-    def header(seq, stamp_ns, frame):
-        sec, nanosec = divmod(int(stamp_ns), 10**9)
-        time = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
-        return T["std_msgs/msg/Header"](seq=int(seq), stamp=time, frame_id=frame)
-
-    def heading(psi):
-        return Quaternion(x=0.0, y=0.0, z=math.sin(psi / 2), w=math.cos(psi / 2))
-
-    zeros = np.zeros(9)
     imu = [
-        T["sensor_msgs/msg/Imu"](
-            header=header(k, imu_stamp[k], "imu_link"),
-            orientation=heading(sim["pose"][i, 2]),
-            orientation_covariance=zeros,
-            angular_velocity=Vector3(x=0.0, y=0.0, z=gyro[k]),
-            angular_velocity_covariance=zeros,
-            linear_acceleration=Vector3(x=0.0, y=0.0, z=9.81),
-            linear_acceleration_covariance=zeros,
-        )
-        for k, i in enumerate(imu_index)
+        imu_message(k, imu_stamp[k], sim["pose"][i, 2], gyro[k]) for k, i in enumerate(imu_index)
     ]
-    Pose, Point = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/Point"]
     pose = [
-        T["geometry_msgs/msg/PoseStamped"](
-            header=header(seq, s, "world"),
-            pose=Pose(position=Point(x=px, y=py, z=0.0), orientation=heading(psi)),
-        )
+        pose_message(seq, s, px, py, psi)
         for seq, s, (px, py, psi) in zip(pose_seq, pose_stamp, measured, strict=True)
     ]
     joints = [
-        T["sensor_msgs/msg/JointState"](
-            header=header(k, joint_stamp[k], ""),
-            name=list(WHEELS),
-            position=angles[k],
-            velocity=speeds[k],
-            effort=np.zeros(4),
-        )
-        for k in range(len(joint_true))
+        joint_message(k, joint_stamp[k], angles[k], speeds[k]) for k in range(len(joint_true))
     ]
-    cmd = [
-        T["geometry_msgs/msg/Twist"](
-            linear=Vector3(x=cv, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=cw)
-        )
-        for cv, cw in command
-    ]
-    # Receive time = stamp + latency. A duplicate is the same message published
-    # again, its latency between the original's and 3 ms: before the next pose.
-    twice = np.flatnonzero(rng.random(len(pose)) < DUPLICATE_FRACTION)
-    lag = [rng.uniform(*LATENCY, len(messages)) for messages in (imu, pose, joints, cmd)]
-    again = rng.uniform(lag[1][twice], LATENCY[1])
-    streams = [
-        ("imu", imu_stamp, lag[0], imu),
-        ("pose", pose_stamp, lag[1], pose),
-        ("pose", pose_stamp[twice], again, [pose[i] for i in twice]),
-        ("joint_states", joint_stamp, lag[2], joints),
-        ("cmd_vel", cmd_stamp, lag[3], cmd),
-    ]
-    rows = [
-        (int(s) + round(delay * 1e9), role, message)
-        for role, stamps, delays, messages in streams
-        for s, delay, message in zip(stamps, delays, messages, strict=True)
-    ]
-    rows.sort(key=lambda row: row[0])  # receive-time order
-    with Writer(path) as writer:
-        connections = {
-            role: writer.add_connection(topic, msgtype, typestore=store)
-            for role, (topic, msgtype) in TOPICS.items()
-        }
-        for recv, role, message in rows:
-            data = store.serialize_ros1(message, TOPICS[role][1])
-            writer.write(connections[role], recv, data)
+    cmd = [twist_message(cv, cw) for cv, cw in command]
+    streams = {
+        "imu": (imu_stamp, imu),
+        "pose": (pose_stamp, pose),
+        "joint_states": (joint_stamp, joints),
+        "cmd_vel": (cmd_stamp, cmd),
+    }
+    rows, duplicates = received(rng, streams)
+    write_ros1(path, rows)
 
     origin = (int(imu_stamp[0]) - EPOCH_NS) * 1e-9  # the first IMU stamp is time zero
 
@@ -408,7 +454,7 @@ def write_mocap_bag(
     truth.update(pose_sd=pose_sd, heading_sd=heading_sd, gyro_sd=gyro_sd)
     truth.update(imu_rate=imu_rate, pose_rate=pose_rate, fine=fine)
     truth.update(command={"v": v, "w": w, "duration": duration})
-    truth.update(pose_duplicates=len(twice), pose_dropped=dropped)
+    truth.update(pose_duplicates=duplicates, pose_dropped=dropped)
     return MocapRun(
         path=path,
         truth=truth,
