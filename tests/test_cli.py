@@ -24,7 +24,7 @@ from bayes_jackal.io.simulate import SERIES, NoiseSettings, Series, simulate_exp
 from bayes_jackal.io.tables import read_csv, write_csv
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.kernels import FAMILIES
-from bayes_jackal.model.robot import default_profile_path, load_profile
+from bayes_jackal.model.robot import default_profile_path, load_profile, mass_scaled_damping
 from bayes_jackal.posterior.file_format import posterior_layout
 from bayes_jackal.posterior.posterior import load_posterior
 from bayes_jackal.thesis.gridsearch import grid_search
@@ -879,7 +879,9 @@ def test_parser_defaults_are_the_librarys():
     analysis = inspect.signature(analyse).parameters
     assert residuals.channels == analysis["channels"].default == ("yaw",)
     assert residuals.lags == analysis["lags"].default
-    assert (residuals.d_lat, residuals.d_long) == (sim.d_lat, sim.d_long) == (110.0, 30.0)
+    # None: the thesis' damping scaled to the robot's mass, (110, 30) for the Jackal.
+    assert (residuals.d_lat, residuals.d_long) == (sim.d_lat, sim.d_long) == (None, None)
+    assert mass_scaled_damping(load_profile().mass) == (110.0, 30.0)
 
 
 def test_compare_ranks_every_registered_family_by_default(simulated, capsys):

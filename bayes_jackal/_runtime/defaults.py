@@ -122,8 +122,9 @@ GRID_METHODS = ("onestep", "simulation")
 METHOD = "onestep"
 #: (START, STOP, STEP) of the thesis' damping grid [N s/m], STOP included.
 DAMPING_GRID = (10.0, 1000.0, 10.0)
-#: The thesis' damping (d_lat, d_long) [N s/m]: the simulator's truth and
-#: the model of the residual analysis by default.
+#: The thesis' damping (d_lat, d_long) [N s/m] of the Jackal: the simulator's
+#: truth and the model of the residual analysis by default, times the robot's
+#: mass / the Jackal's (``model.mass_scaled_damping``).
 D_LAT = 110.0
 D_LONG = 30.0
 #: Lags of the Ljung-Box test and of the sigma_h fit (thesis ch. 7-3).

@@ -36,7 +36,7 @@ from ..io.tables import write_csv
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.kernels import FAMILIES
 from ..model.parameters import prior_overrides
-from ..model.robot import RobotProfile
+from ..model.robot import RobotProfile, mass_scaled_damping
 from ..posterior.criticism import criticise
 from ..posterior.posterior import load_posterior, save_posterior
 from ..posterior.summary import summarize
@@ -68,14 +68,20 @@ from .paths import check_named_outputs, family_files, group_name, summary_file
 from .reading import each_experiment, load_logs, read_options, robot_profile, robot_with_topics
 
 
+def _damping(args: argparse.Namespace, robot: RobotProfile) -> tuple[float, float]:
+    """``--d-lat``, ``--d-long``, by default the thesis' Jackal damping scaled to the robot."""
+    scaled = mass_scaled_damping(robot.mass)
+    given = (args.d_lat, args.d_long)
+    return tuple(float(d) if d is not None else s for d, s in zip(given, scaled, strict=True))
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_profile(args)
     noise = NoiseSettings(args.width, tuple(args.sigma_c), tuple(args.sigma_n), args.family)
     counts = {"v1": args.v1, "v2": args.v2}
-    experiments = simulate_series(
-        robot, args.d_lat, args.d_long, counts, noise, args.seed, args.conversion
-    )
+    d_lat, d_long = _damping(args, robot)
+    experiments = simulate_series(robot, d_lat, d_long, counts, noise, args.seed, args.conversion)
     writer, suffix = (write_csv, ".csv") if args.format == "csv" else (write_netcdf, ".nc")
     paths = [str(writer(e, Path(args.out) / f"{e.name}{suffix}")) for e in experiments]
     pose_noise = tuple(args.pose_noise)
@@ -90,10 +96,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         result["bag_truth"] = bag_truth(experiments[0], pose_noise) if experiments else None
     for path in paths:
         out.say(f"wrote {path}")
-    out.say(
-        f"{len(experiments)} simulated experiments "
-        f"(truth d_lat={args.d_lat}, d_long={args.d_long})"
-    )
+    out.say(f"{len(experiments)} simulated experiments (truth d_lat={d_lat:g}, d_long={d_long:g})")
     out.result({"experiments": paths, **result})
     return EXIT_OK
 
@@ -163,8 +166,10 @@ def cmd_residuals(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_profile(args)
 
+    d_lat, d_long = _damping(args, robot)
+
     def residuals(experiments: list) -> dict:
-        return analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
+        return analyse(experiments, robot, d_lat, d_long, args.channels, args.lags)
 
     if len(args.experiments) == 1:
         experiments, failed, code = load_logs(args), {}, EXIT_OK

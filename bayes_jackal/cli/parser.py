@@ -94,6 +94,9 @@ class _Window(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
+#: The default of a damping flag of simulate and residuals (model.mass_scaled_damping).
+_SCALED = "{:g} for the Jackal, scaled with the robot's mass as its prior is"
+
 #: What grid, residuals, sample and compare read (as bj.load_experiments does).
 _EXP_HELP = "experiment files (.csv, .mat, .nc) and bags (.bag, .mcap, .db3, bag folders)"
 
@@ -308,12 +311,13 @@ def build_parser() -> argparse.ArgumentParser:
             default=default,
             help=f"runs of series {label} ({default})",
         )
-    sim.add_argument(
-        "--d-lat", type=_positive, default=D_LAT, help=f"true d_lat [N s/m] ({D_LAT:g})"
-    )
-    sim.add_argument(
-        "--d-long", type=_positive, default=D_LONG, help=f"true d_long [N s/m] ({D_LONG:g})"
-    )
+    for name, value in (("d_lat", D_LAT), ("d_long", D_LONG)):
+        sim.add_argument(
+            f"--{name.replace('_', '-')}",
+            type=_positive,
+            default=None,
+            help=f"true {name} [N s/m] ({_SCALED.format(value)})",
+        )
     sim.add_argument(
         "--family", type=_family, default=FAMILY, help=f"process-noise filter ({FAMILY})"
     )
@@ -394,15 +398,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
     res.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
-    res.add_argument(
-        "--d-lat", type=_positive, default=D_LAT, help=f"d_lat of the model [N s/m] ({D_LAT:g})"
-    )
-    res.add_argument(
-        "--d-long",
-        type=_positive,
-        default=D_LONG,
-        help=f"d_long of the model [N s/m] ({D_LONG:g})",
-    )
+    for name, value in (("d_lat", D_LAT), ("d_long", D_LONG)):
+        res.add_argument(
+            f"--{name.replace('_', '-')}",
+            type=_positive,
+            default=None,
+            help=f"{name} of the model [N s/m] ({_SCALED.format(value)})",
+        )
     res.add_argument(
         "--channels",
         type=_channel_list,
