@@ -31,6 +31,7 @@ __all__ = [
     "FILTERS",
     "FILTER_PARAMETERS",
     "GRID_METHODS",
+    "GRID_POINTS",
     "HDI_PROB",
     "LOOKAHEAD",
     "MAX_GAP",
@@ -122,6 +123,11 @@ GRID_METHODS = ("onestep", "simulation")
 METHOD = "onestep"
 #: (START, STOP, STEP) of the thesis' damping grid [N s/m], STOP included.
 DAMPING_GRID = (10.0, 1000.0, 10.0)
+#: Values per damping axis of each criterion's default grid, log-spaced over
+#: the profile's prior range (``thesis.prior_grid``): the thesis' counts, its
+#: one-step grid's 1..1000 step 1 (O(1) per point) and its simulation grid's
+#: 10..1000 step 10 (a simulation per point).
+GRID_POINTS = {"onestep": 1000, "simulation": 100}
 #: The thesis' damping (d_lat, d_long) [N s/m] of the Jackal: the simulator's
 #: truth and the model of the residual analysis by default, times the robot's
 #: mass / the Jackal's (``model.mass_scaled_damping``).
