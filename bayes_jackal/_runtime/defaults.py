@@ -16,7 +16,6 @@ __all__ = [
     "BRIDGE_MIN_DRAWS",
     "CHANNELS",
     "CONVERSIONS",
-    "DAMPING_GRID",
     "DEFAULT_CHANNEL_ORDER",
     "DEFAULT_FAMILIES",
     "DISCRETISATION",
@@ -121,8 +120,6 @@ THESIS_CHANNEL = "yaw"
 #: Grid-search criteria (``grid --method``) and the default.
 GRID_METHODS = ("onestep", "simulation")
 METHOD = "onestep"
-#: (START, STOP, STEP) of the thesis' damping grid [N s/m], STOP included.
-DAMPING_GRID = (10.0, 1000.0, 10.0)
 #: Values per damping axis of each criterion's default grid, log-spaced over
 #: the profile's prior range (``thesis.prior_grid``): the thesis' counts, its
 #: one-step grid's 1..1000 step 1 (O(1) per point) and its simulation grid's

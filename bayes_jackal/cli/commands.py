@@ -43,7 +43,7 @@ from ..posterior.summary import summarize
 from ..report.grid_plots import save_grid_plot
 from ..report.page import read_posteriors, save_report
 from ..report.population_plots import save_population_plot
-from ..thesis.gridsearch import damping_grid, grid_search
+from ..thesis.gridsearch import damping_grid, grid_search, prior_grid
 from ..thesis.residual_analysis import analyse
 from ..workflow.analysis import analyse_logs
 from ..workflow.demo import DEMO_TRUTH, run_demo
@@ -57,6 +57,7 @@ from .output import (
     family_warnings,
     filter_table,
     grid_table,
+    grid_warnings,
     population_text,
     posterior_table,
     print_criticism,
@@ -144,16 +145,22 @@ def cmd_grid(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_profile(args)
     experiments = load_logs(args)
+    # A grid given is the thesis' kind (START STOP STEP); the default spans the prior.
+    d_lat, d_long = (
+        damping_grid(*given, name=name) if given else prior_grid(robot, name, args.method)
+        for name, given in (("d_lat", args.d_lat), ("d_long", args.d_long))
+    )
     result = grid_search(
         experiments,
         robot,
-        damping_grid(*args.d_lat, name="d_lat"),
-        damping_grid(*args.d_long, name="d_long"),
+        d_lat,
+        d_long,
         method=args.method,
         channel=args.channel,
         discretisation=args.discretisation,
     )
     grid_table(result, out.say)
+    grid_warnings(result.edge_warnings(), "--{option} START STOP STEP")
     if args.plot:
         out.say(f"wrote {save_grid_plot(result, args.plot)}")
     if args.out:

@@ -19,7 +19,6 @@ from .._runtime.defaults import (
     CONVERSIONS,
     D_LAT,
     D_LONG,
-    DAMPING_GRID,
     DEFAULT_CHANNEL_ORDER,
     DEFAULT_FAMILIES,
     DISCRETISATION,
@@ -32,6 +31,7 @@ from .._runtime.defaults import (
     FILTER_PARAMETERS,
     FILTERS,
     GRID_METHODS,
+    GRID_POINTS,
     LOOKAHEAD,
     MAX_GAP,
     MAX_GAP_STEPS,
@@ -364,16 +364,17 @@ def build_parser() -> argparse.ArgumentParser:
     grid.add_argument(
         "--method", choices=GRID_METHODS, default=METHOD, help=f"criterion ({METHOD})"
     )
-    start, stop, step = DAMPING_GRID
+    counts = ", ".join(f"{count} for {method}" for method, count in GRID_POINTS.items())
     for name in ("d-lat", "d-long"):
         grid.add_argument(
             f"--{name}",
             type=_finite,
             nargs=3,
             action=_Grid,
-            default=DAMPING_GRID,
+            default=None,
             metavar=("START", "STOP", "STEP"),
-            help=f"grid values [N s/m], STOP included ({start:g} {stop:g} {step:g})",
+            help="grid values [N s/m], STOP included (default: the profile's prior range of "
+            f"{name.replace('-', '_')}, log-spaced: {counts}; the thesis': 1 1000 1)",
         )
     grid.add_argument(
         "--channel", choices=CHANNELS, default=THESIS_CHANNEL, help=f"channel ({THESIS_CHANNEL})"
