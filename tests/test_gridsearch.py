@@ -7,7 +7,14 @@ import pytest
 from bayes_jackal import InputError, load_profile
 from bayes_jackal.io.simulate import NoiseSettings, simulate_experiment, simulate_series
 from bayes_jackal.model.physics import continuous_matrices, one_step_residuals, simulate
-from bayes_jackal.thesis.gridsearch import damping_grid, grid_search, onestep_mse, simulation_mse
+from bayes_jackal.thesis.gridsearch import (
+    GRID_POINTS,
+    damping_grid,
+    grid_search,
+    onestep_mse,
+    prior_grid,
+    simulation_mse,
+)
 
 ROBOT = load_profile()
 #: "Small noise". The one-step least-squares bias from coloured noise scales
@@ -58,9 +65,12 @@ def test_vectorised_criteria_match_the_per_pair_reference(noisy_experiment, crit
 def test_onestep_minimum_is_within_one_step_of_the_truth_when_noise_is_small(d_lat, d_long):
     experiment = simulate_experiment(ROBOT, d_lat, d_long, "v1", SMALL_NOISE, rng=2)
     grid = damping_grid(1.0, 1000.0, 1.0)
-    best_lat, best_long, _ = grid_search([experiment], ROBOT, grid, grid, "onestep").argmin()
+    result = grid_search([experiment], ROBOT, grid, grid, "onestep")
+    best_lat, best_long, _ = result.argmin()
     assert abs(best_lat - d_lat) <= 1.0
     assert abs(best_long - d_long) <= 1.0
+    # Inside the grid on both axes: no edge, no warning.
+    assert result.edges() == {} and result.summary()["warnings"] == []
 
 
 def test_simulation_mse_valley_follows_a_constant_damping_ratio():
@@ -118,3 +128,86 @@ def test_grid_search_rejects_unknown_method_and_empty_input(noisy_experiment):
         grid_search([noisy_experiment], ROBOT, grid, grid, "mle")
     with pytest.raises(InputError, match="no experiments"):
         grid_search([], ROBOT, grid, grid)
+
+
+@pytest.mark.parametrize("name", ["jackal", "husky", "warthog"])
+@pytest.mark.parametrize("method", ["onestep", "simulation"])
+def test_the_default_grid_spans_the_profiles_prior_log_spaced(name, method):
+    robot = load_profile(name)
+    for parameter in ("d_lat", "d_long"):
+        grid = prior_grid(robot, parameter, method)
+        # The profile's own range, bound to bound (the Warthog's 121.04-12104.34
+        # N s/m, its mass-scaled prior), with the thesis' count of values.
+        assert (grid[0], grid[-1]) == pytest.approx(robot.priors[parameter], rel=1e-12)
+        assert len(grid) == GRID_POINTS[method] == {"onestep": 1000, "simulation": 100}[method]
+        # Equal ratios: (high / low)^(1 / (n - 1)), 100^(1/99) = 1.0476 for a
+        # mass-scaled prior's factor 100.
+        low, high = robot.priors[parameter]
+        step = (high / low) ** (1.0 / (len(grid) - 1))
+        np.testing.assert_allclose(grid[1:] / grid[:-1], step, rtol=1e-9)
+
+
+def test_the_default_grid_takes_overrides_and_refuses_what_is_no_damping_grid():
+    grid = prior_grid(ROBOT, "d_long", "simulation", priors={"d_long": (5.0, 50.0)})
+    assert (grid[0], grid[-1]) == pytest.approx((5.0, 50.0))
+    with pytest.raises(InputError, match=r"parameter: a grid spans a damping.*'sigma_h'"):
+        prior_grid(ROBOT, "sigma_h")
+    with pytest.raises(InputError, match=r"method: unknown method 'mle'"):
+        prior_grid(ROBOT, "d_lat", "mle")
+    with pytest.raises(InputError, match=r"d_lat"):
+        prior_grid(ROBOT, "d_lat", priors={"d_lat": (50.0, 5.0)})
+
+
+#: Grids that leave out the truth (110, 30) N s/m on one side of one
+#: damping's axis: (channel, that damping, its grid, the edge, its value).
+#: The yaw rate's MSE along d_lat at the true d_long = 30 (a one-value axis)
+#: is least at the truth; vx's pole and input depend on d_long alone (eq.
+#: 4-29), so its MSE along d_long is least at the truth whatever d_lat.
+EDGE_CASES = [
+    ("yaw", "d_lat", (120.0, 200.0, 10.0), "low", 120.0),
+    ("yaw", "d_lat", (50.0, 100.0, 10.0), "high", 100.0),
+    ("vx", "d_long", (35.0, 60.0, 5.0), "low", 35.0),
+    ("vx", "d_long", (10.0, 25.0, 5.0), "high", 25.0),
+]
+
+
+@pytest.mark.parametrize(("channel", "parameter", "values", "side", "value"), EDGE_CASES)
+def test_a_minimum_outside_the_grid_is_flagged_on_its_edge(
+    channel, parameter, values, side, value
+):
+    # With SMALL_NOISE the one-step minimum is the truth (the test above); a
+    # grid without it has its minimum at the edge nearest to it. The other
+    # axis is no search (yaw: the one value 30) or ties throughout (vx along
+    # d_lat): no edge there.
+    experiment = simulate_experiment(ROBOT, 110.0, 30.0, "v1", SMALL_NOISE, rng=2)
+    other = {"yaw": damping_grid(30.0, 30.0, 5.0), "vx": damping_grid(50.0, 200.0, 10.0)}
+    grids = {"d_lat": other[channel], "d_long": other[channel], parameter: damping_grid(*values)}
+    result = grid_search([experiment], ROBOT, grids["d_lat"], grids["d_long"], "onestep", channel)
+    assert result.edges() == {parameter: side}
+    best = dict(zip(("d_lat", "d_long"), result.argmin()[:2], strict=True))
+    assert best[parameter] == value
+    (warning,) = result.edge_warnings()
+    assert warning == {
+        "kind": "grid-edge",
+        "message": warning["message"],
+        "method": "onestep",
+        "parameter": parameter,
+        "side": side,
+        "value": value,
+    }
+    where = "below" if side == "low" else "above"
+    assert f"lies on the {side} edge of the {parameter} grid" in warning["message"]
+    assert f"lower {where} {parameter} = {value:g} N s/m" in warning["message"]
+    summary = result.summary()
+    assert summary["warnings"] == [warning] and summary["edge"] == {parameter: side}
+    assert summary["series"]["v1"]["edge"] == summary["experiments"]["v1"]["edge"]
+
+
+def test_an_axis_of_one_value_has_no_edge():
+    # --d-lat 110 110 10 fixes d_lat: no search along it, so no edge there.
+    experiment = simulate_experiment(ROBOT, 110.0, 30.0, "v1", SMALL_NOISE, rng=2)
+    result = grid_search(
+        [experiment], ROBOT, damping_grid(110, 110, 10), damping_grid(10, 50, 5), "onestep"
+    )
+    assert result.argmin()[:2] == (110.0, 30.0)
+    assert result.edges() == {} and result.edge_warnings() == []

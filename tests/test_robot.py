@@ -27,6 +27,7 @@ from bayes_jackal.model.robot import (
     as_profile,
     default_profile_path,
     load_profile,
+    mass_scaled_damping,
     mass_scaled_priors,
     packaged_profiles,
 )
@@ -448,9 +449,18 @@ def test_the_command_line_takes_a_profile_name(tmp_path, capsys):
     (path,) = json.loads(capsys.readouterr().out)["experiments"]
     # v2 lasts 26 s: 26 x 50 Hz + 1 samples at the Warthog's rate (72 Hz: 1873).
     assert len(read_netcdf(path).t) == 1301
-    # The command's default truth is the thesis' Jackal damping, 110 N s/m:
-    # below the Warthog's prior [121.04, 12104.34] N s/m.
-    assert main([*argv, "--out", str(tmp_path / "default")]) == 2
+    # The command's default truth is the thesis' Jackal damping (110, 30)
+    # scaled to the Warthog's 200 kg, inside its prior [121.04, 12104.34] N s/m.
+    assert main([*argv, "--out", str(tmp_path / "default"), "--json"]) == 0
+    truth = json.loads(capsys.readouterr().out)["truth"]
+    assert (truth["d_lat"], truth["d_long"]) == pytest.approx((1331.48, 363.13), abs=0.01)
+    assert (truth["d_lat"], truth["d_long"]) == mass_scaled_damping(200.0)
+    # residuals' default model is the same scaled damping.
+    assert main(["residuals", path, "--robot", "warthog", "--json"]) == 0
+    analysed = json.loads(capsys.readouterr().out)
+    assert (analysed["d_lat"], analysed["d_long"]) == mass_scaled_damping(200.0)
+    # The Jackal's own 110 N s/m, given, is below the Warthog's prior: refused.
+    assert main([*argv, "--d-lat", "110", "--out", str(tmp_path / "jackal")]) == 2
     assert "110 N s/m is outside the robot profile's prior range [121.043" in (
         capsys.readouterr().err
     )
@@ -620,10 +630,22 @@ def test_a_profile_built_in_code_without_priors_scales_them():
     )
 
 
+@pytest.mark.parametrize("scaled", [mass_scaled_priors, mass_scaled_damping])
 @pytest.mark.parametrize("mass", [0.0, -16.523, float("nan"), float("inf"), "heavy"])
-def test_scaled_priors_need_a_positive_mass(mass):
+def test_scaled_priors_need_a_positive_mass(mass, scaled):
     with pytest.raises(InputError, match=r"^mass: must be a positive finite number \[kg\], got "):
-        mass_scaled_priors(mass)
+        scaled(mass)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_scaled_default_damping_lies_inside_each_profiles_prior(name):
+    # The thesis' (110, 30) N s/m times m / 16.523 against the prior 10-1000
+    # times the same: 11 and 3 times the floor whatever the mass.
+    profile = load_profile(packaged(name))
+    for key, value in zip(("d_lat", "d_long"), mass_scaled_damping(profile.mass), strict=True):
+        low, high = profile.priors[key]
+        assert low < value < high
+        assert value / low == pytest.approx({"d_lat": 11.0, "d_long": 3.0}[key])
 
 
 # ------------------------------------------------------------------ a fit each

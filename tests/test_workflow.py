@@ -31,6 +31,7 @@ from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.posterior.posterior import load_posterior
+from bayes_jackal.workflow import analysis
 from bayes_jackal.workflow.analysis import analyse_logs
 from bayes_jackal.workflow.demo import demo_folder, demo_labels
 
@@ -283,6 +284,48 @@ def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
     assert (tmp_path / "out" / "posteriors" / "white.nc").exists()  # the family done is kept
 
 
+class _GridsDone(Exception):
+    """Raised by a test's ``say`` once analyse has written its grids."""
+
+
+def test_analyse_grids_span_the_profiles_prior_and_flag_an_edge(tmp_path, monkeypatch):
+    # A Warthog run (8 s) at the thesis' damping scaled to its mass, (1331.5,
+    # 363.1) N s/m; analyse stopped after its grids (by its say), before any
+    # chain. Its prior is the Jackal's times 200 / 16.523: 121.04-12104.34
+    # N s/m, and --prior's damping ranges replace it for the grids too. The
+    # figures (1 s for the 1000 x 1000 surface) are checked by the slow tests.
+    monkeypatch.setattr(analysis, "save_grid_plot", lambda result, path: path)
+    warthog = load_profile("warthog")
+    run = simulate_experiment(warthog, 1331.5, 363.1, dataclasses.replace(SHORT, duration=8.0),
+                              rng=1)  # fmt: skip
+    source = write_netcdf(run, tmp_path / "run.nc")
+    lines = []
+
+    def say(line: str) -> None:
+        lines.append(line)
+        if line.startswith("posterior and evidence of"):
+            raise _GridsDone
+
+    with pytest.raises(_GridsDone):
+        analyse_logs([source], tmp_path / "out", robot=warthog, say=say,
+                     prior_overrides={"d_lat": (200.0, 20000.0)})  # fmt: skip
+    grids = json.loads((tmp_path / "out" / "grid.json").read_text())
+    for method, count in (("onestep", 1000), ("simulation", 100)):
+        low, high, values = grids[method]["grid"]["d_long"]
+        assert (low, high) == pytest.approx(warthog.priors["d_long"], rel=1e-12)
+        assert values == count and grids[method]["grid"]["d_lat"] == [200.0, 20000.0, count]
+    # The one-step criterion is biased down the ridge by the coloured noise
+    # (docs/guide/thesis.md: a factor ~7 on the demo), below the Warthog's
+    # d_long floor: its minimum is on the grid's low d_long edge.
+    onestep = grids["onestep"]
+    assert onestep["edge"] == {"d_long": "low"}
+    assert [(w["kind"], w["parameter"], w["side"]) for w in onestep["warnings"]] == [
+        ("grid-edge", "d_long", "low")
+    ]
+    said = [line for line in lines if line.startswith("  onestep MSE grid minimum")]
+    assert len(said) == 1 and said[0].endswith("(on the grid's edge: d_long low)")
+
+
 @pytest.mark.slow
 def test_analyse_two_bags_and_a_corrupt_one(short_runs, tmp_path, capsys):
     """The good bags are analysed and written, the corrupt one is named, exit 2."""
@@ -434,8 +477,18 @@ def test_demo_is_analyse_on_the_shipped_bags_and_holds_the_truth(tmp_path, capsy
     assert sorted(p.name for p in (folder / "experiments").iterdir()) == ["v1_01.nc", "v2_01.nc"]
     grids = json.loads((folder / "grid.json").read_text())
     assert grids["truth"] == {"d_lat": 110.0, "d_long": 30.0}
-    # The thesis' simulation grid (step 10) finds the demo's truth (fixed seed).
-    assert (grids["simulation"]["d_lat"], grids["simulation"]["d_long"]) == (110.0, 30.0)
+    # The grids span the Jackal's prior, 10-1000 N s/m, log-spaced. The
+    # simulation grid's minimum is on the ridge of the truth's ratio 110/30, to
+    # within one of its ratios, 100^(1/99) (measured: (64.3, 17.5), 3.678): the
+    # yaw rate identifies the ratio, not the scale (the thesis' linear grid,
+    # --d-lat 10 1000 10, finds (110, 30) itself).
+    assert grids["simulation"]["grid"]["d_lat"] == [10.0, 1000.0, 100]
+    ratio = grids["simulation"]["d_lat"] / grids["simulation"]["d_long"]
+    assert abs(np.log(ratio / (110.0 / 30.0))) <= np.log(100.0) / 99
+    # The one-step criterion's bias (docs/guide/thesis.md: (15, 4) on the
+    # thesis' 1..1000 grid) takes its minimum below the prior's d_long floor.
+    assert grids["onestep"]["edge"] == {"d_long": "low"}
+    assert "WARNING: onestep grid: the minimum" in captured.err
     comparison = json.loads((folder / "compare.json").read_text())
     assert comparison["best"] == result["best"] == "gaussian"
     assert comparison["verdict"] == "coloured"

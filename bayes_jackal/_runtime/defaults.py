@@ -16,7 +16,6 @@ __all__ = [
     "BRIDGE_MIN_DRAWS",
     "CHANNELS",
     "CONVERSIONS",
-    "DAMPING_GRID",
     "DEFAULT_CHANNEL_ORDER",
     "DEFAULT_FAMILIES",
     "DISCRETISATION",
@@ -31,6 +30,7 @@ __all__ = [
     "FILTERS",
     "FILTER_PARAMETERS",
     "GRID_METHODS",
+    "GRID_POINTS",
     "HDI_PROB",
     "LOOKAHEAD",
     "MAX_GAP",
@@ -120,10 +120,14 @@ THESIS_CHANNEL = "yaw"
 #: Grid-search criteria (``grid --method``) and the default.
 GRID_METHODS = ("onestep", "simulation")
 METHOD = "onestep"
-#: (START, STOP, STEP) of the thesis' damping grid [N s/m], STOP included.
-DAMPING_GRID = (10.0, 1000.0, 10.0)
-#: The thesis' damping (d_lat, d_long) [N s/m]: the simulator's truth and
-#: the model of the residual analysis by default.
+#: Values per damping axis of each criterion's default grid, log-spaced over
+#: the profile's prior range (``thesis.prior_grid``): the thesis' counts, its
+#: one-step grid's 1..1000 step 1 (O(1) per point) and its simulation grid's
+#: 10..1000 step 10 (a simulation per point).
+GRID_POINTS = {"onestep": 1000, "simulation": 100}
+#: The thesis' damping (d_lat, d_long) [N s/m] of the Jackal: the simulator's
+#: truth and the model of the residual analysis by default, times the robot's
+#: mass / the Jackal's (``model.mass_scaled_damping``).
 D_LAT = 110.0
 D_LONG = 30.0
 #: Lags of the Ljung-Box test and of the sigma_h fit (thesis ch. 7-3).

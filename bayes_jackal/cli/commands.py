@@ -36,14 +36,14 @@ from ..io.tables import write_csv
 from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
 from ..model.kernels import FAMILIES
 from ..model.parameters import prior_overrides
-from ..model.robot import RobotProfile
+from ..model.robot import RobotProfile, mass_scaled_damping
 from ..posterior.criticism import criticise
 from ..posterior.posterior import load_posterior, save_posterior
 from ..posterior.summary import summarize
 from ..report.grid_plots import save_grid_plot
 from ..report.page import read_posteriors, save_report
 from ..report.population_plots import save_population_plot
-from ..thesis.gridsearch import damping_grid, grid_search
+from ..thesis.gridsearch import damping_grid, grid_search, prior_grid
 from ..thesis.residual_analysis import analyse
 from ..workflow.analysis import analyse_logs
 from ..workflow.demo import DEMO_TRUTH, run_demo
@@ -57,6 +57,7 @@ from .output import (
     family_warnings,
     filter_table,
     grid_table,
+    grid_warnings,
     population_text,
     posterior_table,
     print_criticism,
@@ -68,14 +69,20 @@ from .paths import check_named_outputs, family_files, group_name, summary_file
 from .reading import each_experiment, load_logs, read_options, robot_profile, robot_with_topics
 
 
+def _damping(args: argparse.Namespace, robot: RobotProfile) -> tuple[float, float]:
+    """``--d-lat``, ``--d-long``, by default the thesis' Jackal damping scaled to the robot."""
+    scaled = mass_scaled_damping(robot.mass)
+    given = (args.d_lat, args.d_long)
+    return tuple(float(d) if d is not None else s for d, s in zip(given, scaled, strict=True))
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_profile(args)
     noise = NoiseSettings(args.width, tuple(args.sigma_c), tuple(args.sigma_n), args.family)
     counts = {"v1": args.v1, "v2": args.v2}
-    experiments = simulate_series(
-        robot, args.d_lat, args.d_long, counts, noise, args.seed, args.conversion
-    )
+    d_lat, d_long = _damping(args, robot)
+    experiments = simulate_series(robot, d_lat, d_long, counts, noise, args.seed, args.conversion)
     writer, suffix = (write_csv, ".csv") if args.format == "csv" else (write_netcdf, ".nc")
     paths = [str(writer(e, Path(args.out) / f"{e.name}{suffix}")) for e in experiments]
     pose_noise = tuple(args.pose_noise)
@@ -90,10 +97,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         result["bag_truth"] = bag_truth(experiments[0], pose_noise) if experiments else None
     for path in paths:
         out.say(f"wrote {path}")
-    out.say(
-        f"{len(experiments)} simulated experiments "
-        f"(truth d_lat={args.d_lat}, d_long={args.d_long})"
-    )
+    out.say(f"{len(experiments)} simulated experiments (truth d_lat={d_lat:g}, d_long={d_long:g})")
     out.result({"experiments": paths, **result})
     return EXIT_OK
 
@@ -141,16 +145,22 @@ def cmd_grid(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_profile(args)
     experiments = load_logs(args)
+    # A grid given is the thesis' kind (START STOP STEP); the default spans the prior.
+    d_lat, d_long = (
+        damping_grid(*given, name=name) if given else prior_grid(robot, name, args.method)
+        for name, given in (("d_lat", args.d_lat), ("d_long", args.d_long))
+    )
     result = grid_search(
         experiments,
         robot,
-        damping_grid(*args.d_lat, name="d_lat"),
-        damping_grid(*args.d_long, name="d_long"),
+        d_lat,
+        d_long,
         method=args.method,
         channel=args.channel,
         discretisation=args.discretisation,
     )
     grid_table(result, out.say)
+    grid_warnings(result.edge_warnings(), "--{option} START STOP STEP")
     if args.plot:
         out.say(f"wrote {save_grid_plot(result, args.plot)}")
     if args.out:
@@ -163,8 +173,10 @@ def cmd_residuals(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     robot = robot_profile(args)
 
+    d_lat, d_long = _damping(args, robot)
+
     def residuals(experiments: list) -> dict:
-        return analyse(experiments, robot, args.d_lat, args.d_long, args.channels, args.lags)
+        return analyse(experiments, robot, d_lat, d_long, args.channels, args.lags)
 
     if len(args.experiments) == 1:
         experiments, failed, code = load_logs(args), {}, EXIT_OK

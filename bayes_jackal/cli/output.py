@@ -48,6 +48,18 @@ def grid_table(result: GridResult, say: Callable[[str], None]) -> None:
         )
 
 
+def grid_warnings(warnings: list[dict], flag: str) -> None:
+    """Each ``grid-edge`` warning on stderr, with the flag that widens the grid.
+
+    ``flag`` is formatted with the damping's ``name`` (``d_lat``) and its
+    ``option`` (``d-lat``), e.g. ``"--{option} START STOP STEP"``.
+    """
+    for warning in warnings:
+        name = warning["parameter"]
+        widen = flag.format(name=name, option=name.replace("_", "-"))
+        print(f"bayes-jackal: WARNING: {warning['message']} ({widen})", file=sys.stderr)
+
+
 def residual_table(result: dict, say: Callable[[str], None]) -> None:
     say(
         f"one-step residuals (eq. 7-3) of the steady-state window at d_lat={result['d_lat']:g}, "
@@ -275,6 +287,12 @@ def analysis_text(result: dict, out: Reporter) -> int:
         f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "
         f"Inference prior), {files['posterior']}, posteriors/, experiments/, grid_*.png, *.json."
     )
+    for summary in result["grids"].values():  # the thesis' criteria, not the posterior's
+        grid_warnings(
+            summary["warnings"],
+            "in grid.json; analyse's grids span the prior ranges, "
+            "bayes-jackal grid --{option} START STOP STEP looks beyond them",
+        )
     family_warnings(
         result["warnings"],
         result["comparison"],

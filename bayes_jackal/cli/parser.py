@@ -19,7 +19,6 @@ from .._runtime.defaults import (
     CONVERSIONS,
     D_LAT,
     D_LONG,
-    DAMPING_GRID,
     DEFAULT_CHANNEL_ORDER,
     DEFAULT_FAMILIES,
     DISCRETISATION,
@@ -32,6 +31,7 @@ from .._runtime.defaults import (
     FILTER_PARAMETERS,
     FILTERS,
     GRID_METHODS,
+    GRID_POINTS,
     LOOKAHEAD,
     MAX_GAP,
     MAX_GAP_STEPS,
@@ -93,6 +93,9 @@ class _Window(argparse.Action):
             raise argparse.ArgumentError(self, f"expected T0 < T1 [s], got {start:g} {stop:g}")
         setattr(namespace, self.dest, values)
 
+
+#: The default of a damping flag of simulate and residuals (model.mass_scaled_damping).
+_SCALED = "{:g} for the Jackal, scaled with the robot's mass as its prior is"
 
 #: What grid, residuals, sample and compare read (as bj.load_experiments does).
 _EXP_HELP = "experiment files (.csv, .mat, .nc) and bags (.bag, .mcap, .db3, bag folders)"
@@ -308,12 +311,13 @@ def build_parser() -> argparse.ArgumentParser:
             default=default,
             help=f"runs of series {label} ({default})",
         )
-    sim.add_argument(
-        "--d-lat", type=_positive, default=D_LAT, help=f"true d_lat [N s/m] ({D_LAT:g})"
-    )
-    sim.add_argument(
-        "--d-long", type=_positive, default=D_LONG, help=f"true d_long [N s/m] ({D_LONG:g})"
-    )
+    for name, value in (("d_lat", D_LAT), ("d_long", D_LONG)):
+        sim.add_argument(
+            f"--{name.replace('_', '-')}",
+            type=_positive,
+            default=None,
+            help=f"true {name} [N s/m] ({_SCALED.format(value)})",
+        )
     sim.add_argument(
         "--family", type=_family, default=FAMILY, help=f"process-noise filter ({FAMILY})"
     )
@@ -360,16 +364,17 @@ def build_parser() -> argparse.ArgumentParser:
     grid.add_argument(
         "--method", choices=GRID_METHODS, default=METHOD, help=f"criterion ({METHOD})"
     )
-    start, stop, step = DAMPING_GRID
+    counts = ", ".join(f"{count} for {method}" for method, count in GRID_POINTS.items())
     for name in ("d-lat", "d-long"):
         grid.add_argument(
             f"--{name}",
             type=_finite,
             nargs=3,
             action=_Grid,
-            default=DAMPING_GRID,
+            default=None,
             metavar=("START", "STOP", "STEP"),
-            help=f"grid values [N s/m], STOP included ({start:g} {stop:g} {step:g})",
+            help="grid values [N s/m], STOP included (default: the profile's prior range of "
+            f"{name.replace('-', '_')}, log-spaced: {counts}; the thesis': 1 1000 1)",
         )
     grid.add_argument(
         "--channel", choices=CHANNELS, default=THESIS_CHANNEL, help=f"channel ({THESIS_CHANNEL})"
@@ -394,15 +399,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     res = commands.add_parser("residuals", help="thesis ch. 7 residual analysis and sigma_h fit")
     res.add_argument("experiments", nargs="+", metavar="EXP", help=_EXP_HELP)
-    res.add_argument(
-        "--d-lat", type=_positive, default=D_LAT, help=f"d_lat of the model [N s/m] ({D_LAT:g})"
-    )
-    res.add_argument(
-        "--d-long",
-        type=_positive,
-        default=D_LONG,
-        help=f"d_long of the model [N s/m] ({D_LONG:g})",
-    )
+    for name, value in (("d_lat", D_LAT), ("d_long", D_LONG)):
+        res.add_argument(
+            f"--{name.replace('_', '-')}",
+            type=_positive,
+            default=None,
+            help=f"{name} of the model [N s/m] ({_SCALED.format(value)})",
+        )
     res.add_argument(
         "--channels",
         type=_channel_list,

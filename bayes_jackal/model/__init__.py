@@ -46,6 +46,7 @@ from .robot import (
     as_profile,
     default_profile_path,
     load_profile,
+    mass_scaled_damping,
     mass_scaled_priors,
     packaged_profiles,
 )
@@ -79,6 +80,7 @@ __all__ = [
     "gaussian_kernel",
     "get_family",
     "load_profile",
+    "mass_scaled_damping",
     "mass_scaled_priors",
     "one_step_prediction",
     "one_step_residuals",

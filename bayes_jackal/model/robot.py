@@ -6,7 +6,9 @@ sampling rate, prior ranges and the ROS topic names. The package ships
 profiles of Clearpath's Jackal (the default, ``models/jackal.toml``), Husky
 and Warthog (:func:`packaged_profiles`), each loaded by its name; any path
 can be passed instead. A profile that gives no damping priors gets the
-Jackal's scaled to its mass (:func:`mass_scaled_priors`).
+Jackal's scaled to its mass (:func:`mass_scaled_priors`), and the thesis'
+Jackal damping scaled the same way is a robot's default true damping
+(:func:`mass_scaled_damping`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from .._runtime.defaults import CONVERSIONS
+from .._runtime.defaults import CONVERSIONS, D_LAT, D_LONG
 from .._runtime.errors import InputError, ProfileError
 from .._runtime.files import require_file
 
@@ -34,6 +36,7 @@ __all__ = [
     "as_profile",
     "default_profile_path",
     "load_profile",
+    "mass_scaled_damping",
     "mass_scaled_priors",
     "packaged_profiles",
 ]
@@ -253,18 +256,63 @@ def mass_scaled_priors(mass: float) -> dict[str, tuple[float, float]]:
     >>> mass_scaled_priors(46.034)["sigma_c"]
     (1e-05, 1.0)
     """
+    scale = _mass_scale(mass)
+    priors = dict(DEFAULT_PRIORS)
+    for key in ("d_lat", "d_long"):  # the damping (model.DAMPING; that module imports this one)
+        low, high = DEFAULT_PRIORS[key]
+        priors[key] = (low * scale, high * scale)
+    return priors
+
+
+def mass_scaled_damping(mass: float) -> tuple[float, float]:
+    """The thesis' Jackal damping in a body of this mass: (d_lat, d_long) [N s/m].
+
+    The thesis' (110, 30) N s/m times mass / :data:`PRIOR_REFERENCE_MASS`:
+    the Jackal's time constants m / d, as :func:`mass_scaled_priors` scales
+    the prior, so the result lies inside the mass-scaled prior. It is the
+    true damping ``bayes-jackal simulate`` simulates and the model
+    ``bayes-jackal residuals`` analyses when no ``--d-lat``, ``--d-long``
+    is given.
+
+    Parameters
+    ----------
+    mass : float
+        Body mass m [kg], as the profile's ``[body] mass``.
+
+    Returns
+    -------
+    (float, float)
+        d_lat, d_long [N s/m].
+
+    Raises
+    ------
+    InputError
+        When the mass is not a positive finite number.
+
+    Examples
+    --------
+    The Jackal's own, and the Warthog's (200 kg: x 12.10), inside its
+    prior of 121.04-12104.34 N s/m:
+
+    >>> from bayes_jackal.model import mass_scaled_damping
+    >>> mass_scaled_damping(16.523)
+    (110.0, 30.0)
+    >>> [round(value, 1) for value in mass_scaled_damping(200.0)]
+    [1331.5, 363.1]
+    """
+    scale = _mass_scale(mass)
+    return D_LAT * scale, D_LONG * scale
+
+
+def _mass_scale(mass: float) -> float:
+    """mass / :data:`PRIOR_REFERENCE_MASS`, for a positive finite mass [kg]."""
     try:
         value = float(mass)
     except (TypeError, ValueError):
         value = math.nan
     if not (math.isfinite(value) and value > 0):
         raise InputError(f"must be a positive finite number [kg], got {mass!r}", field="mass")
-    scale = value / PRIOR_REFERENCE_MASS
-    priors = dict(DEFAULT_PRIORS)
-    for key in ("d_lat", "d_long"):  # the damping (model.DAMPING; that module imports this one)
-        low, high = DEFAULT_PRIORS[key]
-        priors[key] = (low * scale, high * scale)
-    return priors
+    return value / PRIOR_REFERENCE_MASS
 
 
 def packaged_profiles() -> dict[str, Path]:

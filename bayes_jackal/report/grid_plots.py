@@ -26,6 +26,10 @@ def plot_grid(
 
     The ridge is the line d_lat = (d_lat / d_long at the minimum) x d_long,
     along which the yaw rate's steady state is constant (thesis fig. 5-4).
+    An axis of log-spaced values (the default grids,
+    :func:`bayes_jackal.thesis.prior_grid`) is drawn on a log scale, the
+    thesis' linear grids on a linear one; the ridge is a straight line on
+    either.
 
     Parameters
     ----------
@@ -55,6 +59,16 @@ def plot_grid(
     (2, 'd_long [N s/m]', 'd_lat [N s/m]')
     >>> [text.get_text() for text in ax.get_legend().get_texts()]
     ['d_lat = 3.33 d_long', 'minimum (50, 15): 9.63e-05']
+    >>> ax.get_xscale(), ax.get_yscale()  # linear grids
+    ('linear', 'linear')
+
+    The default grid over the Jackal's prior, log-spaced:
+
+    >>> from bayes_jackal.thesis import prior_grid
+    >>> grid = prior_grid(robot, "d_lat", "simulation")[::10]
+    >>> fig, ax = plot_grid(grid_search([run], robot, grid, grid))
+    >>> ax.get_xscale(), ax.get_yscale()
+    ('log', 'log')
     """
     fig, ax = new_axes(ax, figsize=(6.0, 4.8))
     surface = result.mse if surface is None else surface
@@ -69,10 +83,22 @@ def plot_grid(
     ax.plot(d_long, d_lat, "r*", ms=12, label=f"minimum ({d_lat:g}, {d_long:g}): {mse:.3g}")
     ax.set_xlim(result.d_long[0], result.d_long[-1])
     ax.set_ylim(result.d_lat[0], result.d_lat[-1])
+    if _log_spaced(result.d_long):
+        ax.set_xscale("log")
+    if _log_spaced(result.d_lat):
+        ax.set_yscale("log")
     ax.set_xlabel("d_long [N s/m]")
     ax.set_ylabel("d_lat [N s/m]")
     ax.legend(loc="lower right", fontsize="small", facecolor="0.75")
     return fig, ax
+
+
+def _log_spaced(values: np.ndarray) -> bool:
+    """Whether an axis of more than two values has equal ratios (and not equal steps)."""
+    if len(values) < 3:
+        return False
+    ratios = np.diff(np.log(values))
+    return bool(np.allclose(ratios, ratios[0], rtol=1e-6) and ratios[0] > 0)
 
 
 def save_grid_plot(result: GridResult, path: str | Path, dpi: int = 120) -> Path:

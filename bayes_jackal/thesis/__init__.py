@@ -3,7 +3,15 @@ residual analysis of ch. 7.
 """
 
 from .acf_fit import LEAST_SQUARES_LAGS, THESIS_LAGS, acf_least_squares, thesis_fit
-from .gridsearch import GridResult, damping_grid, grid_search, onestep_mse, simulation_mse
+from .gridsearch import (
+    GRID_POINTS,
+    GridResult,
+    damping_grid,
+    grid_search,
+    onestep_mse,
+    prior_grid,
+    simulation_mse,
+)
 from .residual_analysis import (
     FIRST_LAGS,
     SIGMA_H_GRID,
@@ -15,6 +23,7 @@ from .residual_analysis import (
 
 __all__ = [
     "FIRST_LAGS",
+    "GRID_POINTS",
     "LEAST_SQUARES_LAGS",
     "SIGMA_H_GRID",
     "THESIS_LAGS",
@@ -26,6 +35,7 @@ __all__ = [
     "fit_sigma_h",
     "grid_search",
     "onestep_mse",
+    "prior_grid",
     "sigma_h_table",
     "simulation_mse",
     "thesis_fit",

@@ -11,25 +11,48 @@ commands (eq. 5-2) and the sum of the series means (eq. 5-3).
   is linear in the coefficient vector c = (1, -alpha, -beta_r, -beta_l), so
   its mean square is c^T G c with the 4 x 4 Gram matrix G of the data: O(N)
   once per experiment, then O(1) per grid point (docs/design.md §4).
+
+The thesis' grids are linear (:func:`damping_grid`: 1..1000 step 1 and
+10..1000 step 10 N s/m, the Jackal's). The default grids follow the robot:
+log-spaced over the profile's prior range of each damping
+(:func:`prior_grid`). A minimum on a grid's edge says the criterion may be
+lower outside the grid: :meth:`GridResult.edges` names the edge and
+:meth:`GridResult.edge_warnings` warns of it (kind ``grid-edge``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-from .._runtime.defaults import DISCRETISATION, GRID_METHODS, METHOD, THESIS_CHANNEL
+from .._runtime.defaults import (
+    DISCRETISATION,
+    GRID_METHODS,
+    GRID_POINTS,
+    METHOD,
+    THESIS_CHANNEL,
+)
 from .._runtime.errors import InputError
 from .._runtime.files import write_hdf5
 from ..io.experiment import UNLABELLED, Experiment
 from ..likelihood.measurements import RateMeasurement
+from ..model.parameters import DAMPING, prior_overrides
 from ..model.physics import Method, channel_coefficients, propagate
 from ..model.robot import RobotProfile
 
-__all__ = ["GridResult", "damping_grid", "grid_search", "onestep_mse", "simulation_mse"]
+__all__ = [
+    "GRID_POINTS",
+    "GridResult",
+    "damping_grid",
+    "grid_search",
+    "onestep_mse",
+    "prior_grid",
+    "simulation_mse",
+]
 
 #: Grid points simulated at once by the simulation criterion (bounds memory).
 SIMULATION_CHUNK_ELEMENTS = 4_000_000
@@ -80,6 +103,82 @@ def damping_grid(start: float, stop: float, step: float, name: str = "d") -> np.
             field=name,
         )
     return start + step * np.arange(int(count))
+
+
+def prior_grid(
+    robot: RobotProfile,
+    parameter: str,
+    method: str = METHOD,
+    priors: Mapping[str, Sequence[float]] | None = None,
+) -> np.ndarray:
+    """The default grid of one damping: log-spaced over the profile's prior range [N s/m].
+
+    :data:`GRID_POINTS` ``[method]`` values from the prior's low to its high
+    bound, both included, equally spaced in log d: 1000 for the one-step
+    criterion, 100 for the simulation one, the thesis' counts (its grids
+    1..1000 step 1 and 10..1000 step 10).
+
+    Why log-spaced rather than linear: the damping's prior is log-uniform,
+    and the model's poles are -4 d / m (eq. 4-29/30), so what the data pin
+    down is the time constant m / d, to a relative precision. Equal ratios
+    give every part of the range the same relative resolution: 0.46 %
+    between the 1000 values over a mass-scaled prior's factor 100, 4.8 %
+    between the 100. A linear step fine enough at the low end is wasted at
+    the high end (the thesis' step 10 is 33 % at the Jackal's d_long = 30
+    and 1 % at 1000), and over a wider range such as the Warthog's
+    121-12104 N s/m a step of 1 would take 12,000 values per axis. The
+    count, not the step, is fixed, so the cost is the same for every robot:
+    10^6 one-step points per experiment, O(1) each, or 10^4 simulations.
+    A linear grid, the thesis' own, is :func:`damping_grid` (``grid --d-lat
+    1 1000 1``).
+
+    Parameters
+    ----------
+    robot : RobotProfile
+        Its ``priors[parameter]`` is the range.
+    parameter : {"d_lat", "d_long"}
+    method : {"onestep", "simulation"}
+        The criterion, which sets the count.
+    priors : mapping of str to (low, high), optional
+        Prior ranges that replace the profile's (as ``--prior d_lat LOW
+        HIGH`` does), validated by :func:`bayes_jackal.model.prior_overrides`.
+
+    Returns
+    -------
+    ndarray, shape (GRID_POINTS[method],)
+        Increasing values [N s/m]; the first and last are the range's bounds.
+
+    Raises
+    ------
+    InputError
+        For a parameter other than the damping, an unknown method, or a bad
+        range in ``priors``.
+
+    Examples
+    --------
+    The Jackal's prior is 10-1000 N s/m; the Warthog's, scaled to its
+    200 kg body, 121.04-12104.34 N s/m:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.thesis import prior_grid
+    >>> grid = prior_grid(bj.load_profile(), "d_long", "simulation")
+    >>> len(grid), grid[[0, -1]].tolist(), round(float(grid[1] / grid[0]), 4)
+    (100, [10.0, 1000.0], 1.0476)
+    >>> warthog = prior_grid(bj.load_profile("warthog"), "d_lat")
+    >>> len(warthog), [round(float(value), 2) for value in warthog[[0, -1]]]
+    (1000, [121.04, 12104.34])
+    >>> prior_grid(bj.load_profile(), "d_lat", priors={"d_lat": (50, 500)})[[0, -1]].tolist()
+    [50.0, 500.0]
+    """
+    if parameter not in DAMPING:
+        raise InputError(
+            f"a grid spans a damping, {list(DAMPING)}, got {parameter!r}", field="parameter"
+        )
+    if method not in GRID_POINTS:
+        raise InputError(f"unknown method {method!r}; use one of {GRID_METHODS}", field="method")
+    low, high = {**robot.priors, **prior_overrides(priors)}[parameter]
+    return np.geomspace(low, high, GRID_POINTS[method])
 
 
 def onestep_mse(
@@ -238,7 +337,8 @@ class GridResult:
     >>> result.mse.shape, sorted(result.experiment_mse)
     ((16, 11), ['v1', 'v2'])
     >>> sorted(result.summary())
-    ['channel', 'd_lat', 'd_long', 'experiments', 'grid', 'method', 'mse', 'ratio', 'series']
+    ['channel', 'd_lat', 'd_long', 'edge', 'experiments', 'grid', 'method', 'mse', 'ratio',
+     'series', 'warnings']
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     print(result.to_netcdf(Path(folder) / "grid.nc").name)
     grid.nc
@@ -257,24 +357,130 @@ class GridResult:
         """Total surface, eq. 5-3."""
         return np.sum(list(self.series_mse.values()), axis=0)
 
-    def argmin(self, surface: np.ndarray | None = None) -> tuple[float, float, float]:
-        """(d_lat, d_long, mse) at the minimum of ``surface`` (the total by default)."""
+    def _index(self, surface: np.ndarray | None) -> tuple[np.ndarray, int, int]:
         surface = self.mse if surface is None else surface
         i, j = np.unravel_index(np.argmin(surface), surface.shape)
+        return surface, int(i), int(j)
+
+    def argmin(self, surface: np.ndarray | None = None) -> tuple[float, float, float]:
+        """(d_lat, d_long, mse) at the minimum of ``surface`` (the total by default).
+
+        A minimum on the grid's edge may not be the criterion's: :meth:`edges`
+        says which edge.
+        """
+        surface, i, j = self._index(surface)
         return float(self.d_lat[i]), float(self.d_long[j]), float(surface[i, j])
 
+    def edges(self, surface: np.ndarray | None = None) -> dict[str, str]:
+        """The edges of the grid the minimum of ``surface`` (the total by default) lies on.
+
+        Returns
+        -------
+        dict of str to str
+            ``"d_lat"`` and/or ``"d_long"`` -> ``"low"`` (the axis' first
+            value) or ``"high"`` (its last); empty when the minimum is inside
+            on both axes. An axis of one value is no search and has no edge;
+            a minimum tied with its neighbour inside the grid lies inside too
+            (the vx channel's MSE does not depend on d_lat, eq. 4-29: the
+            whole d_lat axis ties).
+
+        Examples
+        --------
+        A run of truth (110, 30) N s/m on a grid whose d_lat stops at 90: the
+        minimum is at its high edge, below the truth's d_lat.
+
+        >>> import bayes_jackal as bj
+        >>> from bayes_jackal.thesis import damping_grid, grid_search
+        >>> robot = bj.load_profile()
+        >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+        >>> result = grid_search(
+        ...     [run], robot, damping_grid(50.0, 90.0, 10.0), damping_grid(10.0, 60.0, 5.0),
+        ...     method="simulation",
+        ... )
+        >>> result.argmin()[:2], result.edges()
+        ((90.0, 25.0), {'d_lat': 'high'})
+        """
+        surface, i, j = self._index(surface)
+        found = {}
+        for name, line, index in (("d_lat", surface[:, j], i), ("d_long", surface[i, :], j)):
+            last = len(line) - 1
+            if last and index == 0 and line[0] < line[1]:
+                found[name] = "low"
+            elif last and index == last and line[last] < line[last - 1]:
+                found[name] = "high"
+        return found
+
+    def edge_warnings(self) -> list[dict]:
+        """A ``grid-edge`` warning for each edge of the grid the total minimum lies on.
+
+        Returns
+        -------
+        list of dict
+            ``kind`` (``"grid-edge"``), ``message``, ``method``,
+            ``parameter`` (``"d_lat"`` or ``"d_long"``), ``side`` (``"low"``
+            or ``"high"``) and ``value``, the minimum's value of that damping,
+            the grid's first or last [N s/m].
+
+        Examples
+        --------
+        >>> import bayes_jackal as bj
+        >>> from bayes_jackal.thesis import damping_grid, grid_search
+        >>> robot = bj.load_profile()
+        >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+        >>> result = grid_search(
+        ...     [run], robot, damping_grid(50.0, 90.0, 10.0), damping_grid(10.0, 60.0, 5.0),
+        ...     method="simulation",
+        ... )
+        >>> (warning,) = result.edge_warnings()
+        >>> warning["parameter"], warning["side"], warning["value"]
+        ('d_lat', 'high', 90.0)
+        >>> print(warning["message"])
+        simulation grid: the minimum (d_lat = 90, d_long = 25 N s/m) lies on the high edge
+        of the d_lat grid (50-90 N s/m): the MSE may be lower above d_lat = 90 N s/m,
+        outside the grid; widen the grid
+        """
+        d_lat, d_long, _ = self.argmin()
+        at = {"d_lat": d_lat, "d_long": d_long}
+        warnings = []
+        for name, side in self.edges().items():
+            values = getattr(self, name)
+            span = f"{values[0]:g}-{values[-1]:g} N s/m"
+            where = "below" if side == "low" else "above"
+            message = (
+                f"{self.method} grid: the minimum (d_lat = {d_lat:g}, d_long = {d_long:g} N s/m) "
+                f"lies on the {side} edge of the {name} grid ({span}): the MSE may be lower "
+                f"{where} {name} = {at[name]:g} N s/m, outside the grid; widen the grid"
+            )
+            warnings.append(
+                {
+                    "kind": "grid-edge",
+                    "message": message,
+                    "method": self.method,
+                    "parameter": name,
+                    "side": side,
+                    "value": at[name],
+                }
+            )
+        return warnings
+
     def summary(self) -> dict:
-        """JSON-ready summary: the total argmin at top level, then per series and experiment."""
+        """JSON-ready summary: the total argmin at top level, then per series and experiment.
+
+        Each minimum has its ``edge`` (:meth:`edges`: ``{}`` inside the
+        grid); ``warnings`` holds the total minimum's :meth:`edge_warnings`.
+        """
         d_lat, d_long, mse = self.argmin()
 
         def best(surface: np.ndarray) -> dict:
-            return dict(zip(("d_lat", "d_long", "mse"), self.argmin(surface), strict=True))
+            found = dict(zip(("d_lat", "d_long", "mse"), self.argmin(surface), strict=True))
+            return {**found, "edge": self.edges(surface)}
 
         return {
             "d_lat": d_lat,
             "d_long": d_long,
             "mse": mse,
             "ratio": d_lat / d_long,
+            "edge": self.edges(),
             "method": self.method,
             "channel": self.channel,
             "grid": {
@@ -286,6 +492,7 @@ class GridResult:
                 for label, surface in self.series_mse.items()
             },
             "experiments": {name: best(s) for name, s in self.experiment_mse.items()},
+            "warnings": self.edge_warnings(),
         }
 
     def to_netcdf(self, path: str | Path) -> Path:

@@ -8,8 +8,11 @@ folder:
 - ``experiments/<name>.nc``: every input that could be read, with its
   provenance (a bad input is reported with its reason and skipped);
 - ``grid_onestep.png``, ``grid_simulation.png``, ``grid.json``: the thesis'
-  grid searches of the yaw channel (ch. 9-1-2 at 1 N s/m resolution and
-  ch. 5's grid of step 10, both over 1-1000 N s/m);
+  grid searches of the yaw channel (ch. 9-1-2 and ch. 5) over the robot's
+  prior ranges of d_lat and d_long (with ``prior_overrides``' damping
+  ranges), log-spaced, 1000 and 100 values per axis
+  (:func:`bayes_jackal.thesis.prior_grid`); a minimum on a grid's edge
+  gets a ``grid-edge`` warning in grid.json;
 - ``posteriors/<family>.nc`` and ``compare.json``: the pooled posterior of
   the damping and the noise on every channel all experiments measure, for
   each noise family, with its evidence (:func:`compare_families`); each
@@ -47,7 +50,7 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-from .._runtime.defaults import DEFAULT_FAMILIES, STATE_ESTIMATION
+from .._runtime.defaults import DEFAULT_FAMILIES, GRID_METHODS, STATE_ESTIMATION
 from .._runtime.errors import DataError
 from .._runtime.files import write_json
 from ..dem.export import export_prior, write_prior
@@ -74,12 +77,9 @@ from ..report.sections import (
     state_estimation_highlight,
     state_estimation_section,
 )
-from ..thesis.gridsearch import damping_grid, grid_search
+from ..thesis.gridsearch import grid_search, prior_grid
 
 __all__ = ["analyse_logs"]
-
-#: The thesis' grid searches: method -> (start, stop, step) [N s/m] of both dampings.
-GRIDS = {"onestep": (1, 1000, 1), "simulation": (10, 1000, 10)}
 
 
 def _common_truth(experiments: list[Experiment]) -> dict | None:
@@ -89,15 +89,19 @@ def _common_truth(experiments: list[Experiment]) -> dict | None:
     return shared if None not in shared.values() and all(t == shared for t in truths) else None
 
 
-def _grids(experiments, robot, folder: Path, say: Callable[[str], None]) -> dict:
-    """The thesis' grid searches; surfaces as PNG, minima in grid.json."""
+def _grids(experiments, robot, folder: Path, say: Callable[[str], None], priors=None) -> dict:
+    """The thesis' grid searches over the prior ranges; surfaces as PNG, minima in grid.json."""
     summaries = {}
-    for method, (start, stop, step) in GRIDS.items():
-        values = damping_grid(start, stop, step)
-        result = grid_search(experiments, robot, values, values, method=method)
-        d_lat, d_long, _ = result.argmin()
+    for method in GRID_METHODS:
+        d_lat, d_long = (prior_grid(robot, name, method, priors) for name in ("d_lat", "d_long"))
+        result = grid_search(experiments, robot, d_lat, d_long, method=method)
+        best_lat, best_long, _ = result.argmin()
         save_grid_plot(result, folder / f"grid_{method}.png")
-        say(f"  {method} MSE grid minimum: d_lat = {d_lat:g}, d_long = {d_long:g} N s/m")
+        edges = ", ".join(f"{name} {side}" for name, side in result.edges().items())
+        say(
+            f"  {method} MSE grid minimum: d_lat = {best_lat:.4g}, d_long = {best_long:.4g} N s/m"
+            + (f" (on the grid's edge: {edges})" if edges else "")
+        )
         summaries[method] = result.summary()
     payload = {"truth": _common_truth(experiments), **summaries}
     write_json(folder / "grid.json", payload)
@@ -174,7 +178,8 @@ def analyse_logs(
     dict
         ``experiments`` (name -> file, source, samples, rate [Hz], channels,
         steady window), ``failed`` (input -> reason), ``channels``,
-        ``grids`` (the grid summaries), ``comparison`` (``compare.json``),
+        ``grids`` (method -> :meth:`~bayes_jackal.thesis.GridResult.summary`,
+        with its ``grid-edge`` ``warnings``), ``comparison`` (``compare.json``),
         ``best`` (the family of highest evidence), ``posterior`` (its
         summary), ``warnings`` (objects with ``kind`` and ``message``: a
         family's chain that did not converge, then every family's
@@ -261,8 +266,8 @@ def analyse_logs(
         groups = as_run_groups(groups)
         plan_units(experiments, groups, noise=options.noise)
     channels = options.channels
-    say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2):")
-    grids = _grids(experiments, robot, folder, say)
+    say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2) over the prior ranges:")
+    grids = _grids(experiments, robot, folder, say, prior_overrides)
     say(
         f"posterior and evidence of {', '.join(families)} noise on {', '.join(channels)}, "
         f"pooled over {len(experiments)} experiment(s):"
