@@ -25,11 +25,15 @@ def posterior_at(
     spread=0.02,
     shared_width=False,
     sensor="ma1",
+    steady=False,
 ):
-    """A posterior concentrated around theta (log-normal spread), built as a sampled one is."""
+    """A posterior concentrated around theta (log-normal spread), built as a sampled one is.
+
+    ``steady``: the likelihood on each run's steady window (the thesis' crop), not every sample.
+    """
     likelihood = ResidualLikelihood(
         experiments, ROBOT, family=family, channels=channels, shared_width=shared_width,
-        sensor=sensor,
+        sensor=sensor, steady=steady,
     )  # fmt: skip
     prior = Prior.for_likelihood(likelihood, ROBOT)
     z = np.log(theta) + spread * np.random.default_rng(8).normal(size=(40, 8, len(theta)))

@@ -226,7 +226,8 @@ def test_the_whole_run_as_window_is_not_steady(simulated):
         vx=simulated.vx,
         name="ramps",
     )
-    idata = posterior_at([run], YAW_VX_TRUTH, channels=("yaw", "vx"))
+    # Asked for its steady window (--steady), a run without one is analysed whole.
+    idata = posterior_at([run], YAW_VX_TRUTH, channels=("yaw", "vx"), steady=True)
     (found,) = [w for w in criticise(idata)["warnings"] if w["kind"] == "not-steady"]
     assert found["experiment"] == "ramps" and found["input_deviation"] > 0.05
 
@@ -250,7 +251,7 @@ def test_chunked_p_values_equal_the_draw_by_draw_computation(simulated, monkeypa
     # generator spawned from the seed, so the p-values equal those of one
     # chunk and those computed draw by draw here; a p-value is a count over
     # the 50 draws, so any difference would be a multiple of 0.02.
-    idata = posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005])
+    idata = posterior_at([simulated], [110.0, 30.0, 0.047, 0.01, 0.005], steady=True)
     whole = predictive_acf(idata, count=50).numbers["v2"]["yaw"]
     monkeypatch.setattr(predictive, "CHUNK_SAMPLES", 1)
     chunked = predictive_acf(idata, count=50).numbers["v2"]["yaw"]
@@ -278,12 +279,13 @@ def test_a_long_run_is_checked_on_its_central_window(simulated, monkeypatch):
     # 401 samples: same draws, same generators, same residuals.
     truth = [110.0, 30.0, 0.047, 0.01, 0.005]
     monkeypatch.setattr(criticism, "PREDICTIVE_WINDOW", 400)
-    windowed = predictive_acf(posterior_at([simulated], truth), count=50).numbers["v2"]["yaw"]
+    windowed = predictive_acf(posterior_at([simulated], truth, steady=True), count=50)
+    windowed = windowed.numbers["v2"]["yaw"]
     steady = simulated.steady()
     start = (len(steady.t) - 1 - 400) // 2
     assert windowed["window"] == [start, start + 400]
     cut = steady.window(steady.t[start], steady.t[start + 400])
-    whole = predictive_acf(posterior_at([cut], truth), count=50).numbers["v2"]["yaw"]
+    whole = predictive_acf(posterior_at([cut], truth, steady=True), count=50).numbers["v2"]["yaw"]
     assert whole["window"] == [0, 400]
     np.testing.assert_allclose(windowed["p_values"], whole["p_values"], rtol=0, atol=1e-12)
 
@@ -369,7 +371,7 @@ def test_not_steady_names_only_the_failing_criteria_and_stays_valid_json(simulat
         omega_l=np.full(n, 4.0),
         name="ramp",
     )
-    result = criticise(posterior_at([still, ramp], [110.0, 30.0, 0.047, 0.01, 0.005]))
+    result = criticise(posterior_at([still, ramp], [110.0, 30.0, 0.047, 0.01, 0.005], steady=True))
     json.dumps(result, allow_nan=False)
     found = {w["experiment"]: w for w in result["warnings"] if w["kind"] == "not-steady"}
     assert found["still"]["input_deviation"] is None

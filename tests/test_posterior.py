@@ -90,7 +90,7 @@ def test_the_typed_metadata_are_what_was_sampled(sampled):
         ("yaw", "v1_02"),
         ("vx", "v1_02"),
     )
-    assert metadata.engine == "fast" and metadata.steady is True
+    assert metadata.engine == "fast" and metadata.steady is False
     assert metadata.prior.names == prior.names
     np.testing.assert_array_equal(metadata.prior.low, prior.low)
     np.testing.assert_array_equal(metadata.prior.high, prior.high)

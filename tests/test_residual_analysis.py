@@ -91,7 +91,7 @@ def test_residuals_are_process_noise_plus_the_sensor_noise_footprint(noisy):
         process = window.truth_arrays[f"{channel}_process_noise"]
         alpha, _ = channel_coefficients(ROBOT, *TRUTH, channel, window.dt)
         expected = process[:-1] + sensor[1:] - alpha * sensor[:-1]
-        residuals = channel_residuals(noisy, ROBOT, *TRUTH, channel)
+        residuals = channel_residuals(noisy, ROBOT, *TRUTH, channel, steady=True)
         # Same algebra, different rounding (FFT simulation ~1e-16 of the state).
         np.testing.assert_allclose(residuals, expected, rtol=0, atol=1e-12 * np.max(np.abs(y)))
 
@@ -103,17 +103,17 @@ def test_residuals_match_the_physics_module_and_vectorise_over_damping(noisy):
     for i, channel in enumerate(CHANNELS):
         # Identical formulas evaluated in another order: rounding ~1e-16 of the signal.
         np.testing.assert_allclose(
-            channel_residuals(noisy, ROBOT, *TRUTH, channel),
+            channel_residuals(noisy, ROBOT, *TRUTH, channel, steady=True),
             reference[:, i],
             rtol=0,
             atol=1e-13 * np.max(np.abs(window.channel(channel))),
         )
     d_lat = np.array([50.0, 110.0, 400.0])
-    stacked = channel_residuals(noisy, ROBOT, d_lat, 30.0)
+    stacked = channel_residuals(noisy, ROBOT, d_lat, 30.0, steady=True)
     assert stacked.shape == (3, len(window.t) - 1)
     for row, value in zip(stacked, d_lat, strict=True):
         # A batched matrix product rounds differently: ~1e-17 on residuals ~1e-2.
-        single = channel_residuals(noisy, ROBOT, value, 30.0)
+        single = channel_residuals(noisy, ROBOT, value, 30.0, steady=True)
         np.testing.assert_allclose(row, single, rtol=0, atol=1e-15)
 
 
@@ -170,7 +170,7 @@ def test_sensor_noise_biases_the_thesis_fit_low():
     fits = {}
     for series in ("v1", "v2"):
         experiment = simulate_experiment(ROBOT, *TRUTH, series, rng=1)
-        measured = fit_sigma_h(channel_residuals(experiment, ROBOT, *TRUTH), DT)[0]
+        measured = fit_sigma_h(channel_residuals(experiment, ROBOT, *TRUTH, steady=True), DT)[0]
         process = experiment.steady().truth_arrays["yaw_process_noise"]
         fits[series] = (float(measured), float(fit_sigma_h(process, DT)[0]))
     # Paired: the same process noise with and without the sensor noise. The
@@ -205,7 +205,7 @@ def test_sigma_h_table_fits_each_experiment_and_averages_per_series():
     table = sigma_h_table(experiments, ROBOT, *TRUTH)
     assert list(table["experiments"]) == ["v1_01", "v1_02", "v2_01"]
     for experiment in experiments:
-        residuals = channel_residuals(experiment, ROBOT, *TRUTH)
+        residuals = channel_residuals(experiment, ROBOT, *TRUTH, steady=True)
         assert table["experiments"][experiment.name] == fit_sigma_h(residuals, DT)[0]
     values = table["experiments"]
     # Grid values averaged: rounding of 2 or 3 summands, far below 1e-15.
@@ -222,7 +222,7 @@ def test_analyse_summarises_every_experiment_and_channel(noisy):
     result = analyse([noisy], ROBOT, *TRUTH, ["yaw", "vx"], lags=20)
     json.dumps(result)  # JSON-ready
     row = result["experiments"]["v2"]["yaw"]
-    residuals = channel_residuals(noisy, ROBOT, *TRUTH)
+    residuals = channel_residuals(noisy, ROBOT, *TRUTH, steady=True)
     q, p = ljung_box(residuals, 20)
     assert row["n"] == len(residuals)
     assert row["mean"] == pytest.approx(np.mean(residuals), rel=1e-12)
@@ -392,6 +392,8 @@ def test_pose_channels_are_analysed_on_their_derived_velocities(tmp_path):
     bag = read_bag(write_bag(run, tmp_path / "v2.bag", robot, "ros1", rng=3), robot)
     row = analyse([bag], robot, 110.0, 30.0, channels=("yaw", "vx"))["experiments"]["v2"]
     assert row["vx"]["derived"] is True and row["yaw"]["derived"] is False
-    derived = channel_residuals(dataclasses.replace(bag, pose=None), robot, 110.0, 30.0, "vx")
+    derived = channel_residuals(
+        dataclasses.replace(bag, pose=None), robot, 110.0, 30.0, "vx", steady=True
+    )
     assert row["vx"]["n"] == len(derived)
     assert row["vx"]["sd"] == pytest.approx(np.std(derived, ddof=1))

@@ -58,6 +58,7 @@ __all__ = [
     "SHARED_NOISE",
     "SIMULATED_NOISE",
     "STATE_ESTIMATION",
+    "STEADY",
     "THESIS_CHANNEL",
     "VELOCITIES",
     "WALKERS",
@@ -82,6 +83,10 @@ DISCRETISATION = "zoh"
 #: Sensor-noise footprints (``--sensor-noise``) and the default.
 SENSOR_MODELS = ("ma1", "diagonal")
 SENSOR = "ma1"
+#: Whether the likelihood takes each run's steady window only (``--steady``, the
+#: thesis' crop) or every sample, transients included (the default: the model
+#: covers them, and they identify the damping's scale).
+STEADY = False
 #: Likelihood engines (``--engine``) and the default.
 ENGINES = ("fast", "exact", "whittle")
 ENGINE = "fast"

@@ -279,7 +279,11 @@ def _executor(args: argparse.Namespace, processes: int = 1) -> Executor:
 def _likelihood_options(args: argparse.Namespace) -> LikelihoodOptions:
     """The likelihood options of the shared modelling flags."""
     return LikelihoodOptions(
-        channels=args.channels, noise=args.noise, sensor=args.sensor_noise, engine=args.engine
+        channels=args.channels,
+        noise=args.noise,
+        sensor=args.sensor_noise,
+        engine=args.engine,
+        steady=args.steady,
     )
 
 

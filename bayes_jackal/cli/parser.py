@@ -212,6 +212,12 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
     parser.add_argument(
         "--engine", choices=ENGINES, default=ENGINE, help=f"likelihood engine ({ENGINE})"
     )
+    parser.add_argument(
+        "--steady",
+        action="store_true",
+        help="fit each run's steady window only, as the thesis (default: every sample, "
+        "transients included)",
+    )
     parser.add_argument("--seed", type=_natural, default=None, help="seed: same seed, same chain")
     parser.add_argument(
         "--walkers",

@@ -96,7 +96,7 @@ def find_map(
     >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
     >>> z = find_map(log_posterior, np.random.default_rng(1), design_points=64)
     >>> [f"{name} {value:.3g}" for name, value in zip(likelihood.parameter_names[:3], np.exp(z))]
-    ['d_lat 107', 'd_long 28.7', 'sigma_h[yaw] 0.0465']
+    ['d_lat 112', 'd_long 29.8', 'sigma_h[yaw] 0.0473']
     """
     prior = log_posterior.prior
     # Noise far below the data's overflows the likelihood's terms: -inf, checked below.

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime import interrupt
-from .._runtime.defaults import ENGINE, FAMILY, MAX_STEPS, NOISE, SENSOR, WALKERS
+from .._runtime.defaults import ENGINE, FAMILY, MAX_STEPS, NOISE, SENSOR, STEADY, WALKERS
 from ..io.experiment import Experiment, as_experiments
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
@@ -164,7 +164,7 @@ def sample_posterior(
     >>> sorted(posterior.groups())
     ['constant_data', 'observed_data', 'posterior', 'sample_stats']
     >>> dict(posterior.posterior.sizes)
-    {'chain': 32, 'draw': 17, 'state': 3, 'wheel': 2}
+    {'chain': 32, 'draw': 16, 'state': 3, 'wheel': 2}
     """
     settings = settings or SamplerSettings()
     prior = Prior.for_likelihood(likelihood, likelihood.robot, prior_overrides)
@@ -197,6 +197,7 @@ def sample(
     noise: str = NOISE,
     sensor: str = SENSOR,
     engine: str = ENGINE,
+    steady: bool = STEADY,
     seed: int | None = None,
     max_steps: int = MAX_STEPS,
     walkers: int = WALKERS,
@@ -227,6 +228,9 @@ def sample(
         Sensor-noise footprint (``--sensor-noise``; :data:`SENSOR`).
     engine : {"fast", "exact", "whittle"}
         Likelihood engine (``--engine``; :data:`ENGINE`).
+    steady : bool
+        Each experiment's steady window only, as the thesis (``--steady``);
+        by default every sample: transients are data the model covers.
     seed : int, optional
         Same seed, same chain (``--seed``).
     max_steps : int
@@ -277,7 +281,9 @@ def sample(
     >>> summary["family"], summary["channels"], summary["converged"]
     ('white', ['yaw'], False)
     """
-    options = LikelihoodOptions(channels=channels, noise=noise, sensor=sensor, engine=engine)
+    options = LikelihoodOptions(
+        channels=channels, noise=noise, sensor=sensor, engine=engine, steady=steady
+    )
     likelihood = options.likelihood(as_experiments(experiments), as_profile(robot), family)
     return sample_posterior(
         likelihood,

@@ -143,7 +143,7 @@ def profile_starts(
     ...     likelihood, prior.low, prior.high, damping_points=64, starts=3, rng=rng
     ... )
     >>> [f"{name} {value:.3g}" for name, value in zip(likelihood.parameter_names[:3], theta[0])]
-    ['d_lat 49.2', 'd_long 11.9', 'sigma_h[yaw] 0.0404']
+    ['d_lat 49.2', 'd_long 11.9', 'sigma_h[yaw] 0.041']
     >>> np.allclose(replace(likelihood, engine="whittle")(theta), profile, rtol=1e-9)
     True
     """

@@ -28,6 +28,7 @@ from .residuals import (
     check_residual_window,
     residual_count,
     residual_regressors,
+    residual_times,
 )
 from .series_likelihood import (
     MIN_LIKELIHOOD_SAMPLES,
@@ -103,6 +104,7 @@ __all__ = [
     "residual_autocovariance",
     "residual_count",
     "residual_regressors",
+    "residual_times",
     "resolve_channels",
     "sample_stationary",
     "spectral_forms",

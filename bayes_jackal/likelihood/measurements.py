@@ -106,6 +106,9 @@ class ChannelSeries:
     lengths : tuple of int
         The residuals of each segment of consecutive measurements, in
         order (they add up to n); one segment when nothing was missed.
+    ticks : ndarray of int, shape (n,), optional
+        The sample k of each row's residual r_k (the first of the samples
+        it spans); by default 0..n-1.
 
     Examples
     --------
@@ -118,10 +121,13 @@ class ChannelSeries:
     regressors: np.ndarray
     samples: int = 1
     lengths: tuple[int, ...] = ()
+    ticks: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not self.lengths:
             object.__setattr__(self, "lengths", (len(self.regressors),))
+        if self.ticks is None:
+            object.__setattr__(self, "ticks", np.arange(len(self.regressors)))
 
     def segments(self) -> list[np.ndarray]:
         """The regressors of each segment."""
@@ -391,7 +397,8 @@ def _segmented(rows: np.ndarray, valid: np.ndarray, samples: int = 1) -> Channel
     """The valid rows of a one-step series, by segment of consecutive valid rows."""
     starts = np.flatnonzero(valid & ~np.concatenate([[False], valid[:-1]]))
     stops = np.flatnonzero(valid & ~np.concatenate([valid[1:], [False]])) + 1
-    return ChannelSeries(rows[valid], samples, tuple(int(n) for n in stops - starts))
+    lengths = tuple(int(n) for n in stops - starts)
+    return ChannelSeries(rows[valid], samples, lengths, np.flatnonzero(valid))
 
 
 def _pieces(

@@ -71,6 +71,7 @@ from .._runtime.defaults import (
     SENSOR,
     SENSOR_MODELS,
     SHARED_NOISE,
+    STEADY,
 )
 from .._runtime.errors import DataError, InputError
 from .._runtime.rng import as_rng
@@ -270,6 +271,10 @@ class LikelihoodOptions:
         experiment and channel, or shared with one width for every channel.
     sensor : {"ma1", "diagonal"}
     engine : {"fast", "exact", "whittle"}
+    steady : bool
+        Each experiment's steady window only (its ``steady_window``: the
+        thesis' crop of the ramps, ``--steady``), or every sample (the
+        default: transients are data the model covers).
 
     Raises
     ------
@@ -283,7 +288,7 @@ class LikelihoodOptions:
     >>> options = LikelihoodOptions(channels=["yaw"], noise="one-width")
     >>> options.keywords  # doctest: +NORMALIZE_WHITESPACE
     {'channels': ('yaw',), 'shared_noise': True, 'sensor': 'ma1', 'engine': 'fast',
-     'shared_width': True}
+     'steady': False, 'shared_width': True}
     >>> try:
     ...     LikelihoodOptions(noise="per-run")
     ... except ValueError as error:
@@ -295,6 +300,7 @@ class LikelihoodOptions:
     noise: str = NOISE
     sensor: str = SENSOR
     engine: str = ENGINE
+    steady: bool = STEADY
 
     def __post_init__(self) -> None:
         if self.noise not in NOISE_SHARING:
@@ -331,6 +337,7 @@ class LikelihoodOptions:
             "shared_noise": self.noise != "per-experiment",
             "sensor": self.sensor,
             "engine": self.engine,
+            "steady": self.steady,
             "shared_width": self.noise == "one-width",
         }
 
@@ -373,7 +380,7 @@ class ResidualLikelihood:
     sensor : {"ma1", "diagonal"}
     engine : {"fast", "exact", "whittle"}
     steady : bool
-        Use the steady-state window of each experiment.
+        Use the steady-state window of each experiment (default: every sample).
     fallback : bool
         With the ``fast`` engine, evaluate parameter sets the spectral
         method cannot certify (long memory, spectral nulls) in the time
@@ -407,7 +414,7 @@ class ResidualLikelihood:
     >>> theta = np.array([[110.0, 30.0, 0.047, 0.01, 0.005]])
     >>> value = likelihood(theta)
     >>> round(float(value[0]), 2)
-    8175.57
+    9416.67
     >>> residuals = channel_residuals(run, robot, 110.0, 30.0, "yaw")
     >>> alpha, _ = channel_coefficients(robot, 110.0, 30.0, "yaw", run.dt)
     >>> acov = residual_autocovariance(
@@ -427,7 +434,7 @@ class ResidualLikelihood:
     shared_noise: bool = SHARED_NOISE
     sensor: str = SENSOR
     engine: str = ENGINE
-    steady: bool = True
+    steady: bool = STEADY
     fallback: bool = True
     shared_width: bool = False
     layout: ParameterLayout = field(init=False)

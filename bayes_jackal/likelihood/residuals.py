@@ -22,7 +22,13 @@ from ..io.experiment import CHANNEL_FIELDS, Experiment
 from ..model.robot import RobotProfile
 from .measurements import measurement_of
 
-__all__ = ["channel_residuals", "check_residual_window", "residual_count", "residual_regressors"]
+__all__ = [
+    "channel_residuals",
+    "check_residual_window",
+    "residual_count",
+    "residual_regressors",
+    "residual_times",
+]
 
 
 def channel_residuals(
@@ -31,7 +37,7 @@ def channel_residuals(
     d_lat: np.ndarray | float,
     d_long: np.ndarray | float,
     channel: str = "yaw",
-    steady: bool = True,
+    steady: bool = False,
     samples: slice = slice(None),
 ) -> np.ndarray:
     """One-step residuals of one measured channel (eq. 7-3).
@@ -54,7 +60,8 @@ def channel_residuals(
         Measured state: yaw rate [rad/s] or body velocity [m/s].
     steady : bool
         Use ``experiment.steady()`` (the whole experiment when it has no
-        steady-state window); False uses every sample.
+        steady-state window), as the thesis (ch. 7-1); False (the default)
+        uses every sample.
     samples : slice
         Which residuals to compute (default all): a window of a long run
         costs only its own length.
@@ -73,8 +80,8 @@ def channel_residuals(
 
     Examples
     --------
-    The yaw channel of :func:`bayes_jackal.model.one_step_residuals` on the
-    steady window, vectorised over the damping:
+    The yaw channel of :func:`bayes_jackal.model.one_step_residuals` over
+    every sample, vectorised over the damping:
 
     >>> import numpy as np
     >>> import bayes_jackal as bj
@@ -84,14 +91,13 @@ def channel_residuals(
     >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
     >>> w = channel_residuals(run, robot, 110.0, 30.0, "yaw")
     >>> w.shape
-    (2376,)
-    >>> steady = run.steady()
-    >>> states = np.column_stack([steady.channel(c) for c in ("vx", "vy", "yaw")])
-    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0, steady.dt)
-    >>> bool(np.allclose(w, one_step_residuals(Ad, Bd, states, steady.inputs)[:, 2]))
+    (2736,)
+    >>> states = np.column_stack([run.channel(c) for c in ("vx", "vy", "yaw")])
+    >>> Ad, Bd = discrete_matrices(robot, 110.0, 30.0, run.dt)
+    >>> bool(np.allclose(w, one_step_residuals(Ad, Bd, states, run.inputs)[:, 2]))
     True
     >>> channel_residuals(run, robot, [100.0, 110.0, 120.0], 30.0).shape
-    (3, 2376)
+    (3, 2736)
     """
     window = experiment.steady() if steady else experiment
     measurement = measurement_of(window, channel)
@@ -99,7 +105,7 @@ def channel_residuals(
     return coefficients @ measurement.series(window, channel).regressors[samples].T
 
 
-def residual_regressors(experiment: Experiment, channel: str, steady: bool = True) -> np.ndarray:
+def residual_regressors(experiment: Experiment, channel: str, steady: bool = False) -> np.ndarray:
     """Regressors Z = [y[k+1], y[k], u_r[k], u_l[k]] of one channel, shape (N - 1, 4).
 
     The one-step residual (eq. 7-3) is linear in them: w = Z (1, -Ad[c, c],
@@ -126,7 +132,7 @@ def residual_regressors(experiment: Experiment, channel: str, steady: bool = Tru
     >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
     >>> Z = residual_regressors(run, "yaw")
     >>> Z.shape
-    (2376, 4)
+    (2736, 4)
     >>> alpha, row = channel_coefficients(robot, 110.0, 30.0, "yaw", run.dt)
     >>> c = np.concatenate([[1.0, -alpha], -row])
     >>> bool(np.allclose(Z @ c, channel_residuals(run, robot, 110.0, 30.0, "yaw")))
@@ -134,6 +140,37 @@ def residual_regressors(experiment: Experiment, channel: str, steady: bool = Tru
     """
     window = experiment.steady() if steady else experiment
     return measurement_of(window, channel).series(window, channel).regressors
+
+
+def residual_times(experiment: Experiment, channel: str, steady: bool = False) -> np.ndarray:
+    """When each residual of :func:`channel_residuals` ends: the time of its last sample [s].
+
+    Examples
+    --------
+    A rate sensor that missed one sample: the two residuals that needed it
+    are not there:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.io import Experiment
+    >>> from bayes_jackal.likelihood import residual_times
+    >>> t = np.arange(6) / 10
+    >>> run = Experiment(t=t, yaw_rate=np.sin(t), omega_r=1 + 0 * t, omega_l=1 + 0 * t,
+    ...                  measured={"yaw_rate": np.array([1, 1, 0, 1, 1, 1], bool)})
+    >>> residual_times(run, "yaw").tolist()
+    [0.1, 0.4, 0.5]
+    """
+    window = experiment.steady() if steady else experiment
+    measurement = measurement_of(window, channel)
+    if measurement.regular(window):
+        span = 2 if measurement.name == "pose" else 1
+        return window.t[measurement.series(window, channel).ticks + span]
+    order = 3 if measurement.name == "pose" else 2
+    return np.concatenate(
+        [
+            window.t[piece.ticks[order - 1 :]] + piece.phases[order - 1 :]
+            for piece in measurement.observations(window, channel)
+        ]
+    )
 
 
 def residual_count(experiment: Experiment, channel: str) -> int:
@@ -160,7 +197,7 @@ def check_residual_window(
     experiment: Experiment,
     channel: str,
     minimum: int,
-    steady: bool = True,
+    steady: bool = False,
     reason: str = "",
     field: str | None = None,
 ) -> None:
@@ -198,7 +235,7 @@ def check_residual_window(
     ...     check_residual_window(run, "yaw", 10_000, reason=" for this example")
     ... except ValueError as error:
     ...     print(error)
-    <memory>: yaw: the steady-state window holds 2377 samples, 2376 one-step
+    <memory>: yaw: the experiment holds 2737 samples, 2736 one-step
     residuals; at least 10000 are needed for this example
     """
     window = experiment.steady() if steady else experiment

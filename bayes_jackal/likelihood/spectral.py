@@ -111,7 +111,7 @@ class ResidualBlock:
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v1", rng=1)
     >>> block = ResidualBlock("yaw", 0, run.dt, residual_regressors(run, "yaw")[None])
     >>> block.count, block.n, block.grids()[:3]
-    (1, 2376, [512, 1024, 2048])
+    (1, 2736, [512, 1024, 2048])
     >>> c = np.array([[1.0, -0.72, -0.01, 0.01]])
     >>> x = block.residuals(c)[0, 0]
     >>> direct = [x[: len(x) - lag] @ x[lag:] for lag in range(3)]

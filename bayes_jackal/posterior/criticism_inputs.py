@@ -182,60 +182,94 @@ def _input_warning(
 
 
 def steady_windows(idata: az.InferenceData) -> Check:
-    """Warnings for analysed windows that are not steady cornering (thesis ch. 5).
+    """Steadiness of each segment of the runs; warnings where a steady window was asked for.
 
-    The window is each experiment's steady window when the posterior used
-    them, else the whole run. Numbers per experiment: ``input_deviation``
-    (None when the wheels stand still), ``yaw_drift`` (:func:`steadiness`),
-    ``duration`` [s], and the tolerances.
+    The likelihood takes every sample by default: transients are data the
+    model covers. The numbers then describe each run's segments (its
+    command steps, :attr:`bayes_jackal.io.Experiment.segments`; the whole
+    run where it has none): ``start``, ``duration`` [s], ``input_deviation``
+    (None when the wheels stand still), ``yaw_drift`` (:func:`steadiness`)
+    and ``steady`` (both within the tolerances ``input_tolerance``,
+    ``yaw_tolerance``, which are given too). With ``--steady`` (the thesis'
+    crop) the window analysed is each run's steady window, and one that is
+    not steady cornering warns (``not-steady``): the thesis' analysis
+    assumes steady circles (ch. 5).
 
     Examples
     --------
     A posterior of a chain kept short on purpose (20 steps, far from
     converged), so that the example runs in a second; white noise fitted on
-    the yaw rate alone of a run simulated with coloured noise:
+    the yaw rate alone of a run simulated with coloured noise, its rest,
+    ramps and hold one segment:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import steady_windows
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = steady_windows(posterior)
-    >>> row = check.numbers["v1"]
-    >>> row["duration"], row["input_deviation"], round(row["yaw_drift"], 3), check.warnings
-    (33.0, 0.0, 0.01, [])
+    >>> [segment] = check.numbers["v1"]["segments"]
+    >>> segment["duration"], segment["steady"], check.warnings
+    (38.0, False, [])
     """
     posterior = Posterior.of(idata)
     steady = posterior.metadata.steady
     check = Check()
     for experiment in posterior.experiments:
-        window = experiment.steady() if steady else experiment
-        deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
-        duration = float(window.t[-1] - window.t[0])
+        if not steady:
+            check.numbers[experiment.name] = {
+                "segments": [_segment_steadiness(piece) for piece in _segments(experiment)],
+                "input_tolerance": STEADY_INPUT_TOLERANCE,
+                "yaw_tolerance": STEADY_YAW_TOLERANCE,
+            }
+            continue
+        window = experiment.steady()
+        row = _segment_steadiness(window)
         check.numbers[experiment.name] = {
-            "input_deviation": deviation,
-            "yaw_drift": drift,
-            "duration": duration,
+            **row,
             "input_tolerance": STEADY_INPUT_TOLERANCE,
             "yaw_tolerance": STEADY_YAW_TOLERANCE,
         }
-        failures = _steadiness_failures(deviation, drift)
+        failures = _steadiness_failures(row["input_deviation"], row["yaw_drift"])
         if not failures:
             continue
-        span = "steady window" if steady and experiment.steady_window else "run"
+        span = "steady window" if experiment.steady_window else "run"
         check.warnings.append(
             {
                 "kind": "not-steady",
                 "experiment": experiment.name,
-                "input_deviation": deviation,
-                "yaw_drift": drift,
+                "input_deviation": row["input_deviation"],
+                "yaw_drift": row["yaw_drift"],
                 "message": (
-                    f"{experiment.name}: the analysed {span} ({duration:.1f} s) is not steady: "
-                    f"{' and '.join(failures)}; the thesis' analysis assumes steady circles "
-                    "(ch. 5): transients test the model where it is least sure"
+                    f"{experiment.name}: the analysed {span} ({row['duration']:.1f} s) is not "
+                    f"steady: {' and '.join(failures)}; the thesis' analysis (--steady) assumes "
+                    "steady circles (ch. 5): leave --steady out to use every sample"
                 ),
             }
         )
     return check
+
+
+def _segments(experiment: Experiment) -> list[Experiment]:
+    """The experiment's segments (command steps) as experiments of their own."""
+    starts = experiment.segment_starts
+    stops = [*starts[1:], len(experiment.t)]
+    return [
+        experiment.window(experiment.t[start], experiment.t[stop - 1])
+        for start, stop in zip(starts, stops, strict=True)
+        if stop - start >= 3
+    ]
+
+
+def _segment_steadiness(window: Experiment) -> dict:
+    """A window's start, duration [s] and steadiness (:func:`steadiness`)."""
+    deviation, drift = steadiness(window.t, window.yaw_rate, window.inputs)
+    return {
+        "start": float(window.t[0]),
+        "duration": float(window.t[-1] - window.t[0]),
+        "input_deviation": deviation,
+        "yaw_drift": drift,
+        "steady": not _steadiness_failures(deviation, drift),
+    }
 
 
 def _steadiness_failures(deviation: float | None, drift: float) -> list[str]:

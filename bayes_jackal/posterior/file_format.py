@@ -99,7 +99,7 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
     >>> prior = Prior.for_likelihood(likelihood, robot)
     >>> attrs = file_attributes(likelihood, prior, {"converged": False, "n_steps": 0})
     >>> attrs["format"], attrs["family"], attrs["channels"], attrs["steady"]
-    ('bayes_jackal.posterior/1', 'white', '["yaw"]', 1)
+    ('bayes_jackal.posterior/1', 'white', '["yaw"]', 0)
     """
     experiments = [
         {
@@ -401,7 +401,7 @@ def observed_residuals(idata: az.InferenceData, index: int, channel: str) -> np.
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> residuals = observed_residuals(posterior, 0, "yaw")
     >>> residuals.shape, f"{residuals.std():.4f} rad/s"
-    ((2376,), '0.0091 rad/s')
+    ((2736,), '0.0091 rad/s')
     """
     return idata.observed_data[_residual_key(index, channel)].values
 
@@ -437,7 +437,7 @@ def observed_data(
     >>> likelihood = ResidualLikelihood([run], robot, family="white", channels=("yaw", "vx"))
     >>> residuals, dims = observed_data(likelihood, 110.0, 30.0)
     >>> sorted(residuals), dims["residual_yaw_0"], residuals["residual_yaw_0"].shape
-    (['residual_vx_0', 'residual_yaw_0'], ['step_0'], (2376,))
+    (['residual_vx_0', 'residual_yaw_0'], ['step_0'], (2736,))
     """
     residuals, dims = {}, {}
     poses = likelihood.layout.pose_channels

@@ -18,6 +18,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from .._runtime.defaults import CHANNELS
+from ..likelihood.residuals import residual_times
 from ..model.parameters import DAMPING
 from ..posterior.criticism import criticise
 from ..posterior.file_format import observed_residuals
@@ -160,13 +161,13 @@ def plot_residuals(idata, index: int = 0, axes=None) -> tuple[Figure, np.ndarray
     >>> len(axes), axes[0].get_ylabel()  # one channel sampled: one axes
     (1, 'yaw residual [rad/s]')
     """
-    experiment = Posterior.of(idata).experiments[index]
+    posterior = Posterior.of(idata)
+    experiment = posterior.experiments[index]
     channels = _channels(idata)
     fig, axes = _figures(axes, len(channels), figsize=(7.0, 1.0 + 1.8 * len(channels)))
     for ax, channel in zip(axes, channels, strict=True):
         residuals = observed_residuals(idata, index, channel)
-        start = experiment.steady_window[0] if experiment.steady_window else experiment.t[0]
-        t = start + experiment.dt * np.arange(1, len(residuals) + 1)
+        t = residual_times(experiment, channel, posterior.metadata.steady)
         _curve(ax, t, residuals, color=DATA_COLOUR, lw=0.6)
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_ylabel(f"{channel} residual [{UNITS[channel]}]")

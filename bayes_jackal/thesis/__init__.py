@@ -4,7 +4,6 @@ residual analysis of ch. 7.
 
 from .acf_fit import LEAST_SQUARES_LAGS, THESIS_LAGS, acf_least_squares, thesis_fit
 from .gridsearch import (
-    GRID_POINTS,
     GridResult,
     damping_grid,
     grid_search,
@@ -23,7 +22,6 @@ from .residual_analysis import (
 
 __all__ = [
     "FIRST_LAGS",
-    "GRID_POINTS",
     "LEAST_SQUARES_LAGS",
     "SIGMA_H_GRID",
     "THESIS_LAGS",

@@ -45,7 +45,6 @@ from ..model.physics import Method, channel_coefficients, propagate
 from ..model.robot import RobotProfile
 
 __all__ = [
-    "GRID_POINTS",
     "GridResult",
     "damping_grid",
     "grid_search",

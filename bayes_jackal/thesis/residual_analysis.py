@@ -200,8 +200,10 @@ def _window_residuals(
     """
     if experiment.measurement(channel) == "pose":
         experiment = dataclasses.replace(experiment, pose=None)
-    check_residual_window(experiment, channel, lags + 1, reason=f" for {lags} lags", field="lags")
-    residuals = channel_residuals(experiment, robot, d_lat, d_long, channel)
+    check_residual_window(
+        experiment, channel, lags + 1, steady=True, reason=f" for {lags} lags", field="lags"
+    )
+    residuals = channel_residuals(experiment, robot, d_lat, d_long, channel, steady=True)
     if np.ptp(residuals) == 0:
         raise DataError(
             f"the residuals of channel {channel!r} are constant ({residuals[0]:g}); "
