@@ -61,6 +61,8 @@ from ..model.kernels import get_family
 
 __all__ = ["profile_starts", "series_profile"]
 
+#: Points per sd of the exact profile of a group observed at its own times only.
+EXACT_GRID = 7
 #: Coarse grid of one group's kernel width (log-spaced over its prior range)
 #: and of rho = sigma_n / sigma_c (log-spaced over the range the box allows),
 #: then ZOOMS refinements: around each damping point's best, a 5 x 5 grid
@@ -155,15 +157,54 @@ def profile_starts(
     layout = likelihood.layout
     shared = [layout.column(base) for base in layout.shared_bases]
     log_shared = np.zeros((damping_points, len(shared)))
-    for group in range(len(layout.groups)):
+    regular = {block.noise_group for block in likelihood.blocks}
+    for group in sorted(regular):
         columns = layout.noise_columns(group)
         loglike, noise = _group_profile(likelihood, group, damping, low[columns], high[columns])
         total += loglike
         theta[:, columns] = noise
         log_shared += np.log(theta[:, shared])
-    theta[:, shared] = np.exp(log_shared / len(layout.groups))
+    theta[:, shared] = np.exp(log_shared / max(len(regular), 1))
     order = np.argsort(np.where(np.isnan(total), -np.inf, total))[::-1][:starts]
-    return np.clip(theta[order], low, high), total[order]
+    theta, total = np.clip(theta[order], low, high), total[order]
+    for group in sorted(set(range(len(layout.groups))) - regular):
+        loglike, theta = _exact_profile(likelihood, group, theta, low, high)
+        total = total + loglike
+    return theta, total
+
+
+def _exact_profile(
+    likelihood: ResidualLikelihood,
+    group: int,
+    theta: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A group observed at its own times only: its best sd's on a grid, on the exact likelihood.
+
+    Channels of the irregular engine (poses slower than the samples) have no
+    Whittle profile: at each start, their width is the geometric centre of
+    its prior and sigma_c and the sensor sd the best of
+    :data:`EXACT_GRID` x :data:`EXACT_GRID` log-spaced points of their box;
+    the MAP search's local searches and width sweeps take it from there.
+    Returns the group's log-likelihood at each start and the starts.
+    """
+    layout = likelihood.layout
+    sds = [layout.column("sigma_c", group)]
+    sensor = layout.sensor_parameter(group)
+    if sensor is not None:
+        sds.append(layout.column(sensor, group))
+    unit = np.stack(np.meshgrid(*[np.linspace(0, 1, EXACT_GRID)] * len(sds)), -1).reshape(
+        -1, len(sds)
+    )
+    grid = low[sds] * (high[sds] / low[sds]) ** unit  # (G, 1 or 2)
+    candidates = np.repeat(theta, len(grid), axis=0)
+    candidates[:, sds] = np.tile(grid, (len(theta), 1))
+    loglike = likelihood.group_loglike(candidates, group).reshape(len(theta), len(grid))
+    best = np.argmax(loglike, axis=1)
+    out = theta.copy()
+    out[:, sds] = grid[best]
+    return loglike[np.arange(len(theta)), best], out
 
 
 def _group_profile(

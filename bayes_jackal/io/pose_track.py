@@ -44,6 +44,8 @@ MIN_POSES = 3
 #: motion-capture noise (0.1 mm noise -> ~0.5 mm/s at 360 Hz).
 SMOOTHING_WINDOW = 0.1
 SMOOTHING_ORDER = 2
+#: Fewest poses in the smoother's window (slower poses widen it beyond 0.1 s).
+MIN_SMOOTHED = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,11 +195,13 @@ class PoseTrack:
         t = self.t
         step = float(np.median(np.diff(t)))
         uniform = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-6)) + 1) * step
-        length = round(SMOOTHING_WINDOW / step) // 2 * 2 + 1
-        if length <= SMOOTHING_ORDER or len(uniform) < length:
+        # SMOOTHING_WINDOW, or the fewest poses a quadratic fit takes for a
+        # slope (5) where the poses are slower (lidar ICP: 0.5 s at 10 Hz).
+        length = max(round(SMOOTHING_WINDOW / step) // 2 * 2 + 1, MIN_SMOOTHED)
+        if len(uniform) < length:
             raise DataError(
-                f"pose too short or too slow for the {SMOOTHING_WINDOW} s smoother "
-                f"({len(uniform)} samples at {1 / step:.1f} Hz)",
+                f"pose too short for the {length}-pose smoother ({len(uniform)} poses at "
+                f"{1 / step:.1f} Hz)",
                 source=self.source,
                 field="pose",
             )

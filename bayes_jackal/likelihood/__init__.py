@@ -2,7 +2,7 @@
 measured, the likelihood engines (Toeplitz, spectral, Whittle) and the sampler's priors.
 """
 
-from .irregular import IrregularSeries, irregular_loglike
+from .irregular import IrregularSeries, irregular_loglike, irregular_residuals
 from .measurements import (
     BRIDGED_GAP,
     MEASUREMENT_MODELS,
@@ -98,6 +98,7 @@ __all__ = [
     "fallback_loglike",
     "frequency_weights",
     "irregular_loglike",
+    "irregular_residuals",
     "measurement_of",
     "pose_channels",
     "pose_weights",

@@ -84,7 +84,7 @@ from ..model.kernels import Family
 from ..model.physics import step_integrals
 from .toeplitz import banded_loglike
 
-__all__ = ["IrregularSeries", "irregular_loglike"]
+__all__ = ["IrregularSeries", "irregular_loglike", "irregular_residuals"]
 
 #: Autocorrelations below this fraction of the variance are taken as zero: the
 #: exponential family's tail (phi^l), which never ends. The density moves by
@@ -348,6 +348,30 @@ def irregular_loglike(
             covariance[:, :3] += _sensor_band(series, gamma, sigma_sensor[rows], band)
         loglike[rows] = banded_loglike(covariance, residuals)
     return loglike
+
+
+def irregular_residuals(
+    series: IrregularSeries, alpha: np.ndarray, beta: np.ndarray
+) -> np.ndarray:
+    """The residuals r_j of the module docstring, shape (B, J) [channel unit].
+
+    ``alpha`` (B, D) and ``beta`` (B, D, 2) as in :func:`irregular_loglike`.
+
+    Examples
+    --------
+    Observed at every tick, a rate channel's residuals are eq. 7-3's:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.likelihood import IrregularSeries, irregular_residuals
+    >>> y, u = np.array([0.0, 0.5, 0.8, 0.9]), np.ones((4, 2))
+    >>> series = IrregularSeries("yaw", "rate", 0, 0.1, np.arange(4), np.zeros(4), y,
+    ...                          np.ones(4, int), u)
+    >>> alpha, beta = np.array([[0.6]]), np.array([[[0.3, 0.2]]])
+    >>> irregular_residuals(series, alpha, beta).round(6).tolist()
+    [[0.0, 0.0, -0.08]]
+    """
+    mu, gamma = _coefficients(series, alpha)
+    return _residuals(series, mu, gamma, beta)
 
 
 def _reach(family: Family, width: np.ndarray, dt: float, span: int) -> np.ndarray:

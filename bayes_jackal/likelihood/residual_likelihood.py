@@ -539,11 +539,23 @@ class ResidualLikelihood:
         with one_blas_thread():  # many small factorisations (bayes_jackal._runtime.threads)
             return self._loglike(np.atleast_2d(np.asarray(theta, float)))
 
-    def _loglike(self, theta: np.ndarray) -> np.ndarray:
-        """:meth:`__call__` on a 2-d ``theta``."""
+    def group_loglike(self, theta: np.ndarray, group: int) -> np.ndarray:
+        """The log-likelihood of one noise group's series alone, shape (B,).
+
+        The likelihood is the sum of its noise groups' (each depends on the
+        damping and its own noise parameters only); the MAP search profiles
+        them one at a time.
+        """
+        with one_blas_thread():
+            return self._loglike(np.atleast_2d(np.asarray(theta, float)), group)
+
+    def _loglike(self, theta: np.ndarray, group: int | None = None) -> np.ndarray:
+        """:meth:`__call__` on a 2-d ``theta``; with ``group``, that noise group's part only."""
         total = np.zeros(len(theta))
         coefficients: dict[tuple[str, float, str], tuple[np.ndarray, np.ndarray]] = {}
         for block in self.blocks:
+            if group is not None and block.noise_group != group:
+                continue
             key = (block.channel, block.dt, block.measurement)
             if key not in coefficients:
                 coefficients[key] = MEASUREMENT_MODELS[block.measurement].coefficients(
@@ -554,6 +566,8 @@ class ResidualLikelihood:
             engine = self._fast if self.engine == "fast" else self._reference
             total += engine(block, noise, c)
         for series in self.irregular:
+            if group is not None and series.noise_group != group:
+                continue
             alpha, beta = channel_coefficients(
                 self.robot, theta[:, 0, None], theta[:, 1, None], series.channel, series.dt
             )

@@ -19,7 +19,9 @@ import numpy as np
 
 from .._runtime.errors import DataError
 from ..io.experiment import CHANNEL_FIELDS, Experiment
+from ..model.physics import channel_coefficients
 from ..model.robot import RobotProfile
+from .irregular import IrregularSeries, irregular_residuals
 from .measurements import measurement_of
 
 __all__ = [
@@ -101,8 +103,35 @@ def channel_residuals(
     """
     window = experiment.steady() if steady else experiment
     measurement = measurement_of(window, channel)
+    if not measurement.regular(window):
+        return _irregular_residuals(window, robot, d_lat, d_long, channel)[..., samples]
     coefficients, _ = measurement.coefficients(robot, d_lat, d_long, channel, window.dt)
     return coefficients @ measurement.series(window, channel).regressors[samples].T
+
+
+def _irregular_residuals(
+    experiment: Experiment,
+    robot: RobotProfile,
+    d_lat: np.ndarray | float,
+    d_long: np.ndarray | float,
+    channel: str,
+) -> np.ndarray:
+    """The residuals of a channel observed at its own times, its pieces one after the other."""
+    d_lat, d_long = np.broadcast_arrays(np.asarray(d_lat, float), np.asarray(d_long, float))
+    alpha, beta = channel_coefficients(
+        robot, d_lat.ravel(), d_long.ravel(), channel, experiment.dt
+    )
+    measurement = measurement_of(experiment, channel)
+    pieces = [
+        irregular_residuals(
+            IrregularSeries(channel, measurement.name, 0, experiment.dt, piece.ticks,
+                            piece.phases, piece.values, piece.counts, experiment.inputs),
+            alpha[:, None],
+            beta[:, None],
+        )
+        for piece in measurement.observations(experiment, channel)
+    ]  # fmt: skip
+    return np.concatenate(pieces, axis=1).reshape(*d_lat.shape, -1)
 
 
 def residual_regressors(experiment: Experiment, channel: str, steady: bool = False) -> np.ndarray:

@@ -50,11 +50,11 @@ _PRIOR_KEYS = ("d_lat", "d_long", "sigma_h", "sigma_c", "sigma_n", "sigma_p")
 _WHEEL_SIDES = ("right", "left")
 #: Prior ranges, all log-uniform (docs/design.md §4): the damping [N s/m],
 #: the kernel width [s] and the noise standard deviations [channel units];
-#: sigma_n is kept away from zero. sigma_p, the motion-capture
-#: position noise per recorded pose [m], spans 1 um to 1 cm: its log-centre,
-#: 0.1 mm, is the specification of lab systems (OptiTrack, Vicon: 0.1-0.5 mm),
-#: and its floor keeps the pose channels' covariance away from singular as
-#: sigma_n's does (docs/design.md §2.2). The damping ranges are the Jackal's,
+#: sigma_n is kept away from zero. sigma_p, the position noise per recorded
+#: pose [m], spans 1 um to 10 cm: motion capture (OptiTrack, Vicon: 0.1-0.5
+#: mm) and lidar odometry (ICP: 1-5 cm) alike; its floor keeps the pose
+#: channels' covariance away from singular as sigma_n's does (docs/design.md
+#: §2.2). The damping ranges are the Jackal's,
 #: a robot of :data:`PRIOR_REFERENCE_MASS`; :func:`mass_scaled_priors` gives
 #: another robot's.
 DEFAULT_PRIORS = {
@@ -63,7 +63,7 @@ DEFAULT_PRIORS = {
     "sigma_h": (0.001, 1.0),
     "sigma_c": (1e-5, 1.0),
     "sigma_n": (1e-4, 1.0),
-    "sigma_p": (1e-6, 1e-2),
+    "sigma_p": (1e-6, 0.1),
 }
 #: The body mass [kg] the damping ranges of :data:`DEFAULT_PRIORS` are set
 #: for: the Jackal's (models/jackal.toml, as the thesis' eq. 6-7 uses it).
