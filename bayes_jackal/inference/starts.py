@@ -355,8 +355,9 @@ def _chunk_terms(
         lags = min(n, PROFILE_FREQUENCIES)
         binned, weights = _binned_periodogram(block, lags)
         c, alpha = MEASUREMENT_MODELS[block.measurement].coefficients(
-            likelihood.robot, damping[:, 0], damping[:, 1], block.channel, block.dt
-        )
+            likelihood.robot, damping[:, 0], damping[:, 1], block.channel, block.dt,
+            clock=block.clock,
+        )  # fmt: skip
         periodogram = (c[:, :, None] * c[:, None, :]).reshape(len(c), -1) @ binned.T
 
         # E_R: the kernel through the channel's filter, for each width, and
@@ -393,6 +394,7 @@ def _expected(
         lags,
         sensor=likelihood.sensor,
         samples=block.samples,
+        clock=block.clock,
     )
     return expected_periodogram(acov, block.n)
 

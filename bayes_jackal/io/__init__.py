@@ -41,6 +41,7 @@ from .groups import RunGroups, as_run_groups, group_runs, read_groups, run_group
 from .logs import ReadOptions, ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
+    STRIDE_TOLERANCE,
     PoseObservations,
     TickPoses,
     body_displacement,
@@ -121,6 +122,7 @@ __all__ = [
     "STEADY_SMOOTHING",
     "STEADY_YAW_FLOOR",
     "STEADY_YAW_TOLERANCE",
+    "STRIDE_TOLERANCE",
     "UNIFORM",
     "UNIFORM_TOLERANCE",
     "BagMessage",

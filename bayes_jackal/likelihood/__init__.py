@@ -2,7 +2,12 @@
 measured, the likelihood engines (Toeplitz, spectral, Whittle) and the sampler's priors.
 """
 
-from .irregular import IrregularSeries, irregular_loglike, irregular_residuals
+from .irregular import (
+    IrregularSeries,
+    irregular_loglike,
+    irregular_residuals,
+    pattern_coefficients,
+)
 from .measurements import (
     BRIDGED_GAP,
     MEASUREMENT_MODELS,
@@ -100,6 +105,7 @@ __all__ = [
     "irregular_loglike",
     "irregular_residuals",
     "measurement_of",
+    "pattern_coefficients",
     "pose_channels",
     "pose_weights",
     "residual_autocovariance",

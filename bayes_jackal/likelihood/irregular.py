@@ -84,7 +84,7 @@ from ..model.kernels import Family
 from ..model.physics import step_integrals
 from .toeplitz import banded_loglike
 
-__all__ = ["IrregularSeries", "irregular_loglike", "irregular_residuals"]
+__all__ = ["IrregularSeries", "irregular_loglike", "irregular_residuals", "pattern_coefficients"]
 
 #: Autocorrelations below this fraction of the variance are taken as zero: the
 #: exponential family's tail (phi^l), which never ends. The density moves by
@@ -372,6 +372,55 @@ def irregular_residuals(
     """
     mu, gamma = _coefficients(series, alpha)
     return _residuals(series, mu, gamma, beta)
+
+
+def pattern_coefficients(
+    measurement: str, dt: float, stride: int, phase: float, alpha: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """mu and gamma of evenly spaced observations: every ``stride`` ticks, ``phase`` after one.
+
+    The residual of such a channel is the same function of its span for
+    every j, so its series is stationary: the Toeplitz engines evaluate it
+    (:class:`bayes_jackal.likelihood.PoseMeasurement`'s stride).
+
+    Parameters
+    ----------
+    measurement : {"rate", "pose"}
+    dt : float
+        The clock's step [s].
+    stride : int
+        Ticks between observations, m >= 1.
+    phase : float
+        Their time after their tick [s], in [0, dt).
+    alpha : ndarray, shape (B,)
+        The channel's pole.
+
+    Returns
+    -------
+    mu : ndarray, shape (B, L)
+        The drives' coefficients over the residual's span, L = (order - 1) m + 1.
+    gamma : ndarray, shape (B,)
+
+    Examples
+    --------
+    A pose per tick: mu is (kappa_1, kappa_0, 0) of the one-step pose model:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.likelihood import pattern_coefficients, pose_weights
+    >>> mu, gamma = pattern_coefficients("pose", 0.01, 1, 0.0, np.array([0.9]))
+    >>> kappa_0, kappa_1 = pose_weights(np.array([0.9]))
+    >>> bool(np.allclose(mu[0, :2], [kappa_1[0], kappa_0[0]])), float(gamma[0])
+    (True, 0.9)
+    """
+    order = _ORDER[measurement]
+    ticks = np.arange(order + 1) * stride
+    series = IrregularSeries(
+        "pattern", measurement, 0, dt, ticks, np.full(order + 1, phase),
+        np.zeros(order + 1 - (measurement == "pose")), np.ones(order + 1, int),
+        np.zeros((ticks[-1] + 1, 2)),
+    )  # fmt: skip
+    mu, gamma = _coefficients(series, np.asarray(alpha, float)[:, None])
+    return mu[:, : (order - 1) * stride + 1, 0], gamma[:, 0]
 
 
 def _reach(family: Family, width: np.ndarray, dt: float, span: int) -> np.ndarray:

@@ -72,6 +72,7 @@ from ..io.pose_increments import PoseObservations, pose_observations
 from ..model.kernels import Family
 from ..model.physics import channel_coefficients, step_integrals
 from ..model.robot import RobotProfile
+from .irregular import pattern_coefficients
 
 __all__ = [
     "BRIDGED_GAP",
@@ -200,8 +201,12 @@ class Measurement(abc.ABC):
         return 1
 
     def regular(self, experiment: Experiment) -> bool:
-        """Whether :meth:`series` holds the channel: a measurement (pose) at each sample."""
+        """Whether :meth:`series` holds the channel: a stationary series of residuals."""
         return True
+
+    def clock(self, experiment: Experiment) -> tuple[int, float]:
+        """(m, phase [s]): the channel observed every m samples, phase after each (1, 0)."""
+        return (1, 0.0)
 
     @abc.abstractmethod
     def observations(self, experiment: Experiment, channel: str) -> list[ChannelObservations]:
@@ -215,8 +220,13 @@ class Measurement(abc.ABC):
         d_long: np.ndarray | float,
         channel: str,
         dt: float,
+        *,
+        clock: tuple[int, float] = (1, 0.0),
     ) -> tuple[np.ndarray, np.ndarray]:
-        """c, shape (..., K), and the channel's discrete pole alpha = Ad[c, c], shape (...)."""
+        """c, shape (..., K), and the channel's discrete pole alpha = Ad[c, c], shape (...).
+
+        ``clock``: :meth:`clock` of the experiment whose series c multiplies.
+        """
 
     @abc.abstractmethod
     def autocovariance(
@@ -231,13 +241,15 @@ class Measurement(abc.ABC):
         *,
         sensor: str = "ma1",
         samples: int = 1,
+        clock: tuple[int, float] = (1, 0.0),
     ) -> np.ndarray:
         """The residual's autocovariance at lags 0..lags-1, shape (B, lags).
 
         ``width`` [s], ``sigma_c`` (process noise per step [channel unit]),
         ``sigma_sensor`` (:attr:`sensor_parameter`'s value) and ``alpha``
         are arrays of shape (B,); ``sensor`` is the rate channels' sensor
-        term (``ma1`` or ``diagonal``), ``samples`` the poses per sample.
+        term (``ma1`` or ``diagonal``), ``samples`` the poses per sample,
+        ``clock`` the series' (:meth:`clock`; lags count its steps).
         """
 
 
@@ -274,13 +286,24 @@ class RateMeasurement(Measurement):
         ones = np.ones(len(ticks), int)
         return _pieces(ticks, np.zeros(len(ticks)), values, ones, experiment.dt, increments=False)
 
-    def coefficients(self, robot, d_lat, d_long, channel, dt):
+    def coefficients(self, robot, d_lat, d_long, channel, dt, *, clock=(1, 0.0)):
         alpha, beta = channel_coefficients(robot, d_lat, d_long, channel, dt)
         ones = np.ones((*alpha.shape, 1))
         return np.concatenate([ones, -alpha[..., None], -beta], axis=-1), alpha
 
     def autocovariance(
-        self, family, width, sigma_c, sigma_sensor, alpha, dt, lags, *, sensor="ma1", samples=1
+        self,
+        family,
+        width,
+        sigma_c,
+        sigma_sensor,
+        alpha,
+        dt,
+        lags,
+        *,
+        sensor="ma1",
+        samples=1,
+        clock=(1, 0.0),
     ):
         return residual_autocovariance(
             family, width, sigma_c, sigma_sensor, alpha, dt, lags, sensor
@@ -318,10 +341,15 @@ class PoseMeasurement(Measurement):
         return observed_poses(experiment).samples
 
     def regular(self, experiment: Experiment) -> bool:
-        return observed_poses(experiment).regime == "tick"
+        return observed_poses(experiment).regime != "stamp"
+
+    def clock(self, experiment: Experiment) -> tuple[int, float]:
+        return observed_poses(experiment).clock
 
     def series(self, experiment: Experiment, channel: str) -> ChannelSeries:
         poses = observed_poses(experiment)
+        if poses.regime == "stride":
+            return _strided_series(experiment, poses, channel)
         if poses.regime != "tick":
             raise DataError(
                 f"the poses ({poses.rate:.4g} Hz) are slower than the samples "
@@ -343,8 +371,13 @@ class PoseMeasurement(Measurement):
         return _pieces(poses.ticks, poses.phases, poses.increments(channel), counts,
                        experiment.dt, increments=True)  # fmt: skip
 
-    def coefficients(self, robot, d_lat, d_long, channel, dt):
+    def coefficients(self, robot, d_lat, d_long, channel, dt, *, clock=(1, 0.0)):
         alpha, beta = channel_coefficients(robot, d_lat, d_long, channel, dt)
+        if clock[0] > 1:  # every m samples: the inputs over the residual's span
+            mu, gamma = _pattern(alpha, dt, clock)
+            inputs = -(mu[..., None] * beta[..., None, :]).reshape(*alpha.shape, -1)
+            return np.concatenate([np.full((*alpha.shape, 1), 1.0 / dt),
+                                   (-gamma / dt)[..., None], inputs], axis=-1), alpha  # fmt: skip
         kappa_0, kappa_1 = pose_weights(alpha)
         columns = [
             np.full((*alpha.shape, 1), 1.0 / dt),
@@ -355,17 +388,33 @@ class PoseMeasurement(Measurement):
         return np.concatenate(columns, axis=-1), alpha
 
     def autocovariance(
-        self, family, width, sigma_c, sigma_sensor, alpha, dt, lags, *, sensor="ma1", samples=1
+        self,
+        family,
+        width,
+        sigma_c,
+        sigma_sensor,
+        alpha,
+        dt,
+        lags,
+        *,
+        sensor="ma1",
+        samples=1,
+        clock=(1, 0.0),
     ):
-        kappa_0, kappa_1 = (w[:, None] for w in pose_weights(alpha))
-        kernel = family.autocorrelation(width, dt, lags + 1)
-        before = np.concatenate([kernel[:, 1:2], kernel[:, : lags - 1]], axis=1)  # R(l - 1)
-        acov = sigma_c[:, None] ** 2 * (
-            (kappa_0**2 + kappa_1**2) * kernel[:, :lags]
-            + kappa_0 * kappa_1 * (before + kernel[:, 1:])
-        )
         variance = sigma_sensor**2 / (samples * dt**2)
-        ma2 = np.stack([1.0 + (1.0 + alpha) ** 2 + alpha**2, -((1.0 + alpha) ** 2), alpha], -1)
+        if clock[0] > 1:
+            mu, gamma = _pattern(alpha, dt, clock)
+            acov = sigma_c[:, None] ** 2 * _strided_process(family, width, mu, dt, clock[0], lags)
+        else:
+            gamma = alpha
+            kappa_0, kappa_1 = (w[:, None] for w in pose_weights(alpha))
+            kernel = family.autocorrelation(width, dt, lags + 1)
+            before = np.concatenate([kernel[:, 1:2], kernel[:, : lags - 1]], axis=1)  # R(l - 1)
+            acov = sigma_c[:, None] ** 2 * (
+                (kappa_0**2 + kappa_1**2) * kernel[:, :lags]
+                + kappa_0 * kappa_1 * (before + kernel[:, 1:])
+            )
+        ma2 = np.stack([1.0 + (1.0 + gamma) ** 2 + gamma**2, -((1.0 + gamma) ** 2), gamma], -1)
         kept = min(3, lags)
         acov[:, :kept] += variance[:, None] * ma2[:, :kept]
         return acov
@@ -391,6 +440,53 @@ def pose_weights(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     g, h = step_integrals(alpha, 1.0)
     kappa_0 = h / g
     return kappa_0, g - np.asarray(alpha, float) * kappa_0
+
+
+def _pattern(
+    alpha: np.ndarray, dt: float, clock: tuple[int, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """mu (..., 2m + 1) and gamma (...) of a pose every m samples at one phase."""
+    alpha = np.asarray(alpha, float)
+    mu, gamma = pattern_coefficients("pose", dt, clock[0], clock[1], alpha.ravel())
+    return mu.reshape(*alpha.shape, -1), gamma.reshape(alpha.shape)
+
+
+def _strided_process(
+    family: Family, width: np.ndarray, mu: np.ndarray, dt: float, stride: int, lags: int
+) -> np.ndarray:
+    """sum_{p,q} mu_p mu_q R(l m + q - p) at lags l < ``lags`` of the poses' clock, (B, lags).
+
+    With c(d) = sum_p mu_p mu_{p+d}, the residual's autocorrelation through
+    the noise's at lag l is sum_d c(d) R(l m + d), |d| <= 2m.
+    """
+    span = mu.shape[1]
+    rho = family.autocorrelation(width, dt, lags * stride + span)
+    rho = np.concatenate([rho[:, span - 1 : 0 : -1], rho], axis=1)  # R(-(span-1)..)
+    shifts = np.arange(-(span - 1), span)
+    padded = np.concatenate([mu, np.zeros_like(mu)], axis=1)
+    # c(d) = sum_p mu_p mu_{p+d}, from the correlation of mu with itself.
+    spectrum = np.fft.rfft(padded, axis=1)
+    correlation = np.fft.irfft(np.abs(spectrum) ** 2, 2 * span, axis=1)
+    c = correlation[:, shifts % (2 * span)]  # (B, 2 span - 1)
+    index = np.arange(lags)[:, None] * stride + span - 1 + shifts  # R(l m + d) in rho's index
+    return np.einsum("bd,bld->bl", c, rho[:, index])
+
+
+def _strided_series(
+    experiment: Experiment, poses: PoseObservations, channel: str
+) -> ChannelSeries:
+    """The regressors [D_{j+1}, D_j, u over the span] of poses every m samples, by segment."""
+    stride = poses.stride
+    increments = poses.increments(channel)
+    consecutive = np.diff(poses.ticks) == stride
+    valid = consecutive[1:] & consecutive[:-1]  # residual j: poses j, j + 1, j + 2
+    base = poses.ticks[:-2]
+    span = np.clip(base[:, None] + np.arange(2 * stride + 1), 0, len(experiment.t) - 1)
+    inputs = experiment.inputs[span].reshape(len(base), -1)  # (J, 2 (2m + 1))
+    rows = np.column_stack([increments[1:], increments[:-1], inputs])
+    valid &= base + 2 * stride <= len(experiment.t) - 1
+    series = _segmented(rows, valid, poses.samples)
+    return ChannelSeries(series.regressors, series.samples, series.lengths, base[valid])
 
 
 def _segmented(rows: np.ndarray, valid: np.ndarray, samples: int = 1) -> ChannelSeries:

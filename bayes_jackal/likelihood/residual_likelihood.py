@@ -441,6 +441,7 @@ class ResidualLikelihood:
     blocks: list[ResidualBlock] = field(init=False, repr=False)
     irregular: list[IrregularSeries] = field(init=False, repr=False)
     pose_samples: dict[str, int] = field(init=False, repr=False)
+    pose_clocks: dict[str, tuple[int, float] | None] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._family = get_family(self.family)
@@ -467,7 +468,7 @@ class ResidualLikelihood:
     def _build_blocks(self) -> list[ResidualBlock]:
         """The Toeplitz blocks of the regular channels; :attr:`irregular` the others'."""
         series: dict[tuple, list[np.ndarray]] = {}
-        self.pose_samples, self.irregular = {}, []
+        self.pose_samples, self.pose_clocks, self.irregular = {}, {}, []
         for experiment in self.experiments:
             window = experiment.steady() if self.steady else experiment
             for channel in self.channels:
@@ -476,17 +477,22 @@ class ResidualLikelihood:
                 measurement = measurement_of(window, channel)
                 if measurement.name == "pose":  # the same for each pose channel
                     self.pose_samples[experiment.name] = measurement.samples(window)
+                    regular = measurement.regular(window)
+                    self.pose_clocks[experiment.name] = (
+                        measurement.clock(window) if regular else None
+                    )
                 if not measurement.regular(window):
                     self.irregular += self._irregular(window, channel, measurement, group)
                     continue
                 channel_series = measurement.series(window, channel)
+                clock = measurement.clock(window)
                 for regressors in channel_series.segments():
                     key = (channel, group, round(experiment.dt, 12), measurement.name,
-                           channel_series.samples, len(regressors))  # fmt: skip
+                           channel_series.samples, clock, len(regressors))  # fmt: skip
                     series.setdefault(key, []).append(regressors)
         return [
-            ResidualBlock(channel, group, dt, np.stack(members), measurement, samples)
-            for (channel, group, dt, measurement, samples, _), members in series.items()
+            ResidualBlock(channel, group, dt, np.stack(members), measurement, samples, clock)
+            for (channel, group, dt, measurement, samples, clock, _), members in series.items()
         ]
 
     def _irregular(
@@ -552,15 +558,16 @@ class ResidualLikelihood:
     def _loglike(self, theta: np.ndarray, group: int | None = None) -> np.ndarray:
         """:meth:`__call__` on a 2-d ``theta``; with ``group``, that noise group's part only."""
         total = np.zeros(len(theta))
-        coefficients: dict[tuple[str, float, str], tuple[np.ndarray, np.ndarray]] = {}
+        coefficients: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         for block in self.blocks:
             if group is not None and block.noise_group != group:
                 continue
-            key = (block.channel, block.dt, block.measurement)
+            key = (block.channel, block.dt, block.measurement, block.clock)
             if key not in coefficients:
                 coefficients[key] = MEASUREMENT_MODELS[block.measurement].coefficients(
-                    self.robot, theta[:, 0], theta[:, 1], block.channel, block.dt
-                )
+                    self.robot, theta[:, 0], theta[:, 1], block.channel, block.dt,
+                    clock=block.clock,
+                )  # fmt: skip
             c, alpha = coefficients[key]
             noise = np.column_stack([*self.noise_parameters(theta, block.noise_group), alpha])
             engine = self._fast if self.engine == "fast" else self._reference
@@ -580,8 +587,9 @@ class ResidualLikelihood:
     def _autocovariance(self, block: ResidualBlock, noise: np.ndarray, lags: int) -> np.ndarray:
         """Residual autocovariance at lags 0..lags-1 of (width, sigma_c, sensor sd, alpha) rows."""
         return MEASUREMENT_MODELS[block.measurement].autocovariance(
-            self._family, *noise.T, block.dt, lags, sensor=self.sensor, samples=block.samples
-        )
+            self._family, *noise.T, block.dt, lags, sensor=self.sensor, samples=block.samples,
+            clock=block.clock,
+        )  # fmt: skip
 
     def _reference(self, block: ResidualBlock, noise: np.ndarray, c: np.ndarray) -> np.ndarray:
         """The ``exact`` or ``whittle`` engine, in chunks of parameter sets."""

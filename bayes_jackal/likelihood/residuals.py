@@ -105,7 +105,9 @@ def channel_residuals(
     measurement = measurement_of(window, channel)
     if not measurement.regular(window):
         return _irregular_residuals(window, robot, d_lat, d_long, channel)[..., samples]
-    coefficients, _ = measurement.coefficients(robot, d_lat, d_long, channel, window.dt)
+    coefficients, _ = measurement.coefficients(
+        robot, d_lat, d_long, channel, window.dt, clock=measurement.clock(window)
+    )
     return coefficients @ measurement.series(window, channel).regressors[samples].T
 
 
@@ -191,7 +193,8 @@ def residual_times(experiment: Experiment, channel: str, steady: bool = False) -
     window = experiment.steady() if steady else experiment
     measurement = measurement_of(window, channel)
     if measurement.regular(window):
-        span = 2 if measurement.name == "pose" else 1
+        stride = measurement.clock(window)[0]
+        span = 2 * stride if measurement.name == "pose" else 1
         return window.t[measurement.series(window, channel).ticks + span]
     order = 3 if measurement.name == "pose" else 2
     return np.concatenate(

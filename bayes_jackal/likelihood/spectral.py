@@ -93,7 +93,9 @@ class ResidualBlock:
     (:attr:`measurement`, a key of
     :data:`bayes_jackal.likelihood.MEASUREMENT_MODELS`, and the poses
     averaged per sample, :attr:`samples`), and what the engines
-    derive from them once: the Whittle cross-periodogram and, for the
+    derive from them once (:attr:`clock`: the series is every m samples
+    of the experiment's clock at one phase, a pose channel's own clock;
+    :meth:`bayes_jackal.likelihood.Measurement.clock`): the Whittle cross-periodogram and, for the
     ``fast`` engine, the series' means and the lagged Gram tensor of their
     deviations. Splitting off the means keeps the lagged sums accurate:
     the transforms' rounding is relative to the deviations' energy, not
@@ -125,6 +127,7 @@ class ResidualBlock:
     regressors: np.ndarray = field(repr=False)
     measurement: str = "rate"
     samples: int = 1
+    clock: tuple[int, float] = (1, 0.0)
 
     @property
     def count(self) -> int:

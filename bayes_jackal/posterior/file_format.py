@@ -111,6 +111,7 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
             "truth": e.truth,
             "provenance": e.provenance,
             "pose_samples": likelihood.pose_samples.get(e.name, 1),
+            "pose_clock": likelihood.pose_clocks.get(e.name),
             "segments": None if e.segments is None else e.segments.tolist(),
         }
         for e in likelihood.experiments
@@ -465,8 +466,17 @@ def _experiment_record(stored: dict, data: Mapping, index: int) -> ExperimentRec
         provenance=stored.get("provenance") or {},
         channels=tuple(c for c in CHANNELS if _array_key(CHANNEL_FIELDS[c], index) in data),
         pose_samples=int(stored.get("pose_samples", 1)),
+        pose_clock=_pose_clock(stored),
         segments=None if stored.get("segments") is None else tuple(stored["segments"]),
     )
+
+
+def _pose_clock(stored: dict) -> tuple[int, float] | None:
+    """An experiment record's pose clock: (m, phase [s]); files written before: (1, 0)."""
+    if "pose_clock" not in stored:
+        return (1, 0.0)
+    clock = stored["pose_clock"]
+    return None if clock is None else (int(clock[0]), float(clock[1]))
 
 
 def _convergence(attrs: Mapping) -> Convergence:

@@ -423,6 +423,7 @@ def model_autocovariance(
         n,
         sensor=layout.sensor,
         samples=record.pose_samples,
+        clock=(record.pose_clock or (1, 0.0)) if pose else (1, 0.0),
     )
 
 

@@ -42,6 +42,10 @@ class ExperimentRecord:
         The recorded poses averaged into each sample of its pose channels in
         the likelihood's window (1 where it has none;
         :func:`bayes_jackal.io.tick_poses`).
+    pose_clock : (int, float) or None
+        Its pose channels' clock, every m samples at a phase [s] ((1, 0): a
+        pose per sample); None where they are observed at their own stamps
+        (the irregular engine, :mod:`bayes_jackal.likelihood.irregular`).
     segments : tuple of int, optional
         The first sample of each of its segments (command steps;
         :attr:`bayes_jackal.io.Experiment.segments`); None: one.
@@ -72,6 +76,7 @@ class ExperimentRecord:
     channels: tuple[str, ...] = ()
     pose_samples: int = 1
     segments: tuple[int, ...] | None = None
+    pose_clock: tuple[int, float] | None = (1, 0.0)
 
 
 @dataclass(frozen=True)
