@@ -130,7 +130,9 @@ def test_noise_parameters_read_the_group_columns():
 
 
 def test_an_unknown_prior_key_is_refused_naming_the_keys_allowed():
-    allowed = "['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'width']"
+    allowed = (
+        "['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'speed_ratio', 'width']"
+    )
     with pytest.raises(InputError) as caught:
         prior_overrides({"d_latt": (10.0, 500.0)})
     assert str(caught.value).startswith(
@@ -204,7 +206,10 @@ def test_a_registered_family_s_own_width_name_is_a_width_key(runs, monkeypatch):
     for other in ("width", "sigma_h"):
         with pytest.raises(InputError, match=f"{other} and tau are the same prior"):
             prior_overrides({other: (0.01, 0.2), "tau": (0.01, 0.3)})
-    allowed = "['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'width', 'tau']"
+    allowed = (
+        "['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'speed_ratio', "
+        "'width', 'tau']"
+    )
     with pytest.raises(InputError) as caught:
         prior_overrides({"taus": (0.01, 0.2)})
     assert str(caught.value) == (

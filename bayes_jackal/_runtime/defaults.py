@@ -16,6 +16,7 @@ __all__ = [
     "BRIDGE_MIN_DRAWS",
     "CHANNELS",
     "CONVERSIONS",
+    "DAMPING_MODEL",
     "DEFAULT_CHANNEL_ORDER",
     "DEFAULT_FAMILIES",
     "DISCRETISATION",
@@ -87,6 +88,8 @@ SENSOR = "ma1"
 #: thesis' crop) or every sample, transients included (the default: the model
 #: covers them, and they identify the damping's scale).
 STEADY = False
+#: The damping's model (``--damping``; ``model.DAMPING_MODELS``): one damping by default.
+DAMPING_MODEL = "constant"
 #: Likelihood engines (``--engine``) and the default.
 ENGINES = ("fast", "exact", "whittle")
 ENGINE = "fast"

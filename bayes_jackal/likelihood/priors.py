@@ -20,7 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.stats
 
-from ..model.parameters import ParameterLayout, prior_overrides, prior_range
+from ..model.parameters import (
+    SPEED_RATIO,
+    SPEED_RATIO_PRIOR,
+    ParameterLayout,
+    prior_overrides,
+    prior_range,
+)
 from ..model.robot import RobotProfile
 from .residual_likelihood import ResidualLikelihood
 
@@ -102,7 +108,7 @@ class Prior:
         overrides: Mapping[str, Sequence[float]] | None = None,
     ) -> Prior:
         """Priors of every parameter of ``layout``: as :meth:`for_likelihood`."""
-        ranges = {**robot.priors, **prior_overrides(overrides)}
+        ranges = {SPEED_RATIO: SPEED_RATIO_PRIOR, **robot.priors, **prior_overrides(overrides)}
         keys = [layout.prior_key(base) for base in layout.bases]
         low, high = np.array([prior_range(key, ranges[key]) for key in keys]).T
         return cls(layout.names, low, high, np.ones(len(keys), bool))

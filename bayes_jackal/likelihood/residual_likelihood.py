@@ -62,6 +62,7 @@ import scipy.fft
 
 from .._runtime.chunks import chunks
 from .._runtime.defaults import (
+    DAMPING_MODEL,
     DEFAULT_CHANNEL_ORDER,
     ENGINE,
     ENGINES,
@@ -78,8 +79,8 @@ from .._runtime.rng import as_rng
 from .._runtime.threads import one_blas_thread
 from ..io.experiment import Experiment
 from ..model.kernels import get_family
-from ..model.parameters import ParameterLayout
-from ..model.physics import channel_coefficients
+from ..model.parameters import DAMPING_MODELS, ParameterLayout
+from ..model.physics import channel_coefficients, step_integrals
 from ..model.robot import RobotProfile
 from . import spectral
 from .irregular import IrregularSeries, irregular_loglike
@@ -99,6 +100,8 @@ __all__ = [
 
 #: Fewest residuals a channel must have to enter the likelihood.
 MIN_RESIDUALS = 32
+#: Narrowest range of the segments' speeds [m/s] the speed model takes.
+SPEED_SPAN = 0.05
 
 
 def sample_stationary(
@@ -275,6 +278,9 @@ class LikelihoodOptions:
         Each experiment's steady window only (its ``steady_window``: the
         thesis' crop of the ramps, ``--steady``), or every sample (the
         default: transients are data the model covers).
+    damping : {"constant", "speed"}
+        One damping, or one that depends on each segment's speed
+        (``--damping speed``; :class:`ResidualLikelihood`).
 
     Raises
     ------
@@ -288,7 +294,7 @@ class LikelihoodOptions:
     >>> options = LikelihoodOptions(channels=["yaw"], noise="one-width")
     >>> options.keywords  # doctest: +NORMALIZE_WHITESPACE
     {'channels': ('yaw',), 'shared_noise': True, 'sensor': 'ma1', 'engine': 'fast',
-     'steady': False, 'shared_width': True}
+     'steady': False, 'shared_width': True, 'damping': 'constant'}
     >>> try:
     ...     LikelihoodOptions(noise="per-run")
     ... except ValueError as error:
@@ -301,8 +307,13 @@ class LikelihoodOptions:
     sensor: str = SENSOR
     engine: str = ENGINE
     steady: bool = STEADY
+    damping: str = DAMPING_MODEL
 
     def __post_init__(self) -> None:
+        if self.damping not in DAMPING_MODELS:
+            raise InputError(
+                f"unknown damping {self.damping!r}; use one of {DAMPING_MODELS}", field="damping"
+            )
         if self.noise not in NOISE_SHARING:
             raise InputError(
                 f"unknown noise {self.noise!r}; use one of {NOISE_SHARING}", field="noise"
@@ -339,6 +350,7 @@ class LikelihoodOptions:
             "engine": self.engine,
             "steady": self.steady,
             "shared_width": self.noise == "one-width",
+            "damping": self.damping,
         }
 
     def likelihood(
@@ -392,6 +404,18 @@ class ResidualLikelihood:
         One width for every channel and experiment (True), or the family's
         width in every noise group (False; ``--noise one-width`` is True
         with ``shared_noise``). No effect for white noise, which has none.
+    damping : {"constant", "speed"}
+        One damping (d_lat, d_long), or, with ``speed``, a damping that
+        depends on each segment's speed v (its command steps,
+        :attr:`bayes_jackal.io.Experiment.segments`; v the mean of
+        r_w (omega_r + omega_l) / 2 over the segment, in absolute value):
+        log d = log d_ref + log(r) (v - v_ref) / (v_max - v_min), with the
+        parameters ``speed_ratio_lat``, ``speed_ratio_long`` = r after the
+        damping and d_lat, d_long at v_ref = (v_min + v_max) / 2, the middle of
+        the segments' speeds (:attr:`speed_range`). The process noise is a
+        held force of one sd, so each segment's is scaled by g(d) / g(d_ref)
+        (:mod:`bayes_jackal.likelihood.irregular`), and every channel takes
+        the irregular engine, exact at a cost that grows with the run.
 
     Examples
     --------
@@ -437,7 +461,9 @@ class ResidualLikelihood:
     steady: bool = STEADY
     fallback: bool = True
     shared_width: bool = False
+    damping: str = DAMPING_MODEL
     layout: ParameterLayout = field(init=False)
+    speed_range: tuple[float, float, float] | None = field(init=False, default=None)
     blocks: list[ResidualBlock] = field(init=False, repr=False)
     irregular: list[IrregularSeries] = field(init=False, repr=False)
     pose_samples: dict[str, int] = field(init=False, repr=False)
@@ -462,7 +488,9 @@ class ResidualLikelihood:
             self.shared_noise,
             shared_width=self.shared_width,
             pose_channels=pose_channels(self.experiments, self.channels),
+            damping=self.damping,
         )
+        self._speeds = self._segment_speeds() if self.damping == "speed" else None
         self.blocks = self._build_blocks()
 
     def _build_blocks(self) -> list[ResidualBlock]:
@@ -481,7 +509,7 @@ class ResidualLikelihood:
                     self.pose_clocks[experiment.name] = (
                         measurement.clock(window) if regular else None
                     )
-                if not measurement.regular(window):
+                if self._speeds is not None or not measurement.regular(window):
                     self.irregular += self._irregular(window, channel, measurement, group)
                     continue
                 channel_series = measurement.series(window, channel)
@@ -499,11 +527,53 @@ class ResidualLikelihood:
         self, experiment: Experiment, channel: str, measurement: Measurement, group: int
     ) -> list[IrregularSeries]:
         """The channel's pieces at their own times (the irregular engine's)."""
+        index = None if self._speeds is None else self._speeds[experiment.name][0]
         return [
             IrregularSeries(channel, measurement.name, group, experiment.dt, piece.ticks,
-                            piece.phases, piece.values, piece.counts, experiment.inputs)
+                            piece.phases, piece.values, piece.counts, experiment.inputs, index)
             for piece in measurement.observations(experiment, channel)
         ]  # fmt: skip
+
+    def _segment_speeds(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per experiment: each sample's segment (over all experiments) and the segments' speeds.
+
+        Sets :attr:`speed_range`. Raises an InputError where the segments
+        share one speed: no speed dependence to identify.
+        """
+        out, first = {}, 0
+        for experiment in self.experiments:
+            window = experiment.steady() if self.steady else experiment
+            starts = window.segment_starts
+            labels = np.cumsum(np.isin(np.arange(len(window.t)), starts)) - 1
+            speed = np.abs(self.robot.wheel_radius * window.inputs.sum(axis=1) / 2)
+            means = np.bincount(labels, weights=speed) / np.bincount(labels)
+            out[experiment.name] = (first + labels, means)
+            first += len(starts)
+        speeds = np.concatenate([means for _, means in out.values()])
+        low, high = float(speeds.min()), float(speeds.max())
+        if high - low < SPEED_SPAN:
+            raise InputError(
+                f"the runs' segments all move at {low:.3g} m/s (within {SPEED_SPAN} m/s): "
+                "a damping that depends on the speed needs segments at different speeds "
+                "(command steps, or runs at several speeds: --damping constant)",
+                field="damping",
+            )
+        self.speed_range = (low, (low + high) / 2, high)
+        return out
+
+    def segment_dampings(self, theta: np.ndarray) -> np.ndarray:
+        """(d_lat, d_long) of every segment of every experiment [N s/m], shape (B, S, 2).
+
+        One segment, the damping itself, with ``damping="constant"``.
+        """
+        damping = theta[:, None, :2]
+        if self._speeds is None:
+            return damping
+        low, reference, high = self.speed_range
+        speeds = np.concatenate([means for _, means in self._speeds.values()])
+        exponent = (speeds - reference) / (high - low)  # (S,)
+        ratios = theta[:, None, 2:4]
+        return damping * ratios ** exponent[None, :, None]
 
     @property
     def noise_groups(self) -> list[tuple[str, str]]:
@@ -572,14 +642,21 @@ class ResidualLikelihood:
             noise = np.column_stack([*self.noise_parameters(theta, block.noise_group), alpha])
             engine = self._fast if self.engine == "fast" else self._reference
             total += engine(block, noise, c)
+        dampings = self.segment_dampings(theta)  # (B, S, 2)
         for series in self.irregular:
             if group is not None and series.noise_group != group:
                 continue
             alpha, beta = channel_coefficients(
-                self.robot, theta[:, 0, None], theta[:, 1, None], series.channel, series.dt
+                self.robot, dampings[..., 0], dampings[..., 1], series.channel, series.dt
             )
+            scale = None
+            if self._speeds is not None:  # the held force's scale g(d) / g(d_ref)
+                reference, _ = channel_coefficients(
+                    self.robot, theta[:, 0], theta[:, 1], series.channel, series.dt
+                )
+                scale = step_integrals(alpha, 1.0)[0] / step_integrals(reference, 1.0)[0][:, None]
             noise = self.noise_parameters(theta, series.noise_group)
-            total += irregular_loglike(series, self._family, alpha, beta, noise,
+            total += irregular_loglike(series, self._family, alpha, beta, noise, scale=scale,
                                        sensor=self.sensor,
                                        max_work=None if self.fallback else SCAN_WORK)  # fmt: skip
         return total

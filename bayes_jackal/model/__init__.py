@@ -16,9 +16,13 @@ from .kernels import (
 )
 from .parameters import (
     DAMPING,
+    DAMPING_MODELS,
     POSE_SENSOR,
     PRIOR_KEYS,
     SHARED_GROUP,
+    SPEED_RATIO,
+    SPEED_RATIO_PRIOR,
+    SPEED_RATIOS,
     WIDTH_ALIAS,
     WIDTH_PRIOR,
     ParameterLayout,
@@ -53,12 +57,16 @@ from .robot import (
 
 __all__ = [
     "DAMPING",
+    "DAMPING_MODELS",
     "DEFAULT_PRIORS",
     "FAMILIES",
     "POSE_SENSOR",
     "PRIOR_KEYS",
     "PRIOR_REFERENCE_MASS",
     "SHARED_GROUP",
+    "SPEED_RATIO",
+    "SPEED_RATIOS",
+    "SPEED_RATIO_PRIOR",
     "WIDTH_ALIAS",
     "WIDTH_PRIOR",
     "Exponential",

@@ -32,9 +32,13 @@ from .robot import DEFAULT_PRIORS
 
 __all__ = [
     "DAMPING",
+    "DAMPING_MODELS",
     "POSE_SENSOR",
     "PRIOR_KEYS",
     "SHARED_GROUP",
+    "SPEED_RATIO",
+    "SPEED_RATIOS",
+    "SPEED_RATIO_PRIOR",
     "WIDTH_ALIAS",
     "WIDTH_PRIOR",
     "ParameterLayout",
@@ -45,6 +49,18 @@ __all__ = [
 
 #: The damping parameters, first in every parameter vector [N s/m].
 DAMPING = ("d_lat", "d_long")
+#: How the damping depends on the state (``damping=``, ``--damping``): one
+#: damping, or log d = log d_ref + log(ratio) (v - v_ref) / (v_max - v_min)
+#: over the runs' segments, v each segment's speed (docs/design.md §4.1).
+DAMPING_MODELS = ("constant", "speed")
+#: The speed model's parameters after the damping: each damping at the top
+#: speed over the damping at the bottom one [-] (d_lat, d_long then at the
+#: middle of the speed range).
+SPEED_RATIOS = ("speed_ratio_lat", "speed_ratio_long")
+#: Their prior key and range: log-uniform, a tenfold change across the
+#: speed range either way.
+SPEED_RATIO = "speed_ratio"
+SPEED_RATIO_PRIOR = (0.1, 10.0)
 #: Experiment key of a noise group shared by every experiment.
 SHARED_GROUP = "all"
 #: The prior keys of a robot profile and of prior overrides.
@@ -84,6 +100,9 @@ class ParameterLayout:
     pose_channels : tuple of str
         The channels recorded as motion-capture poses: their groups' sensor
         parameter is :data:`POSE_SENSOR` instead of ``sigma_n``.
+    damping : {"constant", "speed"}
+        :data:`DAMPING_MODELS`: with ``speed`` the damping's speed ratios
+        (:data:`SPEED_RATIOS`) follow it.
 
     Notes
     -----
@@ -122,8 +141,13 @@ class ParameterLayout:
     shared_noise: bool
     shared_width: bool = False
     pose_channels: tuple[str, ...] = ()
+    damping: str = "constant"
 
     def __post_init__(self) -> None:
+        if self.damping not in DAMPING_MODELS:
+            raise InputError(
+                f"unknown damping {self.damping!r}; use one of {DAMPING_MODELS}", field="damping"
+            )
         object.__setattr__(self, "channels", tuple(self.channels))
         object.__setattr__(self, "experiments", tuple(self.experiments))
         object.__setattr__(self, "pose_channels", tuple(self.pose_channels))
@@ -214,11 +238,16 @@ class ParameterLayout:
         return tuple(self.label(g) for g in range(len(self.groups)))
 
     @cached_property
+    def damping_bases(self) -> tuple[str, ...]:
+        """The damping's parameters: :data:`DAMPING`, then the speed ratios with ``speed``."""
+        return DAMPING + (SPEED_RATIOS if self.damping == "speed" else ())
+
+    @cached_property
     def names(self) -> tuple[str, ...]:
         """Names in vector order: ``sigma_h[yaw]`` (no suffix for one group or a shared one)."""
         single = len(self.groups) == 1
         return (
-            DAMPING
+            self.damping_bases
             + self.shared_bases
             + tuple(
                 base if single else f"{base}[{self.label(g)}]"
@@ -231,7 +260,9 @@ class ParameterLayout:
     def bases(self) -> tuple[str, ...]:
         """Base name of each column (``sigma_h`` for ``sigma_h[yaw]``)."""
         per_group = (self.group_bases_of(g) for g in range(len(self.groups)))
-        return DAMPING + self.shared_bases + tuple(b for bases in per_group for b in bases)
+        return (
+            self.damping_bases + self.shared_bases + tuple(b for bases in per_group for b in bases)
+        )
 
     def names_of(self, base: str) -> tuple[str, ...]:
         """The names of parameter ``base`` in every group (``sigma_h[yaw]``, ``sigma_h[vx]``)."""
@@ -244,7 +275,7 @@ class ParameterLayout:
     @cached_property
     def column_groups(self) -> tuple[int | None, ...]:
         """Noise group of each column; None for the damping and the shared parameters."""
-        return (None,) * (len(DAMPING) + len(self.shared_bases)) + tuple(
+        return (None,) * (len(self.damping_bases) + len(self.shared_bases)) + tuple(
             g for g in range(len(self.groups)) for _ in self.group_bases_of(g)
         )
 
@@ -254,7 +285,7 @@ class ParameterLayout:
         The damping and the shared parameters (:attr:`shared_bases`) have one
         column, whatever the group.
         """
-        shared = DAMPING + self.shared_bases
+        shared = self.damping_bases + self.shared_bases
         if base in shared:
             return shared.index(base)
         if (
@@ -309,7 +340,10 @@ class ParameterLayout:
         )
 
     def prior_key(self, base: str) -> str:
-        """The prior range a parameter takes: its base, or :data:`WIDTH_PRIOR` for a width."""
+        """The prior range a parameter takes: its base, :data:`WIDTH_PRIOR` for a width,
+        :data:`SPEED_RATIO` for a speed ratio."""
+        if base in SPEED_RATIOS:
+            return SPEED_RATIO
         return WIDTH_PRIOR if base == self.width_name else base
 
 
@@ -379,7 +413,8 @@ def prior_overrides(
     """Prior ranges that replace a profile's, validated and keyed on :data:`PRIOR_KEYS`.
 
     Keys: ``d_lat``, ``d_long`` [N s/m], ``sigma_h`` [s] (every family's
-    width), ``sigma_c``, ``sigma_n`` [channel units], ``sigma_p`` [m]. Every name of the width
+    width), ``sigma_c``, ``sigma_n`` [channel units], ``sigma_p`` [m],
+    ``speed_ratio`` [-] (:data:`SPEED_RATIOS`). Every name of the width
     (``width``, and each registered family's own width name, such as a
     ``tau``) is accepted for ``sigma_h``; one width
     prior serves every family, so give it under one name. A range for a
@@ -416,12 +451,12 @@ def prior_overrides(
     ... except ValueError as error:
     ...     print(error)
     prior_overrides: unknown prior 'd_latt'; use one of
-    ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'width']
+    ['d_lat', 'd_long', 'sigma_h', 'sigma_c', 'sigma_n', 'sigma_p', 'speed_ratio', 'width']
     (width is sigma_h: every family's width)
     """
     widths = width_keys()
     aliases = widths[1:]
-    allowed = list(dict.fromkeys([*PRIOR_KEYS, *aliases]))
+    allowed = list(dict.fromkeys([*PRIOR_KEYS, SPEED_RATIO, *aliases]))
     given = dict(overrides or {})
     for key in given:
         if key not in allowed:

@@ -128,6 +128,8 @@ def file_attributes(likelihood: ResidualLikelihood, prior: Prior, diagnostics: d
         "sensor": layout.sensor,
         "engine": likelihood.engine,
         "steady": likelihood.steady,
+        "damping": layout.damping,
+        "speed_range": None if likelihood.speed_range is None else list(likelihood.speed_range),
         "parameter_names": list(prior.names),
         "prior": {
             name: {"low": lo, "high": hi, "kind": _PRIOR_KINDS[log]}
@@ -230,8 +232,10 @@ def posterior_layout(idata: az.InferenceData) -> ParameterLayout:
     shared_noise = _attribute(attrs, "shared_noise")
     # Files written before one width could be shared have one per group.
     shared_width = _attribute(attrs, "shared_width", False)
-    # Files written before poses were modelled have none.
+    # Files written before poses were modelled have none, before the speed model
+    # one damping.
     poses = _attribute(attrs, "pose_channels", [])
+    damping = _text(attrs, "damping") if "damping" in attrs else "constant"
     try:
         names = tuple(e["name"] for e in experiments)
         layout = ParameterLayout(
@@ -242,6 +246,7 @@ def posterior_layout(idata: az.InferenceData) -> ParameterLayout:
             bool(shared_noise),
             bool(shared_width),
             tuple(poses),
+            damping,
         )
     except (InputError, TypeError, KeyError) as exc:
         raise DataError(f"attributes do not describe a model ({exc})") from None

@@ -362,6 +362,7 @@ class Posterior(az.InferenceData):
             engine=metadata.engine,
             steady=metadata.steady,
             shared_width=layout.shared_width,
+            damping=layout.damping,
         )
 
 
