@@ -38,10 +38,9 @@ from ..model.robot import RobotProfile
 from ._matlab import mat_arrays, mat_vector
 from .experiment import Experiment, check_values, read_netcdf
 from .pose_track import PoseTrack, body_velocities
-from .stamps import UNIFORM_TOLERANCE, uniform_clock
+from .stamps import PLAUSIBLE_RATES, UNIFORM_TOLERANCE, uniform_clock
 
 __all__ = [
-    "PLAUSIBLE_RATES",
     "RATE_TOLERANCE",
     "check_column_roles",
     "check_columns_apply",
@@ -533,10 +532,6 @@ _LOG_READERS = {".csv": read_csv, ".mat": read_mat}
 RATE_TOLERANCE = 0.05
 #: Time units a time column is mistaken for, by their size in seconds.
 _TIME_UNITS = {"milliseconds": 1e-3, "microseconds": 1e-6, "nanoseconds": 1e-9}
-#: Sample rates [Hz] a robot's or a sensor's log can have: a 10 Hz Husky log
-#: to a 10 kHz simulator. A declared rate outside is a unit slip (0.072 Hz
-#: for a 72 Hz log stamped in milliseconds), which it would otherwise confirm.
-PLAUSIBLE_RATES = (1.0, 10_000.0)
 
 
 def check_declared_rate(rate: float | None) -> float | None:
