@@ -55,6 +55,7 @@ from .pose_track import (
     PoseTrack,
     body_velocities,
 )
+from .segments import MIN_HOLD, STEP_TOLERANCE, command_segments, label_segments
 from .simulate import (
     SERIES,
     NoiseSettings,
@@ -105,6 +106,7 @@ __all__ = [
     "MAX_TICKS",
     "MEASUREMENTS",
     "MESSAGE_TYPES",
+    "MIN_HOLD",
     "MIN_SAMPLES",
     "ONE_PER_TICK",
     "PLAUSIBLE_RATES",
@@ -120,6 +122,7 @@ __all__ = [
     "STEADY_SMOOTHING",
     "STEADY_YAW_FLOOR",
     "STEADY_YAW_TOLERANCE",
+    "STEP_TOLERANCE",
     "UNIFORM",
     "UNIFORM_TOLERANCE",
     "BagMessage",
@@ -146,11 +149,13 @@ __all__ = [
     "check_unique_names",
     "check_values",
     "command_profile",
+    "command_segments",
     "detect_steady",
     "group_runs",
     "header_stamp",
     "hold_values",
     "ingest_logs",
+    "label_segments",
     "load_experiment",
     "load_experiments",
     "longest_run",
