@@ -38,6 +38,15 @@ from .experiment import (
     write_netcdf,
 )
 from .groups import RunGroups, as_run_groups, group_runs, read_groups, run_group
+from .held import (
+    HELD_MIN_LENGTH,
+    HELD_MIN_RUNS,
+    HELD_SPREAD,
+    MIDPOINT,
+    SENSOR_CLOCK,
+    HeldChannel,
+    held_channel,
+)
 from .logs import ReadOptions, ingest_logs, load_experiments, read_log, read_logs
 from .pose_increments import (
     BORROW_FRACTION,
@@ -101,11 +110,15 @@ __all__ = [
     "BORROW_FRACTION",
     "GRID",
     "GRID_TOLERANCE",
+    "HELD_MIN_LENGTH",
+    "HELD_MIN_RUNS",
+    "HELD_SPREAD",
     "MAX_JITTER_FRACTION",
     "MAX_JITTER_STEPS",
     "MAX_TICKS",
     "MEASUREMENTS",
     "MESSAGE_TYPES",
+    "MIDPOINT",
     "MIN_HOLD",
     "MIN_SAMPLES",
     "ONE_PER_TICK",
@@ -114,6 +127,7 @@ __all__ = [
     "POSITION_LIMIT",
     "RATE_TOLERANCE",
     "READ_ERRORS",
+    "SENSOR_CLOCK",
     "SERIES",
     "SMOOTHING_ORDER",
     "SMOOTHING_WINDOW",
@@ -127,6 +141,7 @@ __all__ = [
     "UNIFORM_TOLERANCE",
     "BagMessage",
     "Experiment",
+    "HeldChannel",
     "NoiseSettings",
     "PoseTrack",
     "ReadOptions",
@@ -153,6 +168,7 @@ __all__ = [
     "detect_steady",
     "group_runs",
     "header_stamp",
+    "held_channel",
     "hold_values",
     "ingest_logs",
     "label_segments",

@@ -65,7 +65,9 @@ FLOAT_FLOOR = 1e-9
 MAX_TICKS = 2.0**53
 #: Sample rates [Hz] a robot's or a sensor's log can have: a 10 Hz Husky log
 #: to a 10 kHz simulator. A declared rate outside is a unit slip (0.072 Hz
-#: for a 72 Hz log stamped in milliseconds), which it would otherwise confirm.
+#: for a 72 Hz log stamped in milliseconds), which it would otherwise confirm;
+#: a value repeated more slowly is a held setpoint, not a sensor's
+#: (:mod:`bayes_jackal.io.held`).
 PLAUSIBLE_RATES = (1.0, 10_000.0)
 #: Names of the clocks in the provenance (``time_base["clock"]``).
 ONE_PER_TICK, GRID, UNIFORM = "one sample per tick", "grid", "uniform"
