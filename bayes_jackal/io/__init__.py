@@ -59,6 +59,7 @@ from .pose_increments import (
 from .pose_track import (
     POSE_FIELDS,
     POSITION_LIMIT,
+    SMOOTHING_MIN_POSES,
     SMOOTHING_ORDER,
     SMOOTHING_WINDOW,
     PoseTrack,
@@ -129,6 +130,7 @@ __all__ = [
     "READ_ERRORS",
     "SENSOR_CLOCK",
     "SERIES",
+    "SMOOTHING_MIN_POSES",
     "SMOOTHING_ORDER",
     "SMOOTHING_WINDOW",
     "STEADY_INPUT_TOLERANCE",
