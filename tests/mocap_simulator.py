@@ -263,6 +263,9 @@ def write_mocap_bag(
     pose_sd: float = 0.5e-3,
     heading_sd: float = 0.002,
     gyro_sd: float = 0.005,
+    pose_gaps: tuple[tuple[float, float], ...] = (),
+    with_pose: bool = True,
+    imu_lost: tuple[int, ...] = (),
     rng: np.random.Generator | int,
 ) -> MocapRun:
     """Simulate one run on a fine grid and write it as a ROS1 bag of four topics.
@@ -285,6 +288,15 @@ def write_mocap_bag(
         IMU and motion-capture rates [Hz].
     pose_sd, heading_sd, gyro_sd : float
         White sensor noise: position per axis [m], heading [rad], gyro [rad/s].
+    pose_gaps : tuple of (float, float)
+        Spans [start, stop) of true time [s] in which the motion capture lost
+        the robot: no pose messages there (dropouts).
+    with_pose : bool
+        Whether the bag has the motion-capture topic at all (False: a lab
+        without one; the run's truth still holds the poses).
+    imu_lost : tuple of int
+        IMU messages (by index, not the first) that never reached the bag;
+        ``imu_t`` and ``states`` still hold their instants and truth.
     rng : numpy.random.Generator or int
         Source of all randomness (an int seeds a new Generator).
 
@@ -306,6 +318,8 @@ def write_mocap_bag(
     imu_true = t[imu_index]
     pose_true = _clock(rng, pose_rate, duration)
     pose_seq = np.flatnonzero(rng.random(len(pose_true)) >= DROP_FRACTION)  # seq gaps: drops
+    for start, stop in pose_gaps:  # tracking lost: no messages
+        pose_seq = pose_seq[(pose_true[pose_seq] < start) | (pose_true[pose_seq] >= stop)]
     dropped = len(pose_true) - len(pose_seq)
     pose_true = pose_true[pose_seq]
     joint_true, cmd_true = _clock(rng, JOINT_RATE, duration), _clock(rng, CMD_RATE, duration)
@@ -347,6 +361,7 @@ def write_mocap_bag(
         )
         for k, i in enumerate(imu_index)
     ]
+    imu_kept = np.setdiff1d(np.arange(len(imu)), imu_lost)
     Pose, Point = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/Point"]
     pose = [
         T["geometry_msgs/msg/PoseStamped"](
@@ -377,7 +392,7 @@ def write_mocap_bag(
     lag = [rng.uniform(*LATENCY, len(messages)) for messages in (imu, pose, joints, cmd)]
     again = rng.uniform(lag[1][twice], LATENCY[1])
     streams = [
-        ("imu", imu_stamp, lag[0], imu),
+        ("imu", imu_stamp[imu_kept], lag[0][imu_kept], [imu[k] for k in imu_kept]),
         ("pose", pose_stamp, lag[1], pose),
         ("pose", pose_stamp[twice], again, [pose[i] for i in twice]),
         ("joint_states", joint_stamp, lag[2], joints),
@@ -393,8 +408,11 @@ def write_mocap_bag(
         connections = {
             role: writer.add_connection(topic, msgtype, typestore=store)
             for role, (topic, msgtype) in TOPICS.items()
+            if with_pose or role != "pose"
         }
         for recv, role, message in rows:
+            if role not in connections:
+                continue
             data = store.serialize_ros1(message, TOPICS[role][1])
             writer.write(connections[role], recv, data)
 
