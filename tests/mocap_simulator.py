@@ -363,6 +363,9 @@ def write_mocap_bag(
     pose_sd: float = 0.5e-3,
     heading_sd: float = 0.002,
     gyro_sd: float = 0.005,
+    pose_gaps: tuple[tuple[float, float], ...] = (),
+    with_pose: bool = True,
+    imu_lost: tuple[int, ...] = (),
     rng: np.random.Generator | int,
 ) -> MocapRun:
     """Simulate one run on a fine grid and write it as a ROS1 bag of four topics.
@@ -385,6 +388,15 @@ def write_mocap_bag(
         IMU and motion-capture rates [Hz].
     pose_sd, heading_sd, gyro_sd : float
         White sensor noise: position per axis [m], heading [rad], gyro [rad/s].
+    pose_gaps : tuple of (float, float)
+        Spans [start, stop) of true time [s] in which the motion capture lost
+        the robot: no pose messages there (dropouts).
+    with_pose : bool
+        Whether the bag has the motion-capture topic at all (False: a lab
+        without one; the run's truth still holds the poses).
+    imu_lost : tuple of int
+        IMU messages (by index, not the first) that never reached the bag;
+        ``imu_t`` and ``states`` still hold their instants and truth.
     rng : numpy.random.Generator or int
         Source of all randomness (an int seeds a new Generator).
 
@@ -406,6 +418,8 @@ def write_mocap_bag(
     imu_true = t[imu_index]
     pose_true = free_clock(rng, pose_rate, duration)
     pose_seq = np.flatnonzero(rng.random(len(pose_true)) >= DROP_FRACTION)  # seq gaps: drops
+    for start, stop in pose_gaps:  # tracking lost: no messages
+        pose_seq = pose_seq[(pose_true[pose_seq] < start) | (pose_true[pose_seq] >= stop)]
     dropped = len(pose_true) - len(pose_seq)
     pose_true = pose_true[pose_seq]
     joint_true = free_clock(rng, JOINT_RATE, duration)
@@ -427,6 +441,7 @@ def write_mocap_bag(
     imu = [
         imu_message(k, imu_stamp[k], sim["pose"][i, 2], gyro[k]) for k, i in enumerate(imu_index)
     ]
+    imu_kept = np.setdiff1d(np.arange(len(imu)), imu_lost)
     pose = [
         pose_message(seq, s, px, py, psi)
         for seq, s, (px, py, psi) in zip(pose_seq, pose_stamp, measured, strict=True)
@@ -436,13 +451,16 @@ def write_mocap_bag(
     ]
     cmd = [twist_message(cv, cw) for cv, cw in command]
     streams = {
-        "imu": (imu_stamp, imu),
+        "imu": (imu_stamp[imu_kept], [imu[k] for k in imu_kept]),
         "pose": (pose_stamp, pose),
         "joint_states": (joint_stamp, joints),
         "cmd_vel": (cmd_stamp, cmd),
     }
     rows, duplicates = received(rng, streams)
-    write_ros1(path, rows)
+    if not with_pose:  # a lab without motion capture: no such topic
+        rows = [row for row in rows if row[1] != "pose"]
+    topics = {role: topic for role, topic in TOPICS.items() if with_pose or role != "pose"}
+    write_ros1(path, rows, topics)
 
     origin = (int(imu_stamp[0]) - EPOCH_NS) * 1e-9  # the first IMU stamp is time zero
 

@@ -47,6 +47,7 @@ from bayes_jackal.io.bag_writer import (
 )
 from bayes_jackal.io.bags import read_bag
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
+from bayes_jackal.io.segments import STEP_TOLERANCE
 from bayes_jackal.io.simulate import simulate_experiment
 from bayes_jackal.model.robot import load_profile
 
@@ -212,8 +213,8 @@ def test_out_of_order_stamps_are_sorted(messages, simulated, tmp_path):
     np.testing.assert_allclose(experiment.yaw_rate, simulated.yaw_rate, atol=RESAMPLE_ATOL)
 
 
-def test_dropout_splits_the_run(messages, tmp_path):
-    batch = [m for m in messages() if not (m.topic == POSE and 8.0 < _stamp_seconds(m) < 8.5)]
+def test_a_joint_state_dropout_splits_the_run(messages, tmp_path):
+    batch = [m for m in messages() if not (m.topic == JOINTS and 8.0 < _stamp_seconds(m) < 8.5)]
     path = write_messages(batch, tmp_path / "gap.mcap")
     experiment = _read_unchanged(path)
     assert 8.5 <= experiment.t[0] < 8.52
@@ -222,6 +223,82 @@ def test_dropout_splits_the_run(messages, tmp_path):
     # Shorter than the IMU's step: every step is a gap of its clock.
     with pytest.raises(DataError, match="/imu/data: no stretch of 3 samples without a gap"):
         _read_unchanged(path, max_gap=0.001)
+
+
+# Bags simulated independently of the package (tests/mocap_simulator.py): an
+# 8 s run (1 s rest, 1 s ramp, 4 s hold, 1 s ramp down, 1 s rest; the IMU at
+# 72 Hz, motion capture at 120 Hz, the command at 20 Hz).
+MOCAP = {"duration": 8.0, "pose_rate": 120.0}
+
+
+@pytest.mark.parametrize("lost", [1.0, 2.0])
+def test_a_pose_dropout_keeps_the_whole_run_and_its_gap(tmp_path, lost):
+    from mocap_simulator import write_mocap_bag
+
+    gap = (3.0, 3.0 + lost)
+    run = write_mocap_bag(tmp_path / "lost.bag", pose_gaps=(gap,), rng=5, **MOCAP)
+    experiment = _read_unchanged(run.path)
+    # The whole run: the span all topics cover, the joint states' (50 Hz, from a
+    # random phase) within a step of its ends, on the IMU's next tick (1/72 s).
+    assert experiment.t[0] <= 1 / 50 + 1 / 72
+    assert experiment.t[-1] >= MOCAP["duration"] - 1 / 50 - 1 / 72
+    assert experiment.measurement("vx") == "pose"
+    # The poses keep their gap: lost plus up to a pose step at each end.
+    assert lost <= np.diff(experiment.pose.t).max() <= lost + 2 / MOCAP["pose_rate"]
+    repairs = experiment.provenance["repairs"]
+    assert [r for r in repairs if "dropout" in r] == [
+        r for r in repairs if r.startswith(POSE) and "the poses are kept with their gap" in r
+    ]
+    assert len([r for r in repairs if "dropout" in r]) == 1
+    assert not any("cut at dropouts" in r for r in repairs)
+
+
+def test_a_bag_without_poses_is_a_yaw_rate_experiment_with_a_note(tmp_path):
+    from mocap_simulator import write_mocap_bag
+
+    run = write_mocap_bag(tmp_path / "imu_only.bag", with_pose=False, rng=5, **MOCAP)
+    with pytest.warns(UserWarning, match=r"pose: topic '/mocap_node/Jackal/pose' not in the"):
+        experiment = _read_unchanged(run.path)
+    assert experiment.channels == ("yaw",)
+    assert experiment.vx is None and experiment.pose is None
+    assert experiment.provenance["pose_rate"] is None
+    assert any("yaw-rate-only experiment" in r for r in experiment.provenance["repairs"])
+    # Its yaw rate is the gyro's (sd 0.005 rad/s about the truth; 5 sd).
+    error = experiment.yaw_rate - np.interp(experiment.t, run.imu_t, run.states[:, 2])
+    assert np.abs(error).max() < 5 * run.truth["gyro_sd"]
+
+
+def test_the_ticks_the_imu_missed_are_marked_unmeasured(tmp_path):
+    from mocap_simulator import write_mocap_bag
+
+    lost = (300, 301, 302)  # 3 messages: a gap of 4 steps, filled (max_gap 0.25 s = 18 steps)
+    run = write_mocap_bag(tmp_path / "lost_imu.bag", imu_lost=lost, rng=5, **MOCAP)
+    experiment = _read_unchanged(run.path)
+    # The unmeasured ticks are those of the lost messages (within the IMU's
+    # stamp jitter, 0.1 ms, and its clock's fit; a tick is 14 ms).
+    mask = experiment.observed("yaw")
+    assert (~mask).sum() == len(lost)
+    np.testing.assert_allclose(experiment.t[~mask], run.imu_t[list(lost)], atol=1e-3)
+    assert experiment.provenance["imu_clock"]["interpolated"] == len(lost)
+    assert "across the ticks it missed" in experiment.provenance["input"]["interpolated"]
+
+
+def test_the_segments_of_a_bag_are_the_steps_of_its_cmd_vel(tmp_path):
+    from mocap_simulator import wheel_speeds, write_mocap_bag
+
+    run = write_mocap_bag(tmp_path / "steps.bag", rng=5, **MOCAP)
+    experiment = _read_unchanged(run.path)
+    # The command ramps (1 s) from rest at 1.0 s and from its hold at 6.0 s
+    # (duration - 2) and has moved by the tolerance once the faster wheel's
+    # command has: STEP_TOLERANCE / its held speed into the ramp. The reader
+    # sees the first 20 Hz message after that, received 1-3 ms after its
+    # stamp, on the next 72 Hz tick: within 0.05 + 0.003 + 1/72 s more.
+    command = run.truth["command"]
+    leave = STEP_TOLERANCE / wheel_speeds(command["v"], command["w"]).max()
+    assert experiment.segments[0] == 0 and len(experiment.segments) == 3
+    starts = experiment.t[experiment.segments[1:]] - [1.0, 6.0]
+    assert ((starts >= leave) & (starts <= leave + 0.05 + 0.003 + 1 / 72)).all()
+    assert experiment.provenance["segments"]["from"] == "/cmd_vel"
 
 
 def test_odometry_pose_is_accepted(messages, simulated, tmp_path):

@@ -178,7 +178,7 @@ def replace_cell(rows: list[str], row: int, column: int, value: str) -> list[str
         (
             csv_text(HEADER, replace_cell(good_rows(), 0, 3, "")),
             "omega_l",
-            r"non-numeric value '' at line 2$",
+            r"line 2 has omega_r but not omega_l: a row holds all of omega_r, omega_l or none",
         ),
         (csv_text(HEADER, replace_cell(good_rows(), 3, 2, "nan")), "omega_r", r"nan at line 5 "),
         (csv_text(HEADER, replace_cell(good_rows(), 1, 1, "inf")), "yaw_rate", r"inf at line 3 "),

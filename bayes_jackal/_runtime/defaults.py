@@ -46,10 +46,12 @@ __all__ = [
     "OPTIONAL",
     "POSE_NOISE",
     "POSE_ROLES",
+    "POSE_TIME",
     "REQUIRED",
     "RESIDUAL_CHANNELS",
     "RESIDUAL_LAGS",
     "ROLES",
+    "SEGMENT",
     "SENSOR",
     "SENSOR_MODELS",
     "SENSOR_PRECISIONS",
@@ -62,7 +64,9 @@ __all__ = [
     "STEADY",
     "THESIS_CHANNEL",
     "VELOCITIES",
+    "VELOCITY_COMMAND",
     "WALKERS",
+    "WHEEL_COMMAND",
 ]
 
 # -- noise families (the registry of their classes is bayes_jackal.model.FAMILIES,
@@ -170,8 +174,17 @@ REQUIRED = ("t", "yaw_rate", "omega_r", "omega_l")
 OPTIONAL = ("vx", "vy")
 #: A table's motion-capture pose, world x, y [m] and heading [rad] (all or none).
 POSE_ROLES = ("x", "y", "heading")
+#: The pose's own time [s] where it has its own (a MATLAB struct ``pose.t``);
+#: the table's ``t`` otherwise.
+POSE_TIME = "pose_t"
+#: A table's command: the body velocity v [m/s] and yaw rate w [rad/s] (cmd_vel) ...
+VELOCITY_COMMAND = ("cmd_v", "cmd_w")
+#: ... or the commanded wheel speeds [rad/s]; each pair all or none.
+WHEEL_COMMAND = ("cmd_omega_r", "cmd_omega_l")
+#: A table's label of the run's segment (command step) at each row, integer or text.
+SEGMENT = "segment"
 #: Column roles a file's columns can be mapped to (``columns=``, ``--column``).
-ROLES = (*REQUIRED, *OPTIONAL, *POSE_ROLES)
+ROLES = (*REQUIRED, *OPTIONAL, *POSE_ROLES, POSE_TIME, *VELOCITY_COMMAND, *WHEEL_COMMAND, SEGMENT)
 #: What a table's vx, vy columns are (``velocities=``, ``--velocities``): measured by
 #: a sensor, or derived from poses the table lacks (the model is the same; a
 #: posterior then warns); the first is the default.

@@ -13,8 +13,11 @@ pose            geometry_msgs/PoseStamped or             world x, y, heading -> 
                 nav_msgs/Odometry (motion capture)
 joint_states    sensor_msgs/JointState                   wheel speeds, averaged per side
                                                          (joint names: ``robot.wheels``)
-cmd_vel         geometry_msgs/Twist (optional)           commanded (v, w), provenance only
+cmd_vel         geometry_msgs/Twist (optional)           commanded (v, w): segments
 ==============  =======================================  ==========================
+
+The pose is optional too: a bag without it (no motion capture) is a
+yaw-rate-only experiment, vx and vy absent, and a warning says so.
 
 Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
 
@@ -28,10 +31,14 @@ Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
    Messages repeating an earlier stamp are dropped (the first is kept).
    This rule is :func:`bayes_jackal.io.sort_stamps`, shared with the
    CSV and MATLAB readers.
-3. The run is the time range that the IMU, pose and joint-state topics all
-   cover (no overlap is an error). Time zero is the first IMU stamp.
-4. A gap longer than ``max_gap`` in any of those topics splits the run; the
-   longest gap-free piece is kept (shorter than :data:`MIN_DURATION`: error).
+3. The run is the time range that the IMU, joint-state and (where the bag
+   has it) pose topics all cover (no overlap is an error). Time zero is the
+   first IMU stamp.
+4. A gap longer than ``max_gap`` in the IMU or the joint states splits the
+   run; the longest gap-free piece is kept (shorter than
+   :data:`MIN_DURATION`: error). A pose dropout (motion capture lost for a
+   second) does not: the poses are kept with their gap, which the repairs
+   list.
 5. The poses are kept as recorded (:class:`~bayes_jackal.io.PoseTrack`:
    world x, y and the heading, unwrapped, at their own stamps): the
    likelihood and the filters model them (:mod:`bayes_jackal.io.pose_increments`).
@@ -43,20 +50,27 @@ Preprocessing, in order; every repair is listed in ``provenance["repairs"]``:
 6. The IMU's clock is the uniform clock of its stamps
    (:func:`bayes_jackal.io.uniform_clock`: the rate and origin fitted by
    least squares, a whole number of Hz where the stamps allow it;
-   docs/design.md §2.1). Each IMU sample keeps its value on its tick (a
-   tick it missed within ``max_gap`` is interpolated); the wheel speeds and
-   the derived vx, vy are linearly interpolated onto the clock. (A clock at
+   docs/design.md §2.1). Each IMU sample keeps its value on its tick; a
+   tick it missed within ``max_gap`` is interpolated, for plots, and marked
+   unmeasured (:attr:`~bayes_jackal.io.Experiment.measured`). The wheel
+   speeds (the model's input) and the derived vx, vy are linearly
+   interpolated onto the clock, across such ticks too. (A clock at
    the stamps' median step drifts by its error, ~3 us a step at 0.1 ms of
    jitter, 8 ms over a 38 s run, and interpolating onto it smoothed the
    gyro's white noise by up to 30 %.)
 7. The steady window is detected (:func:`bayes_jackal.io.detect_steady`)
    unless given.
+8. The segments (:attr:`~bayes_jackal.io.Experiment.segments`) are the
+   steps of the command (:func:`bayes_jackal.io.command_segments`), held
+   from each cmd_vel message to the next and turned into wheel speeds by
+   the profile's diff-drive formula, where the bag has cmd_vel.
 
 The writer of simulated experiments as bags is :mod:`bayes_jackal.io.bag_writer`.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,11 +82,13 @@ from .._runtime.defaults import MAX_GAP
 from .._runtime.errors import DataError, InputError
 from .._runtime.files import file_sha256, require_file
 from .._runtime.progress import Progress
+from ..model.physics import wheel_speeds
 from ..model.robot import RobotProfile
 from .bag_reading import READ_ERRORS, bag_format, header_stamp, open_bag, receive_time_for_zero
 from .experiment import Experiment, detect_steady
 from .pose_track import SMOOTHING_ORDER, SMOOTHING_WINDOW, PoseTrack, body_velocities
-from .stamps import MIN_SAMPLES, longest_run, sort_stamps, uniform_clock
+from .segments import MIN_HOLD, STEP_TOLERANCE, command_segments
+from .stamps import MIN_SAMPLES, hold_values, longest_run, sort_stamps, uniform_clock
 
 __all__ = ["MESSAGE_TYPES", "read_bag"]
 
@@ -83,8 +99,9 @@ MESSAGE_TYPES = {
     "joint_states": ("sensor_msgs/msg/JointState",),
     "cmd_vel": ("geometry_msgs/msg/Twist",),
 }
-#: Roles that must be in the bag; cmd_vel is optional.
-REQUIRED_ROLES = ("imu", "pose", "joint_states")
+#: Roles that must be in the bag, and whose dropouts cut the run; the pose
+#: (motion capture, not in every lab) and cmd_vel are optional.
+REQUIRED_ROLES = ("imu", "joint_states")
 #: Largest tolerated deviation of a pose quaternion's norm from 1.
 QUATERNION_TOLERANCE = 0.01
 #: Shortest usable run after cutting at dropouts [s].
@@ -190,8 +207,10 @@ def read_bag(
 
     for stream in streams.values():
         _clean(stream, max_gap, source, where, repairs)
-    _check_quaternions(streams["pose"], source, where)
-    for role in REQUIRED_ROLES[1:]:
+    if "pose" in streams:
+        _check_quaternions(streams["pose"], source, where)
+    recorded = [role for role in ("joint_states", "pose") if role in streams]
+    for role in recorded:
         _check_overlap(streams["imu"], streams[role], source, where)
 
     imu = streams["imu"]
@@ -206,20 +225,23 @@ def read_bag(
     )
     repairs.extend(clock.repairs)
     step = 1.0 / clock.provenance["rate"]
-    first = max(seconds[role][0] for role in REQUIRED_ROLES)
-    last = min(seconds[role][-1] for role in REQUIRED_ROLES)
+    first = max(seconds[role][0] for role in ("imu", *recorded))
+    last = min(seconds[role][-1] for role in ("imu", *recorded))
     within = (clock.t >= first - 1e-3 * step) & (clock.t <= last + 1e-3 * step)
     kept = _cut_dropouts(clock.t[within], seconds, streams, max_gap, source, repairs)
     grid = clock.t[within][kept]
     # The IMU's own samples, one per tick of its clock: a sample keeps its
     # value (interpolating onto a clock that drifts from the samples would
-    # smooth the gyro's noise); a tick it missed within max_gap is filled.
+    # smooth the gyro's noise); a tick it missed within max_gap is filled,
+    # and marked unmeasured.
     yaw_rate = clock.resample(imu.values[:, 0])[within][kept]
     wheels = streams["joint_states"].values
     omega_r = np.interp(grid, seconds["joint_states"], wheels[:, 0])
     omega_l = np.interp(grid, seconds["joint_states"], wheels[:, 1])
-    pose = _pose_track(seconds["pose"], streams["pose"].values, grid, step, source)
-    vx, vy = body_velocities(pose, grid)
+    pose = vx = vy = None
+    if "pose" in streams:
+        pose = _pose_track(seconds["pose"], streams["pose"].values, grid, step, source)
+        vx, vy = body_velocities(pose, grid)
 
     if window is None:
         steady = detect_steady(grid, yaw_rate, np.column_stack([omega_r, omega_l]))
@@ -241,17 +263,30 @@ def read_bag(
             role: {"topic": s.topic, "msgtype": s.msgtype, "messages": len(s.stamp)}
             for role, s in streams.items()
         },
-        "pose_rate": pose.rate,
-        "smoother": {
-            "method": "scipy.signal.savgol_filter(deriv=1)",
-            "window_s": SMOOTHING_WINDOW,
-            "polyorder": SMOOTHING_ORDER,
+        "pose_rate": None if pose is None else pose.rate,
+        "input": {
+            "from": streams["joint_states"].topic,
+            "interpolated": "linearly onto the IMU clock, across the ticks it missed too",
         },
         "steady_window_source": window_source,
         "repairs": repairs,
     }
+    if pose is not None:
+        provenance["smoother"] = {
+            "method": "scipy.signal.savgol_filter(deriv=1)",
+            "window_s": SMOOTHING_WINDOW,
+            "polyorder": SMOOTHING_ORDER,
+        }
+    segments = None
     if "cmd_vel" in streams:
         provenance["command"] = _command_summary(seconds["cmd_vel"], streams["cmd_vel"], steady)
+        segments = _command_segments(seconds["cmd_vel"], streams["cmd_vel"], grid, robot)
+        provenance["segments"] = {
+            "from": streams["cmd_vel"].topic,
+            "step_tolerance": STEP_TOLERANCE,
+            "min_hold": MIN_HOLD,
+            "count": 1 if segments is None else len(segments),
+        }
     return Experiment(
         t=grid,
         yaw_rate=yaw_rate,
@@ -264,6 +299,8 @@ def read_bag(
         steady_window=steady,
         provenance=provenance,
         source=source,
+        measured={"yaw_rate": clock.measured[within][kept]},
+        segments=segments,
     )
 
 
@@ -286,7 +323,16 @@ def _collect(
                     source=source,
                     field=topic,
                 )
-            repairs.append(f"{role}: topic {topic!r} not in the bag; not used")
+            if role == "pose":
+                note = (
+                    f"pose: topic {topic!r} not in the bag (it has {sorted(topics)}): read as "
+                    "a yaw-rate-only experiment, vx and vy absent (--topic pose NAME names "
+                    "the motion capture's topic)"
+                )
+                warnings.warn(f"{source}: {note}", UserWarning, stacklevel=3)
+            else:
+                note = f"{role}: topic {topic!r} not in the bag; not used"
+            repairs.append(note)
             continue
         msgtype = topics[topic].msgtype
         if msgtype not in MESSAGE_TYPES[role]:
@@ -445,16 +491,24 @@ def _cut_dropouts(
     source: str,
     repairs: list[str],
 ) -> slice:
-    """The longest piece of ``grid`` [s] that lies in no gap > max_gap, as a slice of it."""
+    """The longest piece of ``grid`` [s] that lies in no gap > max_gap, as a slice of it.
+
+    Gaps of the required topics cut; the poses' are listed, and kept.
+    """
     good = np.ones(len(grid), bool)
-    for role in REQUIRED_ROLES:
+    for role in (*REQUIRED_ROLES, "pose"):
+        if role not in streams:
+            continue
         times = seconds[role]
         steps = np.diff(times)
+        kept = "; the poses are kept with their gap" if role == "pose" else ""
         for i in np.flatnonzero(steps > max_gap):
             repairs.append(
                 f"{streams[role].topic}: dropout of {steps[i]:.3f} s from {times[i]:.3f} s "
-                f"to {times[i + 1]:.3f} s (after the first IMU stamp)"
+                f"to {times[i + 1]:.3f} s (after the first IMU stamp){kept}"
             )
+        if role == "pose":
+            continue
         after = np.clip(np.searchsorted(times, grid, side="right"), 1, len(times) - 1)
         good &= (times[after] - times[after - 1] <= max_gap) | (grid == times[after - 1])
     start, stop = longest_run(good)
@@ -515,3 +569,11 @@ def _command_summary(
         return {"v": None, "w": None, "messages": 0}
     v, w = np.median(stream.values[inside], axis=0)
     return {"v": float(v), "w": float(w), "messages": int(inside.sum())}
+
+
+def _command_segments(
+    t: np.ndarray, stream: _Stream, grid: np.ndarray, robot: RobotProfile
+) -> np.ndarray | None:
+    """The command's steps on the grid: cmd_vel (v, w) at receive times t [s], held."""
+    held, _ = hold_values(t, stream.values, grid)
+    return command_segments(grid, np.column_stack(wheel_speeds(robot, *held.T)))

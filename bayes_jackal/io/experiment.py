@@ -69,6 +69,11 @@ UNITS = {
     "x": "m",
     "y": "m",
     "heading": "rad",
+    "pose_t": "s",
+    "cmd_v": "m/s",
+    "cmd_w": "rad/s",
+    "cmd_omega_r": "rad/s",
+    "cmd_omega_l": "rad/s",
 }
 #: Largest magnitude each measured column may have [its units]. They are
 #: generous bounds on what any ground robot logs, there to catch garbage
@@ -85,6 +90,10 @@ MAGNITUDE_LIMITS = {
     "vy": 100.0,
     "x": POSITION_LIMIT,
     "y": POSITION_LIMIT,
+    "cmd_v": 100.0,
+    "cmd_w": 100.0,
+    "cmd_omega_r": 1e4,
+    "cmd_omega_l": 1e4,
 }
 #: Series label of experiments that carry none (grid and sigma_h tables).
 UNLABELLED = "unlabelled"
@@ -482,7 +491,11 @@ def check_finite(
 
 
 def check_values(
-    columns: dict[str, np.ndarray], source: str, row_name: Callable[[int], str]
+    columns: dict[str, np.ndarray],
+    source: str,
+    row_name: Callable[[int], str],
+    *,
+    min_samples: int = MIN_SAMPLES,
 ) -> None:
     """Refuse an experiment's columns of unequal lengths, too short, non-finite or too large.
 
@@ -497,13 +510,16 @@ def check_values(
         The file named in errors.
     row_name : callable
         ``row_name(i)`` says where sample i is in the file (a line, an index).
+    min_samples : int
+        Fewest samples: :data:`bayes_jackal.io.MIN_SAMPLES` (one-step
+        residuals need them), 1 for a command held from its first value.
 
     Raises
     ------
     DataError
         Naming ``source``, the column and the first bad value: columns of
-        different lengths or not 1-D, fewer than
-        :data:`bayes_jackal.io.MIN_SAMPLES` samples, a NaN or infinity, or
+        different lengths or not 1-D, fewer than ``min_samples`` samples, a
+        NaN or infinity, or
         a magnitude at or above ``MAGNITUDE_LIMITS``
         (wrong units or a corrupt file).
 
@@ -529,9 +545,9 @@ def check_values(
                 source=source,
                 field=key,
             )
-    if len(columns["t"]) < MIN_SAMPLES:
+    if len(columns["t"]) < min_samples:
         raise DataError(
-            f"only {len(columns['t'])} samples; at least {MIN_SAMPLES} are needed", source=source
+            f"only {len(columns['t'])} samples; at least {min_samples} are needed", source=source
         )
     for key, values in columns.items():
         check_finite(values, source, key, row_name)

@@ -24,6 +24,7 @@ from .._runtime.errors import DataError
 __all__ = [
     "POSE_FIELDS",
     "POSITION_LIMIT",
+    "SMOOTHING_MIN_POSES",
     "SMOOTHING_ORDER",
     "SMOOTHING_WINDOW",
     "PoseTrack",
@@ -44,8 +45,10 @@ MIN_POSES = 3
 #: motion-capture noise (0.1 mm noise -> ~0.5 mm/s at 360 Hz).
 SMOOTHING_WINDOW = 0.1
 SMOOTHING_ORDER = 2
-#: Fewest poses in the smoother's window (slower poses widen it beyond 0.1 s).
-MIN_SMOOTHED = 5
+#: Fewest poses the smoother spans, odd and more than its order: poses slower
+#: than 15 Hz (lidar ICP at 4 Hz) give fewer in 0.1 s, and are differentiated
+#: over 3 (for order 2: the central difference).
+SMOOTHING_MIN_POSES = SMOOTHING_ORDER + 1 + SMOOTHING_ORDER % 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,7 +160,8 @@ class PoseTrack:
 
         The poses are interpolated onto a uniform grid at their median rate
         and differentiated with a Savitzky-Golay filter
-        (:data:`SMOOTHING_WINDOW`, :data:`SMOOTHING_ORDER`). What it gives
+        (:data:`SMOOTHING_WINDOW`, :data:`SMOOTHING_ORDER`, at least
+        :data:`SMOOTHING_MIN_POSES` poses). What it gives
         is not a measurement: a smoothing differentiator widens the process
         noise's kernel and colours the pose noise, so the likelihood models
         the poses instead (docs/design.md §2.2). It serves the derived vx,
@@ -174,7 +178,7 @@ class PoseTrack:
         Raises
         ------
         DataError
-            When the poses are too few or too slow for the smoother.
+            When the poses are too few for the smoother.
 
         Examples
         --------
@@ -195,13 +199,11 @@ class PoseTrack:
         t = self.t
         step = float(np.median(np.diff(t)))
         uniform = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-6)) + 1) * step
-        # SMOOTHING_WINDOW, or the fewest poses a quadratic fit takes for a
-        # slope (5) where the poses are slower (lidar ICP: 0.5 s at 10 Hz).
-        length = max(round(SMOOTHING_WINDOW / step) // 2 * 2 + 1, MIN_SMOOTHED)
+        length = max(round(SMOOTHING_WINDOW / step) // 2 * 2 + 1, SMOOTHING_MIN_POSES)
         if len(uniform) < length:
             raise DataError(
-                f"pose too short for the {length}-pose smoother ({len(uniform)} poses at "
-                f"{1 / step:.1f} Hz)",
+                f"pose too short for the {SMOOTHING_WINDOW} s smoother ({len(uniform)} "
+                f"samples at {1 / step:.1f} Hz)",
                 source=self.source,
                 field="pose",
             )

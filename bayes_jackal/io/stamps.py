@@ -35,9 +35,11 @@ __all__ = [
     "MAX_TICKS",
     "MIN_SAMPLES",
     "ONE_PER_TICK",
+    "PLAUSIBLE_RATES",
     "UNIFORM",
     "UNIFORM_TOLERANCE",
     "UniformClock",
+    "hold_values",
     "longest_run",
     "sort_stamps",
     "uniform_clock",
@@ -61,6 +63,12 @@ FLOAT_FLOOR = 1e-9
 #: whole numbers exactly up to 2^53, so beyond it no clock tells a tick from
 #: its neighbours (and the clock's sums overflow near 1e308 s).
 MAX_TICKS = 2.0**53
+#: Sample rates [Hz] a robot's or a sensor's log can have: a 10 Hz Husky log
+#: to a 10 kHz simulator. A declared rate outside is a unit slip (0.072 Hz
+#: for a 72 Hz log stamped in milliseconds), which it would otherwise confirm;
+#: a value repeated more slowly is a held setpoint, not a sensor's
+#: (:mod:`bayes_jackal.io.held`).
+PLAUSIBLE_RATES = (1.0, 10_000.0)
 #: Names of the clocks in the provenance (``time_base["clock"]``).
 ONE_PER_TICK, GRID, UNIFORM = "one sample per tick", "grid", "uniform"
 
@@ -115,6 +123,25 @@ class UniformClock:
         if len(kept) == len(self.t):
             return kept
         return np.interp(np.arange(len(self.t)), self.ticks, kept)
+
+    @property
+    def measured(self) -> np.ndarray:
+        """Which ticks hold a sample of their own, shape (M,): False where one was filled.
+
+        A filled tick (rule 3) is an interpolation, not a measurement: a
+        reader marks it unmeasured for the fields the sensor measured
+        (:attr:`bayes_jackal.io.Experiment.measured`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from bayes_jackal.io import uniform_clock
+        >>> uniform_clock(np.delete(np.arange(6) / 100, 2)).measured.tolist()
+        [True, True, False, True, True, True]
+        """
+        mask = np.zeros(len(self.t), bool)
+        mask[self.ticks] = True
+        return mask
 
 
 @dataclass(frozen=True)
@@ -292,6 +319,42 @@ def longest_run(mask: np.ndarray) -> tuple[int, int]:
         return 0, 0
     longest = int(np.argmax(stops - starts))
     return int(starts[longest]), int(stops[longest])
+
+
+def hold_values(
+    stamps: np.ndarray, values: np.ndarray, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Values held from each stamp to the next (a zero-order hold), at times ``t``.
+
+    A command is followed until the next one: its value at a time is the
+    last one stamped at or before it.
+
+    Parameters
+    ----------
+    stamps : ndarray, shape (n,)
+        Increasing stamps of the values [s].
+    values : ndarray, shape (n, ...)
+        A value per stamp.
+    t : ndarray, shape (M,)
+        Where the values are wanted [s].
+
+    Returns
+    -------
+    held : ndarray, shape (M, ...)
+        The last value at or before each time (before the first stamp: the first value).
+    after : ndarray of bool, shape (M,)
+        Whether a value had been stamped by then.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_jackal.io import hold_values
+    >>> held, after = hold_values(np.array([0.5, 1.0]), np.array([2.0, 3.0]), np.arange(4) / 2)
+    >>> held.tolist(), after.tolist()
+    ([2.0, 2.0, 3.0, 3.0], [False, True, True, True])
+    """
+    last = np.searchsorted(stamps, t, side="right") - 1
+    return np.asarray(values)[np.maximum(last, 0)], last >= 0
 
 
 def uniform_clock(

@@ -6,42 +6,57 @@ file by its suffix (the NetCDF experiment file lives in
 :mod:`bayes_jackal.io._matlab`).
 
 CSV format: a header naming the columns ``t, yaw_rate, omega_r, omega_l`` and
-optionally ``vx, vy`` and the motion-capture pose ``x, y, heading`` (any
-order, extra columns ignored), SI units, t in seconds. With the pose, vx and
-vy are modelled through it (docs/design.md §2.2; derived from it for plots
-where the file has no vx, vy columns); without it, vx and vy are modelled as
-measured, and ``velocities="derived"`` (``--velocities derived``) records
-that they were derived from poses the file lacks, which a posterior warns
-of. MATLAB files hold the same names as vectors, at the top level or as
-fields of a struct (``log.t``). Columns named otherwise are mapped with
-``columns={"yaw_rate": "gyro_z", ...}`` (role to column). The CSV and MATLAB
-readers put the stamps on a uniform clock by the rules of
-:mod:`bayes_jackal.io.stamps` (jitter, repeated and out-of-order stamps, gaps)
-and record what they did in ``provenance["time_base"]`` and
-``provenance["repairs"]``.
+optionally ``vx, vy``, the motion-capture pose ``x, y, heading`` (with
+``pose_t``, its own time), a command (``cmd_v, cmd_w`` or ``cmd_omega_r,
+cmd_omega_l``, which may stand in for the wheel speeds) and a ``segment``
+label (any order, extra columns ignored), SI units, t in seconds. With the
+pose, vx and vy are modelled through it (docs/design.md §2.2; derived from
+it for plots where the file has no vx, vy columns); without it, vx and vy
+are modelled as measured, and ``velocities="derived"`` (``--velocities
+derived``) records that they were derived from poses the file lacks, which
+a posterior warns of. MATLAB files hold the same names as vectors, at the
+top level or as fields of a struct (``log.t``). Columns named otherwise are
+mapped with ``columns={"yaw_rate": "gyro_z", ...}`` (role to column).
+
+A table may be dense, of sparse rows (an empty cell: no value there), or
+hold slower sensors' values repeated on faster rows: each group of columns
+is one sensor's stream, placed on the clock of the yaw rate's rows by the
+rules of :mod:`bayes_jackal.io._table_streams` (docs/design.md §2.3). The
+clock follows :mod:`bayes_jackal.io.stamps` (jitter, repeated and
+out-of-order stamps, gaps); what the readers did is in
+``provenance["time_base"]`` and ``provenance["repairs"]``.
 """
 
 from __future__ import annotations
 
 import csv
 import warnings
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
 
-from .._runtime.defaults import OPTIONAL, POSE_ROLES, REQUIRED, ROLES, VELOCITIES
+from .._runtime.defaults import (
+    OPTIONAL,
+    POSE_ROLES,
+    POSE_TIME,
+    REQUIRED,
+    ROLES,
+    SEGMENT,
+    VELOCITIES,
+    VELOCITY_COMMAND,
+    WHEEL_COMMAND,
+)
 from .._runtime.errors import DataError, InputError
 from .._runtime.files import atomic_path, require_file
 from .._runtime.validation import positive_number
 from ..model.robot import RobotProfile
 from ._matlab import mat_arrays, mat_vector
-from .experiment import Experiment, check_values, read_netcdf
-from .pose_track import PoseTrack, body_velocities
-from .stamps import UNIFORM_TOLERANCE, uniform_clock
+from ._table_streams import GROUPS, TableStream, table_experiment
+from .experiment import Experiment, read_netcdf
+from .stamps import PLAUSIBLE_RATES, UNIFORM_TOLERANCE
 
 __all__ = [
-    "PLAUSIBLE_RATES",
     "RATE_TOLERANCE",
     "check_column_roles",
     "check_columns_apply",
@@ -108,7 +123,8 @@ def check_column_roles(
     ... except InputError as exc:
     ...     print(exc)
     columns: unknown column role(s) ['yaw']; the roles are
-    ['t', 'yaw_rate', 'omega_r', 'omega_l', 'vx', 'vy', 'x', 'y', 'heading']
+    ['t', 'yaw_rate', 'omega_r', 'omega_l', 'vx', 'vy', 'x', 'y', 'heading', 'pose_t', 'cmd_v',
+    'cmd_w', 'cmd_omega_r', 'cmd_omega_l', 'segment']
     """
     columns = dict(columns or {})
     unknown = [role for role in columns if role not in ROLES]
@@ -138,7 +154,9 @@ def _mapped(available: list[str], columns: dict[str, str] | None, source: str) -
 
     An unmapped role is read from the column of its own name, unless that
     column is mapped to another role: then the role has no column (absent
-    if optional, an error if required).
+    if optional, an error if required). Required are ``t``, ``yaw_rate``
+    and the wheel speeds, which a command (``cmd_v, cmd_w`` or
+    ``cmd_omega_r, cmd_omega_l``) can stand in for.
     """
     mapping = check_column_roles(columns)
     absent = {role: name for role, name in mapping.items() if name not in available}
@@ -155,7 +173,11 @@ def _mapped(available: list[str], columns: dict[str, str] | None, source: str) -
         for role in ROLES
         if role in mapping or taken.get(role, role) == role
     }
-    missing = [role for role in REQUIRED if names.get(role) not in available]
+    names = {role: name for role, name in names.items() if name in available}
+    wheels = GROUPS["wheels"]
+    commanded = any(all(role in names for role in command) for command in COMMAND_PAIRS)
+    required = [*REQUIRED[:2], *wheels] if any(r in names for r in wheels) or not commanded else []
+    missing = [role for role in (required or REQUIRED[:2]) if role not in names]
     if missing:
         used = [f"{role!r} is mapped to {taken[role]}" for role in missing if role in taken]
         raise DataError(
@@ -165,82 +187,26 @@ def _mapped(available: list[str], columns: dict[str, str] | None, source: str) -
             source=source,
             field=missing[0],
         )
-    return {role: name for role, name in names.items() if name in available}
-
-
-def _from_columns(
-    columns: dict[str, np.ndarray],
-    names: dict[str, str],
-    source: str,
-    row_name: Callable[[int], str],
-    format: str,
-    *,
-    name: str,
-    series: str | None,
-    rate: float | None,
-    max_gap: float | None,
-    velocities: str,
-) -> Experiment:
-    """An experiment from a file's columns (by role), on the uniform clock of its stamps.
-
-    The pose columns, where the file has them, become its
-    :class:`~bayes_jackal.io.PoseTrack`: the samples kept, at their
-    ticks (a filled tick is no pose), the heading unwrapped.
-    """
-    if velocities not in VELOCITIES:
-        raise InputError(
-            f"unknown velocities {velocities!r}; use one of {VELOCITIES}", field="velocities"
-        )
-    check_values(columns, source, row_name)
-    clock = uniform_clock(
-        columns["t"], rate=rate, max_gap=max_gap, source=source, row_name=row_name
-    )
-    measured = {
-        role: clock.resample(values)
-        for role, values in columns.items()
-        if role not in ("t", *POSE_ROLES)
-    }
-    pose = _pose_columns(columns, clock.t[clock.ticks], clock.rows, source)
-    if pose is not None:
-        velocities = "derived"
-        if "vx" not in measured:
-            measured["vx"], measured["vy"] = body_velocities(pose, clock.t)
-    provenance = {
-        "source": source,
-        "format": format,
-        "columns": names,
-        "time_base": clock.provenance,
-        "repairs": clock.repairs,
-    }
-    if "vx" in measured:
-        provenance["velocities"] = velocities
-    return Experiment(
-        t=clock.t,
-        **measured,
-        pose=pose,
-        name=name,
-        series=series,
-        provenance=provenance,
-        source=source,
-    )
-
-
-def _pose_columns(
-    columns: dict[str, np.ndarray], t: np.ndarray, rows: np.ndarray, source: str
-) -> PoseTrack | None:
-    """The pose of the columns x, y, heading at the times ``t`` of their ``rows``; None without."""
-    present = [role for role in POSE_ROLES if role in columns]
-    if not present:
-        return None
-    if len(present) < len(POSE_ROLES):
-        missing = [role for role in POSE_ROLES if role not in columns]
+    for roles, what in ((POSE_ROLES, "a pose"), *((pair, "a command") for pair in COMMAND_PAIRS)):
+        present = [role for role in roles if role in names]
+        if present and len(present) < len(roles):
+            lacking = [role for role in roles if role not in names]
+            raise DataError(
+                f"{what} needs the columns {list(roles)}; the file has {present}, not {lacking}",
+                source=source,
+                field=lacking[0],
+            )
+    if POSE_TIME in names and POSE_ROLES[0] not in names:
         raise DataError(
-            f"a pose needs the columns {list(POSE_ROLES)}; the file has {present}, not {missing}",
+            f"a pose time ({names[POSE_TIME]!r}) without the pose {list(POSE_ROLES)}",
             source=source,
-            field=missing[0],
+            field=POSE_TIME,
         )
-    x, y, heading = (columns[role][rows] for role in POSE_ROLES)
-    return PoseTrack(t, x, y, np.unwrap(heading), source=source)
+    return names
+
+
+#: A command's pairs of roles (either is a command).
+COMMAND_PAIRS = (VELOCITY_COMMAND, WHEEL_COMMAND)
 
 
 def read_csv(
@@ -252,14 +218,24 @@ def read_csv(
     rate: float | None = None,
     max_gap: float | None = None,
     velocities: str = VELOCITIES[0],
+    robot: RobotProfile | None = None,
 ) -> Experiment:
     """Read an experiment from a CSV file (docs/design.md §2).
+
+    The table may be dense (every row holds every column), of sparse rows
+    (an empty cell: no value at that row; the union of several sensors'
+    samples), or hold slower sensors' values repeated on faster rows
+    (:func:`bayes_jackal.io.held_channel`): the rules are docs/design.md
+    §2.3.
 
     Parameters
     ----------
     path : str or Path
         CSV with a header naming ``t, yaw_rate, omega_r, omega_l`` and
-        optionally ``vx, vy`` (or the names in ``columns``).
+        optionally ``vx, vy``, the pose ``x, y, heading`` (with ``pose_t``,
+        its own time), a command (``cmd_v, cmd_w`` or ``cmd_omega_r,
+        cmd_omega_l``: the wheel speeds may then be left out) and a
+        ``segment`` label (or the names in ``columns``).
     name : str, optional
         Experiment name; the file stem when omitted.
     series : str, optional
@@ -275,6 +251,10 @@ def read_csv(
         sensor's measurements (the model's assumption), or derived from
         poses the file lacks (recorded in the provenance; a posterior then
         warns: docs/design.md §2.2). With pose columns they are derived.
+    robot : RobotProfile, optional
+        Whose diff-drive formula turns a ``cmd_v, cmd_w`` command into
+        wheel speeds (:func:`bayes_jackal.model.wheel_speeds`); the
+        default profile's when omitted.
 
     Raises
     ------
@@ -282,6 +262,12 @@ def read_csv(
         Naming the file, the column and the line of the first bad value.
     InputError
         For an unknown column role or a rate that is not a positive number.
+
+    Warns
+    -----
+    UserWarning
+        Where a column group holds a slower sensor's values on faster rows,
+        or a command is the model's input (also in ``provenance["repairs"]``).
 
     Examples
     --------
@@ -299,27 +285,95 @@ def read_csv(
     ...     run = read_csv(path, columns=roles)
     >>> print(run.name, len(run.t), run.channels, run.provenance["time_base"]["rate"])
     circle 100 ('yaw',) 72.0
+
+    Sparse rows, as pandas writes an outer join: the IMU at 10 Hz, the
+    wheel speeds at 10 Hz on its rows and 5 Hz between them, the poses at
+    2 Hz at their own stamps:
+
+    >>> text = "t,yaw_rate,omega_r,omega_l,x,y,heading\\n"
+    >>> for k in range(101):
+    ...     text += f"{k / 10},0.1,5.0,5.0,,,\\n"
+    ...     if k % 2 == 0:
+    ...         text += f"{k / 10 + 0.05},,5.0,5.0,,,\\n"
+    ...     if k % 5 == 0:
+    ...         text += f"{k / 10 + 0.02},,,,{0.049 * k},0.0,{0.01 * k}\\n"
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "joined.csv"
+    ...     _ = path.write_text(text)
+    ...     run = read_csv(path)
+    >>> print(len(run.t), run.pose.t[:3], round(run.pose.rate, 6), run.measurement("vx"))
+    101 [0.02 0.52 1.02] 2.0 pose
     """
     path = Path(path)
     source = str(path)
     header, body = read_csv_table(path, source)
     names = _mapped(header, columns, source)
-    values = {
-        role: numeric_column(body, header.index(column), column, source)
-        for role, column in names.items()
-    }
-    return _from_columns(
-        values,
-        names,
-        source,
-        lambda i: f"line {i + 2}",
-        "csv",
+    index = {role: header.index(column) for role, column in names.items()}
+    cells = {role: [row[i].strip() for row in body] for role, i in index.items()}
+    return table_experiment(
+        _csv_streams(cells, source),
+        names=names,
+        source=source,
+        format="csv",
         name=name or path.stem,
         series=series,
         rate=rate,
         max_gap=max_gap,
         velocities=velocities,
+        robot=robot,
     )
+
+
+def _line(row: int) -> str:
+    """A CSV's data row (from 0) as the line that holds it (the header is line 1)."""
+    return f"line {row + 2}"
+
+
+def _csv_streams(cells: dict[str, list[str]], source: str) -> dict[str, TableStream]:
+    """A CSV's column groups as streams: each group's rows are those its cells fill."""
+    filled = {
+        role: np.array([cell != "" for cell in column], bool) for role, column in cells.items()
+    }
+    if not filled["t"].all():
+        row = int(np.flatnonzero(~filled["t"])[0])
+        raise DataError(
+            f"empty cell at {_line(row)}: every row needs its time stamp", source=source, field="t"
+        )
+    t = _numbers(cells["t"], np.arange(len(cells["t"])), "t", source)
+    streams = {}
+    for group, roles in GROUPS.items():
+        roles = tuple(role for role in roles if role in cells)
+        if not roles:
+            continue
+        present = np.column_stack([filled[role] for role in roles])
+        partial = np.flatnonzero(present.any(axis=1) & ~present.all(axis=1))
+        if partial.size:
+            row = int(partial[0])
+            have = [role for role, here in zip(roles, present[row], strict=True) if here]
+            lack = [role for role in roles if role not in have]
+            raise DataError(
+                f"{_line(row)} has {', '.join(have)} but not {', '.join(lack)}: a row holds all "
+                f"of {', '.join(roles)} or none (an empty cell is no value)",
+                source=source,
+                field=lack[0],
+            )
+        rows = np.flatnonzero(present[:, 0])
+        if group == "sample" and len(t) and not rows.size:
+            raise DataError("no values (every cell is empty)", source=source, field=roles[0])
+        if group != "sample" and not rows.size:
+            continue
+        values = {}
+        for role in roles:
+            column = [cells[role][i] for i in rows]
+            values[role] = (
+                np.array(column, dtype=object)
+                if role == SEGMENT
+                else _numbers(column, rows, role, source)
+            )
+        own = POSE_TIME in values
+        stamps = values.pop(POSE_TIME) if own else t[rows]
+        streams[group] = TableStream(rows, stamps, values, _line, own_time=own)
+    return streams
 
 
 def read_mat(
@@ -331,14 +385,18 @@ def read_mat(
     rate: float | None = None,
     max_gap: float | None = None,
     velocities: str = VELOCITIES[0],
+    robot: RobotProfile | None = None,
 ) -> Experiment:
     """Read an experiment from a MATLAB ``.mat`` file (v5/v7, or v7.3 HDF5).
 
     The columns are numeric vectors named as the CSV columns (or as mapped by
     ``columns``), at the top level or as fields of structs, named
-    ``struct.field`` (e.g. ``{"yaw_rate": "log.imu.gyro_z"}``). Samples are
-    named by their MATLAB index (from 1) in messages. Parameters, returns
-    and errors are those of :func:`read_csv`.
+    ``struct.field`` (e.g. ``{"yaw_rate": "log.imu.gyro_z"}``), each as long
+    as ``t``; the pose's may have a length of their own with their own time
+    ``pose_t`` (a struct ``pose`` with fields ``t, x, y, heading``, mapped
+    as ``{"pose_t": "pose.t", "x": "pose.x", ...}``). A segment label is a
+    numeric vector. Samples are named by their MATLAB index (from 1) in
+    messages. Parameters, returns and errors are those of :func:`read_csv`.
 
     Examples
     --------
@@ -358,26 +416,65 @@ def read_mat(
     ...     run = read_mat(Path(folder) / "circle.mat", columns=roles)
     >>> print(run.name, len(run.t), round(1 / run.dt, 6))
     circle 100 72.0
+
+    With the poses of a 120 Hz motion capture in a struct of their own (kept:
+    the 167 within an IMU step of the samples):
+
+    >>> s = np.arange(170) / 120
+    >>> pose = {"t": s, "x": 0.3 * s, "y": 0 * s, "heading": 0 * s}
+    >>> roles = {"pose_t": "pose.t", "x": "pose.x", "y": "pose.y", "heading": "pose.heading"}
+    >>> flat = {"t": t, "yaw_rate": log["r"], "omega_r": log["R"], "omega_l": log["L"]}
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     scipy.io.savemat(Path(folder) / "mocap.mat", {"pose": pose, **flat})
+    ...     run = read_mat(Path(folder) / "mocap.mat", columns=roles)
+    >>> print(len(run.t), len(run.pose.t), round(run.pose.rate, 6), run.measurement("vx"))
+    100 167 120.0 pose
     """
     path = Path(path)
     source = str(path)
     variables = mat_arrays(path, source)
     names = _mapped(sorted(variables), columns, source)
-    values = {}
-    for role, variable in names.items():
-        values[role] = mat_vector(variables, variable, source, role=role)
-    return _from_columns(
-        values,
-        names,
-        source,
-        lambda i: f"index {i + 1}",
-        "mat",
+    vectors = {
+        role: mat_vector(variables, name, source, role=role) for role, name in names.items()
+    }
+    streams = {}
+    for group, roles in GROUPS.items():
+        values = {role: vectors[role] for role in roles if role in vectors}
+        if not values:
+            continue
+        stamps = values.pop(POSE_TIME, None)
+        own = stamps is not None
+        stamps = vectors["t"] if stamps is None else stamps
+        time = names[POSE_TIME if own else "t"]
+        for role, vector in values.items():
+            if len(vector) != len(stamps):
+                raise DataError(
+                    f"{len(vector)} values for the {len(stamps)} of {time!r}: a vector is as "
+                    f"long as its time ({POSE_TIME} is the pose's own; the others are on t)",
+                    source=source,
+                    field=names[role],
+                )
+        streams[group] = TableStream(
+            np.arange(len(stamps)), stamps, values,
+            (lambda i, time=time: f"index {i + 1} of {time}") if own else _index, own_time=own,
+        )  # fmt: skip
+    return table_experiment(
+        streams,
+        names=names,
+        source=source,
+        format="mat",
         name=name or path.stem,
         series=series,
         rate=rate,
         max_gap=max_gap,
         velocities=velocities,
+        robot=robot,
     )
+
+
+def _index(row: int) -> str:
+    """A MATLAB vector's element (from 0) as MATLAB counts it (from 1)."""
+    return f"index {row + 1}"
 
 
 def read_csv_table(path: Path, source: str) -> tuple[list[str], list[list[str]]]:
@@ -460,15 +557,19 @@ def numeric_column(rows: list[list[str]], index: int, key: str, source: str) -> 
     ...     print(exc)
     gyro.csv: gyro: non-numeric value 'x' at line 3
     """
-    cells = [row[index] for row in rows]
+    return _numbers([row[index] for row in rows], np.arange(len(rows)), key, source)
+
+
+def _numbers(cells: list[str], rows: np.ndarray, key: str, source: str) -> np.ndarray:
+    """CSV cells as floats; ``rows`` (from 0) name the line of a cell that is not a number."""
     try:
         return np.array(cells, dtype=float)
     except ValueError:
-        bad = next(((n, c) for n, c in enumerate(cells, start=2) if not _is_number(c)), None)
+        bad = next(((r, c) for r, c in zip(rows, cells, strict=True) if not _is_number(c)), None)
         if bad is None:
             raise
         raise DataError(
-            f"non-numeric value {bad[1]!r} at line {bad[0]}", source=source, field=key
+            f"non-numeric value {bad[1]!r} at {_line(int(bad[0]))}", source=source, field=key
         ) from None
 
 
@@ -533,10 +634,6 @@ _LOG_READERS = {".csv": read_csv, ".mat": read_mat}
 RATE_TOLERANCE = 0.05
 #: Time units a time column is mistaken for, by their size in seconds.
 _TIME_UNITS = {"milliseconds": 1e-3, "microseconds": 1e-6, "nanoseconds": 1e-9}
-#: Sample rates [Hz] a robot's or a sensor's log can have: a 10 Hz Husky log
-#: to a 10 kHz simulator. A declared rate outside is a unit slip (0.072 Hz
-#: for a 72 Hz log stamped in milliseconds), which it would otherwise confirm.
-PLAUSIBLE_RATES = (1.0, 10_000.0)
 
 
 def check_declared_rate(rate: float | None) -> float | None:
@@ -659,7 +756,8 @@ def load_experiment(
     is already uniform, and a declared rate must agree with its own (within
     :data:`~bayes_jackal.io.UNIFORM_TOLERANCE`). Given a ``robot``, the
     sample time must agree with its profile's rate (:func:`check_sample_time`)
-    unless a rate is declared: the declared rate overrides the profile's.
+    unless a rate is declared: the declared rate overrides the profile's; its
+    diff-drive formula converts a table's ``cmd_v, cmd_w`` command.
 
     Examples
     --------
@@ -681,7 +779,7 @@ def load_experiment(
     """
     experiment = _read_experiment(
         path, columns=columns, rate=check_declared_rate(rate), max_gap=max_gap,
-        velocities=velocities,
+        velocities=velocities, robot=robot,
     )  # fmt: skip
     if robot is not None and rate is None:
         check_sample_time(experiment, robot)
@@ -695,12 +793,13 @@ def _read_experiment(
     rate: float | None,
     max_gap: float | None,
     velocities: str,
+    robot: RobotProfile | None,
 ) -> Experiment:
     """An experiment file read by its suffix (:func:`load_experiment`)."""
     suffix = Path(path).suffix.lower()
     if suffix in _LOG_READERS:
         return _LOG_READERS[suffix](
-            path, columns=columns, rate=rate, max_gap=max_gap, velocities=velocities
+            path, columns=columns, rate=rate, max_gap=max_gap, velocities=velocities, robot=robot
         )
     if suffix == ".nc":
         check_column_roles(columns)
