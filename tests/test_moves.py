@@ -209,7 +209,7 @@ def test_a_chain_file_keeps_a_mixture_for_the_resumed_chain(tmp_path):
     backend = BufferedHDFBackend(str(tmp_path / "chain.h5"), flush_every=100)
     backend.reset(64, 30)
     _store_approximation(backend, mixture)
-    kept = _stored_approximation(backend)
+    kept = _stored_approximation(backend)[0]
     assert isinstance(kept, MixtureApproximation)
     for field in ("weights", "centres", "covariances"):
         np.testing.assert_array_equal(getattr(kept, field), getattr(mixture, field))

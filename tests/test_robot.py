@@ -105,7 +105,7 @@ def test_default_profile_has_thesis_constants():
         "sigma_h": (0.001, 1.0),
         "sigma_c": (1e-5, 1.0),
         "sigma_n": (1e-4, 1.0),
-        "sigma_p": (1e-6, 1e-2),
+        "sigma_p": (1e-6, 0.1),
     }
     assert profile.topics == {
         "imu": "/imu/data",

@@ -17,6 +17,7 @@ __all__ = [
     "CHANNELS",
     "CONVERSIONS",
     "DAMPING_MODEL",
+    "DAMPING_MODELS",
     "DEFAULT_CHANNEL_ORDER",
     "DEFAULT_FAMILIES",
     "DISCRETISATION",
@@ -92,8 +93,11 @@ SENSOR = "ma1"
 #: thesis' crop) or every sample, transients included (the default: the model
 #: covers them, and they identify the damping's scale).
 STEADY = False
-#: The damping's model (``--damping``; ``model.DAMPING_MODELS``): one damping by default.
-DAMPING_MODEL = "constant"
+#: How the damping depends on the state (``--damping``): one damping (the
+#: default), or log d = log d_ref + log(r) (v - v_ref) / (v_max - v_min) over the
+#: runs' segments, v each segment's speed (likelihood.ResidualLikelihood).
+DAMPING_MODELS = ("constant", "speed")
+DAMPING_MODEL = DAMPING_MODELS[0]
 #: Likelihood engines (``--engine``) and the default.
 ENGINES = ("fast", "exact", "whittle")
 ENGINE = "fast"

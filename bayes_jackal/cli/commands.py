@@ -284,6 +284,7 @@ def _likelihood_options(args: argparse.Namespace) -> LikelihoodOptions:
         sensor=args.sensor_noise,
         engine=args.engine,
         steady=args.steady,
+        damping=args.damping,
     )
 
 

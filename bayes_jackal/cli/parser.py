@@ -19,6 +19,8 @@ from .._runtime.defaults import (
     CONVERSIONS,
     D_LAT,
     D_LONG,
+    DAMPING_MODEL,
+    DAMPING_MODELS,
     DEFAULT_CHANNEL_ORDER,
     DEFAULT_FAMILIES,
     DISCRETISATION,
@@ -217,6 +219,13 @@ def _add_model_flags(parser: argparse.ArgumentParser, *, pooling: bool = True) -
         action="store_true",
         help="fit each run's steady window only, as the thesis (default: every sample, "
         "transients included)",
+    )
+    parser.add_argument(
+        "--damping",
+        choices=DAMPING_MODELS,
+        default=DAMPING_MODEL,
+        help="one damping, or one that depends on each segment's speed (speed ratios "
+        f"across the runs' speeds) ({DAMPING_MODEL})",
     )
     parser.add_argument("--seed", type=_natural, default=None, help="seed: same seed, same chain")
     parser.add_argument(

@@ -45,7 +45,15 @@ from .._runtime.files import atomic_path, check_space
 from .._runtime.output_safety import OutputLock, refuse_link
 from .._runtime.progress import Progress
 from .._runtime.threads import one_blas_thread
-from .moves import Approximation, LaplaceApproximation, MixtureApproximation, Start, ensemble_moves
+from .moves import (
+    Approximation,
+    BlockT,
+    GroupGrid,
+    LaplaceApproximation,
+    MixtureApproximation,
+    Start,
+    ensemble_moves,
+)
 from .sampler_warnings import ConvergenceWarning
 
 __all__ = [
@@ -59,6 +67,14 @@ __all__ = [
 
 #: A mixture approximation's fields, each a dataset ``mixture_<field>`` of a chain file.
 MIXTURE_FIELDS = ("weights", "centres", "covariances")
+#: The fields of each kind of block proposal kept in a chain file, in its class's order.
+BLOCK_FIELDS = {
+    "grid": (
+        GroupGrid,
+        ("columns", "low", "high", "log_probability", "points", "box_low", "box_high"),
+    ),
+    "t": (BlockT, ("columns", "centre", "covariance")),
+}
 
 
 @dataclass(frozen=True)
@@ -605,11 +621,11 @@ def run_chain(
             begun = begun if isinstance(begun, Start) else Start(np.asarray(begun))
             moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
             start = emcee.State(begun.walkers, random_state=moves_state)
-            approximation = begun.approximation
-            _store_approximation(backend, approximation)
+            approximation, groups = begun.approximation, begun.groups
+            _store_approximation(backend, approximation, groups)
         else:
             start = backend.get_last_sample()
-            approximation = _stored_approximation(backend)
+            approximation, groups = _stored_approximation(backend)
             if say is not None:
                 say(f"resuming {chain_file} at step {backend.iteration}")
         sampler = emcee.EnsembleSampler(
@@ -618,7 +634,7 @@ def run_chain(
             log_posterior,
             vectorize=True,
             backend=backend,
-            moves=ensemble_moves(approximation, box=(prior.z_low, prior.z_high)),
+            moves=ensemble_moves(approximation, box=(prior.z_low, prior.z_high), groups=groups),
         )
         try:
             shortfall, tau = _run_until_converged(sampler, start, settings, tuple(names))
@@ -636,19 +652,29 @@ def run_chain(
         return _kept(sampler, names, tau, shortfall is None, settings, seed)
 
 
-def _store_approximation(backend, approximation: Approximation | None) -> None:
+def _store_approximation(
+    backend, approximation: Approximation | None, groups: tuple[BlockT | GroupGrid, ...] = ()
+) -> None:
     """Keep the moves' approximation in a chain file, so that a resumed chain moves alike.
 
     A Laplace approximation as ``laplace_centre`` and ``laplace_covariance``
     attributes of the chain's group; a mixture as its datasets
     ``mixture_weights``, ``mixture_centres`` and ``mixture_covariances``
     (16 covariances of 23 parameters would pass HDF5's 64 KiB limit of an
-    attribute).
+    attribute); the blocks' proposals as datasets ``block_<i>_<field>`` with
+    their kind in the attribute ``block_<i>``.
     """
-    if approximation is None or not isinstance(backend, BufferedHDFBackend):
+    if not isinstance(backend, BufferedHDFBackend) or (approximation is None and not groups):
         return
     with backend.writing(), backend.open("a") as stored:
         group = stored[backend.name]
+        for i, block in enumerate(groups):
+            kind = "grid" if isinstance(block, GroupGrid) else "t"
+            group.attrs[f"block_{i}"] = kind
+            for key in BLOCK_FIELDS[kind][1]:
+                group.create_dataset(f"block_{i}_{key}", data=getattr(block, key))
+        if approximation is None:
+            return
         if isinstance(approximation, MixtureApproximation):
             for key in MIXTURE_FIELDS:
                 group.create_dataset(f"mixture_{key}", data=getattr(approximation, key))
@@ -657,19 +683,27 @@ def _store_approximation(backend, approximation: Approximation | None) -> None:
             group.attrs["laplace_covariance"] = approximation.covariance
 
 
-def _stored_approximation(backend) -> Approximation | None:
-    """The approximation a stored chain's moves used (None: differential evolution alone)."""
+def _stored_approximation(
+    backend,
+) -> tuple[Approximation | None, tuple[BlockT | GroupGrid, ...]]:
+    """The approximation and grids a stored chain's moves used (None, (): DE alone)."""
     if not isinstance(backend, BufferedHDFBackend):
-        return None
+        return None, ()
     with backend.open("r") as stored:
         group = stored[backend.name]
+        grids = []
+        while f"block_{len(grids)}" in group.attrs:
+            i = len(grids)
+            kind, fields = BLOCK_FIELDS[str(group.attrs[f"block_{i}"])]
+            grids.append(kind(*(group[f"block_{i}_{key}"][()] for key in fields)))
         if "mixture_weights" in group:
-            return MixtureApproximation(*(group[f"mixture_{key}"][()] for key in MIXTURE_FIELDS))
+            fields = (group[f"mixture_{key}"][()] for key in MIXTURE_FIELDS)
+            return MixtureApproximation(*fields), tuple(grids)
         if "laplace_centre" not in group.attrs:
-            return None
+            return None, tuple(grids)
         return LaplaceApproximation(
             np.array(group.attrs["laplace_centre"]), np.array(group.attrs["laplace_covariance"])
-        )
+        ), tuple(grids)
 
 
 def _burn_in_and_thinning(steps: int, tau: np.ndarray) -> tuple[int, int]:

@@ -32,7 +32,16 @@ from typing import TypeVar
 import numpy as np
 
 from .._runtime.arviz_quiet import az
-from .._runtime.defaults import ENGINE, HDI_PROB, MAX_STEPS, NOISE, SENSOR, STEADY, WALKERS
+from .._runtime.defaults import (
+    DAMPING_MODEL,
+    ENGINE,
+    HDI_PROB,
+    MAX_STEPS,
+    NOISE,
+    SENSOR,
+    STEADY,
+    WALKERS,
+)
 from .._runtime.errors import DataError, InputError
 from ..io.experiment import Experiment, as_experiments
 from ..likelihood.priors import LogPosterior, Prior
@@ -522,6 +531,7 @@ def compare(
     sensor: str = SENSOR,
     engine: str = ENGINE,
     steady: bool = STEADY,
+    damping: str = DAMPING_MODEL,
     seed: int | None = None,
     max_steps: int = MAX_STEPS,
     walkers: int = WALKERS,
@@ -545,7 +555,8 @@ def compare(
     families : sequence of str, optional
         Keys of :data:`bayes_jackal.FAMILIES`, distinct (``--families``);
         None: every registered family, in the registry's order.
-    channels, noise, sensor, engine, steady, seed, max_steps, walkers, priors, robot, progress
+    channels, noise, sensor, engine, steady, damping, seed, max_steps, walkers, priors, robot,
+    progress
         As in :func:`sample`; the seed seeds every family's chain and the
         bridges' proposal draws.
     nested : bool
@@ -597,7 +608,12 @@ def compare(
         processes=processes,
         executor=executor,
         likelihood_options=LikelihoodOptions(
-            channels=channels, noise=noise, sensor=sensor, engine=engine, steady=steady
+            channels=channels,
+            noise=noise,
+            sensor=sensor,
+            engine=engine,
+            steady=steady,
+            damping=damping,
         ),
     )
 

@@ -16,6 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.optimize
+from scipy.special import logsumexp
 
 from .._runtime.errors import InputError
 from .._runtime.threads import one_blas_thread
@@ -24,6 +25,8 @@ from .moves import (
     MIN_MATCHED_EFFICIENCY,
     MIN_PROPOSAL_EFFICIENCY,
     Approximation,
+    BlockT,
+    GroupGrid,
     LaplaceApproximation,
     MixtureApproximation,
     Start,
@@ -33,7 +36,14 @@ from .moves import (
 )
 from .starts import profile_starts
 
-__all__ = ["climb", "find_map", "laplace_walkers", "ridge_mixture", "scan_posterior"]
+__all__ = [
+    "block_proposals",
+    "climb",
+    "find_map",
+    "laplace_walkers",
+    "ridge_mixture",
+    "scan_posterior",
+]
 
 
 #: Local searches of :func:`find_map`, from the best points of the profile.
@@ -42,6 +52,13 @@ _MAP_STARTS = 4
 SWEEP_POINTS = 64
 #: Points of its refinement around the coarse best.
 SWEEP_REFINE = 32
+#: Points per parameter of a noise group's grid (:func:`block_proposals`), by its
+#: parameters' number (1, 2, 3): at most 4,096 evaluations a group.
+GRID_POINTS = (64, 32, 16)
+#: How far below the best cell [nats] the refined grid of a block still reaches.
+GRID_DEPTH = 20.0
+#: A group's parameter whose conditional sd is below this many grid cells takes a t.
+NARROW = 0.5
 #: Cells of the grid along a curved posterior's widest parameter (:func:`ridge_mixture`).
 RIDGE_CELLS = 16
 #: How far below the highest cell's conditional maximum [nats] a cell still gets a component.
@@ -384,7 +401,114 @@ def laplace_walkers(
     if points is None:  # no approximation of the posterior: a small ball
         ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
         points = ball[prior.inside(ball)][:walkers]
-    return Start(points, None)  # differential evolution alone
+    # Differential evolution, and block moves of the damping and of each noise group.
+    blocks = () if approximation is None else block_proposals(log_posterior, approximation)
+    return Start(points, None, blocks)
+
+
+def block_proposals(
+    log_posterior: LogPosterior, approximation: LaplaceApproximation
+) -> tuple[BlockT | GroupGrid, ...]:
+    """Proposals of the damping's block and of each noise group's (:class:`GroupMove`).
+
+    The damping's (with the speed ratios and a width every group shares) is
+    a t around its conditional Laplace approximation (the inverse of its
+    block of the approximation's precision). Each noise group's parameters
+    are split: the sensor sd, where the data fix it finer than a grid's
+    cell (a conditional sd below :data:`NARROW` cells), takes its
+    conditional t; the others (the width and sigma_c, which bend with each
+    other) a grid of their joint conditional posterior at the centre,
+    :data:`GRID_POINTS` per parameter over the prior's box in z, or their
+    conditional t where the grid's mass is in one cell.
+
+    Examples
+    --------
+    The yaw rate of a simulated run, around its truth: the damping's block,
+    the sensor sd's and the grid of the width and sigma_c, which the 38 s
+    run leaves spread along a curve at that narrow a covariance:
+
+    >>> import numpy as np
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.inference import LaplaceApproximation, block_proposals
+    >>> from bayes_jackal.likelihood import LogPosterior, Prior, ResidualLikelihood
+    >>> robot = bj.load_profile()
+    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
+    >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw",))
+    >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
+    >>> z = np.log([110.0, 30.0, 0.047, 0.01, 0.005])
+    >>> blocks = block_proposals(log_posterior, LaplaceApproximation(z, 1e-4 * np.eye(5)))
+    >>> [(type(block).__name__, block.columns.tolist()) for block in blocks]
+    [('BlockT', [0, 1]), ('BlockT', [4]), ('GroupGrid', [2, 3])]
+    """
+    prior, layout = log_posterior.prior, log_posterior.likelihood.layout
+    centre, precision = approximation.centre, np.linalg.inv(approximation.covariance)
+
+    def conditional(columns: np.ndarray) -> BlockT:
+        covariance = np.linalg.inv(precision[np.ix_(columns, columns)])
+        return BlockT(columns, centre[columns], covariance)
+
+    shared = layout.damping_bases + layout.shared_bases
+    blocks: list[BlockT | GroupGrid] = [conditional(np.array([layout.column(b) for b in shared]))]
+    for group in range(len(layout.groups)):
+        columns = np.array([layout.column(b, group) for b in layout.group_bases_of(group)])
+        if not len(columns):
+            continue
+        # The sensor sd, where the data fix it finer than a cell of the group's
+        # grid, takes its t; the width and sigma_c, which bend with each other
+        # (a banana), a grid of their joint conditional, or their t where that
+        # grid's mass is in one cell (identified).
+        sensor = layout.sensor_parameter(group)
+        alone = np.zeros(len(columns), bool)
+        if sensor is not None:
+            i = (
+                layout.group_bases_of(group).index(sensor)
+                if sensor in layout.group_bases_of(group)
+                else None
+            )
+            if i is not None:
+                sd = 1.0 / np.sqrt(precision[columns[i], columns[i]])
+                span = prior.z_high[columns[i]] - prior.z_low[columns[i]]
+                alone[i] = sd < NARROW * span / GRID_POINTS[len(columns) - 1]
+        if alone.any():
+            blocks.append(conditional(columns[alone]))
+        rest = columns[~alone]
+        grid = _grid(log_posterior, centre, rest)
+        if grid is None or np.max(grid.log_probability) > np.log(0.5):
+            blocks.append(conditional(rest))
+        else:
+            blocks.append(grid)
+    return tuple(blocks)
+
+
+def _grid(
+    log_posterior: LogPosterior, centre: np.ndarray, columns: np.ndarray
+) -> GroupGrid | None:
+    """The grid of the conditional posterior of ``columns`` at ``centre`` (None: none finite).
+
+    Twice: over the prior's box, then over the cells within
+    :data:`GRID_DEPTH` nats of the best (and a cell and a half more on each
+    side), where the conditional's mass is; the uniform part of the
+    proposal keeps the prior's box.
+    """
+    prior = log_posterior.prior
+    points = GRID_POINTS[min(len(columns), len(GRID_POINTS)) - 1]
+    box_low, box_high = prior.z_low[columns], prior.z_high[columns]
+    low, high, grid = box_low, box_high, None
+    for _ in range(2):
+        cell = (high - low) / points
+        fractions = np.arange(points) + 0.5
+        axes = [lo + c * fractions for lo, c in zip(low, cell, strict=True)]
+        cells = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(columns))
+        candidates = np.repeat(centre[None], len(cells), axis=0)
+        candidates[:, columns] = cells
+        values = log_posterior(candidates)
+        if not np.isfinite(values).any():
+            return grid
+        grid = GroupGrid(columns, low, high, values - logsumexp(values), points, box_low, box_high)
+        kept = cells[values >= np.max(values) - GRID_DEPTH]
+        low = np.maximum(kept.min(axis=0) - 1.5 * cell, box_low)
+        high = np.minimum(kept.max(axis=0) + 1.5 * cell, box_high)
+    return grid
 
 
 def _derivatives(

@@ -23,7 +23,17 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime.arviz_quiet import az
-from .._runtime.defaults import ENGINE, FAMILY, HDI_PROB, MAX_STEPS, NOISE, SENSOR, STEADY, WALKERS
+from .._runtime.defaults import (
+    DAMPING_MODEL,
+    ENGINE,
+    FAMILY,
+    HDI_PROB,
+    MAX_STEPS,
+    NOISE,
+    SENSOR,
+    STEADY,
+    WALKERS,
+)
 from .._runtime.errors import InputError
 from .._runtime.rng import as_rng
 from ..io.experiment import Experiment, as_experiments
@@ -483,6 +493,7 @@ def population(
     sensor: str = SENSOR,
     engine: str = ENGINE,
     steady: bool = STEADY,
+    damping: str = DAMPING_MODEL,
     seed: int | None = None,
     max_steps: int = MAX_STEPS,
     walkers: int = WALKERS,
@@ -507,7 +518,7 @@ def population(
     covariate : str, optional
         The covariate of the state dependence log d = a + b (x - x0); by
         default ``speed`` when every run has one, else none.
-    family, channels, noise, sensor, engine, steady
+    family, channels, noise, sensor, engine, steady, damping
         The likelihood, as in :func:`bayes_jackal.sample`. ``noise``
         decides the units: ``"shared"`` or ``"one-width"`` pool each
         group's runs, their noise shared; ``"per-experiment"`` samples each
@@ -573,7 +584,12 @@ def population(
         seed=seed,
         prior_overrides=priors,
         likelihood_options=LikelihoodOptions(
-            channels=channels, noise=noise, sensor=sensor, engine=engine, steady=steady
+            channels=channels,
+            noise=noise,
+            sensor=sensor,
+            engine=engine,
+            steady=steady,
+            damping=damping,
         ),
         executor=executor,
         out=out,

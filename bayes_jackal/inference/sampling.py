@@ -23,7 +23,16 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime import interrupt
-from .._runtime.defaults import ENGINE, FAMILY, MAX_STEPS, NOISE, SENSOR, STEADY, WALKERS
+from .._runtime.defaults import (
+    DAMPING_MODEL,
+    ENGINE,
+    FAMILY,
+    MAX_STEPS,
+    NOISE,
+    SENSOR,
+    STEADY,
+    WALKERS,
+)
 from ..io.experiment import Experiment, as_experiments
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
@@ -164,7 +173,7 @@ def sample_posterior(
     >>> sorted(posterior.groups())
     ['constant_data', 'observed_data', 'posterior', 'sample_stats']
     >>> dict(posterior.posterior.sizes)
-    {'chain': 32, 'draw': 16, 'state': 3, 'wheel': 2}
+    {'chain': 32, 'draw': 10, 'state': 3, 'wheel': 2}
     """
     settings = settings or SamplerSettings()
     prior = Prior.for_likelihood(likelihood, likelihood.robot, prior_overrides)
@@ -198,6 +207,7 @@ def sample(
     sensor: str = SENSOR,
     engine: str = ENGINE,
     steady: bool = STEADY,
+    damping: str = DAMPING_MODEL,
     seed: int | None = None,
     max_steps: int = MAX_STEPS,
     walkers: int = WALKERS,
@@ -231,6 +241,10 @@ def sample(
     steady : bool
         Each experiment's steady window only, as the thesis (``--steady``);
         by default every sample: transients are data the model covers.
+    damping : {"constant", "speed"}
+        One damping, or one that depends on each segment's speed through
+        the speed ratios ``speed_ratio_lat``, ``speed_ratio_long``
+        (``--damping speed``; :class:`bayes_jackal.likelihood.ResidualLikelihood`).
     seed : int, optional
         Same seed, same chain (``--seed``).
     max_steps : int
@@ -282,7 +296,12 @@ def sample(
     ('white', ['yaw'], False)
     """
     options = LikelihoodOptions(
-        channels=channels, noise=noise, sensor=sensor, engine=engine, steady=steady
+        channels=channels,
+        noise=noise,
+        sensor=sensor,
+        engine=engine,
+        steady=steady,
+        damping=damping,
     )
     likelihood = options.likelihood(as_experiments(experiments), as_profile(robot), family)
     return sample_posterior(

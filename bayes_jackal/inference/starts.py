@@ -48,6 +48,8 @@ to a second each, is only evaluated near the profile's best widths.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import scipy.fft
 import scipy.stats
@@ -58,6 +60,7 @@ from ..likelihood.series_likelihood import SeriesLikelihood
 from ..likelihood.spectral import ResidualBlock
 from ..likelihood.whittle import expected_periodogram, frequency_weights
 from ..model.kernels import get_family
+from ..model.parameters import SPEED_RATIOS
 
 __all__ = ["profile_starts", "series_profile"]
 
@@ -149,6 +152,8 @@ def profile_starts(
     >>> np.allclose(replace(likelihood, engine="whittle")(theta), profile, rtol=1e-9)
     True
     """
+    if likelihood.damping != "constant":
+        return _constant_starts(likelihood, low, high, damping_points, starts, rng)
     unit = scipy.stats.qmc.Sobol(2, scramble=True, seed=rng).random(damping_points)
     damping = low[:2] * (high[:2] / low[:2]) ** unit
     theta = np.repeat(np.sqrt(low * high)[None], damping_points, axis=0)
@@ -171,6 +176,32 @@ def profile_starts(
         loglike, theta = _exact_profile(likelihood, group, theta, low, high)
         total = total + loglike
     return theta, total
+
+
+def _constant_starts(
+    likelihood: ResidualLikelihood,
+    low: np.ndarray,
+    high: np.ndarray,
+    damping_points: int,
+    starts: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Starts of a damping that depends on the speed: the constant damping's, its ratios 1.
+
+    The same likelihood with one damping (most of its channels on the
+    Toeplitz engines) is profiled, and each start gets the speed ratios 1:
+    the speed model's local searches climb from the constant model's best.
+    Its profile values are the constant model's.
+    """
+    constant = dataclasses.replace(likelihood, damping="constant")
+    extra = [likelihood.layout.column(base) for base in SPEED_RATIOS]
+    keep = np.setdiff1d(np.arange(len(low)), extra)
+    theta, profile = profile_starts(
+        constant, low[keep], high[keep], damping_points=damping_points, starts=starts, rng=rng
+    )
+    out = np.ones((len(theta), len(low)))
+    out[:, keep] = theta
+    return np.clip(out, low, high), profile
 
 
 def _exact_profile(

@@ -144,8 +144,8 @@ class PoseObservations:
 
     Examples
     --------
-    Poses at 10 Hz beside a 50 Hz clock: each at its own stamp, a fifth of a
-    step past its sample here:
+    Poses at 10 Hz beside a 50 Hz clock: a pose every 5 samples, a fifth of a
+    step past its sample:
 
     >>> import numpy as np
     >>> from bayes_jackal.io import Experiment, PoseTrack, pose_observations
@@ -154,7 +154,7 @@ class PoseObservations:
     ...                  vx=0.3 + 0 * t, vy=0 * t, pose=PoseTrack(s, 0.3 * s, 0 * s, 0 * s))
     >>> poses = pose_observations(run)
     >>> poses.regime, poses.ticks[:3].tolist(), poses.phases[:3].round(6).tolist()
-    ('stamp', [0, 5, 10], [0.004, 0.004, 0.004])
+    ('stride', [0, 5, 10], [0.004, 0.004, 0.004])
     """
 
     regime: str

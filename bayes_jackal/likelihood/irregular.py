@@ -211,13 +211,6 @@ class IrregularSeries:
         return np.minimum(np.arange(self.span)[:, None] + ticks, len(self.inputs) - 1)
 
     @cached_property
-    def _span_inputs(self) -> np.ndarray:
-        """The inputs over each residual's span, shape (2, L, J); zero past its end."""
-        inside = np.arange(self.span)[:, None] <= self._positions[-1]
-        inputs = np.asarray(self.inputs, float)[self._span_ticks]  # (L, J, 2)
-        return np.where(inside[..., None], inputs, 0.0).transpose(2, 0, 1).copy()
-
-    @cached_property
     def _data(self) -> tuple[np.ndarray, np.ndarray]:
         """The two observations (or increments) each residual combines: (later, earlier)."""
         count = self.residual_count
@@ -409,7 +402,7 @@ def pattern_coefficients(
     >>> from bayes_jackal.likelihood import pattern_coefficients, pose_weights
     >>> mu, gamma = pattern_coefficients("pose", 0.01, 1, 0.0, np.array([0.9]))
     >>> kappa_0, kappa_1 = pose_weights(np.array([0.9]))
-    >>> bool(np.allclose(mu[0, :2], [kappa_1[0], kappa_0[0]])), float(gamma[0])
+    >>> bool(np.allclose(mu[0, :2], [kappa_1[0], kappa_0[0]])), round(float(gamma[0]), 12)
     (True, 0.9)
     """
     order = _ORDER[measurement]
@@ -451,13 +444,53 @@ def _column(values: np.ndarray, q: int) -> np.ndarray:
     return values[:, index : index + 1]
 
 
-def _observation_forms(
-    series: IrregularSeries, alpha: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The linear form of each observation of each residual in v_b and the span's drives.
+@dataclass(frozen=True)
+class _Patterns:
+    """The distinct residuals of a series: their observations' positions and phases, and dampings.
 
-    Returns ``(coefficient of v_b, shape (B, order, J); coefficients of the
-    drives xi_{b+q}, shape (B, L, order, J))``. With P_q = prod_{q<r<p}
+    Residuals of one pattern have one set of coefficients: a pose every m
+    samples at one phase under one damping gives a handful, whatever the
+    run's length, and :func:`_coefficients` computes each once.
+    """
+
+    positions: np.ndarray  # (order, U)
+    phases: np.ndarray  # (order, U) [s]
+    span_damping: np.ndarray | None  # (L, U): each position's damping
+    at_damping: np.ndarray | None  # (order, U): the damping of each observation's step
+    inverse: np.ndarray  # (J,): each residual's pattern
+
+
+def _patterns(series: IrregularSeries) -> _Patterns:
+    """The series' :class:`_Patterns` (computed once per series)."""
+    if "_patterns" in series.__dict__:
+        return series.__dict__["_patterns"]
+    keys = [series._positions, series._phases]
+    span_damping = at_damping = None
+    if series.damping_index is not None:
+        span_damping = series.damping_index[series._span_ticks]
+        at_damping = series.damping_index[series._window(np.asarray(series.ticks, int))]
+        keys += [span_damping, at_damping]
+    rows = np.concatenate([np.asarray(k, float) for k in keys], axis=0).T  # (J, keys)
+    _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    pick = (slice(None), first)
+    patterns = _Patterns(
+        series._positions[pick],
+        series._phases[pick],
+        None if span_damping is None else span_damping[pick],
+        None if at_damping is None else at_damping[pick],
+        inverse.ravel(),
+    )
+    series.__dict__["_patterns"] = patterns
+    return patterns
+
+
+def _observation_forms(
+    patterns: _Patterns, measurement: str, dt: float, alpha: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The linear form of each pattern's observations in v_b and the span's drives.
+
+    Returns ``(coefficient of v_b, shape (B, order, U); coefficients of the
+    drives xi_{b+q}, shape (B, L, order, U))``. With P_q = prod_{q<r<p}
     alpha_r and S_q = sum_{q<r<p} g_r prod_{q<r'<r} alpha_{r'} for an
     observation at position p (both by the recursion q -> q - 1 from
     P_{p-1} = 1, S_{p-1} = 0), the drive xi_q (q < p) enters a rate
@@ -466,26 +499,28 @@ def _observation_forms(
     (pose); and v_b with e^{a tau} alpha_0 P_0 (rate) or g_0 + alpha_0 S_0
     + g(tau) alpha_0 P_0 (pose), e^{a tau} and g(tau) alone where p = 0.
     """
-    g_damping, h_damping = step_integrals(alpha, series.dt)
-    alphas, g, ratio = (_span(series, v) for v in (alpha, g_damping, h_damping / g_damping))
-    batch, count, span, order = len(alpha), series.residual_count, series.span, series.order
-    positions, phases = series._positions, series._phases  # (order, J)
-    if series.damping_index is None:
-        at_alpha, at_g = alpha[:, :1, None], g_damping[:, :1, None]  # (B, 1, 1)
-    else:
-        at = series.damping_index[series._window(np.asarray(series.ticks, int))]
-        at_alpha, at_g = alpha[:, at], g_damping[:, at]  # (B, order, J)
+    g_damping, h_damping = step_integrals(alpha, dt)
+    positions, phases = patterns.positions, patterns.phases  # (order, U)
+    order, count = positions.shape
+    span = int(positions[-1].max()) + 1
+
+    def over(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
+        return values[:, :1, None] if index is None else values[:, index]
+
+    alphas, g = over(alpha, patterns.span_damping), over(g_damping, patterns.span_damping)
+    ratio = over(h_damping / g_damping, patterns.span_damping)
+    at_alpha, at_g = over(alpha, patterns.at_damping), over(g_damping, patterns.at_damping)
     if phases.any():
-        partial = at_alpha ** (phases / series.dt)  # e^{a tau}, (B, order, J)
+        partial = at_alpha ** (phases / dt)  # e^{a tau}, (B, order, U)
         g_unit, h_unit = step_integrals(partial, 1.0)  # of a tau: g(tau) / tau, h(tau) / tau^2
         g_tau, h_tau = g_unit * phases, h_unit * phases**2
     else:  # every observation on a tick
         partial, g_tau, h_tau = np.ones(1), np.zeros(1), np.zeros(1)
-    pose = series.measurement == "pose"
+    pose = measurement == "pose"
     at_end = (h_tau if pose else g_tau) / at_g
-    drives = np.zeros((batch, span, order, count))
-    product = np.ones((batch, order, count))
-    suffix = np.zeros((batch, order, count))
+    drives = np.zeros((len(alpha), span, order, count))
+    product = np.ones((len(alpha), order, count))
+    suffix = np.zeros((len(alpha), order, count))
     for q in range(span - 1, -1, -1):
         started = q == positions - 1
         if q + 1 < span:  # from P_{q+1}, S_{q+1} to P_q, S_q
@@ -504,16 +539,24 @@ def _observation_forms(
 
 
 def _coefficients(series: IrregularSeries, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """mu (B, L, J), the drives' coefficients in each residual, and gamma (B, J)."""
-    state, drives = _observation_forms(series, alpha)
+    """mu (B, L, J), the drives' coefficients in each residual, and gamma (B, J).
+
+    Computed for each distinct pattern (:func:`_patterns`) and spread to its residuals.
+    """
+    patterns = _patterns(series)
+    state, drives = _observation_forms(patterns, series.measurement, series.dt, alpha)
     if series.measurement == "rate":
         gamma = state[:, 1] / state[:, 0]
-        return drives[:, :, 1] - gamma[:, None] * drives[:, :, 0], gamma
-    later_state, earlier_state = state[:, 2] - state[:, 1], state[:, 1] - state[:, 0]
-    later = drives[:, :, 2] - drives[:, :, 1]
-    earlier = drives[:, :, 1] - drives[:, :, 0]
-    gamma = later_state / earlier_state
-    return (later - gamma[:, None] * earlier) / series.dt, gamma
+        mu = drives[:, :, 1] - gamma[:, None] * drives[:, :, 0]
+    else:
+        later_state, earlier_state = state[:, 2] - state[:, 1], state[:, 1] - state[:, 0]
+        later = drives[:, :, 2] - drives[:, :, 1]
+        earlier = drives[:, :, 1] - drives[:, :, 0]
+        gamma = later_state / earlier_state
+        mu = (later - gamma[:, None] * earlier) / series.dt
+    width = series.span
+    mu = np.pad(mu, ((0, 0), (0, width - mu.shape[1]), (0, 0)))
+    return mu[:, :, patterns.inverse], gamma[:, patterns.inverse]
 
 
 def _residuals(
@@ -524,11 +567,9 @@ def _residuals(
     combined = later[None] - gamma * earlier[None]
     if series.measurement == "pose":
         combined = combined / series.dt
-    if series.damping_index is None:  # one damping: beta . sum_q mu_q u_q
-        driven = np.einsum("blj,wlj->bwj", mu, series._span_inputs)
-        return combined - np.einsum("bwj,bw->bj", driven, beta[:, 0])
-    row = _span(series, beta)  # (B, L, J, 2)
-    return combined - np.einsum("blj,bljw,wlj->bj", mu, row, series._span_inputs)
+    index = slice(None) if series.damping_index is None else series.damping_index
+    drive = np.einsum("bnw,nw->bn", beta[:, index], series.inputs)  # beta_i . u_i, (B, N)
+    return combined - np.einsum("blj,blj->bj", mu, drive[:, series._span_ticks])
 
 
 def _process_band(

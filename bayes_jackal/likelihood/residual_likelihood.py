@@ -63,6 +63,7 @@ import scipy.fft
 from .._runtime.chunks import chunks
 from .._runtime.defaults import (
     DAMPING_MODEL,
+    DAMPING_MODELS,
     DEFAULT_CHANNEL_ORDER,
     ENGINE,
     ENGINES,
@@ -79,7 +80,7 @@ from .._runtime.rng import as_rng
 from .._runtime.threads import one_blas_thread
 from ..io.experiment import Experiment
 from ..model.kernels import get_family
-from ..model.parameters import DAMPING_MODELS, ParameterLayout
+from ..model.parameters import ParameterLayout
 from ..model.physics import channel_coefficients, step_integrals
 from ..model.robot import RobotProfile
 from . import spectral

@@ -16,7 +16,6 @@ from .kernels import (
 )
 from .parameters import (
     DAMPING,
-    DAMPING_MODELS,
     POSE_SENSOR,
     PRIOR_KEYS,
     SHARED_GROUP,
@@ -57,7 +56,6 @@ from .robot import (
 
 __all__ = [
     "DAMPING",
-    "DAMPING_MODELS",
     "DEFAULT_PRIORS",
     "FAMILIES",
     "POSE_SENSOR",

@@ -26,13 +26,13 @@ from functools import cached_property
 
 import numpy as np
 
+from .._runtime.defaults import DAMPING_MODELS
 from .._runtime.errors import InputError
 from .kernels import FAMILIES, Family, get_family
 from .robot import DEFAULT_PRIORS
 
 __all__ = [
     "DAMPING",
-    "DAMPING_MODELS",
     "POSE_SENSOR",
     "PRIOR_KEYS",
     "SHARED_GROUP",
@@ -49,10 +49,6 @@ __all__ = [
 
 #: The damping parameters, first in every parameter vector [N s/m].
 DAMPING = ("d_lat", "d_long")
-#: How the damping depends on the state (``damping=``, ``--damping``): one
-#: damping, or log d = log d_ref + log(ratio) (v - v_ref) / (v_max - v_min)
-#: over the runs' segments, v each segment's speed (docs/design.md §4.1).
-DAMPING_MODELS = ("constant", "speed")
 #: The speed model's parameters after the damping: each damping at the top
 #: speed over the damping at the bottom one [-] (d_lat, d_long then at the
 #: middle of the speed range).

@@ -51,7 +51,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from .._runtime.defaults import DEFAULT_FAMILIES, GRID_METHODS, STATE_ESTIMATION
-from .._runtime.errors import DataError
+from .._runtime.errors import DataError, describe
 from .._runtime.files import write_json
 from ..dem.export import export_prior, write_prior
 from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
@@ -106,6 +106,31 @@ def _grids(experiments, robot, folder: Path, say: Callable[[str], None], priors=
     payload = {"truth": _common_truth(experiments), **summaries}
     write_json(folder / "grid.json", payload)
     return summaries
+
+
+def _usable(
+    experiments: list[Experiment],
+    robot: RobotProfile,
+    options: LikelihoodOptions,
+    family: str,
+    say: Callable[[str], None],
+) -> tuple[list[Experiment], dict[str, str]]:
+    """The experiments a likelihood can take, each alone; the others' reasons, by source.
+
+    Checked before the grids, so that a log no model can use (poses that do
+    not cover its samples, a channel too short) is named and skipped, not
+    found after minutes of work.
+    """
+    usable, failed = [], {}
+    for experiment in experiments:
+        try:
+            options.likelihood([experiment], robot, family)
+        except DataError as exc:
+            failed[experiment.source] = describe(exc, experiment.source)
+            say(f"  skipped {failed[experiment.source]}")
+        else:
+            usable.append(experiment)
+    return usable, failed
 
 
 def analyse_logs(
@@ -259,6 +284,13 @@ def analyse_logs(
             field="inputs",
         )
     options = LikelihoodOptions.of(likelihood_options)
+    experiments, unusable = _usable(experiments, robot, options, families[0], say)
+    failed |= unusable
+    if not experiments:
+        raise DataError(
+            f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
+            field="inputs",
+        )
     options = dataclasses.replace(
         options, channels=resolve_channels(experiments, options.channels)
     )
