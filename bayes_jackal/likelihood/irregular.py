@@ -73,6 +73,7 @@ serves the channels those cannot (:class:`IrregularSeries`).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -406,14 +407,21 @@ def pattern_coefficients(
     (True, 0.9)
     """
     order = _ORDER[measurement]
+    series = _pattern_series(measurement, dt, stride, phase)
+    mu, gamma = _coefficients(series, np.asarray(alpha, float)[:, None])
+    return mu[:, : (order - 1) * stride + 1, 0], gamma[:, 0]
+
+
+@functools.lru_cache(maxsize=32)
+def _pattern_series(measurement: str, dt: float, stride: int, phase: float) -> IrregularSeries:
+    """One residual's observations every ``stride`` ticks at ``phase`` (kept: cheap to reuse)."""
+    order = _ORDER[measurement]
     ticks = np.arange(order + 1) * stride
-    series = IrregularSeries(
+    return IrregularSeries(
         "pattern", measurement, 0, dt, ticks, np.full(order + 1, phase),
         np.zeros(order + 1 - (measurement == "pose")), np.ones(order + 1, int),
         np.zeros((ticks[-1] + 1, 2)),
     )  # fmt: skip
-    mu, gamma = _coefficients(series, np.asarray(alpha, float)[:, None])
-    return mu[:, : (order - 1) * stride + 1, 0], gamma[:, 0]
 
 
 def _reach(family: Family, width: np.ndarray, dt: float, span: int) -> np.ndarray:

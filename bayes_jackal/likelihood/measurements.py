@@ -445,10 +445,23 @@ def pose_weights(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _pattern(
     alpha: np.ndarray, dt: float, clock: tuple[int, float]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """mu (..., 2m + 1) and gamma (...) of a pose every m samples at one phase."""
+    """mu (..., 2m + 1) and gamma (...) of a pose every m samples at one phase.
+
+    The last few are kept: an evaluation asks for them once for the
+    coefficients and again for each spectral grid's autocovariance.
+    """
     alpha = np.asarray(alpha, float)
-    mu, gamma = pattern_coefficients("pose", dt, clock[0], clock[1], alpha.ravel())
-    return mu.reshape(*alpha.shape, -1), gamma.reshape(alpha.shape)
+    key = (alpha.tobytes(), alpha.shape, dt, clock)
+    if key not in _PATTERNS:
+        mu, gamma = pattern_coefficients("pose", dt, clock[0], clock[1], alpha.ravel())
+        if len(_PATTERNS) >= 8:
+            _PATTERNS.pop(next(iter(_PATTERNS)))
+        _PATTERNS[key] = (mu.reshape(*alpha.shape, -1), gamma.reshape(alpha.shape))
+    return _PATTERNS[key]
+
+
+#: The last few :func:`_pattern` results, by their arguments.
+_PATTERNS: dict = {}
 
 
 def _strided_process(
