@@ -30,6 +30,7 @@ from .moves import (
     LaplaceApproximation,
     MixtureApproximation,
     Start,
+    as_laplace,
     as_mixture,
     moment_matched,
     proposal_efficiency,
@@ -396,8 +397,9 @@ def laplace_walkers(
             widest = approximation if matched is None else matched
             mixture = ridge_mixture(log_posterior, approximation.centre, widest.covariance)
             start = _efficient_start(log_posterior, mixture, walkers, rng)
-        if start is not None:
-            return start
+        if start is not None:  # block moves beside it, for what the approximation spreads over
+            blocks = block_proposals(log_posterior, as_laplace(start.approximation))
+            return Start(start.walkers, start.approximation, blocks)
     if points is None:  # no approximation of the posterior: a small ball
         ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
         points = ball[prior.inside(ball)][:walkers]
@@ -440,7 +442,9 @@ def block_proposals(
     >>> [(type(block).__name__, block.columns.tolist()) for block in blocks]
     [('BlockT', [0, 1]), ('BlockT', [4]), ('GroupGrid', [2, 3])]
     """
-    prior, layout = log_posterior.prior, log_posterior.likelihood.layout
+    prior, layout = log_posterior.prior, getattr(log_posterior.likelihood, "layout", None)
+    if layout is None:  # a likelihood of other parameters than the package's: no blocks known
+        return ()
     centre, precision = approximation.centre, np.linalg.inv(approximation.covariance)
 
     def conditional(columns: np.ndarray) -> BlockT:

@@ -404,8 +404,9 @@ def pose_samples(experiment: Experiment) -> tuple[int, int]:
     ... except ValueError as error:
     ...     print(error)
     run.bag: pose: 220 of 720 samples (31 %) own no pose within half a step: the poses (50
-    Hz) are slower than the samples (72 Hz) or drop out too often, and the pose channels need
-    a pose of each sample's own (--channels yaw leaves them out)
+    Hz) are slower than the samples (72 Hz), and the state-estimation filters need a pose of
+    each sample's own (the likelihood takes the poses at their own stamps; the filters take
+    --channels yaw)
     """
     track, t, dt = _track(experiment), experiment.t, experiment.dt
     far = np.flatnonzero(~_near_samples(track.t, t, dt))
@@ -420,11 +421,16 @@ def pose_samples(experiment: Experiment) -> tuple[int, int]:
     samples = int(np.quantile(counts, BORROW_FRACTION, method="lower"))
     if samples == 0:
         alone = int(np.sum(counts == 0))
+        why = (
+            f"the poses ({track.rate:.4g} Hz) are slower than the samples ({1 / dt:.4g} Hz)"
+            if track.rate < (1 - BORROW_FRACTION) / dt
+            else f"the poses ({track.rate:.4g} Hz) drop out or jitter off the samples' ticks"
+        )
         raise DataError(
             f"{alone} of {len(t)} samples ({100 * alone / len(t):.0f} %) own no pose within "
-            f"half a step: the poses ({track.rate:.4g} Hz) are slower than the samples "
-            f"({1 / dt:.4g} Hz) or drop out too often, and the pose channels need a pose of "
-            "each sample's own (--channels yaw leaves them out)",
+            f"half a step: {why}, and the state-estimation filters need a pose of each "
+            "sample's own (the likelihood takes the poses at their own stamps; the filters "
+            "take --channels yaw)",
             source=experiment.source,
             field="pose",
         )
