@@ -25,13 +25,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import statistics
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from bench_long_runs import make_run
-from bench_sample import run
-from timing import baseline_worktree
+from timing import baseline_worktree, timed_sample, work_folder
 
 import bayes_jackal as bj
 from bayes_jackal.io.experiment import write_netcdf
@@ -58,11 +56,8 @@ def families(source: Path, inputs: list[str], extra: list[str], out: Path) -> di
     """Each family's fresh ``sample`` of ``inputs``, timed."""
     results = {}
     for family in FAMILIES:
-        target = out / f"{family}.nc"
-        for stale in out.glob(f"{family}.*"):
-            stale.unlink()
-        arguments = ["sample", *inputs, *extra, "--family", family, "--out", str(target)]
-        results[family] = run(source, [*arguments, "--seed", "1", "--no-progress"])
+        results[family] = timed_sample(source, inputs, out / f"{family}.nc", *extra,
+                                       "--family", family)  # fmt: skip
     return results
 
 
@@ -87,8 +82,7 @@ def main() -> None:
     parser.add_argument("--no-baseline", action="store_true")
     parser.add_argument("--workdir", type=Path, default=None)
     args = parser.parse_args()
-    folder = (args.workdir or Path(tempfile.mkdtemp(prefix="bench_families_"))).resolve()
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = work_folder(args.workdir, "bench_families_")
     sources = {"this": Path(__file__).resolve().parents[1]}
     if not args.no_baseline:
         sources["baseline"] = baseline_worktree(folder, args.baseline)

@@ -48,11 +48,10 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
-from timing import baseline_worktree, timed_console
+from timing import baseline_worktree, timed_console, work_folder
 
 from bayes_jackal.model.kernels import FAMILIES, get_family
 
@@ -182,8 +181,7 @@ def main() -> None:
     parser.add_argument("--workdir", type=Path, default=None)
     parser.add_argument("--no-families", action="store_true", help="the command's runs only")
     args = parser.parse_args()
-    folder = (args.workdir or Path(tempfile.mkdtemp(prefix="bench_noise_"))).resolve()
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = work_folder(args.workdir, "bench_noise_")
     here = Path(__file__).resolve().parents[1]
     base = baseline_worktree(folder, args.baseline)
     values = series(args.series, args.samples, np.random.default_rng(0))

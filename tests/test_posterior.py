@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from bayes_jackal import DataError, InputError, load_profile
+from bayes_jackal import DataError, InputError, load_experiments, load_profile
 from bayes_jackal._runtime.arviz_quiet import az
 from bayes_jackal._runtime.defaults import CHANNELS
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
+from bayes_jackal.likelihood import LogPosterior
 from bayes_jackal.likelihood.priors import Prior
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.posterior import Posterior
@@ -161,6 +162,32 @@ def test_a_saved_posterior_loads_with_the_same_metadata(sampled, tmp_path):
     assert after.task == {"family": "exponential"}
     np.testing.assert_array_equal(Posterior.of(loaded).draws()[0], np.exp(chain))
     assert [e.name for e in Posterior.of(loaded).experiments] == ["v1_01", "v1_02"]
+
+
+def test_a_speed_damping_posterior_keeps_its_speed_ratios(tmp_path):
+    # The speed model's ratios are parameters like the damping: stored,
+    # summarised, and read back in the layout's order.
+    import lab_simulator as lab  # the tests' DRIVE-like table, with steps at several speeds
+
+    run = lab.write_drive_run(tmp_path / "drive.csv", n_steps=6, rng=3)
+    with pytest.warns(UserWarning):  # the held encoders, said and replaced
+        experiments = load_experiments(
+            [run.path], robot="husky", columns={**lab.DRIVE_ROLES, "segment": "calib_step"}
+        )
+    husky = load_profile("husky")
+    likelihood = ResidualLikelihood(
+        experiments, husky, channels=("yaw",), family="white", damping="speed"
+    )
+    prior = Prior.for_likelihood(likelihood, husky)
+    centre = np.log([306.5, 83.6, 1.5, 1.2, 0.05, 0.01])
+    chain = centre + 0.01 * np.random.default_rng(1).normal(size=(12, 12, 6))
+    lp = LogPosterior(likelihood, prior)(chain.reshape(-1, 6)).reshape(12, 12)
+    diagnostics = {"converged": False, "n_steps": 12, "autocorr_time": {}, "ess_autocorr": {}}
+    idata = build_inference_data(likelihood, prior, chain, lp, diagnostics)
+    loaded = load_posterior(save_posterior(idata, tmp_path / "p.nc"))
+    assert loaded.layout.names[2:4] == ("speed_ratio_lat", "speed_ratio_long")
+    np.testing.assert_array_equal(loaded.draws()[0], np.exp(chain))
+    assert summarize(loaded)["speed_ratio_long"]["mean"] == pytest.approx(1.2, rel=0.01)
 
 
 def test_a_file_written_before_the_format_had_an_owner_loads_and_summarises():

@@ -150,12 +150,16 @@ def build_inference_data(
     """
     draws = np.swapaxes(prior.to_natural(chain), 0, 1)  # (walkers, draws, P)
     d_lat, d_long = draws[..., 0], draws[..., 1]
-    noise, dims, noise_coords = _noise_variables(likelihood.layout, draws)
+    layout = likelihood.layout
+    noise, dims, noise_coords = _noise_variables(layout, draws)
+    # The speed model's ratios (d at the top speed / at the bottom), beside d at v_ref.
+    ratios = {base: draws[..., layout.column(base)] for base in layout.damping_bases[2:]}
     dt = likelihood.experiments[0].dt
     Ad, Bd = discrete_matrices(likelihood.robot, d_lat, d_long, dt)
     posterior = {
         "d_lat": d_lat,
         "d_long": d_long,
+        **ratios,
         **noise,
         "ratio": d_lat / d_long,
         "Ad": np.diagonal(Ad, axis1=-2, axis2=-1),
