@@ -1010,3 +1010,25 @@ def test_the_family_flags_take_the_registry_and_nothing_else(monkeypatch, capsys
     assert "use one of white,gaussian,exponential,triangular,moving-average" in (
         capsys.readouterr().err
     )
+
+
+def test_sample_with_a_speed_damping_prints_its_ratios(tmp_path, capsys):
+    # A DRIVE-like table of the tests' independent simulator (command steps at
+    # several speeds), its columns mapped as a user maps them: the speed
+    # model's ratios are parameters of the posterior and its summary.
+    import lab_simulator as lab
+
+    run = lab.write_drive_run(tmp_path / "drive.csv", n_steps=6, speed_dependent=True, rng=5)
+    roles = {**lab.DRIVE_ROLES, "segment": "calib_step"}
+    columns = [word for role, name in roles.items() for word in ("--column", role, name)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", UserWarning)  # what the command says of the table
+        code = main(["sample", str(run.path), *columns, "--robot", "husky", "--damping", "speed",
+                     "--family", "white", "--channels", "yaw", "--max-steps", "60",
+                     "--seed", "1", "--no-progress", "--out", str(tmp_path / "p.nc"),
+                     "--json"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0 and "held" in captured.err, captured.err  # the held encoders, said
+    summary = strict_json(captured.out)
+    assert {"speed_ratio_lat", "speed_ratio_long"} <= set(summary)
+    assert load_posterior(tmp_path / "p.nc").layout.damping == "speed"
