@@ -42,13 +42,6 @@ from bayes_jackal.likelihood import Prior, ResidualLikelihood
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import lab_simulator as lab  # the tests' independent simulator
 
-#: The table's columns by role, as a user maps them (``--column ROLE NAME``).
-COLUMNS = {
-    **lab.DRIVE_ROLES,
-    "cmd_omega_r": "cmd_right_vel",
-    "cmd_omega_l": "cmd_left_vel",
-    "segment": "calib_step",
-}
 #: Length of one command step of the DRIVE protocol [s].
 STEP = 6.0
 #: Parameter sets per evaluation: emcee's ensemble of the default walkers.
@@ -64,16 +57,36 @@ def drive_run(folder: Path, minutes: float) -> Path:
     return path
 
 
+def truth(name: str, otherwise: float) -> float:
+    """The DRIVE-like run's truth of parameter ``name`` (``sigma_c[vx]``, say), or ``otherwise``.
+
+    The kernel width sets the banded engine's band, so the noise is the
+    simulated one: sigma_h, each channel's sigma_c, the ICP's 2 cm as sigma_p.
+    """
+    base, _, channel = name.rstrip("]").partition("[")
+    drive = lab.HUSKY_DRIVE
+    values = {
+        "d_lat": drive["d_lat"],
+        "d_long": drive["d_long"],
+        "sigma_h": drive["sigma_h"],
+        "sigma_p": 0.02,
+        "sigma_c": dict(zip(("yaw", "vx", "vy"), drive["sigma_c"], strict=True)).get(channel),
+    }
+    value = values.get(base)
+    return otherwise if value is None else value
+
+
 def per_evaluation(path: Path, damping: str) -> tuple[float, int]:
     """Seconds per evaluation of :data:`SETS` parameter sets near the truth, and the samples."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # the held encoders, said and replaced
-        experiments = bj.load_experiments([path], robot="husky", columns=COLUMNS)
+        experiments = bj.load_experiments([path], robot="husky", columns=lab.DRIVE_ALL_ROLES)
     robot = bj.load_profile("husky")
     likelihood = ResidualLikelihood(experiments, robot, damping=damping)
     prior = Prior.for_likelihood(likelihood, robot)
-    centre = np.sqrt(prior.low * prior.high)
-    centre[:2] = (lab.HUSKY_DRIVE["d_lat"], lab.HUSKY_DRIVE["d_long"])
+    centre = np.sqrt(prior.low * prior.high)  # the speed ratios at 1
+    for column, name in enumerate(prior.names):
+        centre[column] = truth(name, centre[column])
     theta = centre * np.exp(0.05 * np.random.default_rng(1).standard_normal((SETS, centre.size)))
     likelihood(theta)  # the cached patterns and Gram tensors
     repeats = 20
@@ -91,7 +104,9 @@ def main() -> None:
     folder = work_folder(args.workdir, "bench_lab_logs_")
     here = Path(__file__).resolve().parents[1]
     baseline, steps = make_run(folder, 38.0), drive_run(folder, 10.0)
-    columns = [word for role, name in COLUMNS.items() for word in ("--column", role, name)]
+    columns = [
+        word for role, name in lab.DRIVE_ALL_ROLES.items() for word in ("--column", role, name)
+    ]
     print(f"sample of {baseline.name} and {steps.name} (files in {folder})")
     results: dict[str, list[dict]] = {"38 s thesis run": [], "10 min of steps": []}
     for _ in range(args.repeats):

@@ -27,11 +27,10 @@ import argparse
 import dataclasses
 import shutil
 import statistics
-import tempfile
 from pathlib import Path
 
 import numpy as np
-from timing import timed_console
+from timing import timed_console, work_folder
 
 from bayes_jackal import load_profile
 from bayes_jackal.inference.sampling import chain_path
@@ -111,8 +110,7 @@ def main() -> None:
     parser.add_argument("--workdir", type=Path, default=None)
     args = parser.parse_args()
     cases = args.cases.split(",")
-    folder = args.workdir or Path(tempfile.mkdtemp(prefix="bench_long_"))
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = work_folder(args.workdir, "bench_long_")
     print(f"{'case':<34s} {'time':>9s} {'peak RSS':>10s}   (files in {folder})")
     if "ratio" in cases:
         ratios = []

@@ -162,6 +162,14 @@ DRIVE_ROLES = {
     "y": "icp_y",
     "heading": "icp_yaw",
 }
+#: Every column's role as a user maps them: with the commanded wheel speeds and
+#: the step label, which give the runs' segments.
+DRIVE_ALL_ROLES = {
+    **DRIVE_ROLES,
+    "cmd_omega_r": "cmd_right_vel",
+    "cmd_omega_l": "cmd_left_vel",
+    "segment": "calib_step",
+}
 #: The DRIVE-like truth of the Husky: the Jackal's thesis damping (110, 30 N s/m)
 #: scaled by the mass ratio 46.034 / 16.523 = 2.786, a smooth force, and process
 #: noise of ~10 % of the spread of vx and r over a step sequence (module docstring).

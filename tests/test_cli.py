@@ -1019,8 +1019,8 @@ def test_sample_with_a_speed_damping_prints_its_ratios(tmp_path, capsys):
     import lab_simulator as lab
 
     run = lab.write_drive_run(tmp_path / "drive.csv", n_steps=6, speed_dependent=True, rng=5)
-    roles = {**lab.DRIVE_ROLES, "segment": "calib_step"}
-    columns = [word for role, name in roles.items() for word in ("--column", role, name)]
+    roles = lab.DRIVE_ALL_ROLES.items()
+    columns = [word for role, name in roles for word in ("--column", role, name)]
     with warnings.catch_warnings():
         warnings.simplefilter("default", UserWarning)  # what the command says of the table
         code = main(["sample", str(run.path), *columns, "--robot", "husky", "--damping", "speed",

@@ -39,7 +39,7 @@ sigma_h[vx], from above only: the profile likelihood over it is flat within
 0.4 nats from 0.003 to 0.09 s and falls by 1.8 nats at 0.14 and by 10 at 0.3
 s (seed 0), so the posterior, log-uniform from 0.001 s, piles at the lower
 bound and its 94 % HDI ends below the truth of 0.1 s in about half the seeds
-(4 of 9: upper ends 0.083-0.096 s). That is the prior's volume, not a wrong
+(4 of 10: upper ends 0.083-0.096 s). That is the prior's volume, not a wrong
 likelihood: it is recorded, not asserted in the HDI (:data:`ONE_SIDED`), and
 each row must warn ``prior-boundary`` on it and hold the truth in its central
 99.9 % interval.
@@ -80,13 +80,6 @@ WIDE = 0.999
 CI_CASES = ("dropouts", "steps")
 #: Thesis truth of the motion-capture cases (d_lat, d_long [N s/m], sigma_h [s]).
 THESIS = {"d_lat": 110.0, "d_long": 30.0, "sigma_h": 0.047}
-#: Columns of the DRIVE-like table as a user maps them (the command and the step label too).
-DRIVE_COLUMNS = {
-    **lab.DRIVE_ROLES,
-    "cmd_omega_r": "cmd_right_vel",
-    "cmd_omega_l": "cmd_left_vel",
-    "segment": "calib_step",
-}
 #: The least ratio of the steady circles' 94 % HDI width of log d_lat to the steps'.
 NARROWER = 3.0
 #: Parameters the case's data bound from one side only (module docstring):
@@ -150,7 +143,7 @@ def _drive(folder: Path, seed: int, kind: str, speed_dependent: bool = False) ->
                               speed_dependent=speed_dependent, rng=seed)  # fmt: skip
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # the held encoders, said and replaced
-        experiments = bj.load_experiments([run.path], robot="husky", columns=DRIVE_COLUMNS)
+        experiments = bj.load_experiments([run.path], robot="husky", columns=lab.DRIVE_ALL_ROLES)
     truth = {"d_lat": run.truth["d_lat"], "d_long": run.truth["d_long"]}
     truth |= {f"sigma_h[{c}]": run.truth["sigma_h"] for c in CHANNELS}
     truth |= pose_truth(run.truth["icp_sd"], lab.DRIVE_JITTER, run.states[:, 0])

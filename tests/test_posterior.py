@@ -171,9 +171,7 @@ def test_a_speed_damping_posterior_keeps_its_speed_ratios(tmp_path):
 
     run = lab.write_drive_run(tmp_path / "drive.csv", n_steps=6, rng=3)
     with pytest.warns(UserWarning):  # the held encoders, said and replaced
-        experiments = load_experiments(
-            [run.path], robot="husky", columns={**lab.DRIVE_ROLES, "segment": "calib_step"}
-        )
+        experiments = load_experiments([run.path], robot="husky", columns=lab.DRIVE_ALL_ROLES)
     husky = load_profile("husky")
     likelihood = ResidualLikelihood(
         experiments, husky, channels=("yaw",), family="white", damping="speed"

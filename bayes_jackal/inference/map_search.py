@@ -341,8 +341,11 @@ def laplace_walkers(
     (:func:`~bayes_jackal.inference.moment_matched`). Where no single t fits (a
     curved ridge: the damping's scale unidentified, the noise bending along
     it), the approximation is a mixture along the ridge
-    (:func:`ridge_mixture`). Where that fails too, the walkers start in a
-    small ball, and the chain moves by differential evolution alone.
+    (:func:`ridge_mixture`); block moves (:func:`block_proposals`) go beside
+    either, at the approximation's mean and covariance. Where that fails
+    too, the walkers start in a small ball, and the chain moves by
+    differential evolution, and by block moves at the Hessian's approximation
+    where there is one.
 
     Examples
     --------

@@ -175,8 +175,11 @@ class Start:
     ----------
     walkers : ndarray, shape (walkers, k)
     approximation : LaplaceApproximation, MixtureApproximation or None
-        None: differential evolution alone (no approximation of the
-        posterior was efficient enough).
+        None: no approximation of the posterior was efficient enough to
+        propose from.
+    groups : tuple of BlockT or GroupGrid
+        The block proposals of the damping and of each noise group
+        (:class:`GroupMove`); empty: none.
 
     Examples
     --------
@@ -476,12 +479,14 @@ def ensemble_moves(
 
     ``box``: (low, high) of z, the prior's, to which the independence
     moves' proposal is truncated (:class:`IndependenceMove`). ``groups``:
-    the noise groups' grids, for block moves (:class:`GroupMove`,
-    :data:`GROUP_WEIGHT` of the steps) where there is no approximation.
+    the damping's and the noise groups' block proposals (:class:`GroupMove`).
 
-    Differential evolution with snooker updates alone where there is no
-    approximation (emcee's recommendation for curved targets: along the
-    damping ridge the noise parameters bend with the damping scale).
+    The shares: independence moves :data:`INDEPENDENCE_WEIGHT` of the steps
+    with an approximation alone, block moves :data:`GROUP_WEIGHT` with
+    blocks alone, :data:`SHARED_WEIGHT` each with both; the rest
+    differential evolution with snooker updates (emcee's recommendation
+    for curved targets: along the damping ridge the noise parameters bend
+    with the damping scale), all of the steps with neither.
 
     Examples
     --------

@@ -28,7 +28,7 @@ from ..io.experiment import Experiment
 from ..likelihood.measurements import MEASUREMENT_MODELS
 from ..likelihood.residual_likelihood import ResidualLikelihood
 from ..model.kernels import get_family
-from ..model.parameters import ParameterLayout
+from ..model.parameters import DAMPING, ParameterLayout
 from ..model.physics import discrete_matrices
 from ..model.robot import RobotProfile
 from .file_format import (
@@ -153,7 +153,8 @@ def build_inference_data(
     layout = likelihood.layout
     noise, dims, noise_coords = _noise_variables(layout, draws)
     # The speed model's ratios (d at the top speed / at the bottom), beside d at v_ref.
-    ratios = {base: draws[..., layout.column(base)] for base in layout.damping_bases[2:]}
+    speed = layout.damping_bases[len(DAMPING) :]
+    ratios = {base: draws[..., layout.column(base)] for base in speed}
     dt = likelihood.experiments[0].dt
     Ad, Bd = discrete_matrices(likelihood.robot, d_lat, d_long, dt)
     posterior = {
