@@ -57,23 +57,24 @@ def drive_run(folder: Path, minutes: float) -> Path:
     return path
 
 
-def truth(name: str, otherwise: float) -> float:
-    """The DRIVE-like run's truth of parameter ``name`` (``sigma_c[vx]``, say), or ``otherwise``.
+def true_centre(likelihood: ResidualLikelihood, prior: Prior) -> np.ndarray:
+    """The DRIVE-like run's truth in the likelihood's parameter order (natural units).
 
     The kernel width sets the banded engine's band, so the noise is the
-    simulated one: sigma_h, each channel's sigma_c, the ICP's 2 cm as sigma_p.
+    simulated one: sigma_h, each channel's sigma_c, the ICP's 2 cm
+    (``write_drive_run``'s ``icp_sd``) as sigma_p; the speed ratios at 1 and
+    the yaw sensor sd at its prior's geometric mean.
     """
-    base, _, channel = name.rstrip("]").partition("[")
-    drive = lab.HUSKY_DRIVE
-    values = {
-        "d_lat": drive["d_lat"],
-        "d_long": drive["d_long"],
-        "sigma_h": drive["sigma_h"],
-        "sigma_p": 0.02,
-        "sigma_c": dict(zip(("yaw", "vx", "vy"), drive["sigma_c"], strict=True)).get(channel),
-    }
-    value = values.get(base)
-    return otherwise if value is None else value
+    layout, drive = likelihood.layout, lab.HUSKY_DRIVE
+    known = {base: drive[base] for base in ("d_lat", "d_long", "sigma_h")} | {"sigma_p": 0.02}
+    sigma_c = dict(zip(("yaw", "vx", "vy"), drive["sigma_c"], strict=True))
+    centre = np.sqrt(prior.low * prior.high)
+    for column, (base, group) in enumerate(zip(layout.bases, layout.column_groups, strict=True)):
+        if base == "sigma_c":
+            centre[column] = sigma_c[layout.groups[group][0]]
+        elif base in known:
+            centre[column] = known[base]
+    return centre
 
 
 def per_evaluation(path: Path, damping: str) -> tuple[float, int]:
@@ -84,9 +85,7 @@ def per_evaluation(path: Path, damping: str) -> tuple[float, int]:
     robot = bj.load_profile("husky")
     likelihood = ResidualLikelihood(experiments, robot, damping=damping)
     prior = Prior.for_likelihood(likelihood, robot)
-    centre = np.sqrt(prior.low * prior.high)  # the speed ratios at 1
-    for column, name in enumerate(prior.names):
-        centre[column] = truth(name, centre[column])
+    centre = true_centre(likelihood, prior)
     theta = centre * np.exp(0.05 * np.random.default_rng(1).standard_normal((SETS, centre.size)))
     likelihood(theta)  # the cached patterns and Gram tensors
     repeats = 20

@@ -185,6 +185,7 @@ def test_a_speed_damping_posterior_keeps_its_speed_ratios(tmp_path):
     loaded = load_posterior(save_posterior(idata, tmp_path / "p.nc"))
     assert loaded.layout.names[2:4] == ("speed_ratio_lat", "speed_ratio_long")
     np.testing.assert_array_equal(loaded.draws()[0], np.exp(chain))
+    # 144 draws of sd 0.01 in log around log 1.2: the mean within 1 % is ~10 of its sds.
     assert summarize(loaded)["speed_ratio_long"]["mean"] == pytest.approx(1.2, rel=0.01)
 
 

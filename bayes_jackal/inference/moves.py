@@ -510,23 +510,20 @@ def ensemble_moves(
     >>> bool(np.all(np.abs(draws.std(axis=0) - 1) < 0.1))  # doctest: +SKIP
     True
     """
-    weights = {"independence": 0.0, "groups": 0.0}
-    if approximation is not None and groups:
-        weights = {"independence": SHARED_WEIGHT, "groups": SHARED_WEIGHT}
-    elif approximation is not None:
-        weights["independence"] = INDEPENDENCE_WEIGHT
-    elif groups:
-        weights["groups"] = GROUP_WEIGHT
-    evolution = 1.0 - sum(weights.values())
-    moves = [
+    both = approximation is not None and bool(groups)
+    independence = SHARED_WEIGHT if both else INDEPENDENCE_WEIGHT
+    blocks = SHARED_WEIGHT if both else GROUP_WEIGHT
+    moves = []
+    if approximation is not None:
+        moves.append((IndependenceMove(approximation, box=box), independence))
+    if groups:
+        moves.append((GroupMove(groups), blocks))
+    evolution = 1.0 - sum(weight for _, weight in moves)
+    return [
         (emcee.moves.DEMove(), evolution * (1.0 - SNOOKER_SHARE)),
         (emcee.moves.DESnookerMove(), evolution * SNOOKER_SHARE),
+        *moves,
     ]
-    if approximation is not None:
-        moves.append((IndependenceMove(approximation, box=box), weights["independence"]))
-    if groups:
-        moves.append((GroupMove(groups), weights["groups"]))
-    return moves
 
 
 def proposal_efficiency(
