@@ -931,7 +931,7 @@ def write_sparse_csv(
     pose_sd: float = 5e-4,
     heading_sd: float = 2e-3,
     gyro_sd: float = 5e-3,
-    wheel_sd: float = 0.01,
+    wheel_sd: float = 0.0,
     missing: int = 2,
     pose_dropouts: Sequence[tuple[float, float]] = (),
     rng: np.random.Generator | int,
@@ -940,11 +940,13 @@ def write_sparse_csv(
 
     Columns (SPARSE_ROLES): t, gyro_z, wheel_right, wheel_left, pos_x, pos_y,
     yaw. An IMU row (a model-clock tick, stamp jittered by 0.1 ms) fills t,
-    gyro_z [rad/s] and the wheel speeds [rad/s] (the truth at the tick plus
-    ``wheel_sd``) and leaves the pose cells empty; a pose row (its own clock,
-    0.05 ms of jitter) fills t, pos_x, pos_y [m] and yaw [rad, wrapped] and
-    leaves the others empty. Rows in time order, t [s, 6 decimals] from the
-    first IMU row's stamp; ``missing`` single IMU ticks are not written.
+    gyro_z [rad/s] and the wheel speeds [rad/s] (the truth at the tick, as
+    the bag's joint states, plus white noise of sd ``wheel_sd``: what it
+    does to the damping is tests/test_input_noise.py's) and leaves the pose
+    cells empty; a pose row (its own clock, 0.05 ms of jitter) fills t,
+    pos_x, pos_y [m] and yaw [rad, wrapped] and leaves the others empty.
+    Rows in time order, t [s, 6 decimals] from the first IMU row's stamp;
+    ``missing`` single IMU ticks are not written.
 
     Returns
     -------

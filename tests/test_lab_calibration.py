@@ -20,7 +20,8 @@ The cases:
   one 1 s dropout of the poses each;
 - ``slow-bag`` and ``slow-csv``: poses at 10 Hz with 2 cm of noise beside
   a 50 Hz IMU, as a bag and as one CSV of IMU rows and pose rows at their
-  own stamps;
+  own stamps; the wheel speeds exact in both (white noise on them biases
+  the damping low and is flagged: tests/test_input_noise.py);
 - ``steps``: a DRIVE-like Husky calibration table, 40 random (v, w) steps of
   6 s at 20 Hz, encoders at 4 Hz held on the rows, lidar-ICP poses at 5 Hz
   with 2 cm of noise at their own stamps; with ``circles``, steady circles

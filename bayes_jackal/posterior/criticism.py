@@ -5,15 +5,17 @@ InferenceData as written by :mod:`bayes_jackal.posterior.posterior` and returns 
 :class:`Check`: JSON-ready numbers and warnings, dicts with ``kind``,
 ``message`` and the fields that locate them. Kinds: ``prior-boundary``
 (:func:`prior_boundary`), ``residual-input`` (:func:`residual_input`, MATLAB
-``resid``'s independence test), ``predictive-acf`` (:func:`predictive_acf`),
+``resid``'s independence test), ``input-noise`` (:func:`input_noise`),
+``predictive-acf`` (:func:`predictive_acf`),
 ``not-steady`` (:func:`steady_windows`), ``derived-velocity``
 (:func:`derived_velocities`) and ``damping-scale-not-identified``
 (:func:`damping_scale`). :func:`criticise` runs them all;
 :func:`bayes_jackal.posterior.summarize` reports it under ``warnings`` and
 ``criticism``. The array-level statistics behind the checks, and
-:class:`Check`, are in :mod:`bayes_jackal.posterior.criticism_statistics`; the two
-checks of the inputs' path (:func:`residual_input`, :func:`steady_windows`)
-are :mod:`bayes_jackal.posterior.criticism_inputs`'s. All are importable from here.
+:class:`Check`, are in :mod:`bayes_jackal.posterior.criticism_statistics`; the
+checks of the inputs' path (:func:`residual_input`, :func:`input_noise`,
+:func:`steady_windows`, :func:`derived_velocities`) are
+:mod:`bayes_jackal.posterior.criticism_inputs`'s. All are importable from here.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from ..likelihood.residuals import channel_residuals
 from ..model.parameters import DAMPING
 from .criticism_inputs import (
     derived_velocities,
+    input_noise,
     residual_input,
     steady_windows,
 )
@@ -55,6 +58,7 @@ KIND_MEANINGS = {
         "the runs fix the ratio d_lat/d_long, not the damping's scale: report the ratio"
     ),
     "residual-input": "the residuals follow the wheel speeds: a dynamic or input is missing",
+    "input-noise": "white noise on the wheel speeds, taken as exact, biases the damping low",
     "predictive-acf": "the fitted noise misses the residuals' colour: try another family",
     "not-steady": "an analysed window is not steady cornering, which the model assumes",
     "derived-velocity": "velocities derived from poses are modelled as measured: damping biased",
@@ -507,8 +511,8 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     """Every check of a posterior: ``{"warnings": [...], "criticism": {...}}``.
 
     ``criticism`` holds the numbers under ``prior_boundary``,
-    ``residual_input``, ``predictive_acf``, ``steadiness``,
-    ``derived_velocities`` and ``damping_scale``. The result is computed
+    ``residual_input``, ``input_noise``, ``predictive_acf``,
+    ``steadiness``, ``derived_velocities`` and ``damping_scale``. The result is computed
     once per posterior and kept in its ``criticism`` attribute (a saved file
     carries it); ``rng`` seeds the replicated series (fixed by default, so
     the numbers are reproducible).
@@ -525,8 +529,8 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> result = criticise(posterior)
     >>> sorted(result["criticism"])
-    ['damping_scale', 'derived_velocities', 'predictive_acf', 'prior_boundary',
-     'residual_input', 'steadiness']
+    ['damping_scale', 'derived_velocities', 'input_noise', 'predictive_acf',
+     'prior_boundary', 'residual_input', 'steadiness']
     >>> sorted({warning["kind"] for warning in result["warnings"]})
     ['damping-scale-not-identified', 'predictive-acf', 'prior-boundary']
     """
@@ -538,6 +542,7 @@ def criticise(idata: az.InferenceData, *, rng: np.random.Generator | int | None 
         "prior_boundary": prior_boundary(idata),
         "steadiness": steady_windows(idata),
         "residual_input": residual_input(idata),
+        "input_noise": input_noise(idata),
         "predictive_acf": predictive_acf(idata, rng=rng),
         "derived_velocities": derived_velocities(idata),
     }
