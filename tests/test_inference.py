@@ -18,6 +18,7 @@ from bayes_jackal.inference import sampling as inference
 from bayes_jackal.inference.chains import (
     SamplerSettings,
     _burn_in_and_thinning,
+    _expected_steps,
     autocorrelation_time,
     effective_sizes,
     run_chain,
@@ -237,6 +238,19 @@ def test_the_chain_stops_on_the_ess_once_longer_than_the_tau_multiple():
     # The ESS of a chain of independent draws is its number of draws.
     draws = np.random.default_rng(4).standard_normal((1000, 8, 2))
     np.testing.assert_allclose(effective_sizes(draws), 8000, rtol=0.1)
+
+
+def test_the_expected_length_of_a_chain_whose_tau_is_not_known_is_the_cap():
+    # emcee's tau of a parameter that has not moved across the walkers is NaN
+    # (0 / 0); the progress bar's expected length then is the cap, not a crash
+    # (it raised "cannot convert float NaN to integer" mid-chain). Otherwise
+    # the longer of 50 tau and 2 tau + min_ess tau / walkers, in checks.
+    settings = SamplerSettings(walkers=44, max_steps=20000, check_every=100)
+    assert _expected_steps(np.array([30.0, np.nan]), 500, 44, settings) == 20000
+    needed = max(50 * 30.0, 2 * 30.0 + settings.min_ess * 30.0 / 44)
+    assert _expected_steps(np.array([30.0, 12.0]), 500, 44, settings) == 100 * np.ceil(
+        needed / 100
+    )
 
 
 def test_the_thinning_leaves_bridge_sampling_its_draws_whatever_tau():

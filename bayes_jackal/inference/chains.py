@@ -441,9 +441,12 @@ def _expected_steps(tau: np.ndarray, steps: int, walkers: int, settings: Sampler
     """The steps the rule will need, as tau stands, at a check after this one.
 
     The multiple of tau, or the burn-in plus the steps whose walkers hold
-    ``min_ess`` independent draws at this tau, whichever is longer.
+    ``min_ess`` independent draws at this tau, whichever is longer; the cap
+    while a tau is not known (NaN: a parameter that has not moved yet).
     """
     longest = float(np.max(tau))
+    if not np.isfinite(longest):
+        return settings.max_steps
     needed = max(
         longest * settings.autocorr_multiple,
         2 * longest + settings.min_ess * longest / walkers,
