@@ -553,6 +553,7 @@ def test_sample_prints_the_warnings_on_stderr_and_in_its_json(tmp_path, capsys):
         "prior_boundary",
         "steadiness",
         "residual_input",
+        "input_noise",
         "predictive_acf",
         "derived_velocities",
     }
