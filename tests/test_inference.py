@@ -247,7 +247,9 @@ def test_the_expected_length_of_a_chain_whose_tau_is_not_known_is_the_cap():
     # the longer of 50 tau and 2 tau + min_ess tau / walkers, in checks.
     settings = SamplerSettings(walkers=44, max_steps=20000, check_every=100)
     assert _expected_steps(np.array([30.0, np.nan]), 500, 44, settings) == 20000
-    needed = max(50 * 30.0, 2 * 30.0 + settings.min_ess * 30.0 / 44)
+    needed = max(
+        settings.autocorr_multiple * 30.0, 2 * 30.0 + settings.min_ess * 30.0 / 44, 500 + 100
+    )
     assert _expected_steps(np.array([30.0, 12.0]), 500, 44, settings) == 100 * np.ceil(
         needed / 100
     )

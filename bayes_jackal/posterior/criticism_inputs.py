@@ -19,7 +19,13 @@ import numpy as np
 import scipy.stats
 
 from .._runtime.arviz_quiet import az
-from ..io.experiment import STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, Experiment
+from ..io.experiment import (
+    CHANNEL_FIELDS,
+    STEADY_INPUT_TOLERANCE,
+    STEADY_YAW_TOLERANCE,
+    UNITS,
+    Experiment,
+)
 from ..likelihood.residuals import channel_residuals
 from ..model.parameters import RATE_SENSOR
 from ..model.physics import channel_coefficients
@@ -60,8 +66,9 @@ RESIDUAL_ACF_LAGS = 2 * RESIDUAL_INPUT_LAGS
 INPUTS = ("sum", "difference")
 #: The wheel speeds' white noise carried to a channel through its steady-state gain,
 #: as a multiple of the channel's sensor noise, above which ``input-noise`` warns.
-#: Measured on the thesis circles at 50 Hz (a v1 and a v2 circle, 10 Hz poses, gyro
-#: noise 5 mrad/s; tests/test_input_noise.py): the MAP d_lat falls by 2, 7, 17 and
+#: Measured by hand on one simulation of the thesis circles at 50 Hz (a v1 and a v2
+#: circle, 10 Hz poses, gyro noise 5 mrad/s; tests/test_input_noise.py checks the
+#: fall at 0.01 rad/s on two seeds): the MAP d_lat falls by 2, 7, 17 and
 #: 32 % at yaw ratios 0.054, 0.135, 0.27 and 0.54 (wheel noise 0.002, 0.005, 0.01
 #: and 0.02 rad/s); at 0.1 by about 5 %, half the posterior sd of log d_lat there.
 INPUT_NOISE_RATIO = 0.1
@@ -196,14 +203,24 @@ def _input_warning(
 
 
 def input_white_noise(inputs: np.ndarray) -> np.ndarray:
-    """The white-noise sd of each column of ``inputs`` (shape (N, m)), from its second differences.
+    """The white-noise sd of each column of ``inputs``, from its second differences.
 
     A wheel speed that is smooth at the sample rate has second differences
     near 0; white noise of sd s gives e[k+1] - 2 e[k] + e[k-1], of variance
     6 s^2. The median absolute deviation (scaled to a normal sd) ignores the
-    few samples at a command step or a kink of an interpolated encoder, so
-    a sensor held and interpolated onto a faster clock, whose noise is no
-    longer white there, gives about 0.
+    few samples at a command step or a kink of an interpolated encoder. A
+    sensor held and interpolated onto a faster clock gives about 0: its
+    error is no longer white there, and this estimate does not see it.
+
+    Parameters
+    ----------
+    inputs : array_like, shape (N, m)
+        Samples on a uniform clock, N >= 3 (wheel speeds [rad/s]).
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        White-noise sd of each column, in its unit.
 
     Examples
     --------
@@ -230,14 +247,16 @@ def input_noise(idata: az.InferenceData) -> Check:
     as Bd e = (1 - alpha) G e, G the channel's steady-state gain
     Bd / (1 - alpha): the ratio of |G e| to the sensor noise sigma_n says how
     much of the residual's slow part the input noise is. Above
-    :data:`INPUT_NOISE_RATIO` a channel warns ``input-noise``. A channel
-    recorded as poses (its sensor noise a position's) and one without an
-    input (vy) are left out.
+    :data:`INPUT_NOISE_RATIO` a channel warns ``input-noise``. Left out: a
+    channel recorded as poses (its sensor noise a position's), one without
+    an input (vy), and one without a sigma_n (white noise with the diagonal
+    sensor term, whose one sd is the residual's total). With
+    ``--damping speed`` the gain is taken at the reference speed's damping.
 
     Numbers per experiment: ``wheel_noise`` (:func:`input_white_noise`, [rad/s],
-    omega_r and omega_l) and per channel ``gain`` (G at the posterior median,
-    per wheel), ``input_noise`` (|G e| in the channel's unit), ``sensor_noise``
-    (the posterior median of its sigma_n) and ``ratio``.
+    omega_r and omega_l) and ``channels``, per channel ``gain`` (G at the
+    posterior median, per wheel), ``input_noise`` (|G e| in the channel's
+    unit), ``sensor_noise`` (the posterior median of its sigma_n) and ``ratio``.
 
     Examples
     --------
@@ -249,7 +268,7 @@ def input_noise(idata: az.InferenceData) -> Check:
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
     >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
     >>> check = input_noise(posterior)
-    >>> check.numbers["v1"]["yaw"]["ratio"], check.warnings
+    >>> check.numbers["v1"]["channels"]["yaw"]["ratio"], check.warnings
     (0.0, [])
     """
     posterior = Posterior.of(idata)
@@ -258,7 +277,7 @@ def input_noise(idata: az.InferenceData) -> Check:
     check = Check()
     for experiment in posterior.experiments:
         noise = input_white_noise(experiment.inputs)
-        rows: dict = {"wheel_noise": noise.tolist()}
+        rows: dict[str, dict[str, object]] = {}
         for channel in posterior.channels:
             group = layout.group(channel, experiment.name)
             if layout.sensor_parameter(group) != RATE_SENSOR:
@@ -276,13 +295,17 @@ def input_noise(idata: az.InferenceData) -> Check:
                 "ratio": carried / sensor,
             }
             if carried > INPUT_NOISE_RATIO * sensor:
-                check.warnings.append(_input_noise_warning(experiment.name, channel, rows))
-        check.numbers[experiment.name] = rows
+                check.warnings.append(
+                    _input_noise_warning(experiment.name, channel, rows[channel], noise)
+                )
+        check.numbers[experiment.name] = {"wheel_noise": noise.tolist(), "channels": rows}
     return check
 
 
-def _input_noise_warning(experiment: str, channel: str, rows: dict) -> dict:
-    row, (right, left) = rows[channel], rows["wheel_noise"]
+def _input_noise_warning(experiment: str, channel: str, row: dict, noise: np.ndarray) -> dict:
+    """The ``input-noise`` warning of one channel: its numbers (``row``) and the wheels' noise."""
+    right, left = noise
+    unit = UNITS[CHANNEL_FIELDS[channel]]
     return {
         "kind": "input-noise",
         "experiment": experiment,
@@ -292,8 +315,8 @@ def _input_noise_warning(experiment: str, channel: str, rows: dict) -> dict:
             f"{experiment}, {channel}: the wheel speeds scatter from sample to sample by "
             f"{right:.2g} (right) and {left:.2g} rad/s (left) of white noise (from their "
             f"second differences), which the model takes as exact input; through the "
-            f"channel's steady-state gain that is {row['input_noise']:.2g}, "
-            f"{row['ratio']:.2g} times its sensor noise ({row['sensor_noise']:.2g}; "
+            f"channel's steady-state gain that is {row['input_noise']:.2g} {unit}, "
+            f"{row['ratio']:.2g} times its sensor noise ({row['sensor_noise']:.2g} {unit}; "
             f"above {INPUT_NOISE_RATIO:g} the damping is biased low: errors in the input, "
             "docs/guide/model.md). Give the input as the commanded or filtered wheel speeds"
         ),
