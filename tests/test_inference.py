@@ -244,7 +244,8 @@ def test_the_expected_length_of_a_chain_whose_tau_is_not_known_is_the_cap():
     # emcee's tau of a parameter that has not moved across the walkers is NaN
     # (0 / 0); the progress bar's expected length then is the cap, not a crash
     # (it raised "cannot convert float NaN to integer" mid-chain). Otherwise
-    # the longer of 50 tau and 2 tau + min_ess tau / walkers, in checks.
+    # the longest of the tau multiple, 2 tau + min_ess tau / walkers and one
+    # check more, rounded up to a check.
     settings = SamplerSettings(walkers=44, max_steps=20000, check_every=100)
     assert _expected_steps(np.array([30.0, np.nan]), 500, 44, settings) == 20000
     needed = max(

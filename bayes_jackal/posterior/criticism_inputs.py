@@ -41,13 +41,11 @@ from .series_statistics import sample_autocorrelation
 
 __all__ = [
     "INPUTS",
-    "INPUT_NOISE_RATIO",
     "RESIDUAL_ACF_LAGS",
     "RESIDUAL_INPUT_LAGS",
     "RESIDUAL_INPUT_LEVEL",
     "derived_velocities",
     "input_noise",
-    "input_white_noise",
     "residual_input",
     "steady_windows",
     "velocities_derived",
@@ -225,7 +223,7 @@ def input_white_noise(inputs: np.ndarray) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from bayes_jackal.posterior import input_white_noise
+    >>> from bayes_jackal.posterior.criticism_inputs import input_white_noise
     >>> rng = np.random.default_rng(1)
     >>> smooth = np.repeat([[3.0, 2.0], [4.0, 1.0]], 2000, axis=0)  # one step
     >>> noisy = smooth + 0.01 * rng.standard_normal(smooth.shape)
@@ -314,7 +312,7 @@ def _input_noise_warning(experiment: str, channel: str, row: dict, noise: np.nda
         "message": (
             f"{experiment}, {channel}: the wheel speeds scatter from sample to sample by "
             f"{right:.2g} (right) and {left:.2g} rad/s (left) of white noise (from their "
-            f"second differences), which the model takes as exact input; through the "
+            "second differences), which the model takes as exact input; through the "
             f"channel's steady-state gain that is {row['input_noise']:.2g} {unit}, "
             f"{row['ratio']:.2g} times its sensor noise ({row['sensor_noise']:.2g} {unit}; "
             f"above {INPUT_NOISE_RATIO:g} the damping is biased low: errors in the input, "
