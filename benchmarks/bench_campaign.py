@@ -119,7 +119,7 @@ def main() -> None:
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=None,
+        dashboard_address="127.0.0.1:0",  # None would still listen on 0.0.0.0:8787
     ) as cluster:
         clustered = campaign(runs, families, settings, args.seed, DaskExecutor(cluster))
     rows.append((f"Dask LocalCluster ({args.workers} workers)", *clustered))

@@ -41,6 +41,9 @@ FAMILIES = ("white", "exponential")
 BIN = Path(sys.executable).parent
 #: A port nothing listens on: 1 is reserved (tcpmux) and unused on test machines.
 DEAD_ADDRESS = "tcp://127.0.0.1:1"
+# Without a dashboard, the scheduler's and workers' HTTP servers (health
+# routes) still listen, by default on every interface and port 8787.
+LOCAL_HTTP = ("--dashboard-address", "127.0.0.1:0")
 #: Run first by the ``cli`` fixture's child (tests/conftest.py): the Dask check's
 #: timeout at 1 s instead of DaskExecutor's default 5 s (which the CLI uses), for
 #: the refusals that wait it out: unreachable, or no Dask handshake. They are
@@ -81,7 +84,9 @@ def test_same_evidence_and_chains_on_every_executor():
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=None,
+        # Not None: the scheduler's HTTP server would still listen, on
+        # 0.0.0.0:8787, and another cluster there fails the start (a warning).
+        dashboard_address="127.0.0.1:0",
     ) as cluster:
         clustered = _compare(run, DaskExecutor(cluster))
         assert cluster.status.name == "running"  # our client closed, the cluster not
@@ -132,7 +137,16 @@ def test_compare_on_a_dask_scheduler_through_the_console_script(tmp_path):
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     scheduler = _start(
-        [BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
+        [
+            BIN / "dask",
+            "scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--no-dashboard",
+            *LOCAL_HTTP,
+        ]
     )
     worker = None
     try:
@@ -146,6 +160,9 @@ def test_compare_on_a_dask_scheduler_through_the_console_script(tmp_path):
                 "--nthreads",
                 "1",
                 "--no-dashboard",
+                *LOCAL_HTTP,
+                "--host",
+                "127.0.0.1",
             ]
         )
         _wait_for_worker(address)
