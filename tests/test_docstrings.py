@@ -181,6 +181,8 @@ def shared_calls() -> Iterator[Call]:
         bj.sample, [run], family="white", channels=["yaw"], sensor="diagonal", max_steps=20, seed=1
     )
     yield call(bj.sample, [run], family="white", channels=["yaw", "vx"], max_steps=20, seed=1)
+    # prior_boundary: long enough for the sensor sd to reach its bound.
+    yield call(bj.sample, [run], family="white", channels=["yaw"], max_steps=100, seed=1)
     # PooledPosterior: two short runs pooled.
     runs = [
         bj.simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=seed, name=name)

@@ -71,7 +71,18 @@ MIXTURE_FIELDS = ("weights", "centres", "covariances")
 BLOCK_FIELDS = {
     "grid": (
         GroupGrid,
-        ("columns", "low", "high", "log_probability", "points", "box_low", "box_high"),
+        (
+            "columns",
+            "low",
+            "high",
+            "log_probability",
+            "points",
+            "box_low",
+            "box_high",
+            "conditional_columns",
+            "conditional_mean",
+            "conditional_covariance",
+        ),
     ),
     "t": (BlockT, ("columns", "centre", "covariance")),
 }
@@ -698,7 +709,10 @@ def _stored_approximation(
         while f"block_{len(grids)}" in group.attrs:
             i = len(grids)
             kind, fields = BLOCK_FIELDS[str(group.attrs[f"block_{i}"])]
-            grids.append(kind(*(group[f"block_{i}_{key}"][()] for key in fields)))
+            stored_fields = {  # a grid stored before its conditional columns had none
+                key: group[f"block_{i}_{key}"][()] for key in fields if f"block_{i}_{key}" in group
+            }
+            grids.append(kind(**stored_fields))
         if "mixture_weights" in group:
             fields = (group[f"mixture_{key}"][()] for key in MIXTURE_FIELDS)
             return MixtureApproximation(*fields), tuple(grids)

@@ -14,7 +14,7 @@ The MAP search uses them in :mod:`bayes_jackal.inference.map_search`, the sample
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -181,10 +181,42 @@ class LogPosterior:
     prior: Prior
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
+        return self._with_prior(z, self.likelihood)
+
+    def group_terms(self, z: np.ndarray, group: int) -> np.ndarray:
+        """The log-prior plus noise group ``group``'s log-likelihood alone, at rows of ``z``.
+
+        The likelihood's other groups depend on the damping and their own
+        noise only, so between rows that differ in this group's noise alone
+        it differs from the log-posterior by a constant: the group's
+        conditional, at a third of the cost with three channels.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import bayes_jackal as bj
+        >>> from bayes_jackal.likelihood import LogPosterior, Prior, ResidualLikelihood
+        >>> robot = bj.load_profile()
+        >>> run = bj.simulate_experiment(robot, 110.0, 30.0, "v1", rng=1)
+        >>> likelihood = ResidualLikelihood([run], robot, channels=("yaw", "vx"))
+        >>> log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
+        >>> z = np.log([[110.0, 30.0, 0.047, 0.01, 0.005, 0.047, 0.01, 0.005]] * 2)
+        >>> z[1, 2] += 0.1  # the yaw group's width
+        >>> change = np.diff(log_posterior(z))[0]
+        >>> bool(np.isclose(change, np.diff(log_posterior.group_terms(z, 0))[0]))
+        True
+        """
+        return self._with_prior(z, lambda theta: self.likelihood.group_loglike(theta, group))
+
+    def _with_prior(
+        self, z: np.ndarray, loglike: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """``loglike`` of the rows of ``z`` inside the prior plus the log-prior; -inf elsewhere."""
         z = np.atleast_2d(z)
         out = np.full(len(z), -np.inf)
         inside = self.prior.inside(z)
         if inside.any():
-            loglike = self.likelihood(self.prior.to_natural(z[inside]))
-            out[inside] = loglike + self.prior.log_density(z[inside])
+            out[inside] = loglike(self.prior.to_natural(z[inside])) + self.prior.log_density(
+                z[inside]
+            )
         return np.where(np.isnan(out), -np.inf, out)

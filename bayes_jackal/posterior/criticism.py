@@ -127,14 +127,15 @@ def prior_boundary(idata: az.InferenceData) -> Check:
 
     Examples
     --------
-    A posterior of a chain kept short on purpose (20 steps, far from
-    converged), so that the example runs in a second; white noise fitted on
-    the yaw rate alone of a run simulated with coloured noise:
+    A posterior of a chain kept short on purpose (100 steps, not converged;
+    the converged chain, 3,300 steps, warns alike), so that the example runs
+    in a second; white noise fitted on the yaw rate alone of a run simulated
+    with coloured noise:
 
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.posterior import prior_boundary
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
-    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=100, seed=1)
     >>> check = prior_boundary(posterior)
     >>> [(w["parameter"], w["side"]) for w in check.warnings]  # yaw alone: d_long runs free
     [('d_long', 'low'), ('sigma_n', 'low')]
