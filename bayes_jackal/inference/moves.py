@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import emcee
 import numpy as np
@@ -337,7 +338,7 @@ class GroupGrid:
         t = -0.5 * (PROPOSAL_DOF + e) * np.log1p(np.sum(whitened[..., 0] ** 2, 1) / PROPOSAL_DOF)
         return density + t - log_scale
 
-    @property
+    @cached_property
     def _factors(self) -> np.ndarray:
         """The conditional t's scale factors in each cell (points^d, e, e)."""
         return PROPOSAL_SCALE * np.linalg.cholesky(self.conditional_covariance)
