@@ -17,11 +17,13 @@ from dataclasses import dataclass
 import emcee
 import lab_simulator as lab
 import numpy as np
+import pytest
 import scipy.optimize
 import scipy.stats
 from scipy.special import logsumexp
 
 from bayes_jackal import load_experiments, load_profile, simulate_experiment
+from bayes_jackal.inference import map_search
 from bayes_jackal.inference.chains import (
     BufferedHDFBackend,
     _store_approximation,
@@ -29,15 +31,19 @@ from bayes_jackal.inference.chains import (
 )
 from bayes_jackal.inference.map_search import _conditional_modes, find_map, laplace_walkers
 from bayes_jackal.inference.moves import (
+    JOINT_SHARE,
     MIN_MATCHED_EFFICIENCY,
+    MIN_PROPOSAL_EFFICIENCY,
     PROPOSAL_DOF,
     SHARED_WEIGHT,
+    BlockT,
     GroupGrid,
     GroupMove,
     IndependenceMove,
     LaplaceApproximation,
     MixtureApproximation,
     ensemble_moves,
+    joint_efficiency,
     moment_matched,
     proposal_efficiency,
 )
@@ -317,6 +323,36 @@ def test_block_moves_with_a_conditional_column_sample_a_curved_target():
     assert np.mean(sampler.acceptance_fraction) > 0.5  # a good proposal: most moves taken
 
 
+def test_block_moves_drawing_every_block_at_once_sample_a_correlated_target():
+    # Two blocks of a correlated Gaussian (correlation 0.6), each proposal a
+    # t around 0 of its marginal's sd: drawn one at a time or, for 70 % of
+    # the walkers, both at once (an independence proposal from their
+    # product, which ignores the correlation), Metropolis-Hastings leaves
+    # the target invariant. 32 walkers x 2,000 steps with tau of a few
+    # steps give ~15,000 effective draws: the sd of E[x0 x1] (var ~1.4)
+    # is ~0.01, of E[x0^2] ~0.012; 0.05 is over 4 sd.
+    covariance = np.array([[1.0, 0.6], [0.6, 1.0]])
+    precision = np.linalg.inv(covariance)
+
+    def target(z):
+        return -0.5 * np.einsum("ni,ij,nj->n", z, precision, z)
+
+    blocks = tuple(BlockT(np.array([c]), np.zeros(1), np.eye(1)) for c in (0, 1))
+    sampler = emcee.EnsembleSampler(
+        32, 2, target, vectorize=True, moves=[(GroupMove(blocks, joint=0.7), 1.0)]
+    )
+    start = np.random.default_rng(3).standard_normal((32, 2))
+    sampler.run_mcmc(emcee.State(start, random_state=np.random.RandomState(4).get_state()), 2000)
+    draws = sampler.get_chain(discard=100, flat=True)
+    np.testing.assert_allclose(draws.T @ draws / len(draws), covariance, atol=0.05)
+    assert abs(np.mean(draws)) < 0.05
+
+
+def test_a_joint_share_outside_zero_to_one_is_refused():
+    with pytest.raises(ValueError, match=r"joint share 1\.5"):
+        GroupMove((conditional_grid(),), joint=1.5)
+
+
 def test_conditional_modes_are_a_gaussians_mean_and_covariance_from_a_far_guess():
     # A Gaussian in columns 1 and 2 (column 0 carried along): the quadratic
     # fits are exact, so from a guess 60 sd away with a covariance 4 times
@@ -339,14 +375,15 @@ def test_conditional_modes_are_a_gaussians_mean_and_covariance_from_a_far_guess(
     np.testing.assert_allclose(peak, candidates[:, 0], atol=1e-6)
 
 
-def test_a_drive_like_groups_conditional_modes_are_its_conditional_maxima(tmp_path):
-    # The grids of a DRIVE-like step sequence (yaw at 20 Hz, ICP poses at
-    # 5 Hz): in cells across each group's width, including the prior's
-    # floor, where the Hessian's regression at the MAP is tens of sd off, the
-    # stored mode of (sigma_c, sensor sd) is where scipy's Nelder-Mead finds
-    # the group's conditional maximum, within 0.1 of the conditional sd, and
-    # its value within 0.01 nats (the quadratics stop at steps of 0.05 sd).
-    run = lab.write_drive_run(tmp_path / "drive.csv", icp_layout="sparse", n_steps=20, rng=36)
+@pytest.fixture(scope="module")
+def drive_like_start(tmp_path_factory):
+    """A DRIVE-like step sequence's log-posterior and its chain's start (ridge mixture refused).
+
+    Its widest direction is a pose channel's width, piled at its prior's
+    floor: the block moves' grid draws it, so no ridge mixture is built.
+    """
+    path = tmp_path_factory.mktemp("drive") / "drive.csv"
+    run = lab.write_drive_run(path, icp_layout="sparse", n_steps=20, rng=36)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # the held encoders, said and replaced
         experiments = load_experiments([run.path], robot="husky", columns=lab.DRIVE_ALL_ROLES)
@@ -354,7 +391,41 @@ def test_a_drive_like_groups_conditional_modes_are_its_conditional_maxima(tmp_pa
     likelihood = ResidualLikelihood(experiments, robot)
     log_posterior = LogPosterior(likelihood, Prior.for_likelihood(likelihood, robot))
     rng = np.random.default_rng(1)
-    start = laplace_walkers(log_posterior, find_map(log_posterior, rng), 44, rng)
+
+    def refused(*args):
+        raise AssertionError("a ridge mixture along a gridded width")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(map_search, "ridge_mixture", refused)
+        start = laplace_walkers(log_posterior, find_map(log_posterior, rng), 44, rng)
+    return log_posterior, start
+
+
+def test_a_drive_like_start_draws_every_block_at_once_where_their_product_fits(
+    drive_like_start,
+):
+    # No approximation of the whole posterior (widths piled at their
+    # floor), so block moves alone; the importance-sampling efficiency of
+    # their product is above the threshold (0.35 on the 10-minute sequence),
+    # so a share of the walkers draws all blocks at once.
+    log_posterior, start = drive_like_start
+    assert start.approximation is None and len(start.groups) == 4
+    efficiency = joint_efficiency(
+        log_posterior, start.groups, start.walkers[0], np.random.default_rng(2)
+    )
+    assert efficiency >= MIN_PROPOSAL_EFFICIENCY
+    assert start.joint == JOINT_SHARE
+
+
+def test_a_drive_like_groups_conditional_modes_are_its_conditional_maxima(drive_like_start):
+    # The grids of a DRIVE-like step sequence (yaw at 20 Hz, ICP poses at
+    # 5 Hz): in cells across each group's width, including the prior's
+    # floor, where the Hessian's regression at the MAP is tens of sd off, the
+    # stored mode of (sigma_c, sensor sd) is where scipy's Nelder-Mead finds
+    # the group's conditional maximum, within 0.1 of the conditional sd, and
+    # its value within 0.01 nats (the quadratics stop at steps of 0.05 sd).
+    log_posterior, start = drive_like_start
+    likelihood = log_posterior.likelihood
     damping, *groups = start.groups
     grids = [block for block in groups if isinstance(block, GroupGrid)]
     assert len(grids) >= 2 and all(len(grid.conditional_columns) == 2 for grid in grids)
@@ -381,17 +452,21 @@ def test_a_drive_like_groups_conditional_modes_are_its_conditional_maxima(tmp_pa
 
 def test_a_chain_file_keeps_a_grids_conditional_columns_and_reads_one_without(tmp_path):
     # The resumed chain proposes as the first did; a file written before
-    # grids had conditional columns (no such datasets) reads as a grid without.
+    # grids had conditional columns (no such datasets) or a joint share
+    # reads as a grid without, and a share of 0.
     grid = conditional_grid()
     backend = BufferedHDFBackend(str(tmp_path / "chain.h5"), flush_every=100)
     backend.reset(8, 2)
-    _store_approximation(backend, None, (grid,))
-    (kept,) = _stored_approximation(backend)[1]
+    _store_approximation(backend, None, (grid,), JOINT_SHARE)
+    _, (kept,), joint = _stored_approximation(backend)
+    assert joint == JOINT_SHARE
     for field in ("columns", "log_probability", "conditional_columns", "conditional_mean",
                   "conditional_covariance"):  # fmt: skip
         np.testing.assert_array_equal(getattr(kept, field), getattr(grid, field))
     with backend.open("a") as stored:
         for field in ("conditional_columns", "conditional_mean", "conditional_covariance"):
             del stored[backend.name][f"block_0_{field}"]
-    (old,) = _stored_approximation(backend)[1]
+        del stored[backend.name].attrs["block_joint"]
+    _, (old,), joint = _stored_approximation(backend)
+    assert joint == 0.0
     assert old.block_columns.tolist() == [0]

@@ -635,11 +635,11 @@ def run_chain(
             begun = begun if isinstance(begun, Start) else Start(np.asarray(begun))
             moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
             start = emcee.State(begun.walkers, random_state=moves_state)
-            approximation, groups = begun.approximation, begun.groups
-            _store_approximation(backend, approximation, groups)
+            approximation, groups, joint = begun.approximation, begun.groups, begun.joint
+            _store_approximation(backend, approximation, groups, joint)
         else:
             start = backend.get_last_sample()
-            approximation, groups = _stored_approximation(backend)
+            approximation, groups, joint = _stored_approximation(backend)
             if say is not None:
                 say(f"resuming {chain_file} at step {backend.iteration}")
         sampler = emcee.EnsembleSampler(
@@ -648,7 +648,9 @@ def run_chain(
             log_posterior,
             vectorize=True,
             backend=backend,
-            moves=ensemble_moves(approximation, box=(prior.z_low, prior.z_high), groups=groups),
+            moves=ensemble_moves(
+                approximation, box=(prior.z_low, prior.z_high), groups=groups, joint=joint
+            ),
         )
         try:
             shortfall, tau = _run_until_converged(sampler, start, settings, tuple(names))
@@ -667,7 +669,10 @@ def run_chain(
 
 
 def _store_approximation(
-    backend, approximation: Approximation | None, groups: tuple[BlockT | GroupGrid, ...] = ()
+    backend,
+    approximation: Approximation | None,
+    groups: tuple[BlockT | GroupGrid, ...] = (),
+    joint: float = 0.0,
 ) -> None:
     """Keep the moves' approximation in a chain file, so that a resumed chain moves alike.
 
@@ -676,12 +681,14 @@ def _store_approximation(
     ``mixture_weights``, ``mixture_centres`` and ``mixture_covariances``
     (16 covariances of 23 parameters would pass HDF5's 64 KiB limit of an
     attribute); the blocks' proposals as datasets ``block_<i>_<field>`` with
-    their kind in the attribute ``block_<i>``.
+    their kind in the attribute ``block_<i>``, the share of walkers that
+    draw them all at once as ``block_joint``.
     """
     if not isinstance(backend, BufferedHDFBackend) or (approximation is None and not groups):
         return
     with backend.writing(), backend.open("a") as stored:
         group = stored[backend.name]
+        group.attrs["block_joint"] = joint
         for i, block in enumerate(groups):
             kind = "grid" if isinstance(block, GroupGrid) else "t"
             group.attrs[f"block_{i}"] = kind
@@ -699,12 +706,14 @@ def _store_approximation(
 
 def _stored_approximation(
     backend,
-) -> tuple[Approximation | None, tuple[BlockT | GroupGrid, ...]]:
-    """The approximation and grids a stored chain's moves used (None, (): DE alone)."""
+) -> tuple[Approximation | None, tuple[BlockT | GroupGrid, ...], float]:
+    """The approximation, grids and joint share a stored chain's moves used (None, (), 0:
+    DE alone; a file from before the joint share: 0)."""
     if not isinstance(backend, BufferedHDFBackend):
-        return None, ()
+        return None, (), 0.0
     with backend.open("r") as stored:
         group = stored[backend.name]
+        joint = float(group.attrs.get("block_joint", 0.0))
         grids = []
         while f"block_{len(grids)}" in group.attrs:
             i = len(grids)
@@ -715,12 +724,17 @@ def _stored_approximation(
             grids.append(kind(**stored_fields))
         if "mixture_weights" in group:
             fields = (group[f"mixture_{key}"][()] for key in MIXTURE_FIELDS)
-            return MixtureApproximation(*fields), tuple(grids)
+            return MixtureApproximation(*fields), tuple(grids), joint
         if "laplace_centre" not in group.attrs:
-            return None, tuple(grids)
-        return LaplaceApproximation(
-            np.array(group.attrs["laplace_centre"]), np.array(group.attrs["laplace_covariance"])
-        ), tuple(grids)
+            return None, tuple(grids), joint
+        return (
+            LaplaceApproximation(
+                np.array(group.attrs["laplace_centre"]),
+                np.array(group.attrs["laplace_covariance"]),
+            ),
+            tuple(grids),
+            joint,
+        )
 
 
 def _burn_in_and_thinning(steps: int, tau: np.ndarray) -> tuple[int, int]:

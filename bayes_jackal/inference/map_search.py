@@ -22,6 +22,7 @@ from .._runtime.errors import InputError
 from .._runtime.threads import one_blas_thread
 from ..likelihood.priors import LogPosterior, Prior
 from .moves import (
+    JOINT_SHARE,
     MIN_MATCHED_EFFICIENCY,
     MIN_PROPOSAL_EFFICIENCY,
     Approximation,
@@ -32,6 +33,7 @@ from .moves import (
     Start,
     as_laplace,
     as_mixture,
+    joint_efficiency,
     moment_matched,
     proposal_efficiency,
 )
@@ -402,8 +404,12 @@ def laplace_walkers(
     if approximation is not None:  # not the posterior's shape: its moments, by importance sampling
         matched = moment_matched(log_posterior, approximation, rng)
         start = _efficient_start(log_posterior, matched, walkers, rng)
-        if start is None:  # a curved posterior, which no single t fits: a mixture along its ridge
-            widest = approximation if matched is None else matched
+        widest = approximation if matched is None else matched
+        axis = _widest_axis(prior, widest.covariance)
+        # A curved posterior, which no single t fits: a mixture along its
+        # ridge, unless the ridge runs along a noise group's gridded column,
+        # which the block moves draw from its conditional over the prior.
+        if start is None and axis not in _gridded_columns(log_posterior):
             mixture = ridge_mixture(log_posterior, approximation.centre, widest.covariance)
             start = _efficient_start(log_posterior, mixture, walkers, rng)
         if start is not None:  # block moves beside it, for what the approximation spreads over
@@ -412,9 +418,15 @@ def laplace_walkers(
     if points is None:  # no approximation of the posterior: a small ball
         ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
         points = ball[prior.inside(ball)][:walkers]
-    # Differential evolution, and block moves of the damping and of each noise group.
-    blocks = () if approximation is None else block_proposals(log_posterior, approximation)
-    return Start(points, None, blocks)
+    # Differential evolution, and block moves of the damping and of each noise
+    # group, a share of them every block at once where their product fits.
+    if approximation is None:
+        return Start(points, None)
+    blocks = block_proposals(log_posterior, approximation)
+    fits = bool(blocks) and (
+        joint_efficiency(log_posterior, blocks, centre, rng) >= MIN_PROPOSAL_EFFICIENCY
+    )
+    return Start(points, None, blocks, JOINT_SHARE if fits else 0.0)
 
 
 def block_proposals(
@@ -468,10 +480,7 @@ def block_proposals(
 
     shared = layout.damping_bases + layout.shared_bases
     blocks: list[BlockT | GroupGrid] = [conditional(np.array([layout.column(b) for b in shared]))]
-    for group in range(len(layout.groups)):
-        columns = np.array([layout.column(b, group) for b in layout.group_bases_of(group)])
-        if not len(columns):
-            continue
+    for group, columns in _group_columns(layout):
         # The width (sigma_c where the group has none) gridded, the others
         # given it; the group's joint t where the grid's mass is in one cell.
         grid = _grid(log_posterior, group, approximation, columns[:1], columns[1:])
@@ -814,8 +823,7 @@ def ridge_mixture(
     """
     prior = log_posterior.prior
     span = prior.z_high - prior.z_low
-    scaled = covariance / np.outer(span, span)
-    axis = int(np.argmax(np.abs(np.linalg.eigh(scaled)[1][:, -1])))
+    axis = _widest_axis(prior, covariance)
     width = span[axis] / RIDGE_CELLS
     cells = prior.z_low[axis] + width * (np.arange(RIDGE_CELLS) + 0.5)
     path, heights = _conditional_maxima(log_posterior, centre, axis, cells)
@@ -840,6 +848,28 @@ def ridge_mixture(
         np.array([point for point, _, _ in components])[used],
         np.array([covariance for _, covariance, _ in components])[used],
     )
+
+
+def _widest_axis(prior: Prior, covariance: np.ndarray) -> int:
+    """The parameter along which ``covariance`` is widest, in units of the prior's range."""
+    span = prior.z_high - prior.z_low
+    scaled = covariance / np.outer(span, span)
+    return int(np.argmax(np.abs(np.linalg.eigh(scaled)[1][:, -1])))
+
+
+def _group_columns(layout) -> list[tuple[int, np.ndarray]]:
+    """Each noise group with parameters of its own, and their columns (its width first)."""
+    columns = [
+        (g, np.array([layout.column(base, g) for base in layout.group_bases_of(g)], int))
+        for g in range(len(layout.groups))
+    ]
+    return [(g, c) for g, c in columns if len(c)]
+
+
+def _gridded_columns(log_posterior: LogPosterior) -> set[int]:
+    """The columns :func:`block_proposals` grids: each noise group's first (its width)."""
+    layout = getattr(log_posterior.likelihood, "layout", None)
+    return set() if layout is None else {int(c[0]) for _, c in _group_columns(layout)}
 
 
 def _conditional_maxima(
