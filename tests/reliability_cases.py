@@ -2155,6 +2155,17 @@ FILTER_CASES = [
         absent=("est.csv",),
         timeout=FAST,
     ),
+    # A prior nested 200,000 deep: json's parser recursed out of its stack (exit 1).
+    C(
+        "filter-prior-nested-deep",
+        "filter a.nc --prior deep.json --out est.csv",
+        2,
+        r"deep\.json",
+        r"nests deeper than Python parses",
+        files={**GOOD, "deep.json": json_text("[" * 200_000 + "]" * 200_000)},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
     # The posterior given where its exported prior belongs.
     C(
         "filter-prior-is-a-posterior",

@@ -131,6 +131,22 @@ def test_grid_text_goes_to_stdout_without_json(simulated, capsys):
     ]
 
 
+@pytest.mark.parametrize("command", [["grid"], ["residuals", "--channels", "yaw"]])
+def test_a_husky_run_read_under_the_jackal_profile_is_said(tmp_path, cli, command):
+    # The run's file names the profile that made it; under another one its
+    # fit is that robot's, which grid and residuals said nothing of (sample
+    # only warned of the rate, filter refuses).
+    husky = load_profile("husky")
+    path = tmp_path / "h.nc"
+    write_netcdf(simulate_experiment(husky, 306.5, 83.6, rng=1, name="h"), path)
+    result = cli([*command, "h.nc"], tmp_path)
+    assert result.code == 0, result.stderr
+    assert ("h.nc: recorded as a 'husky' run, read with the 'jackal' profile" in result.stderr
+            and "pass --robot husky" in result.stderr), result.stderr  # fmt: skip
+    result = cli([*command, "h.nc", "--robot", "husky"], tmp_path)
+    assert result.code == 0 and "recorded as a" not in result.stderr, result.stderr
+
+
 def test_grid_json_flags_a_minimum_on_the_grids_edge(simulated, capsys):
     # The simulation criterion finds the truth (110, 30) on a grid holding it
     # (tests/test_gridsearch.py); a d_lat grid stopping at 90 puts its

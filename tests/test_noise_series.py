@@ -107,6 +107,13 @@ def test_a_declared_rate_checks_the_stamps(tmp_path):
         _read(path, rate=50)
 
 
+def test_stamps_in_milliseconds_are_refused_not_read_as_a_slow_series(tmp_path):
+    # 100 Hz stamped in ms reads as a 0.1 Hz series: outside 1-10,000 Hz.
+    path = _csv(tmp_path / "gyro.csv", ["t", "gyro"], np.arange(400) * 10.0, _noise(400))
+    with pytest.raises(DataError, match=r"gyro\.csv: t: the stamps give 0\.1 Hz .* milliseconds"):
+        _read(path)
+
+
 def test_matlab_struct_fields(tmp_path):
     t, gyro = np.arange(300) / 200, _noise(300)
     path = tmp_path / "log.mat"

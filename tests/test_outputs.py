@@ -17,6 +17,7 @@ import re
 import shlex
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -114,6 +115,45 @@ def test_a_bad_output_is_refused_fast_with_exit_2(runs, tmp_path, capsys, comman
     assert seconds < 5.0  # refused before reading, let alone sampling
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["file", "folder"]  # no chain, no lock
     assert (tmp_path / "file").read_text() == "keep me"
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["sample", "{exp}", "--out", "{fifo}"],
+        ["filter", "{exp}", "--prior", "{exp}", "--out", "{fifo}"],
+        ["export-prior", "{exp}", "--out", "{fifo}"],
+        ["report", "{exp}", "--out", "{fifo}"],
+    ],
+)
+def test_a_named_pipe_given_as_the_output_is_refused_not_replaced(runs, tmp_path, capsys, command):
+    # Written in place (a temporary renamed over it), the pipe a user's
+    # reader listens on would become a regular file, exit 0.
+    suffix = {"sample": ".nc", "filter": ".csv", "export-prior": ".json", "report": ".html"}
+    fifo = tmp_path / f"out{suffix[command[0]]}"
+    os.mkfifo(fifo)
+    code = main([part.format(exp=runs / "v1_01.nc", fifo=fifo) for part in command])
+    err = capsys.readouterr().err
+    assert code == 2 and f"--out {fifo}: is a named pipe, not a file" in err, err
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [fifo.name]
+
+
+def test_an_output_folder_1400_levels_deep_is_made(tmp_path, capsys):
+    # pathlib's mkdir(parents=True) recursed per missing level past Python's
+    # stack: exit 1 with a RecursionError. (2,799 characters: inside Linux's
+    # 4,096. Removed level by level: pytest's own clean-up recurses too.)
+    deep = Path(tmp_path, *["d"] * 1400)
+    try:
+        code = main(["simulate", "--out", str(deep), "--seed", "3", "--v1", "1", "--v2", "0"])
+        assert code == 0, capsys.readouterr().err
+        assert (deep / "v1_01.nc").is_file()
+    finally:
+        for path in deep.glob("*"):
+            path.unlink()
+        while deep != tmp_path:
+            deep.rmdir()
+            deep = deep.parent
 
 
 def test_two_outputs_of_one_command_never_share_a_path(tmp_path):

@@ -20,9 +20,16 @@ import scipy.stats
 
 import bayes_jackal as bj
 from bayes_jackal._runtime.errors import InputError
-from bayes_jackal.inference import Hierarchy, UnitPosterior, hierarchy, unit_files, unit_posterior
+from bayes_jackal.inference import (
+    Hierarchy,
+    UnitPosterior,
+    hierarchy,
+    plan_units,
+    unit_files,
+    unit_posterior,
+)
 from bayes_jackal.inference.population import SKEWNESS_TOLERANCE
-from bayes_jackal.io import RunGroups, group_runs, read_groups
+from bayes_jackal.io import RunGroups, group_runs, read_groups, run_group
 
 BOUNDS = np.array([[10.0, 1000.0], [10.0, 1000.0]])  # the Jackal's prior ranges [N s/m]
 #: The midpoint rule's error over the 80 x 80 grid in log tau [nats]: the integral on a grid
@@ -277,6 +284,10 @@ def test_read_groups_takes_odd_headers_blank_lines_and_a_byte_order_mark(tmp_pat
         ("run,group\nv1,\n", "row 2", "empty 'group'"),
         ("run,group,speed\nv1,A,0.3\nv2,A,inf\n", "row 3, column 'speed'", "finite number"),
         ("", None, "the groups CSV is empty"),
+        # An unquoted decimal comma splits a speed in two: refused, not read as 0.
+        ("run,group,speed\nv1_01,A,0,3\n", "row 2", r"4 cells under a header of 3 \(an unq"),
+        # Two speed columns: neither is guessed.
+        ("run,group,speed,Speed\nv1,A,0.3,0.4\n", "header", "names 'speed' twice"),
     ],
 )
 def test_read_groups_refuses_bad_tables_naming_file_row_and_column(tmp_path, text, field, message):
@@ -285,6 +296,48 @@ def test_read_groups_refuses_bad_tables_naming_file_row_and_column(tmp_path, tex
     with pytest.raises(InputError, match=message) as caught:
         read_groups(path)
     assert caught.value.source == str(path) and caught.value.field == field
+
+
+def test_a_covariate_header_with_its_unit_is_the_covariate(tmp_path):
+    path = tmp_path / "groups.csv"
+    path.write_text("run,group,speed [m/s],mass (kg)\nv1,A,0.3,20\nv2,B,0.6,21\n")
+    assert read_groups(path).covariates == {
+        "v1": {"speed": 0.3, "mass": 20.0},
+        "v2": {"speed": 0.6, "mass": 21.0},
+    }
+
+
+def test_a_speed_left_empty_for_one_run_is_said_not_dropped_in_silence(floor_runs):
+    speeds = {"r0": {"speed": 0.3}, "r1": {"speed": 0.6}, "r2": {"speed": 0.3}, "r3": {}}
+    plan = plan_units(floor_runs, RunGroups(FLOORS, speeds, source="groups.csv"),
+                      noise="per-experiment")  # fmt: skip
+    assert plan.covariate is None
+    (note,) = plan.notes
+    assert note["kind"] == "covariate_incomplete" and "'r3' has none" in note["message"]
+    assert plan_units(floor_runs, FLOORS).notes == []  # no speed anywhere: nothing to say
+
+
+@pytest.mark.parametrize(
+    ("covariates", "field"),
+    [
+        ([0.3], "provenance.covariates"),
+        ({"speed": "fast"}, "provenance.covariates.speed"),
+        ({"speed": None}, "provenance.covariates.speed"),
+        ({"speed": float("nan")}, "provenance.covariates.speed"),
+    ],
+)
+def test_bad_covariates_in_a_runs_provenance_are_named(covariates, field):
+    # A list, text, None or NaN raised AttributeError or ValueError (exit 1).
+    run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1, name="r1")
+    run.provenance.update(group="A", covariates=covariates)
+    with pytest.raises(InputError) as caught:
+        run_group(run, None)
+    assert caught.value.field == field and caught.value.source == run.source
+
+
+def test_speeds_whose_range_overflows_a_float_are_refused_without_a_numpy_warning():
+    with pytest.raises(InputError, match="span more than a float holds"):
+        Hierarchy(_units((-1e308, 1e308, 0.0)), BOUNDS)
 
 
 def test_a_run_is_matched_to_its_row_by_path_file_name_or_name_and_never_guessed():
@@ -431,3 +484,10 @@ def test_population_command_writes_json_plot_and_refuses_a_bad_table(
     bad = cli([*args[:-1], "bad.csv", "--out", "pop2", *flags], tmp_path)
     assert bad.code == 2
     assert "experiment 'r1' has no group" in bad.stderr and "Traceback" not in bad.stderr
+    # A file where the units' folder goes is refused before any unit is sampled.
+    (tmp_path / "pop3").mkdir()
+    (tmp_path / "pop3" / "units").write_text("keep me")
+    blocked = cli([*args, "--out", "pop3", *flags], tmp_path)
+    assert blocked.code == 2, blocked.stderr
+    assert "--out pop3/units: is an existing file; give a folder" in blocked.stderr
+    assert sorted(p.name for p in (tmp_path / "pop3").iterdir()) == ["units"]

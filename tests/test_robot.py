@@ -302,6 +302,9 @@ def test_wrong_type_in_a_profile_is_a_profile_error(tmp_path, changes, field, va
             "body.wheel_radius",
             "0.25 m is not smaller than the half track b = 0.2078 m",
         ),
+        # A radius of 1e-300 m, and 9.8 mm (a cm slip): under b / 20 = 10.39 mm.
+        ({"body.wheel_radius": "1e-300"}, "body.wheel_radius", "1e-300 m is less than 0.05 x"),
+        ({"body.wheel_radius": "0.0098"}, "body.wheel_radius", "0.0098 m is less than 0.05 x"),
         # I in kg cm^2 (x 1e4): sqrt(I/m) = 18 m on a 0.25 m footprint.
         ({"body.yaw_inertia": "5485.0"}, "body.yaw_inertia", "5485 kg m^2 at 16.523 kg"),
         # m in grams: sqrt(I/m) = 6 mm, 2 % of the footprint's half-diagonal.
@@ -343,6 +346,8 @@ def test_impossible_constants_name_file_field_and_value(tmp_path, changes, field
         {"diff_drive.wheel_separation_multiplier": "10.0"},
         {"sampling.rate": "1.0"},
         {"sampling.rate": "10000.0"},
+        # A wheel radius just over b / 20 = 10.39 mm.
+        {"body.wheel_radius": "0.0104"},
         # s = 2b exactly (the wheels' outer edges) and 2 x 2b.
         {"diff_drive.wheel_separation": "0.4156"},
         {"diff_drive.wheel_separation": "0.8312"},

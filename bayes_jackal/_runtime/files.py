@@ -21,15 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import DataError, InputError, OutputError
-from .output_safety import make_folder, refuse_input
-
-#: What a path that is neither a regular file nor a folder is, by its ``stat`` test.
-_SPECIAL_FILES = (
-    (stat.S_ISFIFO, "a named pipe"),
-    (stat.S_ISSOCK, "a socket"),
-    (stat.S_ISCHR, "a character device"),
-    (stat.S_ISBLK, "a block device"),
-)
+from .output_safety import make_folder, refuse_input, special_kind
 
 
 def require_file(
@@ -84,8 +76,7 @@ def require_file(
         return
     if stat.S_ISDIR(mode):
         raise error("is a folder, not a file", source=source)
-    kind = next((what for test, what in _SPECIAL_FILES if test(mode)), "of an unknown kind")
-    raise error(f"not a regular file ({kind})", source=source)
+    raise error(f"not a regular file ({special_kind(mode)})", source=source)
 
 
 def _umask() -> int:

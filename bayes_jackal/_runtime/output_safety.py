@@ -52,6 +52,7 @@ __all__ = [
     "refuse_input",
     "refuse_link",
     "removed_if_empty",
+    "special_kind",
 ]
 
 
@@ -104,6 +105,20 @@ class Output:
     create: bool = True
 
 
+#: What a path that is neither a regular file nor a folder is, by its ``stat`` test.
+_SPECIAL_FILES = (
+    (stat.S_ISFIFO, "a named pipe"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+)
+
+
+def special_kind(mode: int) -> str:
+    """What a file of ``stat`` mode ``mode`` that is neither regular nor a folder is."""
+    return next((what for test, what in _SPECIAL_FILES if test(mode)), "of an unknown kind")
+
+
 def _identity(path: Path) -> tuple[int, int] | None:
     """(device, inode) of an existing path, following links; None if it does not exist."""
     try:
@@ -144,6 +159,9 @@ def _check_one(output: Output, inputs: dict[tuple[int, int] | Path, str]) -> Non
         return
     if path.is_dir():
         raise InputError("is an existing folder; give a file name", source=where)
+    if path.exists() and not path.is_file():  # written in place, it would be replaced
+        kind = special_kind(path.stat().st_mode)
+        raise InputError(f"is {kind}, not a file; give a file name", source=where)
     if output.suffixes and path.suffix.lower() not in output.suffixes:
         suffix = repr(path.suffix) if path.suffix else "no suffix"
         raise InputError(
@@ -166,7 +184,9 @@ def check_outputs(outputs: Sequence[Output], *, inputs: Iterable[str | Path]) ->
     ------
     InputError
         An output is an input, has an unknown suffix, is a folder where a
-        file is wanted or the other way round, or two outputs share a path.
+        file is wanted or the other way round, is a named pipe, socket or
+        device (which writing in place would replace), or two outputs share
+        a path.
     OutputError
         A folder cannot be created (permission, read-only file system).
 
@@ -230,8 +250,12 @@ def make_folder(folder: Path, *, output: str | Path | None = None) -> None:
     refused: OutputError
     True
     """
+    # One level at a time: pathlib's mkdir(parents=True) recurses per missing
+    # level and runs out of Python's stack beneath ~1,000 of them.
+    missing = [path for path in (folder, *folder.parents) if not path.is_dir()]
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        for path in reversed(missing):
+            path.mkdir(exist_ok=True)
     except FileExistsError:
         raise OutputError(output or folder, f"{folder} is a file, not a folder") from None
     except OSError as exc:

@@ -24,7 +24,11 @@ PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 def planned_outputs(args: argparse.Namespace) -> list[Output]:
     """What the command writes under the names the user gave; the main output first."""
     command, out = args.command, getattr(args, "out", None)
-    if command in ("simulate", "ingest", "analyse", "demo", "population") or (
+    if command == "population":  # its units' folder and files, checked before a unit runs
+        folder = Path(out)
+        inside = [Output(folder / name) for name in ("population.json", "population.png")]
+        return [Output(folder, "folder"), Output(folder / "units", "folder"), *inside]
+    if command in ("simulate", "ingest", "analyse", "demo") or (
         command in ("compare", "noise") and out
     ):
         return [Output(Path(out), "folder")]

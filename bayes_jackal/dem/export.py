@@ -647,4 +647,8 @@ def read_prior(path: str | Path) -> ActiveInferencePrior:
         raise DataError(f"cannot read: {error.strerror}", source=source) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise DataError(f"not JSON: {error}", source=source) from None
+    except RecursionError:  # json's parser recurses per level: no prior nests that deep
+        raise DataError(
+            "not a prior: its JSON nests deeper than Python parses", source=source
+        ) from None
     return ActiveInferencePrior.from_json(prior, source=source)

@@ -311,8 +311,13 @@ class Hierarchy:
                 f"{sorted(set(values.tolist()))}",
                 field="covariate",
             )
-        self.covariate_span = float(high - low)
-        self.covariate_centre = float((high + low) / 2)
+        span, centre = float(high) - float(low), float(high) / 2 + float(low) / 2
+        if not math.isfinite(span):  # Python floats: inf without numpy's overflow warning
+            raise InputError(
+                f"the covariate's values {low:g} .. {high:g} span more than a float holds",
+                field="covariate",
+            )
+        self.covariate_span, self.covariate_centre = span, centre
         return (values - self.covariate_centre) / self.covariate_span
 
     @property

@@ -368,6 +368,20 @@ def _covariate_name(
     )
 
 
+def _partial_speed(experiments: Sequence[Experiment], table: RunGroups | None) -> list[dict]:
+    """A note where some runs have a ``speed`` and others not: no slope is then fitted."""
+    given = [run.name for run in experiments if "speed" in run_group(run, table)[1]]
+    if not given:
+        return []
+    missing = [run.name for run in experiments if run.name not in given]
+    return [{
+        "kind": "covariate_incomplete",
+        "message": f"{len(given)} of {len(experiments)} runs have a speed ({missing[0]!r} has "
+                   "none): no state dependence is fitted; give every run's speed, or "
+                   "--covariate speed to refuse such a table",
+    }]  # fmt: skip
+
+
 def _units(
     grouped: Mapping[str, list[Experiment]],
     table: RunGroups | None,
@@ -403,7 +417,7 @@ class UnitPlan:
     covariate : str or None
         The covariate of the slope, None without one.
     notes : list of dict
-        Warnings to keep (``one_operating_point``).
+        Warnings to keep (``one_operating_point``, ``covariate_incomplete``).
 
     Examples
     --------
@@ -472,7 +486,9 @@ def plan_units(
     name = _covariate_name(experiments, table, covariate and covariate.strip().lower())
     units = _units(grouped, table, name, per_run=noise == "per-experiment")
     _file_stems(list(units))  # two unit names that would share a file are refused
-    if name is None or len({value for _, _, value in units.values()}) > 1:
+    if name is None:
+        return UnitPlan(units, None, _partial_speed(experiments, table))
+    if len({value for _, _, value in units.values()}) > 1:
         return UnitPlan(units, name, [])
     note = {
         "kind": "one_operating_point",

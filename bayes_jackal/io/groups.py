@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +31,8 @@ _NUMERIC = ("speed",)
 #: Accepted headers of the run and group columns (case and spaces ignored).
 _RUN_HEADERS = ("run", "experiment", "file", "bag", "name")
 _GROUP_HEADERS = ("group", "label", "condition")
+#: A unit after a header's name, dropped: ``speed [m/s]`` and ``speed (m/s)`` are ``speed``.
+_UNIT = re.compile(r"\s*(\[[^\]]*\]|\([^)]*\))\s*$")
 
 
 @dataclass(frozen=True)
@@ -110,8 +113,9 @@ def read_groups(path: str | Path) -> RunGroups:
         CSV with a header row. The run column is headed ``run`` (or
         ``experiment``, ``file``, ``bag``, ``name``), the group column
         ``group`` (or ``label``, ``condition``); headers are matched without
-        case or surrounding spaces. A column whose every value is a number
-        is a covariate (an empty cell: not given for that run).
+        case, surrounding spaces or a unit in brackets (``speed [m/s]``). A
+        column whose every value is a number is a covariate (an empty cell:
+        not given for that run).
 
     Returns
     -------
@@ -120,9 +124,10 @@ def read_groups(path: str | Path) -> RunGroups:
     Raises
     ------
     InputError
-        Naming the file, row and column: a missing run or group column, an
-        empty or repeated run, an empty group label, a covariate that is not
-        a finite number.
+        Naming the file, row and column: a missing run or group column, a
+        header naming a column twice, a row of more cells than the header
+        (an unquoted decimal comma), an empty or repeated run, an empty
+        group label, a covariate that is not a finite number.
 
     Examples
     --------
@@ -147,9 +152,24 @@ def read_groups(path: str | Path) -> RunGroups:
     rows = [row for row in rows if any(cell.strip() for cell in row)]
     if not rows:
         raise InputError("the groups CSV is empty", source=source)
-    header = [cell.strip().lower() for cell in rows[0]]
+    header = [_UNIT.sub("", cell).strip().lower() for cell in rows[0]]
+    repeated = sorted({name for name in header if name and header.count(name) > 1})
+    if repeated:
+        raise InputError(
+            f"the header names {repeated[0]!r} twice: which column is meant?",
+            source=source,
+            field="header",
+        )
     run_column = _column(header, _RUN_HEADERS, source)
     group_column = _column(header, _GROUP_HEADERS, source)
+    for line, row in enumerate(rows[1:], start=2):
+        if any(cell.strip() for cell in row[len(header) :]):
+            raise InputError(
+                f"{len(row)} cells under a header of {len(header)} (an unquoted decimal comma? "
+                'quote it, "0,3", or write 0.3)',
+                source=source,
+                field=f"row {line}",
+            )
     body = [[cell.strip() for cell in row] + [""] * (len(header) - len(row)) for row in rows[1:]]
     groups: dict[str, str] = {}
     for line, row in enumerate(body, start=2):
@@ -295,5 +315,28 @@ def run_group(
     if table is not None:
         return table.of(experiment)
     label = experiment.provenance.get("group")
+    return (None if label is None else str(label)), _provenance_covariates(experiment)
+
+
+def _provenance_covariates(experiment: Experiment) -> dict[str, float]:
+    """An experiment's ``provenance["covariates"]``: a mapping of names to finite numbers."""
     covariates = experiment.provenance.get("covariates", {})
-    return (None if label is None else str(label)), {k: float(v) for k, v in covariates.items()}
+    if not isinstance(covariates, Mapping):
+        raise InputError(
+            f"must map covariate names to numbers, got {covariates!r}",
+            source=experiment.source,
+            field="provenance.covariates",
+        )
+    values = {}
+    for name, value in covariates.items():
+        try:
+            values[str(name)] = number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if not math.isfinite(number):
+            raise InputError(
+                f"{name} must be a finite number, got {value!r}",
+                source=experiment.source,
+                field=f"provenance.covariates.{name}",
+            )
+    return values

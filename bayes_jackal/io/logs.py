@@ -10,6 +10,7 @@ file: ``.csv``, ``.mat``, ``.nc``); :func:`read_logs` and
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -425,7 +426,28 @@ def read_logs(
         on_failure=on_failure,
     )
     check_unique_names(experiments.values())
+    for experiment in experiments.values():
+        _warn_of_another_robot(experiment, robot)
     return experiments, failed
+
+
+def _warn_of_another_robot(experiment: Experiment, robot: RobotProfile) -> None:
+    """Warn where an experiment was recorded (or read, simulated) as another robot's.
+
+    Its file says which profile made it; read under another one, its
+    damping, prior and grids are that one's (a Husky's run under the
+    Jackal's profile fits a Jackal), though a profile of the same robot
+    under another name is fine.
+    """
+    recorded = experiment.provenance.get("robot")
+    if recorded is not None and recorded != robot.name:
+        warnings.warn(
+            f"{experiment.source}: recorded as a {recorded!r} run, read with the "
+            f"{robot.name!r} profile ({robot.source}): its fit is the {robot.name}'s; pass "
+            f"--robot {recorded} (or that robot's profile) unless this profile is the same robot",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 def _paths(paths: str | Path | Sequence[str | Path]) -> list[str | Path]:

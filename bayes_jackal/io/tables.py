@@ -648,20 +648,44 @@ def check_declared_rate(rate: float | None) -> float | None:
     ...     check_declared_rate(0.072)
     ... except ValueError as error:
     ...     print(error)
-    rate: a declared rate of 0.072 Hz (a sample every 13.9 s) is outside the rates of sensor
+    rate: a declared rate of 0.072 Hz (a sample every 13.9 s), outside the rates of sensor
     logs (1-10000 Hz): is the time column in milliseconds? Time must be in seconds
     """
     rate = positive_number(rate, name="rate", unit="Hz")
-    low, high = PLAUSIBLE_RATES
-    if rate is None or low <= rate <= high:
+    if rate is None or (hint := _implausible(rate, "declare the rate in Hz")) is None:
         return rate
+    raise InputError(f"a declared rate of {hint}", field="rate")
+
+
+def check_stamp_rate(rate: float, source: str, field: str) -> None:
+    """Refuse a rate the stamps give [Hz] outside :data:`PLAUSIBLE_RATES` (time not in s).
+
+    Examples
+    --------
+    >>> from bayes_jackal.io.tables import check_stamp_rate
+    >>> check_stamp_rate(100.0, "gyro.csv", "t")
+    >>> try:
+    ...     check_stamp_rate(0.1, "gyro.csv", "t")
+    ... except ValueError as error:
+    ...     print(error)
+    gyro.csv: t: the stamps give 0.1 Hz (a sample every 10 s), outside the rates of sensor
+    logs (1-10000 Hz): is the time column in milliseconds? Time must be in seconds
+    """
+    hint = _implausible(rate, "declare the rate in Hz (--rate; rate= in Python)")
+    if hint is not None:
+        raise DataError(f"the stamps give {hint}", source=source, field=field)
+
+
+def _implausible(rate: float, otherwise: str) -> str | None:
+    """What is wrong with a rate outside :data:`PLAUSIBLE_RATES` [Hz]; None inside."""
+    low, high = PLAUSIBLE_RATES
+    if low <= rate <= high:
+        return None
     units = [name for name, size in _TIME_UNITS.items() if low <= rate / size <= high]
-    hint = f"is the time column in {units[0]}? Time must be in seconds" if units else (
-        "declare the rate in Hz")  # fmt: skip
-    raise InputError(
-        f"a declared rate of {rate:g} Hz (a sample every {1 / rate:.3g} s) is outside the "
-        f"rates of sensor logs ({low:g}-{high:g} Hz): {hint}",
-        field="rate",
+    hint = f"is the time column in {units[0]}? Time must be in seconds" if units else otherwise
+    return (
+        f"{rate:g} Hz (a sample every {1 / rate:.3g} s), outside the rates of sensor logs "
+        f"({low:g}-{high:g} Hz): {hint}"
     )
 
 

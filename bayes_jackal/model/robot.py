@@ -114,6 +114,12 @@ _SEPARATION_RATIO = (0.5, 2.0)
 #: tenth of the rate its wheels command. Clearpath's values: 1.0 (Warthog,
 #: ROS 1), 1.5 (Jackal), 1.875 (Husky).
 _MULTIPLIER = (1.0, 10.0)
+#: The least wheel radius over the half track b: a wheel under 1/20 of it (5 mm
+#: under the Jackal's 0.21 m) rolls over no floor's joints, and its wheel
+#: speeds would be a thousand times a real robot's (a radius in m written in
+#: mm, or 1e-300); the upper bound is b itself (:func:`_check_constants`). The
+#: packaged profiles lie at 0.43-0.48.
+_LEAST_WHEEL_RATIO = 0.05
 #: Sample rates [Hz] of a profile's IMU: those of sensor logs,
 #: :data:`bayes_jackal.io.PLAUSIBLE_RATES` (a layer above the model, so its
 #: value is repeated here; a test keeps the two equal). Outside is a unit slip.
@@ -608,6 +614,13 @@ def _check_constants(values: Mapping[str, float], source: str) -> None:
                 source=source,
                 field=_FIELDS["wheel_radius"],
             )
+    if r_w < _LEAST_WHEEL_RATIO * b:
+        raise ProfileError(
+            f"{r_w:g} m is less than {_LEAST_WHEEL_RATIO:g} x the half track b = {b:g} m: no "
+            "ground robot's wheel (is r_w in m?)",
+            source=source,
+            field=_FIELDS["wheel_radius"],
+        )
     inertia, mass = values["yaw_inertia"], values["mass"]
     gyration, half_diagonal = math.sqrt(inertia / mass), math.hypot(a, b)
     _check_bounds(

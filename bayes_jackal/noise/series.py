@@ -47,7 +47,7 @@ from ..io.bag_reading import (
 )
 from ..io.experiment import check_finite
 from ..io.stamps import uniform_clock
-from ..io.tables import check_declared_rate, numeric_column, read_csv_table
+from ..io.tables import check_declared_rate, check_stamp_rate, numeric_column, read_csv_table
 from ..likelihood.series_likelihood import check_length, check_series
 
 __all__ = ["MIN_SERIES_SAMPLES", "ROS2_METADATA", "TIME_NAMES", "NoiseSeries", "read_noise_series"]
@@ -215,6 +215,9 @@ def read_noise_series(
     if stamps is None:  # the declared rate's clock
         stamps = np.arange(len(values)) / rate
     check_finite(stamps, source, time_name, row_name)
+    steps = np.diff(np.unique(stamps))
+    if rate is None and len(steps):  # ms or ns read as s: a series 1000 times too slow
+        check_stamp_rate(1.0 / float(np.median(steps)), source, time_name)
     clock = uniform_clock(
         stamps, rate=rate, max_gap=max_gap, source=source, row_name=row_name, field=time_name
     )
