@@ -83,14 +83,14 @@ def noise_rows(summary: dict) -> list[list[str]]:
     >>> width = {"seconds": {"mean": 0.0301, "hdi_3%": 0.025, "hdi_97%": 0.036},
     ...          "bins": {"mean": 3.01}}
     >>> summary = {"families": {
-    ...     "white": {"log_evidence": -900.0, "log_evidence_err": 0.02, "width": None,
+    ...     "white": {"log_evidence": -900.0, "log_evidence_err": 0.0043, "width": None,
     ...               "log_bayes_factor_vs_white": 0.0},
     ...     "gaussian": {"log_evidence": -850.5, "log_evidence_err": 0.05, "width": width,
     ...                  "log_bayes_factor_vs_white": 49.5}}}
     >>> for row in [list(NOISE_HEADER), *noise_rows(summary)]:
     ...     print(" | ".join(row))
     family | ln Z | +- | ln B vs white | width [s] | 94 % HDI | [bins]
-    white | -900.00 | 0.02 | 0.00 | - | - | -
+    white | -900.00 | 0.0043 | 0.00 | - | - | -
     gaussian | -850.50 | 0.05 | 49.50 | 0.0301 | [0.025, 0.036] | 3.01
     """
     rows = []
@@ -101,7 +101,8 @@ def noise_rows(summary: dict) -> list[list[str]]:
             seconds = width["seconds"]
             interval = f"[{seconds['hdi_3%']:.4g}, {seconds['hdi_97%']:.4g}]"
             cells = [f"{seconds['mean']:.4g}", interval, f"{width['bins']['mean']:.3g}"]
-        rows.append([name, f"{entry['log_evidence']:.2f}", f"{entry['log_evidence_err']:.2f}",
+        # The error to two significant digits: bridge sampling's 0.004 read "0.00".
+        rows.append([name, f"{entry['log_evidence']:.2f}", f"{entry['log_evidence_err']:.2g}",
                      "-" if bayes is None else f"{bayes:.2f}", *cells])  # fmt: skip
     return rows
 
