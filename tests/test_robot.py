@@ -357,6 +357,21 @@ def test_constants_at_the_bounds_are_possible(tmp_path, changes):
     load_profile(write_profile(tmp_path, changes))
 
 
+def test_a_profile_saved_with_a_byte_order_mark_reads(tmp_path):
+    # A Windows editor's UTF-8 BOM: tomllib saw "Invalid statement" at line 1.
+    path = tmp_path / "jackal_bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + default_profile_path().read_bytes())
+    assert load_profile(path).mass == load_profile().mass
+
+
+@pytest.mark.parametrize("name", ["", "  "])
+def test_an_empty_profile_name_is_refused_as_such(name):
+    # Path("") is ".", which was refused as "is a folder, not a file".
+    with pytest.raises(ProfileError, match="an empty profile name; give one of") as caught:
+        load_profile(name)
+    assert caught.value.field == "robot"
+
+
 def test_replace_refuses_impossible_constants():
     profile = load_profile()
     with pytest.raises(ProfileError, match=r"body\.wheel_radius: 0\.2 m is not smaller"):

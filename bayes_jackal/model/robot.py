@@ -370,6 +370,12 @@ def _profile_file(profile: str | Path | None) -> Path:
     """
     if profile is None:
         return default_profile_path()
+    if isinstance(profile, str) and not profile.strip():  # Path("") is the working folder
+        raise ProfileError(
+            f"an empty profile name; give one of {sorted(packaged_profiles())} or a TOML file",
+            source=repr(profile),
+            field="robot",
+        )
     is_name = isinstance(profile, str) and Path(profile).name == profile
     if not is_name or profile.endswith(".toml"):
         return Path(profile)
@@ -459,8 +465,8 @@ def load_profile(path: str | Path | None = None) -> RobotProfile:
     source = str(path)
     require_file(path, source, error=ProfileError)
     try:
-        with open(path, "rb") as stream:
-            doc = tomllib.load(stream)
+        with open(path, "rb") as stream:  # a byte-order mark (a Windows editor's) dropped
+            doc = tomllib.loads(stream.read().decode("utf-8-sig"))
     except OSError as exc:
         raise ProfileError(f"cannot read profile ({exc.strerror})", source=source) from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
