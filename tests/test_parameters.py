@@ -150,6 +150,8 @@ def test_an_unknown_prior_key_is_refused_naming_the_keys_allowed():
         ({"sigma_c": (1.0,)}, "must be numbers"),
         ({"d_lat": (500, 100)}, r"priors\.d_lat: .*got \[500\.0, 100\.0\]"),
         ({"sigma_n": (0.0, 1.0)}, r"priors\.sigma_n: .*0 < low < high"),
+        # 1e400 reads as inf: said so, not as a range that "excludes every value".
+        ({"d_lat": ("1", "1e400")}, r"\['1', '1e400'\]: read as \[1\.0, inf\]"),
     ],
 )
 def test_bad_prior_overrides_are_refused(overrides, pattern):

@@ -369,7 +369,13 @@ def prior_range(key: str, value: Sequence[float]) -> tuple[float, float]:
         raise InputError(
             f"low and high must be numbers, got {value!r}", field=f"priors.{key}"
         ) from None
-    if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
+    if not (math.isfinite(low) and math.isfinite(high)):  # 1e400 reads as inf
+        raise InputError(
+            f"low and high must be finite numbers, got {[str(v) for v in value]}: read as "
+            f"[{low}, {high}] (a float holds at most 1.8e308)",
+            field=f"priors.{key}",
+        )
+    if not 0 < low < high:
         raise InputError(
             f"prior range must satisfy 0 < low < high, got [{low}, {high}]: it excludes "
             "every value",
