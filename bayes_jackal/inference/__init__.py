@@ -50,7 +50,6 @@ from .map_search import (
 from .moves import (
     GROUP_WEIGHT,
     INDEPENDENCE_WEIGHT,
-    JOINT_SHARE,
     MIN_MATCHED_EFFICIENCY,
     MIN_PROPOSAL_EFFICIENCY,
     SHARED_WEIGHT,
@@ -64,7 +63,6 @@ from .moves import (
     as_laplace,
     as_mixture,
     ensemble_moves,
-    joint_efficiency,
     moment_matched,
     proposal_efficiency,
 )
@@ -88,7 +86,6 @@ __all__ = [
     "FROM_SCALE_RATIO",
     "GROUP_WEIGHT",
     "INDEPENDENCE_WEIGHT",
-    "JOINT_SHARE",
     "MIN_MATCHED_EFFICIENCY",
     "MIN_PROPOSAL_EFFICIENCY",
     "POPULATION_DRAWS",
@@ -138,7 +135,6 @@ __all__ = [
     "find_map",
     "in_processes",
     "integrated_time",
-    "joint_efficiency",
     "keep_warnings",
     "laplace_walkers",
     "moment_matched",

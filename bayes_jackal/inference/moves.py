@@ -39,7 +39,6 @@ from scipy.special import logsumexp
 __all__ = [
     "GROUP_WEIGHT",
     "INDEPENDENCE_WEIGHT",
-    "JOINT_SHARE",
     "MIN_MATCHED_EFFICIENCY",
     "MIN_PROPOSAL_EFFICIENCY",
     "SHARED_WEIGHT",
@@ -53,7 +52,6 @@ __all__ = [
     "as_laplace",
     "as_mixture",
     "ensemble_moves",
-    "joint_efficiency",
     "moment_matched",
     "proposal_efficiency",
 ]
@@ -649,8 +647,8 @@ def proposal_efficiency(
     >>> proposal_efficiency(shifted, approximation, rng) < 0.1
     True
     """
-    _, weights, finite = _importance_draws(log_posterior, approximation, rng, draws)
-    return float(1.0 / np.sum(weights**2) / finite) if finite else 0.0
+    move = IndependenceMove(approximation)
+    return _efficiency(log_posterior, move, np.zeros(move.centres.shape[1]), rng, draws)
 
 
 def joint_efficiency(
@@ -662,31 +660,10 @@ def joint_efficiency(
 ) -> float:
     """:func:`proposal_efficiency` of the block proposals' product (every block drawn at once).
 
-    ``centre`` gives the columns no block draws.
-
-    Examples
-    --------
-    A grid of the uniform density on [-1, 1] for a target uniform there
-    (every draw the same weight), and for a normal of sd 0.3 (a uniform
-    proposal's efficiency E[p]^2 / E[p^2] = 0.53 over [-1, 1]):
-
-    >>> import numpy as np
-    >>> from bayes_jackal.inference import GroupGrid, joint_efficiency
-    >>> grid = GroupGrid(np.array([0]), np.array([-1.0]), np.array([1.0]),
-    ...                  np.log(np.full(8, 1 / 8)), 8)
-    >>> def flat(z):
-    ...     return np.where(np.abs(z[:, 0]) < 1.0, 0.0, -np.inf)
-    >>> def normal(z):
-    ...     return -0.5 * (z[:, 0] / 0.3) ** 2
-    >>> rng = np.random.default_rng(1)
-    >>> round(joint_efficiency(flat, (grid,), np.zeros(1), rng), 2)
-    1.0
-    >>> round(joint_efficiency(normal, (grid,), np.zeros(1), rng), 1)
-    0.5
+    ``centre`` gives the columns no block draws (tests/test_moves.py checks
+    it against closed forms).
     """
-    move = GroupMove(groups, joint=1.0)
-    _, weights, finite = _importance_draws(log_posterior, move, rng, draws, origin=centre)
-    return float(1.0 / np.sum(weights**2) / finite) if finite else 0.0
+    return _efficiency(log_posterior, GroupMove(groups, joint=1.0), centre, rng, draws)
 
 
 def moment_matched(
@@ -734,7 +711,8 @@ def moment_matched(
     """
     k = len(approximation.centre)
     for _ in range(MOMENT_ROUNDS):
-        z, weights, finite = _importance_draws(log_posterior, approximation, rng, draws)
+        move = IndependenceMove(approximation)
+        z, weights, finite = _importance_draws(log_posterior, move, np.zeros(k), rng, draws)
         if not finite or 1.0 / np.sum(weights**2) < 2 * k:
             return None
         centre = weights @ z
@@ -748,25 +726,31 @@ def moment_matched(
     return approximation
 
 
-def _importance_draws(
+def _efficiency(
     log_posterior: Callable[[np.ndarray], np.ndarray],
-    approximation: Approximation | GroupMove,
+    move: IndependenceMove | GroupMove,
+    origin: np.ndarray,
     rng: np.random.Generator,
     draws: int,
-    origin: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """``draws`` independence proposals, their normalised weights p / q, and how many
-    have a finite log-posterior (the weights are zero where none has).
+) -> float:
+    """The normalised ESS, 1 / (n sum w^2), of :func:`_importance_draws`' weights."""
+    _, weights, finite = _importance_draws(log_posterior, move, origin, rng, draws)
+    return float(1.0 / np.sum(weights**2) / finite) if finite else 0.0
 
-    The proposals are the independence moves' t (an approximation's) or a
-    block move's from ``origin``, whose factors log q(origin) - log q(z)
-    are -log q(z) up to a constant.
+
+def _importance_draws(
+    log_posterior: Callable[[np.ndarray], np.ndarray],
+    move: IndependenceMove | GroupMove,
+    origin: np.ndarray,
+    rng: np.random.Generator,
+    draws: int,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """``draws`` independence proposals of ``move`` from ``origin``, their normalised
+    weights p / q, and how many have a finite log-posterior (the weights are zero
+    where none has).
+
+    The move's factors, log q(origin) - log q(z), are -log q(z) up to a constant.
     """
-    move = (
-        approximation if isinstance(approximation, GroupMove) else IndependenceMove(approximation)
-    )
-    if origin is None:
-        origin = np.zeros(move.centres.shape[1])
     random = np.random.RandomState(int(rng.integers(2**32)))
     z, factors = move.get_proposal(np.repeat(origin[None], draws, axis=0), random)
     log_weights = log_posterior(z) + factors

@@ -370,7 +370,7 @@ def _covariate_name(
 
 def _partial_speed(experiments: Sequence[Experiment], table: RunGroups | None) -> list[dict]:
     """A note where some runs have a ``speed`` and others not: no slope is then fitted."""
-    given = [run.name for run in experiments if "speed" in run_group(run, table)[1]]
+    given = {run.name for run in experiments if "speed" in run_group(run, table)[1]}
     if not given:
         return []
     missing = [run.name for run in experiments if run.name not in given]
