@@ -15,6 +15,7 @@ import scipy.stats
 from bayes_jackal import DataError, InputError, load_profile
 from bayes_jackal._runtime.defaults import BRIDGE_MIN_DRAWS, MIN_EVIDENCE_STEPS
 from bayes_jackal.inference import sampling as inference
+from bayes_jackal.inference import starts as start_search
 from bayes_jackal.inference.chains import (
     SamplerSettings,
     _burn_in_and_thinning,
@@ -611,13 +612,19 @@ def test_map_search_finds_the_global_basin_with_every_channel(
     ("family", "sensor"), [("gaussian", "ma1"), ("exponential", "diagonal"), ("white", "diagonal")]
 )
 def test_the_noise_profile_is_the_whittle_likelihood_at_its_best_scale(
-    v2_run, thesis_like, family, sensor
+    v2_run, thesis_like, family, sensor, monkeypatch
 ):
     # The profile evaluates the debiased Whittle likelihood through the
     # linearity of its expected periodogram and a closed-form sigma_c; the
     # likelihood's own Whittle engine, which transforms every autocovariance,
     # is the independent reference (agreement to rounding, ~1e-9 relative).
     # Two runs of different lengths: each channel's group sums two blocks.
+    # On every Fourier frequency: by default these runs' periodograms are
+    # averaged onto a coarser grid (starts.KERNEL_RESOLUTION), which is not
+    # the Whittle likelihood itself.
+    monkeypatch.setattr(
+        start_search, "LEAST_PROFILE_FREQUENCIES", start_search.PROFILE_FREQUENCIES
+    )
     likelihood = ResidualLikelihood(
         [v2_run, thesis_like], ROBOT, family=family, sensor=sensor, channels=("yaw", "vx")
     )

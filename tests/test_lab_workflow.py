@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal.cli import main
-from bayes_jackal.cli.output import EXIT_BAD_INPUT
+from bayes_jackal.cli.exits import EXIT_BAD_INPUT
 from bayes_jackal.io.experiment import read_netcdf
 from bayes_jackal.posterior import load_posterior
 

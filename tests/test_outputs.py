@@ -107,14 +107,34 @@ def test_a_bad_output_is_refused_fast_with_exit_2(runs, tmp_path, capsys, comman
     (tmp_path / "folder").mkdir()
     (tmp_path / "file").write_text("keep me")
     names = {"exp": runs / "v1_01.nc", "folder": tmp_path / "folder", "file": tmp_path / "file"}
-    started = time.perf_counter()
-    code = main([part.format(tmp=tmp_path, **names) for part in command])
-    seconds = time.perf_counter() - started
+    argv = [part.format(tmp=tmp_path, **names) for part in command]
+    code = main(argv)
     err = capsys.readouterr().err
     assert code == 2 and words in err, err
-    assert seconds < 5.0  # refused before reading, let alone sampling
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["file", "folder"]  # no chain, no lock
     assert (tmp_path / "file").read_text() == "keep me"
+    # Refused before the command's imports (numpy, scipy: seconds on a busy
+    # machine), let alone reading or sampling (issue 37, item 8).
+    assert _refusal_in_a_fresh_process(argv) == (2, False)
+
+
+def _refusal_in_a_fresh_process(argv: list[str]) -> tuple[int, bool]:
+    """main(argv)'s exit code in a new interpreter, and whether numpy was loaded by then."""
+    script = (
+        "import sys; from bayes_jackal.cli import main; "
+        f"code = main({argv!r}); print(code, 'numpy' in sys.modules)"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    code, loaded = done.stdout.split()
+    return int(code), loaded == "True"
+
+
+def test_a_second_run_on_a_held_output_is_refused_before_the_imports(runs, tmp_path):
+    # A run in progress holds p.nc: the second is refused at once, naming it.
+    out = tmp_path / "p.nc"
+    argv = ["sample", str(runs / "v1_01.nc"), "--out", str(out)]
+    with OutputLock(out):
+        assert _refusal_in_a_fresh_process(argv) == (2, False)
 
 
 @pytest.mark.parametrize(

@@ -230,3 +230,15 @@ def file_sha256(path: Path) -> str:
             for block in iter(lambda s=stream: s.read(1 << 20), b""):
                 digest.update(block)
     return digest.hexdigest()
+
+
+def chain_path(posterior: str | Path) -> Path:
+    """Where ``sample`` keeps the chain of a posterior file: ``p.nc`` -> ``p.chain.h5``.
+
+    Examples
+    --------
+    >>> from bayes_jackal.inference import chain_path
+    >>> chain_path("fits/posterior.nc").as_posix()
+    'fits/posterior.chain.h5'
+    """
+    return Path(posterior).with_suffix(".chain.h5")

@@ -93,31 +93,29 @@ def _run(argv: list[str] | None) -> int:
         print(f"bayes-jackal {__version__}")
         return 0
     from .._runtime import interrupt
+    from .exits import EXIT_BAD_INPUT, print_failure
     from .parser import build_parser
 
     try:  # the parser loads no numpy: --help answers at once
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # usage errors (2) and --help/--version (0)
-        if isinstance(exc.code, int):
-            return exc.code
-        from .output import EXIT_BAD_INPUT
-
-        return EXIT_BAD_INPUT
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     from .._runtime.errors import InputError
-    from .._runtime.threads import one_blas_thread
-
-    # The command's module and its imports, numpy and the rest.
-    commands = importlib.import_module(_MODULES.get(args.command, ".commands"), __name__)
-    from .output import print_failure
     from .paths import command_inputs, guarded
 
-    interrupt.check()  # a signal swallowed during the imports (code that cannot raise)
-    command = getattr(commands, f"cmd_{args.command.replace('-', '_')}")
     try:
-        # Warnings on stderr; outputs checked, inputs protected, main output locked;
-        # one BLAS thread for the package's small linear algebra (bayes_jackal._runtime.threads).
-        with _warnings_shown(debug=args.debug), guarded(args), one_blas_thread():
-            return command(args)
+        # Warnings on stderr; outputs checked (before the imports: a refused
+        # output costs no wait), inputs protected, main output locked.
+        with _warnings_shown(debug=args.debug), guarded(args):
+            # The command's module and its imports, numpy and the rest.
+            commands = importlib.import_module(_MODULES.get(args.command, ".commands"), __name__)
+            from .._runtime.threads import one_blas_thread
+
+            interrupt.check()  # a signal swallowed during the imports (code that cannot raise)
+            command = getattr(commands, f"cmd_{args.command.replace('-', '_')}")
+            # One BLAS thread for the package's small linear algebra (_runtime.threads).
+            with one_blas_thread():
+                return command(args)
     except InputError as exc:  # names its file, field and value
         return print_failure(exc, debug=args.debug)
     except Exception as exc:  # one line naming the input (exit 1); --debug: the traceback

@@ -14,7 +14,7 @@ from typing import Any
 
 from .._runtime.defaults import POSE_NOISE
 from .._runtime.errors import InputError, each_input
-from .._runtime.files import write_json
+from .._runtime.files import chain_path, write_json
 from ..dem.export import export_prior, read_prior, write_prior
 from ..filters.state_estimation import (
     estimate_columns,
@@ -27,7 +27,7 @@ from ..inference.comparison import compare_groups
 from ..inference.executors import Executor, executor_for
 from ..inference.population import population
 from ..inference.sampler_warnings import ConvergenceWarning, keep_warnings
-from ..inference.sampling import chain_path, sample_posterior
+from ..inference.sampling import sample_posterior
 from ..io.bag_writer import bag_truth, write_bag
 from ..io.experiment import Experiment, write_netcdf
 from ..io.logs import ReadOptions, ingest_logs
@@ -47,9 +47,8 @@ from ..thesis.gridsearch import damping_grid, grid_search, prior_grid
 from ..thesis.residual_analysis import analyse
 from ..workflow.analysis import analyse_logs
 from ..workflow.demo import DEMO_TRUTH, run_demo
+from .exits import EXIT_BAD_INPUT, EXIT_OK
 from .output import (
-    EXIT_BAD_INPUT,
-    EXIT_OK,
     Failures,
     Reporter,
     analysis_text,

@@ -1,19 +1,16 @@
-"""What the command line prints: exit codes, the JSON/text reporter and the result tables."""
+"""What the command line prints: the JSON/text reporter and the result tables."""
 
 from __future__ import annotations
 
 import sys
-import traceback
 from collections.abc import Callable
 
-from .._runtime.errors import InputError, describe
 from .._runtime.files import json_text
 from ..filters.left_out import method_text
 from ..filters.state_estimation import score_rows
 from ..posterior.criticism import KIND_MEANINGS
 from ..thesis.gridsearch import GridResult
-
-EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
+from .exits import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, print_failure
 
 
 class Reporter:
@@ -326,21 +323,6 @@ def family_warnings(findings: list[dict], comparison: dict, *, where: str) -> No
             f"posterior reported): {len(kinds)} criticism warnings ({counts}), listed in {where}",
             file=sys.stderr,
         )
-
-
-def print_failure(exc: Exception, source: str | None = None, *, debug: bool = False) -> int:
-    """One line on stderr naming ``source`` (with ``--debug``, the traceback first); the exit code.
-
-    Bad input (:class:`~bayes_jackal._runtime.errors.InputError`) reads ``bayes-jackal:
-    error: ...`` and gives 2; any other exception ``bayes-jackal: failed: Type:
-    message (source)`` and 1.
-    """
-    if debug:
-        traceback.print_exception(exc, file=sys.stderr)
-    bad = isinstance(exc, InputError)
-    kind = "error" if bad else "failed"
-    print(f"bayes-jackal: {kind}: {describe(exc, source)}", file=sys.stderr)
-    return EXIT_BAD_INPUT if bad else EXIT_FAILURE
 
 
 class Failures:

@@ -12,10 +12,13 @@ import argparse
 import contextlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from .._runtime.files import chain_path
 from .._runtime.output_safety import Output, OutputLock, check_outputs, protected, removed_if_empty
-from ..inference.sampling import chain_path
-from ..io.experiment import Experiment
+
+if TYPE_CHECKING:  # this module stays light: outputs are checked before numpy loads
+    from ..io.experiment import Experiment
 
 #: Figure suffixes of ``grid --plot`` (matplotlib's formats the README names).
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")

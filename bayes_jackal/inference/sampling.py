@@ -33,6 +33,7 @@ from .._runtime.defaults import (
     STEADY,
     WALKERS,
 )
+from .._runtime.files import chain_path
 from ..io.experiment import Experiment, as_experiments
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
@@ -44,18 +45,6 @@ from .map_search import find_map, laplace_walkers
 from .moves import Start
 
 __all__ = ["chain_path", "run_identity", "sample", "sample_posterior"]
-
-
-def chain_path(posterior: str | Path) -> Path:
-    """Where ``sample`` keeps the chain of a posterior file: ``p.nc`` -> ``p.chain.h5``.
-
-    Examples
-    --------
-    >>> from bayes_jackal.inference import chain_path
-    >>> chain_path("fits/posterior.nc").as_posix()
-    'fits/posterior.chain.h5'
-    """
-    return Path(posterior).with_suffix(".chain.h5")
 
 
 #: Robot fields that do not change a chain: names and where the profile came from.
