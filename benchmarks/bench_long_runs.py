@@ -33,7 +33,7 @@ import numpy as np
 from timing import timed_console, work_folder
 
 from bayes_jackal import load_profile
-from bayes_jackal.inference.sampling import chain_path
+from bayes_jackal._runtime.files import chain_path
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.posterior import Posterior

@@ -1,14 +1,16 @@
-"""Searches in lockstep (bayes_jackal.inference.lockstep) against scipy's, one at a time."""
+"""Searches in lockstep (bayes_jackal.inference._lockstep) against scipy's, one at a time."""
 
 from __future__ import annotations
 
+import doctest
 import threading
 
 import numpy as np
 import pytest
 import scipy.optimize
 
-from bayes_jackal.inference.lockstep import lockstep_maxima, negative_with_gradient
+from bayes_jackal.inference import _lockstep
+from bayes_jackal.inference._lockstep import lockstep_maxima, negative_with_gradient
 
 
 def rosenbrock(points: np.ndarray) -> np.ndarray:
@@ -67,3 +69,8 @@ def test_a_stop_in_the_main_thread_ends_the_searches():
     with pytest.raises(KeyboardInterrupt):
         lockstep_maxima(interrupted, np.zeros((2, 2)), np.full(2, -3.0), np.full(2, 3.0))
     assert threading.active_count() == before
+
+
+def test_the_modules_examples_run():
+    # A private module: the public API's doctests (tests/test_docstrings.py) skip it.
+    assert doctest.testmod(_lockstep).failed == 0

@@ -28,7 +28,7 @@ from bayes_jackal.inference import (
     unit_files,
     unit_posterior,
 )
-from bayes_jackal.inference.population import SKEWNESS_TOLERANCE
+from bayes_jackal.inference.population import SKEWNESS_TOLERANCE, combine_summaries
 from bayes_jackal.io import RunGroups, group_runs, read_groups, run_group
 
 BOUNDS = np.array([[10.0, 1000.0], [10.0, 1000.0]])  # the Jackal's prior ranges [N s/m]
@@ -491,3 +491,50 @@ def test_population_command_writes_json_plot_and_refuses_a_bad_table(
     assert blocked.code == 2, blocked.stderr
     assert "--out pop3/units: is an existing file; give a folder" in blocked.stderr
     assert sorted(p.name for p in (tmp_path / "pop3").iterdir()) == ["units"]
+
+
+def _speed_groups(ratio: float) -> bj.Population:
+    """Five units at 0.3 m/s (group slow) and five at 0.6 m/s (fast), the damping
+    ``ratio`` times higher at the higher speed: each group at one speed (issue 37, item 20)."""
+    rng = np.random.default_rng(20)
+    units = []
+    for i in range(10):
+        group, speed = ("slow", 0.3) if i < 5 else ("fast", 0.6)
+        cov = np.diag([0.05, 0.04]) ** 2  # a unit's sd of log d: 4-5 %
+        mean = np.log([110.0, 30.0]) + (speed == 0.6) * math.log(ratio)
+        mean = rng.multivariate_normal(mean, cov)
+        units.append(UnitPosterior(f"u{i}", group, (f"u{i}",), mean, cov, covariate=speed,
+                                   log_evidence=0.0, evidence_error=0.1))  # fmt: skip
+    return combine_summaries(units, BOUNDS, family="white", covariate="speed", seed=1)
+
+
+def test_a_speed_that_only_the_groups_carry_is_said_to_be_the_groups_difference():
+    # With one speed per group, "the groups differ" and "the damping depends on
+    # speed" are one model: the slope structure and the hierarchical one tie
+    # (ln B about -2 by Occam's factor, so the old verdict read "not shown to
+    # depend on speed" beside a ratio of 1.5 [1.4, 1.6]). The verdict says so
+    # and weighs the slope against one damping for all.
+    dependence = _speed_groups(1.5).speed_dependence()
+    assert dependence["confounded"] and dependence["detected"], dependence
+    assert dependence["structure"] == "pooled + slope" and dependence["against"] == "pooled"
+    assert dependence["log_bayes_factor"] > 3
+    assert "only the groups carry" in dependence["verdict"], dependence["verdict"]
+    ratio = dependence["slope"]["d_lat"]["ratio_across_range"]
+    assert ratio["hdi_3%"] < 1.5 < ratio["hdi_97%"]
+    # Equal dampings at both speeds: nothing detected, and the same caveat.
+    same = _speed_groups(1.0).speed_dependence()
+    assert same["confounded"] and not same["detected"], same
+    assert "only the groups carry" in same["verdict"]
+
+
+def test_speeds_that_vary_within_a_group_are_not_confounded():
+    units = []
+    for i in range(8):  # groups A and B, each with units at 0.3 and 0.6 m/s
+        mean, cov, speed = np.log([110.0, 30.0]), 1e-3 * np.eye(2), (0.3, 0.6)[(i // 2) % 2]
+        units.append(UnitPosterior(f"u{i}", "AB"[i % 2], (f"u{i}",), mean, cov, covariate=speed,
+                                   log_evidence=0.0, evidence_error=0.1))  # fmt: skip
+    dependence = combine_summaries(
+        units, BOUNDS, family="white", covariate="speed", seed=1
+    ).speed_dependence()
+    assert not dependence["confounded"]
+    assert "only the groups carry" not in dependence["verdict"]

@@ -237,7 +237,7 @@ def chain_path(posterior: str | Path) -> Path:
 
     Examples
     --------
-    >>> from bayes_jackal.inference import chain_path
+    >>> from bayes_jackal._runtime.files import chain_path
     >>> chain_path("fits/posterior.nc").as_posix()
     'fits/posterior.chain.h5'
     """

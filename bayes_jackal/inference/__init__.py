@@ -77,7 +77,7 @@ from .population import (
     unit_files,
 )
 from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
-from .sampling import chain_path, run_identity, sample, sample_posterior
+from .sampling import run_identity, sample, sample_posterior
 from .starts import profile_starts, series_profile
 
 __all__ = [
@@ -122,7 +122,6 @@ __all__ = [
     "autocorrelation_time",
     "block_proposals",
     "bridge_sampling",
-    "chain_path",
     "climb",
     "colour_verdict",
     "compare",

@@ -21,7 +21,7 @@ from scipy.special import logsumexp
 from .._runtime.errors import InputError
 from .._runtime.threads import one_blas_thread
 from ..likelihood.priors import LogPosterior, Prior
-from .lockstep import lockstep_maxima, negative_with_gradient
+from ._lockstep import lockstep_maxima, negative_with_gradient
 from .moves import (
     JOINT_SHARE,
     MIN_MATCHED_EFFICIENCY,
@@ -161,7 +161,7 @@ def find_map(
 def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimize.OptimizeResult:
     """The best of L-BFGS-B maximisations within the prior's box from each row of ``starts``.
 
-    The searches run in lockstep (:func:`bayes_jackal.inference.lockstep.lockstep_maxima`):
+    The searches run in lockstep (``bayes_jackal.inference._lockstep``):
     each of their rounds is one call of the log-posterior.
     """
     prior = log_posterior.prior

@@ -214,14 +214,18 @@ class Population:
         """The slope of log d in the covariate and ln B of a slope over none; None without one."""
         if self.covariate is None:
             return None
-        sloped = max(
-            (name for name in self.evidence if name.endswith(" + slope")),
-            key=lambda name: self.evidence[name].log_evidence,
-        )
-        constant = max(
-            (name for name in self.evidence if not name.endswith(" + slope")),
-            key=lambda name: self.evidence[name].log_evidence,
-        )
+        confounded = self.covariate_confounded()
+        if confounded:  # the slope, or the groups' difference: against one damping for all
+            sloped, constant = "pooled + slope", "pooled"
+        else:
+            sloped = max(
+                (name for name in self.evidence if name.endswith(" + slope")),
+                key=lambda name: self.evidence[name].log_evidence,
+            )
+            constant = max(
+                (name for name in self.evidence if not name.endswith(" + slope")),
+                key=lambda name: self.evidence[name].log_evidence,
+            )
         slope = self.draws[sloped]["slope"]
         span = self.hierarchy.covariate_span
         value, error = self.log_bayes_factor(sloped, constant)
@@ -236,6 +240,23 @@ class Population:
             }
         values = [unit.covariate for unit in self.hierarchy.units]
         detected = excludes_zero and value > 3
+        shown = "depends" if detected else "is not shown to depend"
+        claim = f"the damping {shown} on {self.covariate}"
+        if confounded:
+            claim = (
+                f"each group has one {self.covariate}, a difference only the groups carry: a "
+                f"dependence on {self.covariate} and a difference between the groups are one "
+                f"model here, which the data cannot tell apart. The damping "
+                + (
+                    f"depends on {self.covariate} or differs between the groups"
+                    if detected
+                    else f"neither depends on {self.covariate} nor differs between the groups"
+                )
+            )
+        verdict = (
+            f"{claim}: {sloped} over {constant}, ln B = {value:.1f} +- {error:.2f}, "
+            f"{evidence_strength(value)}"
+        )
         return {
             "covariate": self.covariate,
             "range": [min(values), max(values)],
@@ -247,12 +268,21 @@ class Population:
             "log_bayes_factor": value,
             "error": error,
             "detected": bool(detected),
-            "verdict": (
-                f"the damping {'depends' if detected else 'is not shown to depend'} on "
-                f"{self.covariate}: {sloped} over {constant}, ln B = {value:.1f} +- {error:.2f}, "
-                f"{evidence_strength(value)}"
-            ),
+            "confounded": confounded,
+            "verdict": verdict,
         }
+
+    def covariate_confounded(self) -> bool:
+        """Whether the covariate only tells the groups apart: several groups, one value each.
+
+        Then a slope in the covariate and the groups' own dampings are the same
+        model, and :meth:`speed_dependence` weighs the slope against one
+        damping for every group.
+        """
+        values: dict[str, set] = {}
+        for unit in self.hierarchy.units:
+            values.setdefault(unit.group, set()).add(unit.covariate)
+        return len(values) > 1 and all(len(group) == 1 for group in values.values())
 
     def verdict(self) -> str:
         """The best structure, in words."""
@@ -749,7 +779,46 @@ def combine_units(
         )
         summaries.append(unit)
         warnings += _unit_warnings(unit, comparison.convergence_messages())
-    hierarchy = Hierarchy(summaries, bounds, tau_range=tau_range)
+    return combine_summaries(
+        summaries, bounds, family=family, covariate=covariate, tau_range=tau_range, seed=seed,
+        posteriors=posteriors, notes=warnings,
+    )  # fmt: skip
+
+
+def combine_summaries(
+    units: Sequence[UnitPosterior],
+    bounds: np.ndarray,
+    *,
+    family: str,
+    covariate: str | None,
+    tau_range: tuple[float, float] = TAU_RANGE,
+    seed: int | None = None,
+    posteriors: Mapping[str, Posterior] | None = None,
+    notes: Sequence[dict] = (),
+) -> Population:
+    """Stage 2 on the units' normal summaries: every structure's evidence and draws.
+
+    Parameters
+    ----------
+    units : sequence of UnitPosterior
+    bounds : ndarray, shape (2, 2)
+        The units' prior range (low, high) of d_lat and d_long [N s/m].
+    family, covariate : str
+        The units' noise family, and the covariate's name (None: none).
+    tau_range : (float, float)
+        As in :func:`population`.
+    seed : int, optional
+        The draws' and the evidence replicas' seed.
+    posteriors : mapping, optional
+        Each unit's posterior by name (:meth:`Population.unit_summaries`).
+    notes : sequence of dict
+        Warnings to keep.
+
+    Returns
+    -------
+    Population
+    """
+    hierarchy = Hierarchy(units, bounds, tau_range=tau_range)
     rng = as_rng(seed)
     evidence = {}
     for structure in hierarchy.structures:
@@ -759,9 +828,11 @@ def combine_units(
     draws = {
         name: hierarchy.draws(name, POPULATION_DRAWS, rng=rng) for name in hierarchy.structures
     }
-    result = Population(family, covariate, hierarchy, evidence, replicas, draws, posteriors)
+    result = Population(
+        family, covariate, hierarchy, evidence, replicas, draws, dict(posteriors or {})
+    )
     result.sensitivity = _sensitivity(result, rng)
-    result.warnings = warnings + _population_warnings(result)
+    result.warnings = list(notes) + _population_warnings(result)
     return result
 
 

@@ -33,7 +33,6 @@ from .._runtime.defaults import (
     STEADY,
     WALKERS,
 )
-from .._runtime.files import chain_path
 from ..io.experiment import Experiment, as_experiments
 from ..io.pose_track import POSE_FIELDS
 from ..likelihood.priors import LogPosterior, Prior
@@ -44,7 +43,7 @@ from .chains import SamplerSettings, run_chain
 from .map_search import find_map, laplace_walkers
 from .moves import Start
 
-__all__ = ["chain_path", "run_identity", "sample", "sample_posterior"]
+__all__ = ["run_identity", "sample", "sample_posterior"]
 
 
 #: Robot fields that do not change a chain: names and where the profile came from.

@@ -138,8 +138,9 @@ def profile_starts(
     Starting points on a simulated run (truth d_lat = 110, d_long = 30 N s/m,
     sigma_h = 0.047 s), from a coarse design of 64 damping points: the best
     lies on the ridge of the truth's ratio d_lat / d_long ~ 3.7, and its value
-    is the Whittle likelihood there; :func:`bayes_jackal.inference.find_map`
-    refines it.
+    is the Whittle likelihood there, to the periodogram's averaging onto
+    :data:`KERNEL_RESOLUTION` points per the widest kernel's tap;
+    :func:`bayes_jackal.inference.find_map` refines it.
 
     >>> from dataclasses import replace
     >>> import numpy as np
@@ -157,7 +158,8 @@ def profile_starts(
     ... )
     >>> [f"{name} {value:.3g}" for name, value in zip(likelihood.parameter_names[:3], theta[0])]
     ['d_lat 49.2', 'd_long 11.9', 'sigma_h[yaw] 0.041']
-    >>> np.allclose(replace(likelihood, engine="whittle")(theta), profile, rtol=1e-9)
+    >>> whittle = replace(likelihood, engine="whittle")(theta)
+    >>> bool(np.max(np.abs(whittle - profile)) < 0.2)  # of 20,000 nats: the binned periodogram
     True
     """
     if likelihood.damping != "constant":
