@@ -128,6 +128,16 @@ def test_matlab_struct_fields(tmp_path):
         _read(path, column="fs", rate=200)
 
 
+def test_a_matlab_text_field_is_said_to_hold_text_not_to_be_missing(tmp_path):
+    # It read "column 'gyro_z' is not in the file; it has ['t']" (issue 37, item 13).
+    path = tmp_path / "log.mat"
+    scipy.io.savemat(path, {"t": np.arange(300) / 200, "gyro_z": np.array(["n/a"] * 300)})
+    with pytest.raises(DataError, match=r"log\.mat: gyro_z: variable 'gyro_z' holds text"):
+        _read(path, column="gyro_z")
+    with pytest.raises(DataError, match=r"0 data columns \[\] \('gyro_z': text, not numbers\)"):
+        _read(path)
+
+
 def _imu(store, stamp: int, seq: int, z: float):
     types = store.types
     vector = types["geometry_msgs/msg/Vector3"]

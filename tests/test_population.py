@@ -317,6 +317,18 @@ def test_a_speed_left_empty_for_one_run_is_said_not_dropped_in_silence(floor_run
     assert plan_units(floor_runs, FLOORS).notes == []  # no speed anywhere: nothing to say
 
 
+def test_a_covariate_named_after_a_text_column_is_said_to_hold_text(floor_runs, tmp_path):
+    # It read "run 'r0' has no 'surface'" of a table that gives every run one
+    # (issue 37, item 13).
+    path = tmp_path / "groups.csv"
+    rows = "".join(f"{run},{label},{label}s\n" for run, label in FLOORS.items())
+    path.write_text("run,group,surface\n" + rows)
+    assert read_groups(path).text_columns == ("surface",)
+    with pytest.raises(InputError, match="the column 'surface' holds text, not numbers") as caught:
+        plan_units(floor_runs, path, covariate="surface", noise="per-experiment")
+    assert caught.value.source == str(path) and caught.value.field == "surface"
+
+
 @pytest.mark.parametrize(
     ("covariates", "field"),
     [

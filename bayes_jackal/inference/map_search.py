@@ -216,7 +216,9 @@ def climb(
     and from each start with its kernel widths swept (:func:`_sweep_widths`:
     a start's width can lie where its likelihood is far from the profile's,
     e.g. the Whittle profile's widest width for a triangular kernel, from
-    which a local search ends in a corner of the prior). Sweeps then move
+    which a local search ends in a corner of the prior; a start whose sweep
+    gains more than :data:`SWEEP_GAIN` is searched from its swept point
+    only). The searches run in lockstep, one evaluation per round. Sweeps then move
     the best end point out of a local optimum's basin and a search starts
     again from there, at most three times. With another engine than
     ``fast`` the result is polished on ``log_posterior`` itself; with

@@ -390,6 +390,13 @@ def _covariate_name(
         return name
     if covariate is None:
         return None
+    if table is not None and covariate in table.text_columns:
+        raise InputError(
+            f"the column {covariate!r} holds text, not numbers: a covariate must be a number "
+            "(a group's label goes in the group column)",
+            source=table.source,
+            field=covariate,
+        )
     missing = experiments[given.index(False)]
     raise InputError(
         f"run {missing.name!r} has no {covariate!r}",

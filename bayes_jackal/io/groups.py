@@ -47,6 +47,9 @@ class RunGroups:
         Run -> {covariate name: value}.
     source : str
         Where the table was read from.
+    text_columns : tuple of str
+        The table's other columns, which hold text (a surface's name, say):
+        named, not covariates.
 
     Examples
     --------
@@ -59,6 +62,7 @@ class RunGroups:
     groups: dict[str, str]
     covariates: dict[str, dict[str, float]] = field(default_factory=dict)
     source: str = "<memory>"
+    text_columns: tuple[str, ...] = ()
 
     def _key(self, run: str) -> str | None:
         """The table's row of ``run`` (a name or a path), None when no row names it.
@@ -182,8 +186,13 @@ def read_groups(path: str | Path) -> RunGroups:
             raise InputError(f"run {run!r} is listed twice", source=source, field=where)
         groups[run] = label
     covariates: dict[str, dict[str, float]] = {run: {} for run in groups}
+    text_columns = []
     for column, name in enumerate(header):
-        if column in (run_column, group_column) or not _numeric(body, column, name, source):
+        if column in (run_column, group_column):
+            continue
+        if not _numeric(body, column, name, source):
+            if any(row[column] for row in body):
+                text_columns.append(name)
             continue
         for line, row in enumerate(body, start=2):
             if row[column]:
@@ -195,7 +204,7 @@ def read_groups(path: str | Path) -> RunGroups:
                         field=f"row {line}, column {name!r}",
                     )
                 covariates[row[run_column]][name] = value
-    return RunGroups(groups, covariates, source)
+    return RunGroups(groups, covariates, source, tuple(text_columns))
 
 
 def _bare(run: str) -> str:

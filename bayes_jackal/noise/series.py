@@ -201,8 +201,8 @@ def read_noise_series(
         row_name = "message {}".format
         time_name, data_name = "stamp", f"{topic}.{field}"
     else:
-        names, read, row_name, format = _table_columns(path, source)
-        time_name, data_name = _choose(names, column, time_column, rate, source)
+        names, numeric, read, row_name, format = _table_columns(path, source)
+        time_name, data_name = _choose(names, numeric, column, time_column, rate, source)
         values = read(data_name)
         stamps = None if time_name is None else read(time_name)
         provenance = {"source": source, "format": format, "column": data_name}
@@ -269,8 +269,9 @@ def _check_options(bag: bool, **options: str | None) -> None:
 
 def _table_columns(
     path: Path, source: str
-) -> tuple[list[str], Callable[[str], np.ndarray], Callable[[int], str], str]:
-    """A CSV or MATLAB file's column names, their reader, the row namer and the format."""
+) -> tuple[list[str], list[str], Callable[[str], np.ndarray], Callable[[int], str], str]:
+    """A CSV or MATLAB file's column names, those that may hold numbers, their reader, the
+    row namer and the format (a MATLAB text field is a column, read only when named)."""
     suffix = path.suffix.lower()
     if suffix == ".csv":
         header, body = read_csv_table(path, source)
@@ -278,7 +279,7 @@ def _table_columns(
         def column(name: str) -> np.ndarray:
             return numeric_column(body, header.index(name), name, source)
 
-        return header, column, lambda i: f"line {i + 2}", "csv"
+        return header, header, column, lambda i: f"line {i + 2}", "csv"
     if suffix == ".mat":
         variables = mat_arrays(path, source)
 
@@ -286,7 +287,7 @@ def _table_columns(
             return mat_vector(variables, name, source)
 
         numeric = sorted(name for name, value in variables.items() if not isinstance(value, str))
-        return numeric, vector, lambda i: f"index {i + 1}", "mat"
+        return sorted(variables), numeric, vector, lambda i: f"index {i + 1}", "mat"
     raise DataError(
         f"unknown series file type {suffix!r}; expected .csv, .mat or a bag "
         f"({', '.join(BAG_SUFFIXES)} or a ROS2 bag directory)",
@@ -301,24 +302,31 @@ def _is_time(name: str) -> bool:
 
 def _choose(
     names: list[str],
+    numeric: list[str],
     column: str | None,
     time_column: str | None,
     rate: float | None,
     source: str,
 ) -> tuple[str | None, str]:
-    """The stamps column (None: from the rate) and the data column of a table."""
+    """The stamps column (None: from the rate) and the data column of a table.
+
+    A column named is looked up among all ``names`` (its reader says if it
+    holds text); one chosen for the user, among the ``numeric`` ones.
+    """
     for given in (time_column, column):
         if given is not None and given not in names:
             raise DataError(
                 f"column {given!r} is not in the file; it has {names}", source=source, field=given
             )
-    time = time_column or next((n for n in names if _is_time(n)), None)
+    time = time_column or next((n for n in numeric if _is_time(n)), None)
     if column is None:
-        data = [n for n in names if n != time]
+        data = [n for n in numeric if n != time]
         if len(data) != 1:
             stamps = "" if time else "; the stamps' with --time-column NAME (time_column=)"
+            text = [n for n in names if n not in numeric]
+            held = f" ({', '.join(map(repr, text))}: text, not numbers)" if text else ""
             raise DataError(
-                f"{len(data)} data columns {data}: name the one to read (--column NAME; "
+                f"{len(data)} data columns {data}{held}: name the one to read (--column NAME; "
                 f"column= in Python){stamps}",
                 source=source,
                 field="column",
