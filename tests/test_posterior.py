@@ -240,6 +240,17 @@ def test_a_posterior_of_an_unknown_format_is_refused_naming_it(sampled, tmp_path
         load_posterior(path)
 
 
+def test_a_posterior_with_a_nan_draw_is_refused_naming_the_file_and_the_draw(sampled, tmp_path):
+    # export-prior and report said "d_lat: damping must be positive and finite,
+    # got nan N s/m", naming neither the file nor the draw (issue 37, item 13).
+    idata = copy.deepcopy(sampled[-1])
+    idata.posterior["d_long"][1, 5] = np.nan
+    path = save_posterior(idata, tmp_path / "damaged.nc")
+    pattern = rf"{re.escape(str(path))}: posterior\.d_long: the draw at chain 1, draw 5 is nan"
+    with pytest.raises(DataError, match=pattern):
+        load_posterior(path)
+
+
 @pytest.mark.parametrize(
     ("attribute", "value", "pattern"),
     [

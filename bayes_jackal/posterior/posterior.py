@@ -498,9 +498,27 @@ def load_posterior(path: str | Path) -> Posterior:
             "`bayes-jackal sample` and `compare --out`)",
             source=str(path),
         )
+    _check_draws(idata.posterior, str(path))
     posterior = Posterior.of(idata)
     try:
         _ = posterior.metadata  # read now: a malformed file is refused here, naming it
     except DataError as exc:
         raise DataError(str(exc), source=str(path)) from None
     return posterior
+
+
+def _check_draws(draws, source: str) -> None:
+    """Refuse a posterior group with a draw that is not a finite number, naming where it is."""
+    for name, variable in draws.data_vars.items():
+        values = np.asarray(variable.values)
+        if not np.issubdtype(values.dtype, np.number) or np.isfinite(values).all():
+            continue
+        index = np.unravel_index(np.flatnonzero(~np.isfinite(values))[0], values.shape)
+        where = ", ".join(f"{dim} {i}" for dim, i in zip(variable.dims, index, strict=True))
+        raise DataError(
+            f"the draw at {where} is {values[index]} ({np.count_nonzero(~np.isfinite(values))} "
+            "such): a posterior's draws are finite; the file is damaged or was not written "
+            "by bayes_jackal",
+            source=source,
+            field=f"posterior.{name}",
+        )
