@@ -121,6 +121,8 @@ def test_grid_text_goes_to_stdout_without_json(simulated, capsys):
     captured = capsys.readouterr()
     assert code == 0
     assert "total (5-3)" in captured.out
+    # The one-step minimum is said not to be the estimate (issue 37, item 15).
+    assert "note: the one-step minimum is not the damping's estimate" in captured.out
     # stderr has only the warning of the one-step minimum (50, 15) on the
     # grid's low d_lat edge: the criterion is biased down the ridge by the
     # coloured noise (docs/guide/thesis.md), below the truth's (110, 30).

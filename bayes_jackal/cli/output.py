@@ -43,6 +43,8 @@ def grid_table(result: GridResult, say: Callable[[str], None]) -> None:
             f"{label:12s} {runs:5d} {s['d_lat']:8g} {s['d_long']:8g} "
             f"{s['d_lat'] / s['d_long']:7.3f} {s['mse']:11.4g}"
         )
+    if result.caveat:
+        say(f"note: {result.caveat}")
 
 
 def grid_warnings(warnings: list[dict], flag: str) -> None:

@@ -361,6 +361,27 @@ class GridResult:
         i, j = np.unravel_index(np.argmin(surface), surface.shape)
         return surface, int(i), int(j)
 
+    @property
+    def caveat(self) -> str | None:
+        """What the criterion's minimum is not, in words (the one-step grid's), else None.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from bayes_jackal.thesis import GridResult
+        >>> grid = GridResult("onestep", "yaw", np.ones(2), np.ones(2), {}, {})
+        >>> grid.caveat.startswith("the one-step minimum is not the damping's estimate")
+        True
+        """
+        if self.method != "onestep":
+            return None
+        return (
+            "the one-step minimum is not the damping's estimate: each prediction starts from "
+            "the measured, noisy sample, which biases it (the thesis, 9-1-2, found 40/10 N s/m "
+            "where the simulation grid found 110/30; only their ratio agreed); the posterior "
+            "(bayes-jackal sample) is the estimate"
+        )
+
     def argmin(self, surface: np.ndarray | None = None) -> tuple[float, float, float]:
         """(d_lat, d_long, mse) at the minimum of ``surface`` (the total by default).
 

@@ -101,6 +101,7 @@ def _grids(experiments, robot, folder: Path, say: Callable[[str], None], priors=
         say(
             f"  {method} MSE grid minimum: d_lat = {best_lat:.4g}, d_long = {best_long:.4g} N s/m"
             + (f" (on the grid's edge: {edges})" if edges else "")
+            + (f"; {result.caveat}" if result.caveat else "")
         )
         summaries[method] = result.summary()
     payload = {"truth": _common_truth(experiments), **summaries}
