@@ -223,6 +223,22 @@ def test_verdict_rules(white, coloured, label):
     assert comparison.verdict()[0] == label
 
 
+def test_white_beating_the_families_compared_is_not_coloured_only_where_its_fit_holds():
+    # A 1 kHz physics-engine log (issue 37, item 14): white beat gaussian by
+    # ln B = 159 while the white fit missed the residuals' colour and the
+    # exponential family, not compared, beat white by thousands. White's own
+    # predictive-acf warning makes "not coloured" inconclusive, naming the
+    # families to add; a "not coloured" names those not compared.
+    evidence = {"white": Evidence(100.0, 0.1, "test"), "gaussian": Evidence(98.0, 0.1, "test")}
+    comparison = Comparison(["run"], evidence, {})
+    label, sentence = comparison.verdict(["predictive-acf"])
+    assert label == "inconclusive" and "the white fit misses the residuals' colour" in sentence
+    assert "compare exponential, triangular, moving-average too" in sentence
+    label, sentence = comparison.verdict([])
+    assert label == "not coloured"
+    assert sentence.endswith("(exponential, triangular, moving-average not compared)")
+
+
 def test_unknown_or_repeated_families_are_refused():
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=1)
     for families in (("gaussian", "pink"), ("white", "white"), ()):

@@ -693,9 +693,18 @@ class Comparison:
         a, b = self.evidence[family], self.evidence[other]
         return a.log_evidence - b.log_evidence, float(np.hypot(a.error, b.error))
 
-    def verdict(self) -> tuple[str, str]:
-        """Is the noise coloured? :func:`colour_verdict` of the families' evidence."""
-        return colour_verdict(self.evidence)
+    def verdict(self, white_warnings: Sequence[str] | None = None) -> tuple[str, str]:
+        """Is the noise coloured? :func:`colour_verdict` of the families' evidence.
+
+        ``white_warnings``: the kinds of the white fit's criticism warnings
+        (read from its posterior when not given).
+        """
+        if white_warnings is None:
+            white = self.posteriors.get("white")
+            white_warnings = (
+                [] if white is None else [w["kind"] for w in summarize(white)["warnings"]]
+            )
+        return colour_verdict(self.evidence, white_warnings)
 
     def to_dict(self) -> dict:
         """The ``compare --json`` object (docs/design.md §6).
@@ -718,7 +727,8 @@ class Comparison:
                 entry["log_evidence_nested"] = self.nested[name].log_evidence
                 entry["log_evidence_nested_err"] = self.nested[name].error
             families[name] = entry
-        label, sentence = self.verdict()
+        white = families.get("white", {}).get("warnings", [])
+        label, sentence = self.verdict([warning["kind"] for warning in white])
         return {
             "experiments": self.experiments,
             "families": families,
@@ -734,18 +744,28 @@ class Comparison:
         }
 
 
-def colour_verdict(evidence: Mapping[str, Evidence]) -> tuple[str, str]:
+def colour_verdict(
+    evidence: Mapping[str, Evidence], white_warnings: Sequence[str] = ()
+) -> tuple[str, str]:
     """Is the noise coloured? ('coloured' | 'not coloured' | 'inconclusive', sentence).
 
     The best coloured family is set against white noise. 'coloured' needs
     ln B - 2 se > 3 (strong), 'not coloured' needs ln B + 2 se < -1
     (white better by positive evidence); anything between is
     inconclusive, so a noisy estimate never gives a confident answer.
+    White beating the families compared is not "not coloured" when the
+    white fit itself misses the residuals' colour (its ``predictive-acf``
+    warning): a family not compared may be coloured, and the verdict is
+    inconclusive. A "not coloured" names the families that were not
+    compared.
 
     Parameters
     ----------
     evidence : mapping of str to Evidence
         Each family's log evidence.
+    white_warnings : sequence of str
+        The kinds of the white fit's criticism warnings
+        (:func:`bayes_jackal.posterior.criticise`).
 
     Examples
     --------
@@ -764,8 +784,17 @@ def colour_verdict(evidence: Mapping[str, Evidence]) -> tuple[str, str]:
     words = f"ln B = {value:.1f} +- {error:.2f}, {evidence_strength(value)}"
     if value - 2 * error > COLOURED_LOG_BF:
         return "coloured", f"coloured: {rival} over white, {words}"
+    untried = [name for name in FAMILIES if name not in evidence]
+    if value + 2 * error < -WHITE_LOG_BF and "predictive-acf" in white_warnings:
+        return "inconclusive", (
+            f"inconclusive: white over {rival}, {words}, but the white fit misses the "
+            "residuals' colour (predictive-acf): a family not compared may be coloured"
+            + (f"; compare {', '.join(untried)} too (--families)" if untried else "")
+        )
     if value + 2 * error < -WHITE_LOG_BF:
-        return "not coloured", f"not coloured: white over {rival}, {words}"
+        return "not coloured", f"not coloured: white over {rival}, {words}" + (
+            f" ({', '.join(untried)} not compared)" if untried else ""
+        )
     return "inconclusive", f"inconclusive: {rival} against white, {words}"
 
 

@@ -32,7 +32,7 @@ from .._runtime.arviz_quiet import az
 from .._runtime.defaults import CHANNELS, HDI_PROB
 from ..filters.left_out import LeaveOneOut
 from ..filters.state_estimation import score_rows
-from ..inference.comparison import colour_verdict
+from ..inference.comparison import Comparison
 from ..model.physics import discrete_matrices
 from ..posterior.criticism import KIND_MEANINGS
 from ..posterior.posterior import Posterior
@@ -273,9 +273,13 @@ def _colour_summary(
     posteriors: list[tuple[Path, az.InferenceData]], idata: az.InferenceData
 ) -> str:
     """The verdict on colour from the families fitted to the reported posterior's runs."""
-    fitted = _with_evidence(posteriors).get(_runs(idata), [])
-    evidence = {m.family: m.evidence for m in (Posterior.of(i).metadata for _, i in fitted)}
-    return f"<b>Is the noise coloured?</b> {html.escape(colour_verdict(evidence)[1])}."
+    fitted = {
+        Posterior.of(i).metadata.family: i
+        for _, i in _with_evidence(posteriors).get(_runs(idata), [])
+    }
+    evidence = {family: Posterior.of(i).metadata.evidence for family, i in fitted.items()}
+    verdict = Comparison(list(_runs(idata)), evidence, fitted).verdict()[1]
+    return f"<b>Is the noise coloured?</b> {html.escape(verdict)}."
 
 
 def _chain_summary(summary: dict) -> str:
