@@ -416,7 +416,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         family_warnings(result["warnings"], result, where=f"--json{saved}")
         if folder is not None:
             write_json(summary_file(folder, name), result)
-            out.say(f"wrote {folder}/{name}.<family>.nc and {name}.compare.json")
+            files = ", ".join(
+                path.name for path in family_files(folder, name, result["families"]).values()
+            )
+            out.say(f"wrote {files} and {summary_file(folder, name).name} in {folder}/")
         return result
 
     def each_experiment(loaded: dict[str, Experiment], fail) -> AbstractContextManager:

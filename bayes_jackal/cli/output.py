@@ -94,7 +94,8 @@ def residual_table(result: dict, say: Callable[[str], None]) -> None:
 
 def filter_table(name: str, scores: dict, say: Callable[[str], None]) -> None:
     """One experiment's filter scores: innovation RMSE, NIS in its band, state RMSEs."""
-    say(f"{name}: prediction errors from sample {next(iter(scores.values()))['first_sample']}")
+    first = next(iter(scores.values()))["first_sample"]
+    say(f"{name}: prediction errors scored from sample {first} on (the first start the filters)")
     say(
         f"{'filter':16s} {'channel':7s} {'innov. RMSE':>11s} {'NIS':>6s} "
         f"{'95% band':>13s} {'':13s} {'state RMSE':>10s} {'smoothed':>10s}"
@@ -116,7 +117,7 @@ def _number(value: float | None, spec: str) -> str:
 def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
     say(
         f"{'':16s} {'mean':>10s} {'sd':>10s} {'hdi_3%':>10s} {'hdi_97%':>10s} "
-        f"{'ess_tau':>8s} {'r_hat':>6s}"
+        f"{'ess':>8s} {'r_hat':>6s}"
     )
     for name, row in summary.items():
         if isinstance(row, dict) and "mean" in row:
@@ -132,9 +133,11 @@ def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
     )
     taus = summary["autocorr_time"]
     status = "converged" if summary["converged"] else "NOT CONVERGED"
+    longest = max(taus.values())
     say(
-        f"{status}: {summary['n_steps']} steps, max autocorrelation time "
-        f"{max(taus.values()):.0f} steps ({summary['n_steps'] / max(taus.values()):.0f} tau)"
+        f"{status}: {summary['n_steps']} steps, {summary['n_steps'] / longest:.0f} times the "
+        f"longest autocorrelation time ({longest:.0f} steps); ess: effective draws, r_hat: "
+        "the walkers' agreement (1 is best)"
     )
 
 
@@ -256,8 +259,9 @@ def state_estimation_text(state: dict, say: Callable[[str], None]) -> None:
     refit = [run for run, record in state["runs"].items() if record["method"] == "refit"]
     if state["pooled"] is not None:
         say(
-            f"posteriors without each run: {state['pooled']} reweighted by PSIS, refit where "
-            f"Pareto k-hat > {state['pareto_k_threshold']:g}: "
+            f"posteriors without each run: {state['pooled']} reweighted (Pareto-smoothed "
+            "importance sampling), refit where the reweighting is unreliable (Pareto k-hat "
+            f"> {state['pareto_k_threshold']:g}): "
             + (f"{', '.join(refit)} refit" if refit else "none refit")
         )
     for run, record in state["runs"].items():
