@@ -364,6 +364,10 @@ def test_sample_writes_a_posterior_and_prints_the_contract_json(short_runs, tmp_
     # By default every channel the experiment measures, each with its noise.
     assert payload["channels"] == ["yaw", "vx", "vy"]
     assert "on channels yaw, vx, vy" in captured.err
+    # Each phase is said, with --json on stderr (issue 37, item 16): the MAP
+    # search was silent (a minute under load).
+    for said in ("MAP search: the profile likelihood", "MAP found in", f"wrote {out}; the summ"):
+        assert said in captured.err, captured.err
     noise = [f"{name}[{c}]" for c in ("yaw", "vx", "vy") for name in ("sigma_h", "sigma_c")]
     for key in ("d_lat", "d_long", *noise, "ratio"):
         assert {"mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r_hat"} <= set(

@@ -249,6 +249,7 @@ def _save_sample(result: tuple, path: Path, say: Callable[[str], None]) -> dict:
     if error is not None:
         raise error
     save_posterior(idata, path)
+    say(f"wrote {path}; the summary and the posterior-predictive checks of the fit:")
     summary = summarize(idata)
     posterior_table(summary, say)
     for message in kept.convergence:

@@ -83,6 +83,11 @@ RIDGE_CELLS = 16
 RIDGE_DEPTH = 30.0
 
 
+def damping_design(design_points: int) -> int:
+    """Damping points of :func:`find_map`'s profile: ``design_points / 16``, at least 16."""
+    return max(16, design_points // 16)
+
+
 @one_blas_thread()
 def find_map(
     log_posterior: LogPosterior, rng: np.random.Generator, design_points: int = 1024
@@ -140,7 +145,7 @@ def find_map(
             log_posterior.likelihood,
             prior.low,
             prior.high,
-            damping_points=max(16, design_points // 16),
+            damping_points=damping_design(design_points),
             starts=_MAP_STARTS,
             rng=rng,
         )

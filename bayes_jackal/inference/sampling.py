@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -40,7 +41,7 @@ from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikeliho
 from ..model.robot import RobotProfile, as_profile
 from ..posterior.posterior import Posterior, build_inference_data
 from .chains import SamplerSettings, run_chain
-from .map_search import find_map, laplace_walkers
+from .map_search import damping_design, find_map, laplace_walkers
 from .moves import Start
 
 __all__ = ["run_identity", "sample", "sample_posterior"]
@@ -136,7 +137,8 @@ def sample_posterior(
     prior_overrides : dict, optional
         (low, high) per base parameter name, over the profile's ranges.
     say : callable, optional
-        Told "resuming <chain_file> at step N" when a stored chain resumes.
+        Told of each phase: the MAP search as it starts and how long it took,
+        and "resuming <chain_file> at step N" when a stored chain resumes.
 
     Returns
     -------
@@ -168,8 +170,15 @@ def sample_posterior(
     log_posterior = LogPosterior(likelihood, prior)
 
     def initial(rng: np.random.Generator, walkers: int) -> Start:
+        tell = say or (lambda text: None)
+        started = time.perf_counter()
+        tell(
+            f"MAP search: the profile likelihood of each noise group on "
+            f"{damping_design(settings.design_points)} damping points, then local searches"
+        )
         centre = find_map(log_posterior, rng, settings.design_points)
         interrupt.check()  # a signal swallowed in the search (scipy's Cython code)
+        tell(f"MAP found in {time.perf_counter() - started:.0f} s; the walkers start around it")
         return laplace_walkers(log_posterior, centre, walkers, rng)
 
     chain = run_chain(
