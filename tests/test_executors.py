@@ -9,13 +9,16 @@ numbers, not the posterior.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import signal
 import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -235,6 +238,35 @@ def test_a_port_that_is_not_a_scheduler_is_refused_not_waited_on(tmp_path, cli, 
     assert done.code == 2, done.stderr
     assert address in done.stderr and "no Dask handshake" in done.stderr
     assert "within 1 s" in done.stderr
+
+
+@pytest.mark.parametrize(
+    "reply",
+    [b"\xff" * 64, struct.pack("<QQ", 1, 3 * 2**60) + b"x" * 48, b"HTTP/1.0 200 OK\r\n\r\n"],
+    ids=["ones", "a frame of 3 EiB", "http"],
+)
+def test_a_peer_that_answers_the_handshake_with_garbage_is_refused_by_name(reply):
+    """Issue 37, item 12: such a peer on 127.0.0.1 ended in MemoryError (3.07 EiB), exit 1."""
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+
+    def answer() -> None:  # every connection gets the reply, until the test closes the server
+        while True:
+            try:
+                connection, _ = server.accept()
+            except OSError:
+                return
+            with connection, contextlib.suppress(OSError):
+                connection.recv(65536)
+                connection.sendall(reply)
+                connection.recv(65536)
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        with pytest.raises(InputError, match=f"Dask scheduler at 'tcp://127.0.0.1:{port}'"):
+            DaskExecutor(f"tcp://127.0.0.1:{port}", timeout=2.0).__enter__()
+    finally:
+        server.close()
 
 
 @pytest.mark.parametrize("address", ["not-an-address", "bogus://"])

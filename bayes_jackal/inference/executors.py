@@ -348,8 +348,13 @@ class DaskExecutor(Executor):
         thread = threading.Thread(target=ask, name="dask-scheduler-check", daemon=True)
         thread.start()
         thread.join(self.timeout + 5.0)
-        if "error" in answer:
-            raise answer["error"]
+        error = answer.get("error")
+        if isinstance(error, (OSError, asyncio.TimeoutError)):
+            raise error
+        if error is not None:  # garbage read as Dask's framing: a struct error, 3 EiB to allocate
+            raise ValueError(
+                f"no Dask handshake: its answer is not Dask's ({type(error).__name__}: {error})"
+            )
         kind = answer.get("identity", {}).get("type")
         if kind != "Scheduler":
             raise ValueError(f"it answers as {kind or 'nothing'}, not as a Dask scheduler")
