@@ -33,7 +33,9 @@ __all__ = [
     "cause",
     "check",
     "deferred",
+    "hold_late",
     "install",
+    "late",
     "pending",
     "quiet_worker",
     "restore",
@@ -338,6 +340,31 @@ def deferred() -> Iterator[None]:
         _deferring -= 1
     if not _deferring:
         check()
+
+
+_late: int | None = None
+
+
+def _record_late(signum: int, frame) -> None:
+    global _late
+    _late = _late or signum
+
+
+def hold_late() -> None:
+    """From the command's last line on, record SIGINT and SIGTERM instead of raising them.
+
+    The interpreter's shutdown (its exit functions, the modules' teardown)
+    runs after the command has written everything; a signal raised there
+    would print a traceback, and one ignored would let a stopped process
+    exit 0. :func:`late` says which arrived, for the exit code.
+    """
+    for signum in SIGNALS:
+        signal.signal(signum, _record_late)
+
+
+def late() -> int | None:
+    """The signal recorded since :func:`hold_late`, if any."""
+    return _late
 
 
 def quiet_worker() -> None:

@@ -10,9 +10,11 @@ print in :mod:`.output`.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import gc
 import importlib
+import os
 import signal
 import sys
 import warnings
@@ -37,10 +39,30 @@ def console(argv: list[str] | None = None) -> None:
     """The ``bayes-jackal`` console script: :func:`main`, then the process exits.
 
     A signal after the command's last line would meet Python's own handler
-    during the interpreter's shutdown and print a traceback: the process
-    ignores SIGINT and SIGTERM from then on instead.
+    during the interpreter's shutdown and print a traceback: from then on
+    SIGINT and SIGTERM are recorded instead (:func:`.interrupt.hold_late`),
+    and the last of the exit functions ends the process with 128 + the
+    signal, having said that everything was written.
     """
+    atexit.register(_exit_if_stopped)  # registered first: run after every other
     sys.exit(main(argv, _exiting=True))
+
+
+def _exit_if_stopped() -> None:
+    """Exit with 128 + a signal that arrived as the command exited (after its last line)."""
+    from .._runtime import interrupt
+
+    signum = interrupt.late()
+    if signum is None:
+        return
+    print(
+        f"bayes-jackal: interrupted by {signal.Signals(signum).name} as it exited, after "
+        "everything it was to write had been written",
+        file=sys.stderr,
+    )
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(128 + signum)
 
 
 def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
@@ -49,7 +71,7 @@ def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
     The signal handlers come first, then the imports: SIGINT or SIGTERM at
     any moment prints one line and exits 130 or 143
     (:mod:`bayes_jackal._runtime.interrupt`). The previous handlers are restored on
-    return (``_exiting``, for :func:`console`: the signals are ignored).
+    return (``_exiting``, for :func:`console`: later signals are recorded, for the exit code).
     """
     from .._runtime import interrupt
 
@@ -69,9 +91,9 @@ def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
             raise
         return _interrupted(stop)
     finally:
-        if _exiting:
-            previous = dict.fromkeys(interrupt.SIGNALS, signal.SIG_IGN)
         interrupt.restore(previous)
+        if _exiting:
+            interrupt.hold_late()
 
 
 def _interrupted(stop: BaseException) -> int:
