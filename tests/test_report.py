@@ -274,3 +274,19 @@ def test_the_browser_check_catches_a_broken_figure_and_a_script_error(tmp_path):
     counts, console = render(page, tmp_path)
     assert counts["images-broken"] == 1 and counts["errors"] >= 1
     assert any("no_such_function" in line for line in console)
+
+
+def test_a_long_report_says_how_many_figures_it_has_drawn(tmp_path, monkeypatch):
+    # report of two posteriors under load: 8 minutes with nothing after
+    # "(1 of 2)" (issue 37, item 16). Each figure past LOG_INTERVAL says so.
+    from matplotlib.figure import Figure
+
+    from bayes_jackal.report import ReportFigures, figures
+
+    monkeypatch.setattr(figures, "LOG_INTERVAL", 0.0)
+    said = []
+    drawer = ReportFigures(tmp_path, ("png",), said.append)
+    for name in ("v1: acf", "v1: psd"):
+        drawer.html(name, "a figure", lambda: (Figure(), None))
+    assert said == ["  report: 1 figures drawn, the last v1: acf",
+                    "  report: 2 figures drawn, the last v1: psd"]  # fmt: skip

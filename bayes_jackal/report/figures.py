@@ -11,6 +11,7 @@ import base64
 import html
 import io
 import re
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,6 +19,7 @@ from typing import TYPE_CHECKING
 from .._runtime.defaults import FIGURE_FORMATS
 from .._runtime.errors import InputError
 from .._runtime.files import atomic_path
+from .._runtime.progress import LOG_INTERVAL
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -63,6 +65,10 @@ class ReportFigures:
     formats : tuple of str
         Files to write per figure, from :data:`FIGURE_FORMATS`; the embedded
         PNG is rendered in any case.
+    say : callable, optional
+        Told how many figures are drawn, at most every
+        :data:`~bayes_jackal._runtime.progress.LOG_INTERVAL` seconds (a
+        report of many posteriors takes minutes).
 
     Raises
     ------
@@ -92,13 +98,19 @@ class ReportFigures:
     True
     """
 
-    def __init__(self, folder: Path, formats: tuple[str, ...]):
+    def __init__(
+        self,
+        folder: Path,
+        formats: tuple[str, ...],
+        say: Callable[[str], None] | None = None,
+    ):
         unknown = [f for f in formats if f not in FIGURE_FORMATS]
         if unknown:
             raise InputError(
                 f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}", field="formats"
             )
-        self.folder, self.formats = folder, formats
+        self.folder, self.formats, self.say = folder, formats, say
+        self.drawn, self._said = 0, time.monotonic()
 
     def html(self, name: str, caption: str, draw: Callable[[], tuple[Figure, object]]) -> str:
         """Draw a figure, save its files and return its HTML ``<figure>``.
@@ -132,6 +144,10 @@ class ReportFigures:
             path = self.folder / f"{slug(name)}.{suffix}"
             with atomic_path(path) as temporary:
                 temporary.write_bytes(rendered[suffix])
+        self.drawn += 1
+        if self.say is not None and time.monotonic() - self._said >= LOG_INTERVAL:
+            self.say(f"  report: {self.drawn} figures drawn, the last {name}")
+            self._said = time.monotonic()
         data = base64.b64encode(rendered["png"]).decode("ascii")
         return (
             f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'

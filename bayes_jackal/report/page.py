@@ -267,6 +267,7 @@ def write_page(
     render: Callable[[ReportFigures], str],
     *,
     formats: tuple[str, ...] = FIGURE_FORMATS,
+    say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the page ``render(figures)`` to ``out``, its figures to ``<out stem>_figures/``.
 
@@ -283,6 +284,8 @@ def write_page(
         write its figures into the folder.
     formats : tuple of str
         Figure files to write, from ``("png", "svg")``.
+    say : callable, optional
+        Told of the figures drawn as they are (:class:`~bayes_jackal.report.ReportFigures`).
 
     Returns
     -------
@@ -310,7 +313,7 @@ def write_page(
     drift.html ['drift.html', 'drift_figures']
     """
     out = Path(out)
-    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
+    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats, say)
     refuse_link(figures.folder, folder=True)
     with removed_if_empty([figures.folder], on_success=False):  # a failed page leaves none
         figures.folder.mkdir(parents=True, exist_ok=True)
@@ -467,4 +470,5 @@ def save_report(
             posteriors, figures, lags, sections=sections, highlights=highlights, say=say
         ),
         formats=formats,
+        say=say,
     )
