@@ -148,6 +148,12 @@ def test_an_evidence_table_appears_for_compared_families(compared, tmp_path):
     if not shown:
         assert "Nothing flagged" in summary
     assert row["converged"] == ("NOT CONVERGED" not in summary)
+    # The losing family's section says it is not the reported posterior (issue 37, item 18).
+    loser = next(name for name in evidence["families"] if name != best)
+    sections = {name: text[text.index(f"<h2>v1_01.{name}.nc") :] for name in (best, loser)}
+    banner = f"NOT THE REPORTED POSTERIOR: the {loser} family lost to {best}"
+    assert banner in sections[loser][: sections[loser].index("</h2>") + 400]
+    assert "NOT THE REPORTED POSTERIOR" not in sections[best].split("<section>")[0]
 
 
 def test_the_criticism_table_aligns_runs_with_different_statistics():

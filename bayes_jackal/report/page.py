@@ -25,7 +25,7 @@ from .._runtime.files import atomic_path
 from .._runtime.output_safety import refuse_link, removed_if_empty
 from ..posterior.posterior import Posterior, load_posterior
 from .figures import ReportFigures
-from .sections import evidence_section, posterior_section, summary_section
+from .sections import evidence_section, losing_banner, posterior_section, summary_section
 
 __all__ = [
     "LAGS",
@@ -206,7 +206,8 @@ def render_report(
     for number, (path, idata) in enumerate(posteriors, 1):
         if say is not None:
             say(f"  report: {path.name} ({number} of {len(posteriors)}): criticism and figures...")
-        body.append(posterior_section(path, idata, figures, lags))
+        banner = losing_banner(posteriors, idata)
+        body.append(posterior_section(path, idata, figures, lags, banner))
     what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
     return report_page("bayes_jackal report", what, figures, body)
 

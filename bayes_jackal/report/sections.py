@@ -229,6 +229,28 @@ def _with_evidence(
     return groups
 
 
+def losing_banner(posteriors: list[tuple[Path, az.InferenceData]], idata: az.InferenceData) -> str:
+    """A banner for a posterior that lost by evidence to another family on the same runs.
+
+    Empty for the best family (the reported posterior) and for a posterior
+    without a rival.
+    """
+    rivals = _with_evidence(posteriors).get(_runs(idata), [])
+    evidence = {m.family: m.evidence for m in (Posterior.of(i).metadata for _, i in rivals)}
+    family = Posterior.of(idata).metadata.family
+    if family not in evidence or len(evidence) < 2:
+        return ""
+    best = max(evidence, key=lambda name: evidence[name].log_evidence)
+    if best == family:
+        return ""
+    value = evidence[family].log_evidence - evidence[best].log_evidence
+    return (
+        f'<div class="not-converged">NOT THE REPORTED POSTERIOR: the {html.escape(family)} '
+        f"family lost to {html.escape(best)} on these runs (ln B = {value:.1f}). Shown for "
+        "comparison only: its damping and noise are not the estimate.</div>"
+    )
+
+
 def _hdi(row: dict, unit: str = "") -> str:
     """``mean unit [low, high]`` (the HDI), three significant digits."""
     return f"{row['mean']:.3g}{unit} [{row['hdi_3%']:.3g}, {row['hdi_97%']:.3g}]"
@@ -422,11 +444,12 @@ def _criticism_table(criticism: dict) -> str:
 
 
 def posterior_section(
-    path: Path, idata: az.InferenceData, figures: ReportFigures, lags: int
+    path: Path, idata: az.InferenceData, figures: ReportFigures, lags: int, banner: str = ""
 ) -> str:
     """One posterior's ``<section>``, titled by ``path``'s name, its figures drawn by ``figures``.
 
-    ``lags`` is the largest lag of the autocorrelation figures.
+    ``lags`` is the largest lag of the autocorrelation figures; ``banner``
+    goes under the title (:func:`losing_banner`).
     """
     metadata = Posterior.of(idata).metadata
     experiments = metadata.experiments
@@ -434,7 +457,7 @@ def posterior_section(
     family = metadata.family
     title = f"{path.name}: {family} noise on {', '.join(channels)}"
     truth = metadata.truth
-    parts = [f"<section><h2>{html.escape(title)}</h2>"]
+    parts = [f"<section><h2>{html.escape(title)}</h2>", banner]
     if not metadata.convergence.converged:
         parts.append(
             '<div class="not-converged">NOT CONVERGED: the chain stopped at '
