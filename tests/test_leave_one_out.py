@@ -250,8 +250,9 @@ def test_the_cli_says_how_each_posterior_without_a_run_was_made(analysis):
     text = "\n".join(lines)
     pooled = out / "posteriors" / "white.nc"
     assert (
-        f"posteriors without each run: {pooled} reweighted by PSIS, refit where Pareto k-hat "
-        f"> 0.7: {', '.join(_refit(result['state_estimation']))} refit"
+        f"posteriors without each run: {pooled} reweighted (Pareto-smoothed importance "
+        "sampling), refit where the reweighting is unreliable (Pareto k-hat > 0.7): "
+        f"{', '.join(_refit(result['state_estimation']))} refit"
     ) in text
     for run, record in result["state_estimation"]["runs"].items():
         assert f"{run}: posterior without it by {method_text(record)}" in text

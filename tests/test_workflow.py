@@ -324,7 +324,8 @@ def test_analyse_grids_span_the_profiles_prior_and_flag_an_edge(tmp_path, monkey
         ("grid-edge", "d_long", "low")
     ]
     said = [line for line in lines if line.startswith("  onestep MSE grid minimum")]
-    assert len(said) == 1 and said[0].endswith("(on the grid's edge: d_long low)")
+    assert len(said) == 1 and "(on the grid's edge: d_long low); " in said[0]
+    assert said[0].endswith("the posterior (bayes-jackal sample) is the estimate")  # item 15
 
 
 @pytest.mark.slow
