@@ -8,8 +8,9 @@ gradient at a time. Here each search runs scipy's L-BFGS-B in its own
 thread; a search's request for a gradient waits until every running search
 has asked, and the main thread evaluates them all in one call.
 
-The searches are the same as one at a time: a batch is ordered by search,
-and a point's value does not depend on the others in its batch. scipy's
+The searches are those run one at a time, to the rounding of a value by its
+batch (the log-posterior's spectral engine: ~1e-7 nats), and the same in
+every run: a batch is ordered by search. scipy's
 L-BFGS-B is reverse communication (its compiled step returns to Python for
 every evaluation), so the threads share no state but this module's. Every
 evaluation runs in the main thread, where an interrupt arrives; it stops

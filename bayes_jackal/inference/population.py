@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import re
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -167,13 +167,16 @@ class Population:
     @property
     def best(self) -> str:
         """The structure of highest evidence."""
-        return max(self.evidence, key=lambda name: self.evidence[name].log_evidence)
+        return self._highest(self.evidence)
 
     @property
     def model(self) -> str:
         """The hierarchical structure reported: with the slope when its evidence is higher."""
-        candidates = [name for name in self.evidence if name.startswith("hierarchical")]
-        return max(candidates, key=lambda name: self.evidence[name].log_evidence)
+        return self._highest(name for name in self.evidence if name.startswith("hierarchical"))
+
+    def _highest(self, structures: Iterable[str]) -> str:
+        """The one of ``structures`` of highest evidence."""
+        return max(structures, key=lambda name: self.evidence[name].log_evidence)
 
     def log_bayes_factor(self, structure: str, other: str) -> tuple[float, float]:
         """ln B of ``structure`` over ``other`` and its error [nats]."""
@@ -218,13 +221,9 @@ class Population:
         if confounded:  # the slope, or the groups' difference: against one damping for all
             sloped, constant = "pooled + slope", "pooled"
         else:
-            sloped = max(
-                (name for name in self.evidence if name.endswith(" + slope")),
-                key=lambda name: self.evidence[name].log_evidence,
-            )
-            constant = max(
-                (name for name in self.evidence if not name.endswith(" + slope")),
-                key=lambda name: self.evidence[name].log_evidence,
+            sloped = self._highest(name for name in self.evidence if name.endswith(" + slope"))
+            constant = self._highest(
+                name for name in self.evidence if not name.endswith(" + slope")
             )
         slope = self.draws[sloped]["slope"]
         span = self.hierarchy.covariate_span
@@ -240,8 +239,6 @@ class Population:
             }
         values = [unit.covariate for unit in self.hierarchy.units]
         detected = excludes_zero and value > 3
-        shown = "depends" if detected else "is not shown to depend"
-        claim = f"the damping {shown} on {self.covariate}"
         if confounded:
             claim = (
                 f"each group has one {self.covariate}, a difference only the groups carry: a "
@@ -253,6 +250,9 @@ class Population:
                     else f"neither depends on {self.covariate} nor differs between the groups"
                 )
             )
+        else:
+            shown = "depends" if detected else "is not shown to depend"
+            claim = f"the damping {shown} on {self.covariate}"
         verdict = (
             f"{claim}: {sloped} over {constant}, ln B = {value:.1f} +- {error:.2f}, "
             f"{evidence_strength(value)}"
@@ -289,7 +289,7 @@ class Population:
         best = self.best
         kind = best.partition(" + ")[0]
         others = [name for name in self.evidence if name.partition(" + ")[0] != kind]
-        runner_up = max(others, key=lambda name: self.evidence[name].log_evidence)
+        runner_up = self._highest(others)
         value, error = self.log_bayes_factor(best, runner_up)
         meaning = {
             "pooled": "one damping fits every group",
