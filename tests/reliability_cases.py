@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import functools
 import io
+import json
 import os
 import re
 import shutil
@@ -2998,6 +2999,601 @@ SHARED_CASES = [
 ]
 
 
+# ------------------------------------------------------------- issue 37
+
+#: Short settings of population (its units sampled one at a time).
+POP = (
+    "--family white --channels yaw --max-steps 300 --walkers 32 --seed 1 --no-progress "
+    "--processes 1"
+)
+#: The library run's provenance, recorded by another robot's profile.
+HUSKY_RUN = json.dumps({"simulated": True, "robot": "husky"})
+
+
+def groups(text: str) -> Builder:
+    """A groups CSV of the experiments ``a``, ``b`` ... (``population --groups``)."""
+    return raw(text.encode())
+
+
+GROUPS = groups("run,group,speed\na,A,0.3\nb,B,0.5\n")
+
+
+def provenance(**fields) -> Builder:
+    """The simulated experiment with ``provenance`` = ``fields`` (a group, covariates)."""
+    return experiment(provenance=json.dumps(fields))
+
+
+def posterior_cell(variable: str, index: tuple[int, int], value: float) -> Builder:
+    """The library's posterior with one draw of ``variable`` (chain, draw) set to ``value``."""
+
+    def build(lib: Library, path: Path) -> None:
+        import h5py
+
+        shutil.copyfile(lib.posterior, path)
+        with h5py.File(path, "r+") as stored:
+            stored[f"posterior/{variable}"][index] = value
+
+    return build
+
+
+def prior_text(edit: Callable[[str], str]) -> Builder:
+    """The exported prior's JSON text with ``edit(text) -> text`` applied."""
+
+    def build(lib: Library, path: Path) -> None:
+        path.write_text(edit(_exported_prior(lib).read_text()))
+
+    return build
+
+
+DEEP = 200_000
+CAVEAT = r"the one-step minimum is not the damping's estimate"
+
+
+def _population(case_id: str, files: dict, *words: str, options: str = "", **more) -> Case:
+    """``population a.nc b.nc ...`` of ``files`` (a groups CSV ``g.csv`` if given)."""
+    runs = " ".join(name for name in files if name.endswith(".nc"))
+    table = " --groups g.csv" if "g.csv" in files else ""
+    return C(
+        case_id,
+        f"population {runs}{table} --out pop {POP}{options}",
+        more.pop("exit", 2),
+        *words,
+        files=files,
+        **more,
+    )
+
+
+def _refused_groups(case_id: str, table: str, *words: str, verb: str = "population") -> Case:
+    """A groups CSV ``table`` that ``population`` (or ``analyse``) refuses before any work."""
+    files = {**GOOD2, "g.csv": groups(table)}
+    if verb == "analyse":
+        command = f"analyse a.nc b.nc --groups g.csv --out out {ANALYSE}"
+        return C(case_id, command, 2, *words, files=files, absent=("out/*",), timeout=FAST)
+    return _population(case_id, files, *words, absent=("pop/population.json", "pop/units/*"),
+                       timeout=FAST)  # fmt: skip
+
+
+# Issue 37's hostile cases: each fails on the code before issue 37 (c8b6858) and passes now.
+ISSUE37_CASES = [
+    # Item 1: an unquoted decimal comma (0,3) made a row longer than its header; speed read as 0.
+    _refused_groups(
+        "population-groups-decimal-comma",
+        "run,group,speed\na,A,0,3\nb,B,0.5\n",
+        r"g\.csv: row 2",
+        r"4 cells under a header of 3",
+        r"decimal comma",
+    ),
+    _refused_groups(
+        "population-groups-decimal-comma-last-row",
+        "run,group,speed\na,A,0.3\nb,B,0,5\n",
+        r"g\.csv: row 3",
+        r"4 cells under a header of 3",
+    ),
+    _refused_groups(
+        "population-groups-decimal-comma-four-columns",
+        "run,group,speed,slope\na,A,0.3,0\nb,B,0,5,0\n",
+        r"g\.csv: row 3",
+        r"5 cells under a header of 4",
+    ),
+    # analyse copied the runs into out/experiments before it read --groups: nothing now.
+    _refused_groups(
+        "analyse-groups-decimal-comma",
+        "run,group,speed\na,A,0,3\nb,B,0.5\n",
+        r"g\.csv: row 2",
+        r"4 cells under a header of 3",
+        verb="analyse",
+    ),
+    # Item 2: a header naming a column twice (the last one won), also once with a unit.
+    _refused_groups(
+        "population-groups-speed-twice",
+        "run,group,speed,speed\na,A,0.3,0.4\nb,B,0.5,0.6\n",
+        r"g\.csv: header",
+        r"names 'speed' twice",
+    ),
+    _refused_groups(
+        "population-groups-speed-and-speed-with-unit",
+        "run,group,speed,Speed [m/s]\na,A,0.3,0.4\nb,B,0.5,0.6\n",
+        r"g\.csv: header",
+        r"names 'speed' twice",
+    ),
+    _refused_groups(
+        "population-groups-group-twice",
+        "run,group,group\na,A,B\nb,B,A\n",
+        r"g\.csv: header",
+        r"names 'group' twice",
+    ),
+    _refused_groups(
+        "analyse-groups-speed-twice",
+        "run,group,speed,speed\na,A,0.3,0.4\nb,B,0.5,0.6\n",
+        r"g\.csv: header",
+        r"names 'speed' twice",
+        verb="analyse",
+    ),
+    # Item 3: speed [m/s] is speed (its slope was dropped in silence), and a speed
+    # given for some runs only is said (covariate_incomplete), naming a run without.
+    _population(
+        "population-groups-speed-with-unit-is-speed",
+        {**GOOD2, "g.csv": groups("run,group,speed [m/s]\na,A,0.3\nb,B,0.5\n")},
+        r"speed dependence",
+        r"pooled \+ slope",
+        options=" --json",
+        exit=0,
+        json_files=("pop/population.json",),
+    ),
+    _population(
+        "population-groups-speed-in-parentheses-is-the-covariate",
+        {**GOOD2, "g.csv": groups("run,group,Speed (m/s)\na,A,0.3\nb,B,0.5\n")},
+        r"speed dependence",
+        options=" --covariate speed --json",
+        exit=0,
+        json_files=("pop/population.json",),
+    ),
+    _population(
+        "population-groups-speed-missing-for-one-run",
+        {**GOOD2, "g.csv": groups("run,group,speed\na,A,0.3\nb,B,\n")},
+        r"1 of 2 runs have a speed \('b' has none\)",
+        r"no state dependence is fitted",
+        options=" --json",
+        exit=0,
+        json_files=("pop/population.json",),
+    ),
+    _population(
+        "population-groups-speed-missing-for-one-of-three",
+        {
+            **GOOD2,
+            "c.nc": experiment(),
+            "g.csv": groups("run,group,speed\na,A,0.3\nb,A,0.5\nc,B,\n"),
+        },
+        r"2 of 3 runs have a speed \('c' has none\)",
+        r"no state dependence is fitted",
+        exit=0,
+        exists=("pop/population.json",),
+    ),
+    # Item 4: speeds whose range overflows a float (numpy's overflow warning, exit 0).
+    _population(
+        "population-groups-speeds-1e308",
+        {**GOOD2, "g.csv": groups("run,group,speed\na,A,1e308\nb,B,-1e308\n")},
+        r"covariate",
+        r"-1e\+308 \.\. 1e\+308 span more than a float holds",
+        r"\A(?![\s\S]*(RuntimeWarning|overflow))",
+        absent=("pop/population.json",),
+    ),
+    _population(
+        "population-groups-speeds-1.7e308-covariate-speed",
+        {**GOOD2, "g.csv": groups("run,group,speed\na,A,1.7e308\nb,B,-1.7e308\n")},
+        r"covariate",
+        r"span more than a float holds",
+        r"\A(?![\s\S]*(RuntimeWarning|overflow))",
+        options=" --covariate speed",
+        absent=("pop/population.json",),
+    ),
+    _population(
+        "population-provenance-speeds-1e308",
+        {
+            "a.nc": provenance(group="A", covariates={"speed": 1e308}),
+            "b.nc": provenance(group="B", covariates={"speed": -1e308}),
+        },
+        r"covariate",
+        r"span more than a float holds",
+        r"\A(?![\s\S]*(RuntimeWarning|overflow))",
+        absent=("pop/population.json",),
+    ),
+    # Item 5: a named pipe as --out was replaced by a regular file, exit 0.
+    C(
+        "sample-out-is-fifo",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        2,
+        r"--out p\.nc: is a named pipe, not a file",
+        files={**GOOD, "p.nc": fifo()},
+        absent=("p.chain.h5",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-out-is-fifo",
+        "filter a.nc --prior prior.json --out est.csv",
+        2,
+        r"--out est\.csv: is a named pipe, not a file",
+        files={**PRIOR, "est.csv": fifo()},
+        timeout=FAST,
+    ),
+    C(
+        "export-prior-out-is-fifo",
+        "export-prior post.nc --out prior.json",
+        2,
+        r"--out prior\.json: is a named pipe, not a file",
+        files={**POST, "prior.json": fifo()},
+        timeout=FAST,
+    ),
+    C(
+        "report-out-is-fifo",
+        "report post.nc --out r.html --formats png",
+        2,
+        r"--out r\.html: is a named pipe, not a file",
+        files={**POST, "r.html": fifo()},
+        absent=("r_figures",),
+        timeout=FAST,
+    ),
+    C(
+        "grid-out-is-fifo",
+        f"grid a.nc {GRID} --out g.nc",
+        2,
+        r"--out g\.nc: is a named pipe, not a file",
+        files={**GOOD, "g.nc": fifo()},
+        timeout=FAST,
+    ),
+    # Item 6: population's own outputs were checked after its units were sampled.
+    *(
+        C(
+            f"population-{case_id}",
+            "population a.nc b.nc --groups g.csv --out pop --no-progress",
+            2,
+            words,
+            files={**GOOD2, "g.csv": GROUPS, name: planted},
+            absent=("pop/units/*",),
+            timeout=FAST,
+        )
+        for case_id, name, planted, words in [
+            ("units-is-a-file", "pop/units", raw(b"mine\n"), r"pop/units: is an existing file"),
+            (
+                "population-json-is-a-folder",
+                "pop/population.json",
+                folder(),
+                r"pop/population\.json: is an existing folder",
+            ),
+            (
+                "population-png-is-a-folder",
+                "pop/population.png",
+                folder(),
+                r"pop/population\.png: is an existing folder",
+            ),
+            ("units-is-a-fifo", "pop/units", fifo(), r"pop/units: is an existing file"),
+        ]
+    ),
+    # Item 9: a Husky's run read under the Jackal's profile (and the other way round)
+    # was fitted as the profile's robot in silence.
+    C(
+        "grid-husky-run-under-jackal-profile",
+        f"grid h.nc {GRID} --json",
+        0,
+        r"h\.nc: recorded as a 'husky' run, read with the 'jackal' profile",
+        r"--robot husky",
+        files={"h.nc": experiment(provenance=HUSKY_RUN)},
+    ),
+    C(
+        "residuals-husky-run-under-jackal-profile",
+        "residuals h.nc --json",
+        0,
+        r"h\.nc: recorded as a 'husky' run, read with the 'jackal' profile",
+        r"--robot husky",
+        files={"h.nc": experiment(provenance=HUSKY_RUN)},
+    ),
+    C(
+        "residuals-jackal-run-under-husky-profile",
+        "residuals a.nc --robot husky --json",
+        0,
+        r"a\.nc: recorded as a 'jackal' run, read with the 'husky' profile",
+        r"--robot jackal",
+        files=GOOD,
+    ),
+    C(
+        "grid-jackal-csv-run-under-husky-profile",
+        f"grid a.nc {GRID} --robot husky --json",
+        0,
+        r"a\.nc: recorded as a 'jackal' run, read with the 'husky' profile",
+        files=GOOD,
+    ),
+    C(
+        "sample-husky-run-under-jackal-profile",
+        f"sample h.nc --out p.nc {SAMPLE}",
+        0,
+        r"h\.nc: recorded as a 'husky' run, read with the 'jackal' profile",
+        files={"h.nc": experiment(provenance=HUSKY_RUN)},
+        exists=("p.nc",),
+    ),
+    # Item 10: noise took stamps in ms as s (a 0.072 Hz series), or a 1000x rate.
+    *(
+        C(
+            f"noise-stamps-{case_id}",
+            f"noise x.{suffix} --column gyro {NOISE}",
+            2,
+            rf"x\.{suffix}: t: the stamps give {rate} Hz",
+            r"outside the rates of sensor logs \(1-10000 Hz\)",
+            hint,
+            files={f"x.{suffix}": builder},
+            absent=("*.noise.json",),
+            timeout=FAST,
+        )
+        for case_id, suffix, rate, hint, builder in [
+            ("in-ms", "csv", r"0\.072", r"milliseconds", series(lambda t, x: (t * 1e3, x))),
+            ("in-us", "csv", r"7\.2e-05", r"microseconds", series(lambda t, x: (t * 1e6, x))),
+            ("in-ks", "csv", r"72000", r"declare the rate", series(lambda t, x: (t / 1e3, x))),
+            (
+                "in-ms-mat",
+                "mat",
+                r"0\.072",
+                r"milliseconds",
+                mat(lambda c: {"t": c["t"] * 1e3, "gyro": c["yaw_rate"]}),
+            ),
+        ]
+    ),
+    # Item 11: a wheel radius of 1e-300 m (or one tenth of it) passed the profile check;
+    # simulate then failed naming <memory>, not the profile.
+    *(
+        C(
+            f"profile-wheel-radius-{case_id}",
+            f"{command} --robot bad.toml",
+            2,
+            rf"bad\.toml: body\.wheel_radius: {re.escape(radius)} m is less than 0\.05 x the "
+            r"half track",
+            r"\A(?![\s\S]*<memory>)",
+            files={
+                **GOOD,
+                "bad.toml": profile(replace("wheel_radius = 0.098", f"wheel_radius = {radius}")),
+            },
+            absent=("sim/*", "p.nc"),
+            timeout=FAST,
+        )
+        for case_id, command, radius in [
+            ("1e-300-residuals", "residuals a.nc", "1e-300"),
+            ("1e-300-grid", f"grid a.nc {GRID}", "1e-300"),
+            ("1e-300-simulate", "simulate --out sim --v1 1 --v2 0", "1e-300"),
+            ("1e-300-sample", f"sample a.nc --out p.nc {SAMPLE}", "1e-300"),
+            ("tenth-residuals", "residuals a.nc", "0.0098"),
+            ("5mm-simulate", "simulate --out sim --v1 1 --v2 0", "0.005"),
+        ]
+    ),
+    # Item 12: exit 1 with a bare exception for a prior nested 200,000 deep and for
+    # covariates in a run's provenance that are not a mapping of numbers.
+    # An experiment file's JSON attributes nested as deep: RecursionError, exit 1.
+    *[
+        C(
+            f"residuals-{key}-nested-deep",
+            "residuals dp.nc",
+            2,
+            r"dp\.nc",
+            key,
+            r"expected a JSON",
+            files={
+                "dp.nc": nc_edit(
+                    lambda ds, key=key: ds.assign_attrs({key: "[" * DEEP + "]" * DEEP})
+                )
+            },
+            timeout=FAST,
+        )
+        for key in ("provenance", "truth", "segments")
+    ],
+    C(
+        "filter-prior-objects-nested-deep",
+        "filter a.nc --prior deep.json --out est.csv",
+        2,
+        r"deep\.json",
+        r"nests deeper than Python parses",
+        files={**GOOD, "deep.json": json_text('{"a": ' * DEEP + "1" + "}" * DEEP)},
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    C(
+        "filter-prior-field-nested-deep",
+        "filter a.nc --prior deep.json --out est.csv",
+        2,
+        r"deep\.json",
+        r"nests deeper than Python parses",
+        files={
+            **GOOD,
+            "deep.json": prior_text(
+                lambda text: text.rstrip()[:-1] + ', "notes": ' + "[" * DEEP + "]" * DEEP + "}"
+            ),
+        },
+        absent=("est.csv",),
+        timeout=FAST,
+    ),
+    *(
+        _population(
+            f"population-provenance-covariates-{case_id}",
+            {"a.nc": provenance(group="A", covariates=covariates), "b.nc": provenance(group="B")},
+            rf"a\.nc: provenance\.covariates{field}: ",
+            words,
+            absent=("pop/population.json", "pop/units/*"),
+            timeout=FAST,
+        )
+        for case_id, covariates, field, words in [
+            ("a-list", [0.3], "", r"must map covariate names to numbers, got \[0\.3\]"),
+            ("a-text", "speed=0.3", "", r"must map covariate names to numbers, got 'speed=0\.3'"),
+            ("speed-text", {"speed": "fast"}, r"\.speed", r"must be a finite number, got 'fast'"),
+            ("speed-null", {"speed": None}, r"\.speed", r"must be a finite number, got None"),
+            ("speed-a-list", {"speed": [0.3]}, r"\.speed", r"must be a finite number"),
+        ]
+    ),
+    # Item 13: messages that misled: a MATLAB text field "not in the file", a text
+    # covariate "a run has no ...", a NaN draw named without its file.
+    C(
+        "noise-mat-text-field",
+        f"noise x.mat --column gyro {NOISE}",
+        2,
+        r"x\.mat: gyro: variable 'gyro' holds text \(char\), not numbers",
+        files={"x.mat": mat(lambda c: {"t": c["t"], "gyro": "not numbers"})},
+        timeout=FAST,
+    ),
+    C(
+        "noise-mat-text-field-beside-numbers",
+        f"noise x.mat --column note {NOISE}",
+        2,
+        r"x\.mat: note: variable 'note' holds text \(char\), not numbers",
+        files={"x.mat": mat(lambda c: {"t": c["t"], "gyro": c["yaw_rate"], "note": "bench"})},
+        timeout=FAST,
+    ),
+    _population(
+        "population-covariate-is-a-text-column",
+        {**GOOD2, "g.csv": groups("run,group,surface,speed\na,A,grass,0.3\nb,B,tiles,0.5\n")},
+        r"g\.csv: surface: the column 'surface' holds text, not numbers",
+        options=" --covariate surface",
+        absent=("pop/population.json", "pop/units/*"),
+        timeout=FAST,
+    ),
+    _population(
+        "population-covariate-is-the-group-column-text",
+        {**GOOD2, "g.csv": groups("run,group,site\na,A,lab\nb,B,field\n")},
+        r"g\.csv: site: the column 'site' holds text",
+        options=" --covariate site",
+        absent=("pop/population.json", "pop/units/*"),
+        timeout=FAST,
+    ),
+    *(
+        C(
+            f"{command.split()[0]}-posterior-{case_id}",
+            command,
+            2,
+            rf"post\.nc: posterior\.{variable}: the draw at chain {chain}, draw {draw} is {value}",
+            files={"post.nc": posterior_cell(variable, (chain, draw), float(value))},
+            absent=("prior.json", "r.html", "r_figures"),
+            timeout=FAST,
+        )
+        for command in ("export-prior post.nc --out prior.json", "report post.nc --out r.html")
+        for case_id, variable, chain, draw, value in [
+            ("nan-draw", "d_long", 1, 5, "nan"),
+            ("inf-draw", "sigma_h", 3, 7, "inf"),
+        ]
+    ),
+    # Item 15: the one-step minimum read as the damping's estimate.
+    C(
+        "grid-says-the-minimum-is-not-the-estimate",
+        f"grid a.nc {GRID} --json",
+        0,
+        CAVEAT,
+        r"9-1-2",
+        r"the posterior \(bayes-jackal sample\) is the estimate",
+        files=GOOD,
+    ),
+    C(
+        "grid-csv-minimum-on-the-high-edge-and-the-caveat",
+        "grid a.csv --d-lat 10 30 10 --d-long 20 100 10 --json",
+        0,
+        CAVEAT,
+        r"lies on the high edge of the d_lat grid",
+        files=GOOD_CSV,
+    ),
+    C(
+        "analyse-says-the-minimum-on-the-edge-is-not-the-estimate",
+        f"analyse a.nc --out out {ANALYSE} --json",
+        0,
+        r"on the grid's edge: d_long low\); " + CAVEAT,
+        files=GOOD,
+    ),
+    # Item 19: the console's jargon: a literal <family>.nc, +- 0.00, ess_tau, PSIS.
+    C(
+        "compare-out-names-the-files-it-wrote",
+        f"compare a.nc --out cmp {COMPARE} --json",
+        0,
+        r"wrote a\.white\.nc and a\.compare\.json in cmp/",
+        r"\A(?![\s\S]*<family>)",
+        files=GOOD,
+        exists=("cmp/a.white.nc",),
+    ),
+    C(
+        "compare-two-runs-out-names-the-files-it-wrote",
+        f"compare a.nc b.nc --out cmp {COMPARE}",
+        0,
+        files=GOOD2,
+        stdout_lacks=("<family>",),
+        exists=("cmp/a.white.nc", "cmp/b.white.nc"),
+    ),
+    C(
+        "noise-evidence-error-to-two-digits",
+        f"noise x.csv --column gyro {NOISE} --json",
+        0,
+        r"(?m)^white +-?[\d.]+ +0\.0*[1-9]\d",
+        files={"x.csv": series()},
+    ),
+    C(
+        "noise-two-series-evidence-error-to-two-digits",
+        f"noise a.csv b.csv --column gyro --out out {NOISE} --json",
+        0,
+        r"(?m)^white +-?[\d.]+ +0\.0*[1-9]\d",
+        r"\A(?![\s\S]*(\+- 0\.00\b| 0\.00 +0\.00))",
+        files={"a.csv": series(), "b.csv": series(lambda t, x: (t, x[::-1].copy()))},
+        json_files=("out/a.noise.json", "out/b.noise.json"),
+    ),
+    C(
+        "sample-table-says-ess",
+        f"sample a.nc --out p.nc {SAMPLE}",
+        0,
+        files=GOOD,
+        stdout_lacks=("ess_tau",),
+        exists=("p.nc",),
+    ),
+    C(
+        "sample-json-convergence-line-in-words",
+        f"sample a.nc --out p.nc {SAMPLE} --json",
+        0,
+        r"ess: effective draws, r_hat: the walkers' agreement",
+        files=GOOD,
+        exists=("p.nc",),
+    ),
+    C(
+        "filter-says-why-the-first-samples-are-not-scored",
+        "filter a.nc --prior prior.json --out est.csv --json",
+        0,
+        r"prediction errors scored from sample \d+ on \(the first start the filters\)",
+        files=PRIOR,
+        exists=("est.csv",),
+    ),
+    # Item 20: one speed per group: a slope and the groups' difference are one model.
+    _population(
+        "population-one-speed-per-group-confounded",
+        {**GOOD2, "g.csv": groups("run,group,speed\na,slow,0.3\nb,fast,0.6\n")},
+        r"a dependence on speed and a difference between the groups are one model here",
+        r"cannot tell apart",
+        options=" --json",
+        exit=0,
+        json_files=("pop/population.json",),
+    ),
+    _population(
+        "population-provenance-one-speed-per-group-confounded",
+        {
+            "a.nc": provenance(group="slow", covariates={"speed": 0.3}),
+            "b.nc": provenance(group="fast", covariates={"speed": 0.6}),
+        },
+        r"a dependence on speed and a difference between the groups are one model here",
+        r"neither depends on speed nor differs between the groups",
+        options=" --json",
+        exit=0,
+        json_files=("pop/population.json",),
+    ),
+    _population(
+        "population-one-speed-per-group-of-two-runs-confounded",
+        {
+            **GOOD2,
+            "c.nc": experiment(),
+            "g.csv": groups("run,group,speed\na,slow,0.3\nb,slow,0.3\nc,fast,0.6\n"),
+        },
+        r"one model here",
+        options=" --json",
+        exit=0,
+        json_files=("pop/population.json",),
+    ),
+]
+
+
 CASES: list[Case] = [
     *_bad_experiment_cases(),
     *_accepted_cases(),
@@ -3015,6 +3611,7 @@ CASES: list[Case] = [
     *PROFILE_MORE_CASES,
     *FILE_CASES,
     *SHARED_CASES,
+    *ISSUE37_CASES,
 ]
 
 

@@ -119,10 +119,10 @@ def test_grid_json(simulated, capsys, method):
 def test_the_default_families_are_registered():
     # The parser takes --family's default without loading the registry
     # (cli/parser_types.family), so that an output is refused before numpy loads.
-    from bayes_jackal._runtime.defaults import DEFAULT_FAMILIES, FAMILY
+    from bayes_jackal._runtime.defaults import DEFAULT_FAMILIES, FAMILY, SHORT_MEMORY
     from bayes_jackal.model.kernels import FAMILIES
 
-    assert FAMILY in FAMILIES and set(DEFAULT_FAMILIES) <= set(FAMILIES)
+    assert FAMILY in FAMILIES and {*DEFAULT_FAMILIES, SHORT_MEMORY} <= set(FAMILIES)
 
 
 def test_grid_text_goes_to_stdout_without_json(simulated, capsys):

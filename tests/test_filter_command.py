@@ -45,6 +45,7 @@ def files(tmp_path_factory):
         "csv": str(bj.write_csv(runs[1], folder / "right.csv")),
         "prior": str(bj.write_prior(prior, folder / "prior.json")),
         "runs": runs,
+        "seen": str(write_netcdf(seen, folder / "seen.nc")),
     }
 
 
@@ -76,6 +77,18 @@ def test_filter_writes_estimates_and_scores(tmp_path, capsys, files):
     estimates = bj.estimate_states(run, prior)
     np.testing.assert_allclose(back[:, 3], estimates["generalised"]["yaw"].mean, rtol=1e-9)
     assert before == {key: digest(files[key]) for key in ("nc", "prior")}  # inputs unchanged
+
+
+def test_a_run_the_prior_was_sampled_on_is_said_to_be_in_sample(tmp_path, capsys, files):
+    """Issue 37 item 17: the prior's own training run is scored, and said to be in-sample."""
+    out = str(tmp_path / "estimates.csv")
+    code = main(["filter", files["seen"], files["nc"], "--prior", files["prior"], "--out", out,
+                 "--json"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert strict_json(captured.out)["in_sample"] == ["v1"]
+    assert "note: v1 is a run the prior was sampled on" in captured.err
+    assert "in-sample" in captured.err and "note: v2" not in captured.err
 
 
 def test_filter_options_reach_the_filters(tmp_path, capsys, files):

@@ -378,7 +378,10 @@ def test_analyse_two_bags_and_a_corrupt_one(short_runs, tmp_path, capsys):
     assert prior["noise"]["family"] == comparison["best"]
     assert json.loads((out / "posterior.json").read_text()) == result["posterior"]
     report = (out / "report.html").read_text()
-    assert "<h2>Evidence</h2>" in report and report.count("data:image/png;base64,") >= 10
+    assert (
+        '<h2 id="evidence">Evidence</h2>' in report
+        and report.count("data:image/png;base64,") >= 10
+    )
     assert "NOT CONVERGED" in report
     population = json.loads((out / "population.json").read_text())
     assert population == result["population"] and sorted(population["groups"]) == [
@@ -386,7 +389,9 @@ def test_analyse_two_bags_and_a_corrupt_one(short_runs, tmp_path, capsys):
         "tiles",
     ]
     assert population["units"]["tiles"]["runs"] == ["run0"]
-    assert "<h2>Groups of runs</h2>" in report and "Groups of runs</b>:" in report
+    assert (
+        '<h2 id="groups-of-runs">Groups of runs</h2>' in report and "Groups of runs</b>:" in report
+    )
     assert (out / "population.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -533,4 +538,4 @@ def test_demo_is_analyse_on_the_shipped_bags_and_holds_the_truth(tmp_path, capsy
     assert prior["noise"]["family"] == "gaussian"
     report = (folder / "report.html").read_text()
     assert report.count("data:image/png;base64,") >= 10
-    assert "<h2>Evidence</h2>" in report and "NOT CONVERGED" not in report
+    assert '<h2 id="evidence">Evidence</h2>' in report and "NOT CONVERGED" not in report

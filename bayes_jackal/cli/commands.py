@@ -528,6 +528,11 @@ def cmd_filter(args: argparse.Namespace) -> int:
             raise named from exc
         for name, reason in refused.items():
             out.say(f"{experiment.name}: {name} cannot run with this prior: {reason}")
+        if experiment.name in (prior.experiments or ()):
+            out.say(
+                f"note: {experiment.name} is a run the prior was sampled on ({args.prior_file}'s "
+                "experiments): its scores are in-sample, not a test on a run it has not seen"
+            )
         columns = estimate_columns(experiment, estimates)
         return columns, score_estimates(experiment, estimates), refused
 
@@ -543,6 +548,7 @@ def cmd_filter(args: argparse.Namespace) -> int:
             "out": args.out if done else None,
             "experiments": {e.name: scores for e, (_, scores, _) in done},
             "filters_failed": {e.name: refused for e, (_, _, refused) in done if refused},
+            "in_sample": [e.name for e, _ in done if e.name in (prior.experiments or ())],
             "failed": failed,
         }
     )

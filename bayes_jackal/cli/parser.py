@@ -50,6 +50,7 @@ from .._runtime.defaults import (
     SENSOR_PRECISIONS,
     SENSOR_SMOOTHNESS,
     SERIES_COUNTS,
+    SHORT_MEMORY,
     SIMULATED_NOISE,
     STATE_ESTIMATION,
     THESIS_CHANNEL,
@@ -286,9 +287,10 @@ def build_parser() -> argparse.ArgumentParser:
     analysis.add_argument(
         "--families",
         type=_family_list,
-        default=DEFAULT_FAMILIES,
+        default=None,
         metavar="white,gaussian,...",
-        help=f"noise families to compare ({','.join(DEFAULT_FAMILIES)})",
+        help=f"noise families to compare ({','.join(DEFAULT_FAMILIES)}, and {SHORT_MEMORY} "
+        "where white beats gaussian)",
     )
     analysis.add_argument(
         "--processes",

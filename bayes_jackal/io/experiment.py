@@ -824,7 +824,7 @@ def _segments_attribute(attrs: dict, source: str) -> np.ndarray | None:
         return None
     try:
         return np.asarray(json.loads(attrs["segments"]), dtype=int)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, RecursionError):
         raise DataError(
             f"expected a JSON list of sample indices, got {str(attrs['segments'])[:80]!r}",
             source=source,
@@ -849,8 +849,8 @@ def _json_attribute(attrs: dict, key: str, source: str, *, null: bool = False) -
     text = attrs.get(key, "null" if null else "{}")
     try:
         value = json.loads(text)
-    except (TypeError, ValueError):
-        value = text  # not JSON text: refused below
+    except (TypeError, ValueError, RecursionError):  # json recurses per level of nesting
+        value = text  # not JSON text, or nested deeper than Python parses: refused below
     if not (isinstance(value, dict) or (null and value is None)):
         raise DataError(
             f"expected a JSON object{' or null' if null else ''}, got {str(text)[:80]!r}",

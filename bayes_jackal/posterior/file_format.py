@@ -174,7 +174,7 @@ def _attribute(attrs: Mapping, key: str, default: Any = dataclasses.MISSING) -> 
         return value.item() if isinstance(value, np.generic) else value
     try:
         return json.loads(value)
-    except ValueError:
+    except (ValueError, RecursionError):  # RecursionError: nested deeper than Python parses
         raise DataError(f"not a JSON text: {value[:80]!r}", field=key) from None
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import datetime
 import html
+import re
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -54,6 +55,8 @@ th:first-child, td:first-child { text-align: left; }
 .summary { background: #f6f8f6; border-left: 4px solid #2e7d32; padding: 0.2em 1.2em 0.6em; }
 .summary h2 { margin-top: 0.6em; } .not-converged-text { color: #b00020; font-weight: bold; }
 .warnings li { color: #8a4b00; }
+nav.contents { font-size: 0.9em; margin-top: 1.2em; } nav.contents ul { margin: 0.2em 0; }
+.losing-entry { color: #b00020; }
 figure { display: inline-block; margin: 0.5em; vertical-align: top; }
 figure img { max-width: 100%; } figcaption { font-size: 0.85em; color: #555; }
 """
@@ -212,6 +215,55 @@ def render_report(
     return report_page("bayes_jackal report", what, figures, body)
 
 
+#: A section's heading: the report's own ``<h2>``/``<h3>``, which carry no attributes.
+_HEADING = re.compile(r"<h([23])>(.*?)</h\1>", re.S)
+#: What follows the heading of a family that lost by evidence (:func:`losing_banner`).
+_LOSING = '<div class="not-converged losing">'
+
+
+def _with_contents(body: str) -> str:
+    """``body`` with an anchor on every section heading and their table of contents.
+
+    The contents go after the summary (the page's first section, when it is
+    one) or first; an entry of a family that lost by evidence says so.
+
+    Examples
+    --------
+    >>> from bayes_jackal.report.page import _with_contents
+    >>> page = _with_contents("<section><h2>A &amp; B</h2><h3>c</h3></section><h2>A &amp; B</h2>")
+    >>> '<h2 id="a-b">' in page, '<h2 id="a-b-2">' in page, 'href="#c"' in page
+    (True, True, True)
+    """
+    entries: list[tuple[int, str, str, bool]] = []
+    seen: dict[str, int] = {}
+
+    def anchor(match: re.Match) -> str:
+        level, text = int(match[1]), match[2]
+        slug = re.sub(r"[^a-z0-9]+", "-", html.unescape(re.sub("<[^>]+>", "", text)).lower())
+        slug = slug.strip("-") or "section"
+        seen[slug] = seen.get(slug, 0) + 1
+        unique = slug if seen[slug] == 1 else f"{slug}-{seen[slug]}"
+        losing = body.startswith(_LOSING, match.end())
+        entries.append((level, unique, text, losing))
+        return f'<h{level} id="{unique}">{text}</h{level}>'
+
+    anchored = _HEADING.sub(anchor, body)
+    items, open_sub = [], False
+    for level, slug, text, losing in entries:
+        if level == 3 and not open_sub:
+            items.append("<ul>")
+        if level == 2 and open_sub:
+            items.append("</ul>")
+        open_sub = level == 3
+        mark = ' <span class="losing-entry">(not the reported posterior)</span>' if losing else ""
+        items.append(f'<li><a href="#{slug}">{text}</a>{mark}</li>')
+    items.append("</ul>" if open_sub else "")
+    contents = f'<nav class="contents"><b>Contents</b><ul>{"".join(items)}</ul></nav>'
+    split = anchored.index("</section>") + len("</section>") if anchored.startswith(
+        '<section class="summary">') else 0  # fmt: skip
+    return anchored[:split] + contents + anchored[split:]
+
+
 def report_page(title: str, what: str, figures: ReportFigures, body: Sequence[str]) -> str:
     """A self-contained page: the report's style and self-check, a heading, provenance, ``body``.
 
@@ -259,7 +311,7 @@ def report_page(title: str, what: str, figures: ReportFigures, body: Sequence[st
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
         f"<title>{html.escape(title)}</title>"
         f"<style>{_STYLE}</style><script>{_SELF_CHECK}</script></head>"
-        f"<body>{head}{''.join(body)}</body></html>"
+        f"<body>{head}{_with_contents(''.join(body))}</body></html>"
     )
 
 

@@ -245,7 +245,7 @@ def losing_banner(posteriors: list[tuple[Path, az.InferenceData]], idata: az.Inf
         return ""
     value = evidence[family].log_evidence - evidence[best].log_evidence
     return (
-        f'<div class="not-converged">NOT THE REPORTED POSTERIOR: the {html.escape(family)} '
+        f'<div class="not-converged losing">NOT THE REPORTED POSTERIOR: the {html.escape(family)} '
         f"family lost to {html.escape(best)} on these runs (ln B = {value:.1f}). Shown for "
         "comparison only: its damping and noise are not the estimate.</div>"
     )

@@ -50,13 +50,13 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-from .._runtime.defaults import DEFAULT_FAMILIES, GRID_METHODS, STATE_ESTIMATION
+from .._runtime.defaults import DEFAULT_FAMILIES, GRID_METHODS, SHORT_MEMORY, STATE_ESTIMATION
 from .._runtime.errors import DataError, describe
 from .._runtime.files import write_json
 from ..dem.export import export_prior, write_prior
 from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
 from ..inference.chains import SamplerSettings
-from ..inference.comparison import compare_families
+from ..inference.comparison import Comparison, compare_families
 from ..inference.executors import Executor, ProcessExecutor
 from ..inference.population import plan_units, population_posterior
 from ..inference.sampler_warnings import keep_warnings
@@ -139,7 +139,7 @@ def analyse_logs(
     out: str | Path,
     *,
     robot: RobotProfile | None = None,
-    families: Sequence[str] = DEFAULT_FAMILIES,
+    families: Sequence[str] | None = None,
     settings: SamplerSettings | None = None,
     seed: int | None = None,
     processes: int | None = None,
@@ -164,8 +164,11 @@ def analyse_logs(
         Output folder (created).
     robot : RobotProfile, optional
         Default: the Jackal profile.
-    families : sequence of str
-        Noise families to compare (default white and gaussian).
+    families : sequence of str, optional
+        Noise families to compare. By default white and gaussian, and the
+        short-memory exponential family too where white beats gaussian, so
+        that colour of a few samples, which gaussian's smooth kernel fits
+        worse than white, is not read as "not coloured".
     settings : SamplerSettings, optional
         Walkers, step cap and progress display of each family's chain.
     seed : int, optional
@@ -270,6 +273,8 @@ def analyse_logs(
     robot = robot or load_profile()
     settings = settings or SamplerSettings()
     settings.check_evidence_steps()  # before the logs are read and the grids written
+    if groups is not None:  # a bad groups file refused before a log is read or copied
+        groups = as_run_groups(groups)
     experiments, failed = ingest_logs(
         paths,
         robot,
@@ -285,6 +290,10 @@ def analyse_logs(
             field="inputs",
         )
     options = LikelihoodOptions.of(likelihood_options)
+    automatic, families = (
+        families is None,
+        tuple(DEFAULT_FAMILIES if families is None else families),
+    )
     experiments, unusable = _usable(experiments, robot, options, families[0], say)
     failed |= unusable
     if not experiments:
@@ -295,8 +304,7 @@ def analyse_logs(
     options = dataclasses.replace(
         options, channels=resolve_channels(experiments, options.channels)
     )
-    if groups is not None:  # read once, and a bad groups file refused before any work
-        groups = as_run_groups(groups)
+    if groups is not None:  # runs the groups do not name refused before any work
         plan_units(experiments, groups, noise=options.noise)
     channels = options.channels
     say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2) over the prior ranges:")
@@ -306,7 +314,8 @@ def analyse_logs(
         f"pooled over {len(experiments)} experiment(s):"
     )
 
-    paths_by_family = {family: folder / "posteriors" / f"{family}.nc" for family in families}
+    paths_by_family = {family: folder / "posteriors" / f"{family}.nc"
+                       for family in (*families, SHORT_MEMORY)}  # fmt: skip
     executor = executor or ProcessExecutor(processes or os.cpu_count() or 1)
 
     def finished(family, evidence, idata) -> None:
@@ -314,21 +323,21 @@ def analyse_logs(
         save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
         say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
 
+    def compare(families: tuple[str, ...]) -> Comparison:
+        return compare_families(experiments, robot, families, settings, seed,
+                                prior_overrides=prior_overrides, on_family=finished,
+                                reuse=paths_by_family, say=say, executor=executor,
+                                likelihood_options=options)  # fmt: skip
+
     try:
         with keep_warnings() as kept:
-            comparison = compare_families(
-                experiments,
-                robot,
-                tuple(families),
-                settings,
-                seed,
-                prior_overrides=prior_overrides,
-                on_family=finished,
-                reuse=paths_by_family,
-                say=say,
-                executor=executor,
-                likelihood_options=options,
-            )
+            comparison = compare(families)
+            if automatic and comparison.best == "white" and SHORT_MEMORY not in families:
+                say(f"  white beat gaussian: {SHORT_MEMORY} (short-memory colour) is compared "
+                    "too, as gaussian's smooth kernel fits colour of a few samples worse "
+                    "than white does")  # fmt: skip
+                families = (*families, SHORT_MEMORY)
+                comparison = compare(families)
     finally:
         # The convergence warnings go into the result; the others reach the user,
         # also those raised before the comparison failed.
