@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.signal
 from mocap_simulator import imu_message, write_ros1
 
 from bayes_jackal.cli.parser import build_parser
@@ -165,11 +166,8 @@ def reader_files(folder: Path) -> None:
 def _ar1(rng: np.random.Generator, n: int, phi: float = 0.9, sd: float = 0.01) -> np.ndarray:
     """A stationary AR(1) series of ``n`` samples, marginal sd ``sd``."""
     shocks = rng.normal(0.0, sd * np.sqrt(1 - phi**2), n)
-    series = np.empty(n)
-    series[0] = rng.normal(0.0, sd)
-    for k in range(1, n):  # a reference written plainly: the test's own generator
-        series[k] = phi * series[k - 1] + shocks[k]
-    return series
+    start = [phi * rng.normal(0.0, sd)]  # the state before the first sample: stationary
+    return scipy.signal.lfilter([1.0], [1.0, -phi], shocks, zi=start)[0]
 
 
 def _environment(folder: Path) -> dict[str, str]:

@@ -508,6 +508,7 @@ def cmd_export_prior(args: argparse.Namespace) -> int:
 def cmd_filter(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     prior, robot = read_prior(args.prior_file), robot_with_topics(args)
+    trained = set(prior.experiments or ())  # the runs the prior was sampled on
     options = {
         "filters": args.filters,
         "order": args.order,
@@ -528,7 +529,7 @@ def cmd_filter(args: argparse.Namespace) -> int:
             raise named from exc
         for name, reason in refused.items():
             out.say(f"{experiment.name}: {name} cannot run with this prior: {reason}")
-        if experiment.name in (prior.experiments or ()):
+        if experiment.name in trained:
             out.say(
                 f"note: {experiment.name} is a run the prior was sampled on ({args.prior_file}'s "
                 "experiments): its scores are in-sample, not a test on a run it has not seen"
@@ -548,7 +549,7 @@ def cmd_filter(args: argparse.Namespace) -> int:
             "out": args.out if done else None,
             "experiments": {e.name: scores for e, (_, scores, _) in done},
             "filters_failed": {e.name: refused for e, (_, _, refused) in done if refused},
-            "in_sample": [e.name for e, _ in done if e.name in (prior.experiments or ())],
+            "in_sample": [e.name for e, _ in done if e.name in trained],
             "failed": failed,
         }
     )
