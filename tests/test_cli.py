@@ -132,13 +132,15 @@ def test_grid_text_goes_to_stdout_without_json(simulated, capsys):
     assert "total (5-3)" in captured.out
     # The one-step minimum is said not to be the estimate (issue 37, item 15).
     assert "note: the one-step minimum is not the damping's estimate" in captured.out
-    # stderr has only the warning of the one-step minimum (50, 15) on the
-    # grid's low d_lat edge: the criterion is biased down the ridge by the
-    # coloured noise (docs/guide/thesis.md), below the truth's (110, 30).
+    # stderr has the search's line (on a terminal, a ticking clock) and the
+    # warning of the one-step minimum (50, 15) on the grid's low d_lat edge:
+    # the criterion is biased down the ridge by the coloured noise
+    # (docs/guide/thesis.md), below the truth's (110, 30).
     assert captured.err.splitlines() == [
+        "  onestep MSE grid of the yaw channel (16 x 11 points)...",
         "bayes-jackal: WARNING: onestep grid: the minimum (d_lat = 50, d_long = 15 N s/m) lies "
         "on the low edge of the d_lat grid (50-200 N s/m): the MSE may be lower below d_lat = "
-        "50 N s/m, outside the grid; widen the grid (--d-lat START STOP STEP)"
+        "50 N s/m, outside the grid; widen the grid (--d-lat START STOP STEP)",
     ]
 
 

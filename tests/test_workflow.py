@@ -15,7 +15,7 @@ import scipy.signal
 import scipy.stats
 
 from bayes_jackal._runtime import progress as progress_module
-from bayes_jackal._runtime.progress import Progress
+from bayes_jackal._runtime.progress import Phase, Progress, write_line
 from bayes_jackal.cli import main
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.executors import SerialExecutor
@@ -90,6 +90,12 @@ def test_progress_shows_the_expected_end_and_the_time_left():
         bar.expect(1600)
         bar.update(1600)
     assert bar.bar.total == 1600 and "1600/1600" in terminal.getvalue()
+    # A chain that converges before the expected end leaves a full bar, not 75 %.
+    terminal = _Terminal()
+    with Progress(20000, "white", stream=terminal) as bar:
+        bar.expect(1600)
+        bar.update(1200)
+    assert "100%" in terminal.getvalue() and "1200/1200" in terminal.getvalue()
 
 
 def test_progress_lines_are_spaced_by_the_interval():
@@ -136,6 +142,52 @@ def test_wrap_closes_on_an_error_in_the_loop():
     assert not log.enabled and not bar.enabled
 
 
+def test_a_phase_in_a_log_is_one_line_and_terminal_only_is_none():
+    """Issue 37, item 16: the MAP search, the grids and the report's figures printed nothing."""
+    stream, quiet = io.StringIO(), io.StringIO()
+    with Phase("gaussian: finding the chain's start", stream=stream):
+        pass
+    with Phase("  report: white.nc", stream=quiet, terminal_only=True):
+        pass
+    with Phase("off", stream=quiet, enabled=False):
+        pass
+    assert stream.getvalue() == "gaussian: finding the chain's start...\n"
+    assert quiet.getvalue() == ""
+
+
+def test_a_phase_on_a_terminal_ticks_until_it_ends_and_lines_keep_apart(monkeypatch):
+    monkeypatch.setattr(progress_module, "TICK", 0.001)
+    terminal = _Terminal()
+    with Phase("simulation MSE grid", stream=terminal) as phase:
+        # The clock redraws from its own thread while the step computes; wait
+        # (at most a minute, however loaded the machine) for three redraws.
+        deadline = time.monotonic() + 60.0
+        while terminal.getvalue().count("simulation MSE grid: ") < 4:
+            if time.monotonic() > deadline:
+                pytest.fail(f"the clock did not tick: {terminal.getvalue()!r}")
+            time.sleep(0.01)
+        write_line("  report: 25 figures drawn", terminal)
+    text = terminal.getvalue()
+    assert re.search(r"simulation MSE grid: 00:0\d", text)
+    # The line printed while the phase was shown starts on a cleared line.
+    before, _, after = text.partition("  report: 25 figures drawn\n")
+    assert before.endswith("\r") and after
+    assert phase.bar.disable and not phase._ticker.is_alive()  # removed, clock stopped
+    plain = io.StringIO()
+    write_line("no bar shown", plain)
+    assert plain.getvalue() == "no bar shown\n"
+
+
+def test_a_grid_search_with_progress_says_its_size(short_runs, capsys):
+    from bayes_jackal.thesis import damping_grid, grid_search
+
+    d_lat, d_long = damping_grid(50.0, 200.0, 50.0), damping_grid(10.0, 60.0, 25.0)
+    grid_search(short_runs[:1], ROBOT, d_lat, d_long, method="onestep", progress=True)
+    grid_search(short_runs[:1], ROBOT, d_lat, d_long, method="onestep")
+    err = capsys.readouterr().err
+    assert err == "  onestep MSE grid of the yaw channel (4 x 3 points)...\n"
+
+
 @pytest.fixture(scope="module")
 def short_runs() -> list:
     """Two short simulated runs (truth 110, 30), independent noise."""
@@ -155,7 +207,9 @@ def test_sampler_progress_in_a_log_has_no_cursor_codes(short_runs, monkeypatch, 
     err = capsys.readouterr().err
     assert not CURSOR.search(err)
     lines = err.splitlines()
-    assert lines[0].startswith("emcee: 1/200 steps, ")
+    # The search for the chain's start has a line, then the chain its own.
+    assert lines[0] == "emcee: finding the chain's start (the posterior's peak)..."
+    assert lines[1].startswith("emcee: 1/200 steps, ")
     # The autocorrelation estimate joins the line at the first check (step 100),
     # and with it the steps the criterion will need (here the cap) and the time left.
     assert any(re.fullmatch(r"emcee: 101/200 steps, tau ~ \d+, \d+ s, ~ \d+ s left", line)

@@ -9,24 +9,46 @@ and one when the loop ends. Where the loop can tell how many items it will
 need (a chain, from its autocorrelation time), :meth:`Progress.expect`
 makes that the bar's total and the base of the time left.
 Every progress display of the package (emcee sampling, bag ingest, compare's
-families in parallel processes) goes through it.
+families in parallel processes) goes through it. A step that cannot count
+its items (the search for a chain's start, a grid search, a report's
+figures) is a :class:`Phase`: on a terminal a line whose clock ticks every
+second, elsewhere one line when it starts. Lines written while a bar or a
+phase is shown go through :func:`write_line`, which keeps them apart.
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from typing import TextIO, TypeVar
 
 from tqdm import tqdm
 
-__all__ = ["LOG_INTERVAL", "Progress"]
+__all__ = ["LOG_INTERVAL", "Phase", "Progress", "write_line"]
 
 #: Seconds between the plain lines written where the stream is not a terminal.
 LOG_INTERVAL = 10.0
 
+#: Seconds between the redraws of a :class:`Phase`'s clock on a terminal.
+TICK = 1.0
+
 T = TypeVar("T")
+
+
+def _is_terminal(stream: TextIO) -> bool:
+    return getattr(stream, "isatty", lambda: False)()
+
+
+def write_line(text: str, stream: TextIO) -> None:
+    """Write ``text`` and a newline to ``stream``, clearing and redrawing any bar shown.
+
+    A bar or :class:`Phase` line is drawn without a newline; a line printed
+    plainly would be glued to its end. This is :func:`tqdm.tqdm.write`,
+    which is a plain write where nothing is shown (a log file).
+    """
+    tqdm.write(text, file=stream)
 
 
 class Progress:
@@ -110,7 +132,7 @@ class Progress:
         self.status: dict[str, str] = {}
         self.enabled = enabled
         self.start = self.last = time.monotonic()
-        is_terminal = enabled and getattr(self.stream, "isatty", lambda: False)()
+        is_terminal = enabled and _is_terminal(self.stream)
         self.bar = (
             tqdm(
                 total=total,
@@ -176,6 +198,8 @@ class Progress:
         if not self.enabled:
             return
         if self.bar is not None:
+            if outcome == "done":  # converged before the expected end: the bar ends full
+                self.bar.total = self.bar.n
             self.bar.close()
         else:
             self._line(f", {outcome}")
@@ -197,3 +221,86 @@ class Progress:
             outcome = "done"
         finally:
             self.close(outcome)
+
+
+class Phase:
+    """A step of unknown length, shown while it runs: a ticking line on a terminal.
+
+    On a terminal, ``label`` and the seconds elapsed are redrawn every
+    :data:`TICK` seconds from a background thread (the step itself need not
+    report anything) and the line is removed when the step ends; elsewhere
+    (a log file) ``label`` is written once, as it starts, ending in ``...``.
+
+    Parameters
+    ----------
+    label : str
+        What the step does, e.g. ``gaussian: finding the chain's start``.
+    enabled : bool
+        Show nothing when False.
+    position : int
+        The terminal line (that of the chain's bar, with jobs in parallel).
+    stream : file, optional
+        Where to write (default: ``sys.stderr`` at construction).
+    terminal_only : bool
+        Write nothing where the stream is not a terminal (the caller says
+        in its own line that the step started).
+
+    Examples
+    --------
+    In a log (here a string buffer), one line as the step starts:
+
+    >>> import io
+    >>> from bayes_jackal._runtime.progress import Phase
+    >>> log = io.StringIO()
+    >>> with Phase("simulation MSE grid (64 x 64 points)", stream=log):
+    ...     total = sum(range(1000))
+    >>> print(log.getvalue().strip())
+    simulation MSE grid (64 x 64 points)...
+    """
+
+    def __init__(
+        self,
+        label: str,
+        *,
+        enabled: bool = True,
+        position: int = 0,
+        stream: TextIO | None = None,
+        terminal_only: bool = False,
+    ):
+        self.label, self.enabled, self.position = label, enabled, position
+        self.stream = sys.stderr if stream is None else stream
+        self.terminal_only = terminal_only
+        self.bar: tqdm | None = None
+        self._stop = threading.Event()
+        self._ticker: threading.Thread | None = None
+
+    def __enter__(self) -> Phase:
+        if not self.enabled:
+            return self
+        if not _is_terminal(self.stream):
+            if not self.terminal_only:
+                self.stream.write(f"{self.label}...\n")
+                self.stream.flush()
+            return self
+        self.bar = tqdm(
+            total=None,
+            desc=self.label,
+            bar_format="{desc}: {elapsed}",
+            position=self.position,
+            leave=False,
+            file=self.stream,
+        )
+        self._ticker = threading.Thread(target=self._tick, name="phase-clock", daemon=True)
+        self._ticker.start()
+        return self
+
+    def _tick(self) -> None:
+        while not self._stop.wait(TICK):
+            self.bar.refresh()
+
+    def __exit__(self, kind, value, traceback) -> None:
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        if self.bar is not None:
+            self.bar.close()

@@ -163,8 +163,10 @@ def _warnings_shown(*, debug: bool) -> Iterator[None]:
         if (category, str(message)) in shown:
             return
         shown.add((category, str(message)))
+        from .._runtime.progress import write_line  # tqdm: imported once a warning shows
+
         where = f" ({category.__name__} at {filename}:{lineno})" if debug else ""
-        print(f"bayes-jackal: WARNING: {message}{where}", file=sys.stderr)
+        write_line(f"bayes-jackal: WARNING: {message}{where}", sys.stderr)
 
     with warnings.catch_warnings():
         warnings.showwarning = show

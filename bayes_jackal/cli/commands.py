@@ -157,6 +157,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
         method=args.method,
         channel=args.channel,
         discretisation=args.discretisation,
+        progress=True,
     )
     grid_table(result, out.say)
     grid_warnings(result.edge_warnings(), "--{option} START STOP STEP")

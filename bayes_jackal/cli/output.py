@@ -6,8 +6,9 @@ import sys
 from collections.abc import Callable
 
 from .._runtime.files import json_text
+from .._runtime.progress import write_line
 from ..filters.left_out import method_text
-from ..filters.state_estimation import score_rows
+from ..filters.state_estimation import inexact_note, score_rows
 from ..posterior.criticism import KIND_MEANINGS
 from ..thesis.gridsearch import GridResult
 from .exits import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, print_failure
@@ -20,7 +21,7 @@ class Reporter:
         self.json_mode = json_mode
 
     def say(self, text: str = "") -> None:
-        print(text, file=sys.stderr if self.json_mode else sys.stdout)
+        write_line(text, sys.stderr if self.json_mode else sys.stdout)
 
     def result(self, payload: dict) -> None:
         """With ``--json``, print ``payload`` as strict JSON (NaN and +-inf as null)."""
@@ -98,14 +99,16 @@ def filter_table(name: str, scores: dict, say: Callable[[str], None]) -> None:
     say(f"{name}: prediction errors scored from sample {first} on (the first start the filters)")
     say(
         f"{'filter':16s} {'channel':7s} {'innov. RMSE':>11s} {'NIS':>6s} "
-        f"{'95% band':>13s} {'':13s} {'state RMSE':>10s} {'smoothed':>10s}"
+        f"{'95% band':>13s} {'':14s} {'state RMSE':>10s} {'smoothed':>10s}"
     )
     for filter_name, channel, rmse, nis, band, verdict, state, smoothed in score_rows(scores):
         say(
             f"{filter_name:16s} {channel:7s} {_number(rmse, '11.4g')} {_number(nis, '6.3f')} "
-            f"{'-' if band is None else '[{:5.3f},{:5.3f}]'.format(*band):>13s} {verdict:13s} "
+            f"{'-' if band is None else '[{:5.3f},{:5.3f}]'.format(*band):>13s} {verdict:14s} "
             f"{_number(state, '10.4g')} {_number(smoothed, '10.4g')}"
         )
+    if note := inexact_note(scores):
+        say(f"  {note}")
 
 
 def _number(value: float | None, spec: str) -> str:

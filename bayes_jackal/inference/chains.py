@@ -43,7 +43,7 @@ from .._runtime.defaults import (
 from .._runtime.errors import InputError, OutputError
 from .._runtime.files import atomic_path, check_space
 from .._runtime.output_safety import OutputLock, refuse_link
-from .._runtime.progress import Progress
+from .._runtime.progress import Phase, Progress
 from .._runtime.threads import one_blas_thread
 from .moves import (
     Approximation,
@@ -631,7 +631,13 @@ def run_chain(
             settings.check_every,
         )
         if backend.iteration == 0:
-            begun = initial(rng, walkers)
+            with Phase(
+                f"{settings.progress_label.strip()}: "
+                "finding the chain's start (the posterior's peak)",
+                enabled=settings.progress,
+                position=settings.progress_line,
+            ):
+                begun = initial(rng, walkers)
             begun = begun if isinstance(begun, Start) else Start(np.asarray(begun))
             moves_state = np.random.RandomState(int(rng.integers(2**32))).get_state()
             start = emcee.State(begun.walkers, random_state=moves_state)

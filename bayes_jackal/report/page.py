@@ -24,6 +24,7 @@ from .._runtime.defaults import FIGURE_FORMATS
 from .._runtime.errors import InputError, each_input, refuse
 from .._runtime.files import atomic_path
 from .._runtime.output_safety import refuse_link, removed_if_empty
+from .._runtime.progress import Phase
 from ..posterior.posterior import Posterior, load_posterior
 from .figures import ReportFigures
 from .sections import evidence_section, losing_banner, posterior_section, summary_section
@@ -210,7 +211,8 @@ def render_report(
         if say is not None:
             say(f"  report: {path.name} ({number} of {len(posteriors)}): criticism and figures...")
         banner = losing_banner(posteriors, idata)
-        body.append(posterior_section(path, idata, figures, lags, banner))
+        with Phase(f"  report: {path.name}", enabled=say is not None, terminal_only=True):
+            body.append(posterior_section(path, idata, figures, lags, banner))
     what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
     return report_page("bayes_jackal report", what, figures, body)
 

@@ -31,7 +31,7 @@ import numpy as np
 from .._runtime.arviz_quiet import az
 from .._runtime.defaults import CHANNELS, HDI_PROB
 from ..filters.left_out import LeaveOneOut
-from ..filters.state_estimation import score_rows
+from ..filters.state_estimation import FILTER_INEXACT, inexact_note, score_rows
 from ..inference.comparison import Comparison
 from ..model.physics import discrete_matrices
 from ..posterior.criticism import KIND_MEANINGS
@@ -578,11 +578,15 @@ def state_estimation_highlight(result: LeaveOneOut) -> str | None:
     for name in dict.fromkeys(row[1] for row in predicted):
         mine = [row for row in predicted if row[1] == name]
         consistent = sum(row[6] == "consistent" for row in mine)
+        inexact = sum(row[6] == FILTER_INEXACT for row in mine)
         best = sum(winner == name for _, winner in lowest.values())
         parts.append(
-            f"<b>{html.escape(name)}</b> consistent on {consistent} of {len(mine)}, "
-            f"lowest prediction error on {best}"
-        )
+            f"<b>{html.escape(name)}</b> consistent on {consistent} of {len(mine)}"
+            + (f" ({FILTER_INEXACT} on {inexact}: the exact filter under the same prior is "
+               "consistent there, so the prior holds and the filter's variance is off)"
+               if inexact else "")
+            + f", lowest prediction error on {best}"
+        )  # fmt: skip
     return (
         f"<b>Filters</b> driven by the {html.escape(result.family)} prior on the runs left out "
         f"(run and channel): {'; '.join(parts)} (section <i>State estimation</i> below)."
@@ -671,6 +675,11 @@ def state_estimation_section(result: LeaveOneOut, figures: ReportFigures) -> str
     header = ["left out", "prior from", "filter", "channel", "innovation RMSE", "NIS",
               "95 % band", "verdict", "state RMSE", "smoothed state RMSE"]  # fmt: skip
     parts.append(html_table(header, rows))
+    notes = [f"{run}: {note}" for run, record in result.runs.items()
+             if (note := inexact_note(record["scores"]))]  # fmt: skip
+    if notes:
+        items = "".join(f"<li>{html.escape(note)}</li>" for note in notes)
+        parts.append(f'<ul class="notes">{items}</ul>')
     for name, (experiment, estimates) in result.estimates.items():
         start, stop = estimate_plots.shown_window(experiment)
         parts.append(

@@ -38,6 +38,7 @@ from .._runtime.defaults import (
 )
 from .._runtime.errors import InputError
 from .._runtime.files import write_hdf5
+from .._runtime.progress import Phase
 from ..io.experiment import UNLABELLED, Experiment
 from ..likelihood.measurements import RateMeasurement
 from ..model.parameters import DAMPING, prior_overrides
@@ -550,6 +551,8 @@ def grid_search(
     method: str = METHOD,
     channel: str = THESIS_CHANNEL,
     discretisation: Method = DISCRETISATION,
+    *,
+    progress: bool = False,
 ) -> GridResult:
     """Evaluate a grid-search criterion on every experiment and combine them.
 
@@ -563,6 +566,9 @@ def grid_search(
     method : {"onestep", "simulation"}
     channel : {"yaw", "vx", "vy"}
     discretisation : {"zoh", "euler"}
+    progress : bool
+        Show the search while it runs on stderr (a ticking line on a
+        terminal, one line elsewhere; :class:`bayes_jackal._runtime.progress.Phase`).
 
     Returns
     -------
@@ -593,9 +599,12 @@ def grid_search(
         raise InputError("no experiments given", field="experiments")
     d_lat, d_long = np.asarray(d_lat, float), np.asarray(d_long, float)
     criterion = _CRITERIA[method]
-    surfaces = {
-        e.name: criterion(e, robot, d_lat, d_long, channel, discretisation) for e in experiments
-    }
+    label = f"  {method} MSE grid of the {channel} channel ({d_lat.size} x {d_long.size} points)"
+    with Phase(label, enabled=progress):
+        surfaces = {
+            e.name: criterion(e, robot, d_lat, d_long, channel, discretisation)
+            for e in experiments
+        }
     members: dict[str, list[str]] = {}
     for e in experiments:
         members.setdefault(e.series or UNLABELLED, []).append(e.name)

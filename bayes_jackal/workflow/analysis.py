@@ -89,12 +89,14 @@ def _common_truth(experiments: list[Experiment]) -> dict | None:
     return shared if None not in shared.values() and all(t == shared for t in truths) else None
 
 
-def _grids(experiments, robot, folder: Path, say: Callable[[str], None], priors=None) -> dict:
+def _grids(
+    experiments, robot, folder: Path, say: Callable[[str], None], priors=None, progress=True
+) -> dict:
     """The thesis' grid searches over the prior ranges; surfaces as PNG, minima in grid.json."""
     summaries = {}
     for method in GRID_METHODS:
         d_lat, d_long = (prior_grid(robot, name, method, priors) for name in ("d_lat", "d_long"))
-        result = grid_search(experiments, robot, d_lat, d_long, method=method)
+        result = grid_search(experiments, robot, d_lat, d_long, method=method, progress=progress)
         best_lat, best_long, _ = result.argmin()
         save_grid_plot(result, folder / f"grid_{method}.png")
         edges = ", ".join(f"{name} {side}" for name, side in result.edges().items())
@@ -308,7 +310,7 @@ def analyse_logs(
         plan_units(experiments, groups, noise=options.noise)
     channels = options.channels
     say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2) over the prior ranges:")
-    grids = _grids(experiments, robot, folder, say, prior_overrides)
+    grids = _grids(experiments, robot, folder, say, prior_overrides, settings.progress)
     say(
         f"posterior and evidence of {', '.join(families)} noise on {', '.join(channels)}, "
         f"pooled over {len(experiments)} experiment(s):"
