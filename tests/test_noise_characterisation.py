@@ -26,6 +26,7 @@ from bayes_jackal.noise.characterisation import (
     fit_family,
     series_prior,
 )
+from bayes_jackal.posterior import Evidence
 
 SETTINGS = SamplerSettings(progress=False)
 DT = 0.01
@@ -322,3 +323,37 @@ def test_a_prior_given_twice_is_refused_by_noise_and_sample(tmp_path, capsys):
         assert code == 2, err
         assert "--prior: width is given twice (0.1 1 and 0.2 2): give it once" in err
         assert "none." not in err
+
+
+def test_white_ahead_of_a_width_at_its_floor_is_not_not_coloured():
+    """Issue 37, item 14: 0.5 ms of memory at 1 kHz read "not coloured" (ln B -39.2).
+
+    The exponential width's floor (1 ms, one sample at 1 kHz) cannot fit it;
+    its posterior piles there. The evidence below is that run's.
+    """
+    draws = np.ones((4, 3))
+    floor = {"kind": "prior-boundary", "parameter": "width", "side": "low", "bound": 0.001,
+             "message": "width: piled against the prior's lower bound 0.001"}  # fmt: skip
+
+    def fit(family: str, log_evidence: float, warnings: list) -> FamilyFit:
+        names = ("sigma_c", "sigma_n") if family == "white" else ("width", "sigma_c", "sigma_n")
+        return FamilyFit(family=family, names=names, draws=draws[:, : len(names)],
+                         evidence=Evidence(log_evidence, 0.01, "bridge sampling"),
+                         diagnostics={"converged": True}, warnings=warnings, dt=0.001)  # fmt: skip
+
+    def verdict(warnings: list) -> tuple[str, str]:
+        fits = {"white": fit("white", 92173.28, []),
+                "exponential": fit("exponential", 92134.10, warnings)}  # fmt: skip
+        return NoiseCharacterisation(
+            series=None, fits=fits, acf_least_squares={}, thesis_fit=0.0
+        ).verdict()
+
+    assert verdict([])[0] == "not coloured"
+    # A floor below a quarter of a sample hides nothing: what lies below is white
+    # (lag-1 correlation < e^-4). With the floor at 0.1 ms the same series gave
+    # ln B -1.4 and a width of 0.34 ms [0.10, 0.57] piled at that floor.
+    assert verdict([floor | {"bound": 0.0001}])[0] == "not coloured"
+    label, sentence = verdict([floor])
+    assert label == "inconclusive"
+    assert "piled at its prior's floor (exponential's at 0.001 s)" in sentence
+    assert "--prior sigma_h LOW HIGH" in sentence

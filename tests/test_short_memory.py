@@ -95,3 +95,23 @@ def test_white_beating_gaussian_brings_in_the_short_memory_family(tmp_path, caps
         assert sorted(p.name for p in (out / "posteriors").iterdir()) == sorted(
             f"{family}.nc" for family in compared
         )
+
+
+@pytest.mark.slow
+def test_memory_shorter_than_the_width_floor_is_not_read_as_white(tmp_path, capsys):
+    """0.5 ms of memory (lag-1 correlation 0.135) at 1 kHz, where the width prior starts at 1 ms.
+
+    The exponential width piles at its floor (e^-1 = 0.37 at lag 1, too
+    coloured) and white wins by ln B ~ -39: on the old code "not coloured".
+    The verdict must say that shorter memory was not tried, and how to try it.
+    """
+    log = physics_engine_log(tmp_path / "gazebo.csv", 1, 0.0005, duration=10.0)
+    code = main(["compare", str(log), "--rate", "1000", "--seed", "1", "--channels", "yaw",
+                 "--families", "white,exponential", "--no-progress", "--json"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    comparison = json.loads(captured.out)
+    comparison = comparison.get("comparison", comparison)
+    assert comparison["best"] == "white"
+    assert comparison["verdict"] == "inconclusive", comparison["verdict_text"]
+    assert "exponential's at 0.001 s" in comparison["verdict_text"]

@@ -699,12 +699,12 @@ class Comparison:
         ``white_warnings``: the kinds of the white fit's criticism warnings
         (read from its posterior when not given).
         """
+        warnings = {name: summarize(idata)["warnings"] for name, idata in self.posteriors.items()}
         if white_warnings is None:
-            white = self.posteriors.get("white")
-            white_warnings = (
-                [] if white is None else [w["kind"] for w in summarize(white)["warnings"]]
-            )
-        return colour_verdict(self.evidence, white_warnings)
+            white_warnings = [w["kind"] for w in warnings.get("white", [])]
+        return colour_verdict(
+            self.evidence, white_warnings, _width_floors(self.posteriors, warnings)
+        )
 
     def to_dict(self) -> dict:
         """The ``compare --json`` object (docs/design.md §6).
@@ -744,8 +744,44 @@ class Comparison:
         }
 
 
+#: A width floor below this many sample intervals hides no colour: memory
+#: shorter than it has a lag-1 correlation below e^-4 = 0.018, white to the data.
+HIDING_FLOOR_SAMPLES = 0.25
+
+
+def width_floor(warnings: Sequence[dict], widths: Sequence[str], dt: float) -> float | None:
+    """The prior bound [s] a width of ``widths`` is piled at, if it can hide colour; else None.
+
+    ``warnings`` are a fit's criticism warnings; a width piled at its floor
+    has a low-side ``prior-boundary`` one (:func:`bayes_jackal.posterior.boundary_check`).
+    A floor below :data:`HIDING_FLOOR_SAMPLES` sample intervals ``dt`` [s]
+    does not count: what lies below it is white.
+    """
+    bounds = [w["bound"] for w in warnings if w["kind"] == "prior-boundary"
+              and w.get("side") == "low" and w.get("parameter") in widths
+              and w["bound"] >= HIDING_FLOOR_SAMPLES * dt]  # fmt: skip
+    return min(bounds) if bounds else None
+
+
+def _width_floors(
+    posteriors: Mapping[str, az.InferenceData], warnings: Mapping[str, Sequence[dict]]
+) -> dict[str, float]:
+    """Per coloured family whose width is piled at its prior's lower bound, that bound [s]."""
+    floors = {}
+    for name, idata in posteriors.items():
+        metadata = Posterior.of(idata).metadata
+        layout = metadata.layout
+        widths = () if layout.width_name is None else layout.names_of(layout.width_name)
+        dt = min(record.dt for record in metadata.experiments)
+        if (floor := width_floor(warnings.get(name, ()), widths, dt)) is not None:
+            floors[name] = floor
+    return floors
+
+
 def colour_verdict(
-    evidence: Mapping[str, Evidence], white_warnings: Sequence[str] = ()
+    evidence: Mapping[str, Evidence],
+    white_warnings: Sequence[str] = (),
+    width_floors: Mapping[str, float] | None = None,
 ) -> tuple[str, str]:
     """Is the noise coloured? ('coloured' | 'not coloured' | 'inconclusive', sentence).
 
@@ -756,8 +792,11 @@ def colour_verdict(
     White beating the families compared is not "not coloured" when the
     white fit itself misses the residuals' colour (its ``predictive-acf``
     warning): a family not compared may be coloured, and the verdict is
-    inconclusive. A "not coloured" names the families that were not
-    compared.
+    inconclusive. Nor is it where a coloured family's width is piled at its
+    prior's floor (``width_floors``): memory shorter than the floor was not
+    tried (at 1 kHz the default floor, 1 ms, is one sample), and the verdict
+    is inconclusive, saying how to lower it. A "not coloured" names the
+    families that were not compared.
 
     Parameters
     ----------
@@ -766,6 +805,9 @@ def colour_verdict(
     white_warnings : sequence of str
         The kinds of the white fit's criticism warnings
         (:func:`bayes_jackal.posterior.criticise`).
+    width_floors : mapping of str to float, optional
+        Per coloured family whose width is piled at its prior's lower bound
+        (a ``prior-boundary`` warning), that bound [s].
 
     Examples
     --------
@@ -774,6 +816,14 @@ def colour_verdict(
     >>> colour_verdict({"white": Evidence(-10.0, 0.1, "bridge"),
     ...                 "gaussian": Evidence(-9.5, 0.1, "bridge")})[0]
     'inconclusive'
+
+    White far ahead, but the rival's width at its floor: shorter memory was
+    not tried.
+
+    >>> evidence = {"white": Evidence(0.0, 0.01, "bridge"),
+    ...             "exponential": Evidence(-39.2, 0.01, "bridge")}
+    >>> colour_verdict(evidence)[0], colour_verdict(evidence, (), {"exponential": 0.001})[0]
+    ('not coloured', 'inconclusive')
     """
     coloured = [name for name in evidence if name != "white"]
     if "white" not in evidence or not coloured:
@@ -785,6 +835,14 @@ def colour_verdict(
     if value - 2 * error > COLOURED_LOG_BF:
         return "coloured", f"coloured: {rival} over white, {words}"
     untried = [name for name in FAMILIES if name not in evidence]
+    floored = {name: floor for name, floor in (width_floors or {}).items() if name != "white"}
+    if value + 2 * error < -WHITE_LOG_BF and floored:
+        at = ", ".join(f"{name}'s at {floor:g} s" for name, floor in floored.items())
+        return "inconclusive", (
+            f"inconclusive: white over {rival}, {words}, but the width is piled at its "
+            f"prior's floor ({at}): colour of shorter memory was not tried; lower the "
+            "floor (--prior sigma_h LOW HIGH, e.g. a quarter of the sample interval)"
+        )
     if value + 2 * error < -WHITE_LOG_BF and "predictive-acf" in white_warnings:
         return "inconclusive", (
             f"inconclusive: white over {rival}, {words}, but the white fit misses the "

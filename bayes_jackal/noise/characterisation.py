@@ -36,7 +36,7 @@ from .._runtime.arviz_quiet import az
 from .._runtime.defaults import HDI_PROB, NOISE_MAX_STEPS, SERIES_ENGINES
 from .._runtime.errors import InputError
 from ..inference.chains import SamplerSettings, run_chain
-from ..inference.comparison import colour_verdict
+from ..inference.comparison import colour_verdict, width_floor
 from ..inference.evidence import bridge_sampling
 from ..inference.executors import Executor, SerialExecutor
 from ..inference.map_search import climb, laplace_walkers, scan_posterior
@@ -451,7 +451,12 @@ class NoiseCharacterisation:
 
     def verdict(self) -> tuple[str, str]:
         """Is the noise coloured? As :func:`bayes_jackal.inference.colour_verdict`."""
-        return colour_verdict({name: fit.evidence for name, fit in self.fits.items()})
+        floors = {}
+        for name, fit in self.fits.items():
+            width = FAMILIES[fit.family].width_name
+            if (floor := width_floor(fit.warnings, (width,), fit.dt)) is not None:
+                floors[name] = floor
+        return colour_verdict({name: fit.evidence for name, fit in self.fits.items()}, (), floors)
 
     def to_dict(self) -> dict:
         """The ``noise --json`` object of one series."""
