@@ -436,7 +436,8 @@ def _units(
             if len(values) > 1:
                 raise InputError(
                     f"group {label!r} pools runs at {covariate} {values} with the noise shared: "
-                    "give each operating point its own group, or use noise='per-experiment'",
+                    "give each operating point its own group, or fit each run alone "
+                    "(noise='per-experiment'; on the command line --noise per-experiment)",
                     field=covariate,
                 )
             units[name] = (label, members, values[0] if values else None)
