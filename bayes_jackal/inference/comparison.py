@@ -772,7 +772,7 @@ def _width_floors(
         metadata = Posterior.of(idata).metadata
         layout = metadata.layout
         widths = () if layout.width_name is None else layout.names_of(layout.width_name)
-        dt = min(record.dt for record in metadata.experiments)
+        dt = min((record.dt for record in metadata.experiments), default=0.0)
         if (floor := width_floor(warnings.get(name, ()), widths, dt)) is not None:
             floors[name] = floor
     return floors
