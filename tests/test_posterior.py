@@ -340,3 +340,27 @@ def test_a_posterior_keeps_the_root_attributes_and_refuses_what_is_not_one(sampl
         Posterior.of(az.InferenceData(constant_data=idata.constant_data))
     with pytest.raises(InputError, match="posterior: not a posterior: a dict"):
         Posterior.of({})
+
+
+def test_the_table_is_arviz_summary_with_the_ratio_and_the_autocorrelation_ess(sampled):
+    """Issue 37, item 19: ``bj.summarize(...)["d_lat"]`` was the only summary, a dict of floats."""
+    _, prior, chain, _, idata = sampled
+    posterior = Posterior.of(idata)
+    table = posterior.table()
+    # A row per parameter (arviz's labels: width[v1_01, yaw] ...) and the ratio.
+    assert list(table.index[:2]) == ["d_lat", "d_long"] and table.index[-1] == "ratio"
+    assert len(table) == len(prior.names) + 1
+    assert table["ess_autocorr"].iloc[:-1].notna().all()
+    # The reference: arviz's own summary of the draws, and the ratio by hand.
+    reference = az.summary(idata, var_names=["d_lat"], hdi_prob=0.94, round_to="none")
+    assert table.loc["d_lat", "mean"] == pytest.approx(reference.loc["d_lat", "mean"], rel=1e-12)
+    assert table.loc["d_lat", "hdi_97%"] == reference.loc["d_lat", "hdi_97%"]
+    ratio = np.exp(chain[..., 0] - chain[..., 1])
+    assert table.loc["ratio", "mean"] == pytest.approx(ratio.mean(), rel=1e-9)
+    assert table.loc["d_lat", "ess_autocorr"] == 24.2 and np.isnan(
+        table.loc["ratio", "ess_autocorr"]
+    )
+    # One home: summarize's numbers are the table's.
+    summary = summarize(idata)
+    assert summary["d_lat"]["sd"] == table.loc["d_lat", "sd"]
+    assert posterior.table(round_to=2).loc["d_lat", "mean"] == round(summary["d_lat"]["mean"], 2)

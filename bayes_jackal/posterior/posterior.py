@@ -21,7 +21,7 @@ import numpy as np
 
 from .._runtime.arviz_quiet import az
 from .._runtime.chunks import thinned_indices
-from .._runtime.defaults import CHANNELS
+from .._runtime.defaults import CHANNELS, HDI_PROB
 from .._runtime.errors import DataError, InputError
 from .._runtime.files import require_file, write_hdf5
 from ..io.experiment import Experiment
@@ -320,6 +320,46 @@ class Posterior(az.InferenceData):
     def variables(self) -> list[str]:
         """The sampled parameters' variable names (d_lat, d_long, then the noise)."""
         return [name for name in self.posterior.data_vars if name not in ("ratio", "Ad", "Bd")]
+
+    def table(self, round_to: int | str = "none"):
+        """The summary table arviz users know: one row per parameter and for the ratio.
+
+        arviz's :func:`~arviz.summary` of every sampled parameter and the
+        derived ``ratio`` d_lat/d_long: ``mean``, ``sd``, the 94 % HDI
+        (``hdi_3%``, ``hdi_97%``), ``ess_bulk``, ``ess_tail``, ``r_hat``
+        (walkers as chains: a secondary check), and ``ess_autocorr``, the
+        effective draws from the integrated autocorrelation time, the
+        primary one for emcee. :func:`bayes_jackal.summarize` is the same
+        numbers as JSON, with the criticism.
+
+        Parameters
+        ----------
+        round_to : int or "none"
+            Decimals, as arviz's ``round_to``; by default unrounded (the
+            noise sds are 1e-4 to 1e-2: decimals would lose them).
+
+        Returns
+        -------
+        pandas.DataFrame
+
+        Examples
+        --------
+        >>> import bayes_jackal as bj
+        >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+        >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+        >>> table = posterior.table()
+        >>> list(table.index)
+        ['d_lat', 'd_long', 'sigma_c', 'sigma_n', 'ratio']
+        >>> list(table.columns[:4]), table.columns[-1]
+        (['mean', 'sd', 'hdi_3%', 'hdi_97%'], 'ess_autocorr')
+        """
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            table = az.summary(self, var_names=[*self.variables, "ratio"], hdi_prob=HDI_PROB,
+                               round_to=round_to, kind="all")  # fmt: skip
+        ess = self.metadata.convergence.ess_autocorr
+        table["ess_autocorr"] = [ess.get(label, np.nan) for label in table.index]
+        return table
 
     def draws(self) -> tuple[np.ndarray, np.ndarray]:
         """The chain in parameter-vector order, and its log posterior.

@@ -5,12 +5,9 @@ What ``sample --json`` prints and the report tabulates (docs/design.md §6).
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from .._runtime.arviz_quiet import az
-from .._runtime.defaults import HDI_PROB
 from .criticism import criticise
 from .posterior import Posterior
 
@@ -83,16 +80,8 @@ def summarize(idata: az.InferenceData) -> dict:
     fitted = Posterior.of(idata)
     metadata = fitted.metadata
     convergence = metadata.convergence
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        table = az.summary(
-            idata,
-            var_names=[*fitted.variables, "ratio"],
-            hdi_prob=HDI_PROB,
-            round_to="none",
-        )
     summary: dict = {}
-    for label, row in table.iterrows():
+    for label, row in fitted.table(round_to="none").iterrows():
         summary[label] = {key: float(row[key]) for key in _SUMMARY_FIELDS}
         if label in convergence.ess_autocorr:
             summary[label]["ess_autocorr"] = convergence.ess_autocorr[label]
