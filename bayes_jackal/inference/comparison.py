@@ -693,18 +693,26 @@ class Comparison:
         a, b = self.evidence[family], self.evidence[other]
         return a.log_evidence - b.log_evidence, float(np.hypot(a.error, b.error))
 
-    def verdict(self, white_warnings: Sequence[str] | None = None) -> tuple[str, str]:
+    def verdict(
+        self,
+        white_warnings: Sequence[str] | None = None,
+        *,
+        family_warnings: Mapping[str, Sequence[dict]] | None = None,
+    ) -> tuple[str, str]:
         """Is the noise coloured? :func:`colour_verdict` of the families' evidence.
 
-        ``white_warnings``: the kinds of the white fit's criticism warnings
-        (read from its posterior when not given).
+        ``white_warnings``: the kinds of the white fit's criticism warnings;
+        ``family_warnings``: each family's warnings (where its width is piled
+        at its floor). Both are read from the posteriors when not given.
         """
-        warnings = {name: summarize(idata)["warnings"] for name, idata in self.posteriors.items()}
+        if family_warnings is None:
+            family_warnings = {
+                name: summarize(idata)["warnings"] for name, idata in self.posteriors.items()
+            }
         if white_warnings is None:
-            white_warnings = [w["kind"] for w in warnings.get("white", [])]
-        return colour_verdict(
-            self.evidence, white_warnings, _width_floors(self.posteriors, warnings)
-        )
+            white_warnings = [w["kind"] for w in family_warnings.get("white", [])]
+        floors = _width_floors(self.posteriors, family_warnings)
+        return colour_verdict(self.evidence, white_warnings, floors)
 
     def to_dict(self) -> dict:
         """The ``compare --json`` object (docs/design.md §6).
@@ -727,8 +735,9 @@ class Comparison:
                 entry["log_evidence_nested"] = self.nested[name].log_evidence
                 entry["log_evidence_nested_err"] = self.nested[name].error
             families[name] = entry
-        white = families.get("white", {}).get("warnings", [])
-        label, sentence = self.verdict([warning["kind"] for warning in white])
+        label, sentence = self.verdict(
+            family_warnings={name: entry["warnings"] for name, entry in families.items()}
+        )
         return {
             "experiments": self.experiments,
             "families": families,
