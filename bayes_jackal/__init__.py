@@ -6,7 +6,7 @@ package, e.g. for ``bayes-jackal --version``, does not load numpy and scipy.
 
 from __future__ import annotations
 
-import importlib
+from ._runtime import lazy_exports
 
 #: The one place the version is kept: pyproject.toml reads it from here.
 __version__ = "0.1.0"
@@ -19,9 +19,7 @@ _LAZY = {
     "compare": ".inference",
     # many runs: groups, their population and its speed dependence
     "population": ".inference",
-    "Population": ".inference",
     "read_groups": ".io",
-    "plot_population": ".report",
     "export_prior": ".dem",
     "write_prior": ".dem",
     "read_prior": ".dem",
@@ -35,12 +33,8 @@ _LAZY = {
     "read_noise_series": ".noise",
     "write_noise_report": ".report",
     # state estimation with a prior (the filters)
-    "FILTERS": "._runtime.defaults",
-    "estimate_columns": ".filters",
-    "estimate_each": ".filters",
+    "FILTERS": "._runtime",
     "estimate_states": ".filters",
-    "generalised_filter": ".filters",
-    "kalman_filter": ".filters",
     "score_estimates": ".filters",
     "write_estimates": ".filters",
     # what it takes and gives
@@ -60,22 +54,29 @@ _LAZY = {
     "summarize": ".posterior",
     "write_csv": ".io",
     # errors
-    "DataError": "._runtime.errors",
-    "InputError": "._runtime.errors",
-    "OutputError": "._runtime.errors",
-    "ProfileError": "._runtime.errors",
+    "DataError": "._runtime",
+    "InputError": "._runtime",
+    "OutputError": "._runtime",
+    "ProfileError": "._runtime",
 }
 
 __all__ = ["__version__", *sorted(_LAZY)]
 
 
-def __getattr__(name: str):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-    globals()[name] = value
-    return value
+#: The stages, reached as ``bj.io``, ``bj.filters`` ...: each offers in its
+#: ``__all__`` what a user of that stage needs beyond the names above.
+_STAGES = (
+    "dem",
+    "filters",
+    "inference",
+    "io",
+    "likelihood",
+    "model",
+    "noise",
+    "posterior",
+    "report",
+    "thesis",
+    "workflow",
+)
 
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, _STAGES)

@@ -70,7 +70,7 @@ def filter_calls(run, prior: dict) -> dict:
     for name, noise in KALMAN_FILTERS.items():
         for fast in (True, False):
             label = name if fast else f"{name} (step)"
-            calls[label] = lambda noise=noise, fast=fast: bj.kalman_filter(
+            calls[label] = lambda noise=noise, fast=fast: bj.filters.kalman_filter(
                 run, prior, noise=noise, fast=fast
             )
     for order in ORDERS:

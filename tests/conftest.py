@@ -46,9 +46,10 @@ import gc
 import hashlib
 import io
 import json
+import logging
 import time
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -91,6 +92,34 @@ THESIS_DURATION = 38.0
 STATE = ("vx", "vy", "yaw")
 #: Seconds simulated before the record starts, so the noise is stationary.
 BURN_IN = 3.0
+
+
+class _Collected(logging.Handler):
+    def __init__(self, lines: list[str], on_line: Callable[[str], None] | None):
+        super().__init__(logging.INFO)
+        self.lines, self.on_line = lines, on_line
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(record.getMessage())
+        if self.on_line is not None:
+            self.on_line(self.lines[-1])  # may raise: the test's way to stop a run there
+
+
+@contextlib.contextmanager
+def messages(on_line: Callable[[str], None] | None = None) -> Iterator[list[str]]:
+    """The package's messages (its loggers' INFO records) while the block runs, in order.
+
+    A library user's way (``logging``); ``on_line(line)`` sees each as it comes.
+    """
+    logger, lines = logging.getLogger("bayes_jackal"), []
+    handler, level = _Collected(lines, on_line), logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield lines
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def thesis_matrices(robot: RobotProfile, d_lat: float, d_long: float):

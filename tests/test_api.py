@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import doctest
 import inspect
+import logging
 import re
 import subprocess
 import sys
@@ -18,6 +19,7 @@ from bayes_jackal.cli import main
 from bayes_jackal.cli.parser import build_parser
 from bayes_jackal.inference import sampling
 from bayes_jackal.inference.sampling import sample_posterior
+from bayes_jackal.io import ingest_logs
 from bayes_jackal.io.bags import read_bag
 from bayes_jackal.io.experiment import read_netcdf, write_netcdf
 from bayes_jackal.io.tables import read_csv, read_mat
@@ -123,6 +125,38 @@ def test_sample_and_compare_show_their_progress_by_default(run, capsys):
     assert re.search(r"emcee: 80/80 steps, \d+ s, done", capsys.readouterr().err)
     quiet(bj.sample, [run], **QUICK, progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_a_library_user_captures_every_message_with_logging(run, tmp_path, capsys):
+    """Issue 38: the package's messages go through ``logging``, and nothing else prints them.
+
+    Captured by a handler the user adds to the ``bayes_jackal`` logger; each
+    record comes from its stage's logger. Unconfigured, nothing is printed.
+    """
+    records: list[logging.LogRecord] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    csv = bj.write_csv(run, tmp_path / "v1_01.csv")
+    logger, handler = logging.getLogger("bayes_jackal"), Keep()
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        experiments, _ = ingest_logs([csv, tmp_path / "lost.bag"], bj.load_profile(), tmp_path)
+        quiet(bj.sample, experiments, **QUICK, progress=False)
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(logging.NOTSET)
+    lines = [record.getMessage() for record in records]
+    assert lines[0].startswith(f"  ingested {csv}: ") and lines[1].startswith("  skipped ")
+    assert lines[2].startswith("MAP search: ") and lines[3].startswith("MAP found in ")
+    assert [r.name for r in records] == ["bayes_jackal.io"] * 2 + ["bayes_jackal.inference"] * 2
+    assert {r.levelno for r in records} == {logging.INFO}
+    assert capsys.readouterr() == ("", "")  # the messages went to the handler only
+    quiet(bj.sample, experiments, **QUICK, progress=False)  # unconfigured: silent
+    assert capsys.readouterr() == ("", "")
 
 
 def test_sample_gives_the_chain_of_the_cli(run, posterior, tmp_path):

@@ -66,7 +66,7 @@ SMALL = {
 #: pass, the longest text first, so that a replacement is not rewritten again).
 PYTHON_SMALL = {
     "seed=1": "seed=1, max_steps=200",
-    "seed=1, say=print": "seed=1, say=print, settings=SHORT, state_estimation=False",
+    '"analysis", seed=1)': '"analysis", seed=1, settings=SHORT, state_estimation=False)',
     "seed=1, executor=": "seed=1, settings=SHORT, executor=",
     "characterise_noise(series)": "characterise_noise(series, settings=SHORT)",
 }

@@ -102,7 +102,7 @@ def test_filter_options_reach_the_filters(tmp_path, capsys, files):
     assert code == 0, captured.err
     assert "generalised" in captured.out and "state RMSE" in captured.out
     run = bj.load_experiments([files["csv"]])[0]
-    expected = bj.generalised_filter(
+    expected = bj.filters.generalised_filter(
         run, bj.read_prior(files["prior"]), order=1, parameters="averaged",
         sensor_precision="exported", lookahead=1,
     )["yaw"].mean  # fmt: skip

@@ -45,9 +45,9 @@ FAMILIES = ["--families", "white,exponential"]
 @pytest.fixture
 def handlers():
     """The package's handlers installed for one test, the previous ones restored after."""
-    previous = interrupt.install()
+    previous = interrupt.install_interrupts()
     yield
-    interrupt.restore(previous)
+    interrupt.restore_interrupts(previous)
 
 
 def test_interrupted_knows_its_signal_and_exit_code():
@@ -67,34 +67,34 @@ def test_a_signal_raises_at_once_outside_deferred(handlers):
 def test_restore_forgets_a_stop_so_later_work_in_the_process_runs():
     # A stop raised under the handlers stays pending until check(); once they
     # are restored (the command ended), later code calling check() must run.
-    previous = interrupt.install()
+    previous = interrupt.install_interrupts()
     try:
         with pytest.raises(interrupt.Interrupted):
             os.kill(os.getpid(), signal.SIGTERM)
             time.sleep(1)
     finally:
-        interrupt.restore(previous)
-    assert interrupt.pending() is None
-    interrupt.check()
+        interrupt.restore_interrupts(previous)
+    assert interrupt.interrupt_pending() is None
+    interrupt.check_interrupt()
 
 
 def test_deferred_holds_a_signal_until_check_and_a_second_one_raises(handlers):
-    with interrupt.deferred():
+    with interrupt.interrupts_deferred():
         os.kill(os.getpid(), signal.SIGINT)
         reached = True  # recorded, not raised
         with pytest.raises(interrupt.Interrupted) as stop:
-            interrupt.check()
+            interrupt.check_interrupt()
         assert stop.value.signum == signal.SIGINT
-        interrupt.check()  # raised once only
+        interrupt.check_interrupt()  # raised once only
         os.kill(os.getpid(), signal.SIGINT)
         with pytest.raises(interrupt.Interrupted):
             os.kill(os.getpid(), signal.SIGTERM)  # the second one: at once
         # ... and it stays pending, in case the code it landed in swallows it.
-        assert interrupt.pending() == signal.SIGTERM
+        assert interrupt.interrupt_pending() == signal.SIGTERM
         with pytest.raises(interrupt.Interrupted):
-            interrupt.check()  # raised where nothing swallows it: no longer pending
+            interrupt.check_interrupt()  # raised where nothing swallows it: no longer pending
     assert reached
-    with pytest.raises(interrupt.Interrupted) as stop, interrupt.deferred():
+    with pytest.raises(interrupt.Interrupted) as stop, interrupt.interrupts_deferred():
         os.kill(os.getpid(), signal.SIGTERM)
     assert stop.value.signum == signal.SIGTERM  # leaving the block raises what is pending
 
@@ -119,7 +119,7 @@ def test_emcee_swallows_an_interrupt_in_its_random_state_setter(handlers):
     """The hazard the deferral exists for: `except: pass` around set_state."""
     _sampler(_gaussian).random_state = _SignalOnAccess((1, 2))  # raised, and lost ...
     with pytest.raises(interrupt.Interrupted):
-        interrupt.check()  # ... but still pending: the next check (or the CLI) stops
+        interrupt.check_interrupt()  # ... but still pending: the next check (or the CLI) stops
 
 
 class _RaisesWhenCollected:
@@ -168,21 +168,21 @@ def test_a_finaliser_failing_before_any_stop_is_still_reported(handlers, monkeyp
 
 def test_a_swallowed_stop_sent_again_inside_deferred_is_held_as_the_first(handlers):
     _RaisesWhenCollected()
-    with interrupt.deferred():
+    with interrupt.interrupts_deferred():
         time.sleep(0.5)  # sent again here: held (a second signal would raise at once)
-        assert interrupt.pending() == signal.SIGINT
+        assert interrupt.interrupt_pending() == signal.SIGINT
         with pytest.raises(interrupt.Interrupted):
-            interrupt.check()
+            interrupt.check_interrupt()
         time.sleep(0.1)
-    interrupt.check()  # nothing left
+    interrupt.check_interrupt()  # nothing left
 
 
 def test_a_swallowed_stop_raised_by_check_is_not_sent_again(handlers):
     _RaisesWhenCollected()
     with pytest.raises(interrupt.Interrupted):
-        interrupt.check()  # before the resend's 0.01 s
+        interrupt.check_interrupt()  # before the resend's 0.01 s
     time.sleep(0.2)  # no second stop: nothing raised
-    assert interrupt.pending() is None
+    assert interrupt.interrupt_pending() is None
 
 
 def test_emcee_catch_alls_neither_swallow_nor_print_an_interrupt(handlers, capsys):

@@ -17,10 +17,12 @@ import inspect
 import json
 import shutil
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import scipy.stats
+from conftest import messages
 
 from bayes_jackal._runtime.defaults import FILTERS, STATE_ESTIMATION
 from bayes_jackal._runtime.errors import InputError
@@ -200,22 +202,21 @@ def test_a_failing_run_does_not_stop_the_others(analysis, tmp_path):
     _, out, result = analysis
     shutil.copytree(out / FOLDER / "posteriors", tmp_path / FOLDER / "posteriors")
     (tmp_path / FOLDER / "a.csv").mkdir()
-    lines = []
     experiments = [read_netcdf(path) for path in analysis[0]]
     pooled = out / "posteriors" / "white.nc"
-    again = leave_one_out(
-        experiments,
-        ROBOT,
-        "white",
-        tmp_path,
-        pooled=load_posterior(pooled),
-        pooled_source=str(pooled),
-        settings=SETTINGS,
-        seed=1,
-        likelihood_options=OPTIONS,
-        say=lines.append,
-    )
-    # The refused PSIS reweighting (a's), and say tells which and why.
+    with messages() as lines:
+        again = leave_one_out(
+            experiments,
+            ROBOT,
+            "white",
+            tmp_path,
+            pooled=load_posterior(pooled),
+            pooled_source=str(pooled),
+            settings=SETTINGS,
+            seed=1,
+            likelihood_options=OPTIONS,
+        )
+    # The refused PSIS reweighting (a's), and its message tells which and why.
     for run in RUNS:
         said = [line for line in lines if line.startswith(f"  leaving out {run}: Pareto k-hat")]
         assert len(said) == (run in _refit(result["state_estimation"]))
@@ -256,7 +257,7 @@ def test_the_cli_says_how_each_posterior_without_a_run_was_made(analysis):
     # What analyse prints of the state estimation (cli.output.analysis_text calls it).
     _, out, result = analysis
     lines: list[str] = []
-    state_estimation_text(result["state_estimation"], lines.append)
+    state_estimation_text(result["state_estimation"], SimpleNamespace(say=lines.append))
     text = "\n".join(lines)
     pooled = out / "posteriors" / "white.nc"
     assert (
@@ -421,12 +422,11 @@ def four_runs(tmp_path_factory) -> tuple:
     )
     pooled = comparison.posteriors["white"]
     source = save_posterior(pooled, folder / "white.nc")
-    lines: list[str] = []
-    result = leave_one_out(
-        runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
-        settings=CONVERGED, seed=1, likelihood_options=OPTIONS, executor=SerialExecutor(),
-        say=lines.append,
-    )  # fmt: skip
+    with messages() as lines:
+        result = leave_one_out(
+            runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
+            settings=CONVERGED, seed=1, likelihood_options=OPTIONS, executor=SerialExecutor(),
+        )  # fmt: skip
     return runs, pooled, source, folder, result, lines
 
 
@@ -484,11 +484,11 @@ def test_a_rerun_reuses_the_reweightings_and_the_json_and_report_carry_k_hat(fou
     for run, record in state["runs"].items():
         assert record["pareto_k"] == result.runs[run]["pareto_k"]
         assert (record["method"] == "psis") == (record["pareto_k"] <= PARETO_K_THRESHOLD)
-    lines: list[str] = []
-    again = leave_one_out(
-        runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
-        settings=CONVERGED, seed=1, likelihood_options=OPTIONS, say=lines.append,
-    )  # fmt: skip
+    with messages() as lines:
+        again = leave_one_out(
+            runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
+            settings=CONVERGED, seed=1, likelihood_options=OPTIONS,
+        )  # fmt: skip
     reweighted = [run for run, record in result.runs.items() if record["method"] == "psis"]
     reused = [line for line in lines if "reusing the PSIS reweighting" in line]
     assert len(reused) == len(reweighted)

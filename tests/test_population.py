@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import scipy.special
 import scipy.stats
+from conftest import messages
 
 import bayes_jackal as bj
 from bayes_jackal._runtime.errors import InputError
@@ -28,7 +29,7 @@ from bayes_jackal.inference import (
     unit_files,
     unit_posterior,
 )
-from bayes_jackal.inference.population import SKEWNESS_TOLERANCE, combine_summaries
+from bayes_jackal.inference.population_analysis import SKEWNESS_TOLERANCE, combine_summaries
 from bayes_jackal.io import RunGroups, group_runs, read_groups, run_group
 
 BOUNDS = np.array([[10.0, 1000.0], [10.0, 1000.0]])  # the Jackal's prior ranges [N s/m]
@@ -402,8 +403,8 @@ def floor_runs():
 def floor_population(floor_runs, tmp_path_factory):
     """The library's population of the four runs, units saved, and what it said."""
     folder = tmp_path_factory.mktemp("population")
-    said = []
-    return _population(floor_runs, folder, groups=FLOORS, say=said.append), folder, said
+    with messages() as said:
+        return _population(floor_runs, folder, groups=FLOORS), folder, said
 
 
 def _population(runs, folder, **options):
@@ -442,8 +443,8 @@ def test_population_json_and_its_units_saved_and_reused(floor_runs, floor_popula
     assert any("log Z" in line for line in said)
     for path in unit_files(folder, ["tiles", "carpet"], "white").values():
         assert path.is_file()
-    again = []
-    rerun = _population(floor_runs, folder, groups=FLOORS, say=again.append)
+    with messages() as again:
+        rerun = _population(floor_runs, folder, groups=FLOORS)
     assert any("reus" in line for line in again) and not any("log Z" in line for line in again)
     assert rerun.to_dict()["evidence"] == summary["evidence"]
 
@@ -509,7 +510,7 @@ def test_population_command_writes_json_plot_and_refuses_a_bad_table(
     assert sorted(p.name for p in (tmp_path / "pop3").iterdir()) == ["units"]
 
 
-def _speed_groups(ratio: float) -> bj.Population:
+def _speed_groups(ratio: float) -> bj.inference.Population:
     """Five units at 0.3 m/s (group slow) and five at 0.6 m/s (fast), the damping
     ``ratio`` times higher at the higher speed: each group at one speed (issue 37, item 20)."""
     rng = np.random.default_rng(20)

@@ -93,7 +93,7 @@ def campaign(
 SETTINGS = SamplerSettings(autocorr_multiple=12)
 
 
-def _fit(runs: list, seed: int, noise: str = "shared") -> bj.Population:
+def _fit(runs: list, seed: int, noise: str = "shared") -> bj.inference.Population:
     with ProcessExecutor(2) as executor:
         return population_posterior(
             runs, bj.load_profile(), family="white", settings=SETTINGS, seed=seed,

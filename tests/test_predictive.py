@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from synthetic_posteriors import ROBOT, posterior_at
 
-from bayes_jackal._runtime.chunks import chunks
+from bayes_jackal._runtime.chunking import chunks
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.likelihood.residual_likelihood import sample_stationary
 from bayes_jackal.model.physics import simulate

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import messages
 
 from bayes_jackal.cli import main
 from bayes_jackal.posterior.posterior import load_posterior, save_posterior
@@ -298,9 +299,9 @@ def test_a_long_report_says_how_many_figures_it_has_drawn(tmp_path, monkeypatch)
     from bayes_jackal.report import ReportFigures, figures
 
     monkeypatch.setattr(figures, "LOG_INTERVAL", 0.0)
-    said = []
-    drawer = ReportFigures(tmp_path, ("png",), said.append)
-    for name in ("v1: acf", "v1: psd"):
-        drawer.html(name, "a figure", lambda: (Figure(), None))
+    drawer = ReportFigures(tmp_path, ("png",))
+    with messages() as said:
+        for name in ("v1: acf", "v1: psd"):
+            drawer.html(name, "a figure", lambda: (Figure(), None))
     assert said == ["  report: 1 figures drawn, the last v1: acf",
                     "  report: 2 figures drawn, the last v1: psd"]  # fmt: skip

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bayes_jackal import load_profile
-from bayes_jackal._runtime.chunks import chunks
+from bayes_jackal._runtime.chunking import chunks
 from bayes_jackal.io.experiment import Experiment
 from bayes_jackal.likelihood import spectral
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood

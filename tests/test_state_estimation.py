@@ -57,11 +57,12 @@ def test_estimates_are_the_filters_own(prior):
     estimates = bj.estimate_states(run, prior, filters=["generalised", "kalman"], order=1)
     assert list(estimates) == ["generalised", "kalman"]
     np.testing.assert_array_equal(
-        estimates["kalman"]["yaw"].mean, bj.kalman_filter(run, prior, noise="white")["yaw"].mean
+        estimates["kalman"]["yaw"].mean,
+        bj.filters.kalman_filter(run, prior, noise="white")["yaw"].mean,
     )
     np.testing.assert_array_equal(
         estimates["generalised"]["yaw"].mean,
-        bj.generalised_filter(run, prior, order=1)["yaw"].mean,
+        bj.filters.generalised_filter(run, prior, order=1)["yaw"].mean,
     )
     assert estimates["generalised"]["yaw"].derivatives.shape == (len(run.t), 2)
     assert bj.score_estimates(run, {"kalman": estimates["kalman"]})["kalman"]["first_sample"] == 1
@@ -184,7 +185,7 @@ def test_estimates_are_written_as_columns(tmp_path, prior):
     runs = [bj.simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=seed) for seed in (5, 6)]
     names = ["left", "right"]
     tables = {
-        name: bj.estimate_columns(run, bj.estimate_states(run, prior))
+        name: bj.filters.estimate_columns(run, bj.estimate_states(run, prior))
         for name, run in zip(names, runs, strict=True)
     }
     header = ["t", "kalman.yaw_rate", "kalman-coloured.yaw_rate", "generalised.yaw_rate",

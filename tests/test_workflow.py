@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import scipy.signal
 import scipy.stats
+from conftest import messages
 
 from bayes_jackal._runtime import progress as progress_module
 from bayes_jackal._runtime.progress import Phase, Progress, write_line
@@ -243,15 +244,14 @@ def test_ingest_logs_mixes_files_and_bags_and_renames_a_repeated_name(short_runs
     csv = write_csv(short_runs[0], tmp_path / "run0.csv")
     bag = write_bag(short_runs[0], tmp_path / "run0.bag", ROBOT, "ros1", 2)
     other = write_bag(short_runs[1], tmp_path / "run1.bag", ROBOT, "ros1", 2)
-    lines = []
-    experiments, failed = ingest_logs(
-        [csv, bag, other],
-        ROBOT,
-        tmp_path / "out",
-        read_options=ReadOptions(window=(3.0, 11.0)),
-        labels={str(other): {"series": "v1"}},
-        say=lines.append,
-    )
+    with messages() as lines:  # what the library tells, through logging
+        experiments, failed = ingest_logs(
+            [csv, bag, other],
+            ROBOT,
+            tmp_path / "out",
+            read_options=ReadOptions(window=(3.0, 11.0)),
+            labels={str(other): {"series": "v1"}},
+        )
     # The bag named like the CSV is kept too, under a name of its own (issue 11).
     assert [e.name for e in experiments] == ["run0", "run0-2", "run1"] and not failed
     assert experiments[1].provenance["renamed_from"] == "run0"
@@ -309,7 +309,7 @@ def test_ingest_refuses_an_experiment_name_that_is_a_path(short_runs, tmp_path, 
 
 def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
     # A family finishes, a warning is raised in the comparison (here by the
-    # caller's say, as a logging handler might), then the comparison fails
+    # caller's logging handler), then the comparison fails
     # (stdout closed). The warning was kept to be shown after the comparison:
     # it must still reach the user, and the failure must still propagate.
     # An 8 s run keeps the grid searches quick.
@@ -324,7 +324,7 @@ def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
     # 100 steps of one family on one channel: only the warning's way is checked.
     settings = SamplerSettings(max_steps=100, design_points=64)
     with pytest.warns(UserWarning, match="logged 'white: log evidence"):
-        with pytest.raises(BrokenPipeError, match="stdout is closed"):
+        with pytest.raises(BrokenPipeError, match="stdout is closed"), messages(say):
             analyse_logs(
                 [source],
                 tmp_path / "out",
@@ -334,18 +334,17 @@ def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
                 settings=settings,
                 seed=1,
                 executor=SerialExecutor(),
-                say=say,
             )
     assert (tmp_path / "out" / "posteriors" / "white.nc").exists()  # the family done is kept
 
 
 class _GridsDone(Exception):
-    """Raised by a test's ``say`` once analyse has written its grids."""
+    """Raised by a test's logging handler once analyse has written its grids."""
 
 
 def test_analyse_grids_span_the_profiles_prior_and_flag_an_edge(tmp_path, monkeypatch):
     # A Warthog run (8 s) at the thesis' damping scaled to its mass, (1331.5,
-    # 363.1) N s/m; analyse stopped after its grids (by its say), before any
+    # 363.1) N s/m; analyse stopped after its grids (by a logging handler), before any
     # chain. Its prior is the Jackal's times 200 / 16.523: 121.04-12104.34
     # N s/m, and --prior's damping ranges replace it for the grids too. The
     # figures (1 s for the 1000 x 1000 surface) are checked by the slow tests.
@@ -354,15 +353,13 @@ def test_analyse_grids_span_the_profiles_prior_and_flag_an_edge(tmp_path, monkey
     run = simulate_experiment(warthog, 1331.5, 363.1, dataclasses.replace(SHORT, duration=8.0),
                               rng=1)  # fmt: skip
     source = write_netcdf(run, tmp_path / "run.nc")
-    lines = []
 
-    def say(line: str) -> None:
-        lines.append(line)
+    def stop(line: str) -> None:
         if line.startswith("posterior and evidence of"):
             raise _GridsDone
 
-    with pytest.raises(_GridsDone):
-        analyse_logs([source], tmp_path / "out", robot=warthog, say=say,
+    with pytest.raises(_GridsDone), messages(stop) as lines:
+        analyse_logs([source], tmp_path / "out", robot=warthog,
                      prior_overrides={"d_lat": (200.0, 20000.0)})  # fmt: skip
     grids = json.loads((tmp_path / "out" / "grid.json").read_text())
     for method, count in (("onestep", 1000), ("simulation", 100)):

@@ -60,6 +60,7 @@ __all__ = [
     "SERIES_COUNTS",
     "SERIES_ENGINES",
     "SHARED_NOISE",
+    "SHORT_MEMORY",
     "SIMULATED_NOISE",
     "STATE_ESTIMATION",
     "STEADY",

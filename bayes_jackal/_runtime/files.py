@@ -23,6 +23,17 @@ from pathlib import Path
 from .errors import DataError, InputError, OutputError
 from .output_safety import make_folder, refuse_input, special_kind
 
+__all__ = [
+    "atomic_path",
+    "chain_path",
+    "check_space",
+    "file_sha256",
+    "json_text",
+    "require_file",
+    "write_hdf5",
+    "write_json",
+]
+
 
 def require_file(
     path: str | Path, source: str, *, folder: bool = False, error: type[InputError] = DataError

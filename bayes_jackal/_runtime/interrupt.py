@@ -1,13 +1,13 @@
 """Clean stops on SIGINT and SIGTERM (stdlib only: the CLI installs it before any import).
 
-:func:`install` makes both signals raise :class:`Interrupted`, a
+:func:`install_interrupts` makes both signals raise :class:`Interrupted`, a
 :class:`KeyboardInterrupt` that knows its signal and exit code, so every
 ``finally`` runs (a chain is flushed, finished results stay saved).
 Third-party code with catch-all handlers must not see it raised in its
 midst: emcee's ``except:`` around the log-probability prints the walkers on
 stdout, and its ``random_state`` setter swallows the interrupt whole. Such
-code runs inside :func:`deferred`, where a signal only records a stop that
-:func:`check` raises between steps; a second signal raises at once.
+code runs inside :func:`interrupts_deferred`, where a signal only records a stop that
+:func:`check_interrupt` raises between steps; a second signal raises at once.
 A stop raised where Python cannot propagate it (a finaliser, a weakref
 callback of the garbage collector, Cython) is sent again as soon as that
 code has returned. Once a stop has been raised, the finaliser of an object
@@ -29,16 +29,16 @@ from collections.abc import Iterator
 
 __all__ = [
     "Interrupted",
-    "blocked",
-    "cause",
-    "check",
-    "deferred",
-    "hold_late",
-    "install",
-    "late",
-    "pending",
+    "check_interrupt",
+    "hold_late_interrupts",
+    "install_interrupts",
+    "interrupt_cause",
+    "interrupt_pending",
+    "interrupts_blocked",
+    "interrupts_deferred",
+    "late_interrupt",
     "quiet_worker",
-    "restore",
+    "restore_interrupts",
 ]
 
 #: The signals that stop a run.
@@ -81,7 +81,7 @@ _raised = False  # a stop was raised: what it cut short may fail in its finalise
 def _handler(signum: int, frame) -> None:
     global _pending, _resent
     first = _pending is None or _resent
-    _pending, _resent = signum, False  # kept until check() raises it
+    _pending, _resent = signum, False  # kept until check_interrupt() raises it
     if _deferring and first:
         return
     _stop(signum)
@@ -129,7 +129,7 @@ RESEND_DELAY = 0.01
 
 
 def _resend(signum: int) -> None:
-    """Signal the main thread again after :data:`RESEND_DELAY` s, unless :func:`check` raised it.
+    """Signal the main thread again after :data:`RESEND_DELAY` s, unless it has been raised.
 
     A real signal (not ``_thread.interrupt_main``), so that it also wakes a
     main thread blocked in a system call.
@@ -146,31 +146,31 @@ def _resend(signum: int) -> None:
     timer.start()
 
 
-#: sys hooks in place before :func:`install`.
+#: sys hooks in place before :func:`install_interrupts`.
 _previous_hooks = {"unraisablehook": sys.unraisablehook, "excepthook": sys.excepthook}
 
 
-def pending() -> int | None:
-    """The signal of a stop that was requested and not yet raised by :func:`check`.
+def interrupt_pending() -> int | None:
+    """The signal of a stop that was requested and not yet raised by :func:`check_interrupt`.
 
     Examples
     --------
-    A signal inside :func:`deferred` is pending until :func:`check` raises it
+    A signal inside :func:`interrupts_deferred` is pending until :func:`check_interrupt` raises it
     (the handlers installed for the example, and put back after):
 
     >>> import signal
     >>> from bayes_jackal import interrupt
-    >>> previous = interrupt.install()
+    >>> previous = interrupt.install_interrupts()
     >>> try:
-    ...     with interrupt.deferred():
-    ...         print(interrupt.pending())
+    ...     with interrupt.interrupts_deferred():
+    ...         print(interrupt.interrupt_pending())
     ...         signal.raise_signal(signal.SIGINT)
-    ...         print(interrupt.pending() == signal.SIGINT)
-    ...         interrupt.check()
+    ...         print(interrupt.interrupt_pending() == signal.SIGINT)
+    ...         interrupt.check_interrupt()
     ... except interrupt.Interrupted as stop:
-    ...     print(f"stopped by {stop}; pending: {interrupt.pending()}")
+    ...     print(f"stopped by {stop}; pending: {interrupt.interrupt_pending()}")
     ... finally:
-    ...     interrupt.restore(previous)
+    ...     interrupt.restore_interrupts(previous)
     None
     True
     stopped by SIGINT; pending: None
@@ -178,7 +178,7 @@ def pending() -> int | None:
     return _pending
 
 
-def install() -> dict:
+def install_interrupts() -> dict:
     """Make SIGINT and SIGTERM raise :class:`Interrupted`, ignore SIGXFSZ (main thread only).
 
     Returns
@@ -186,7 +186,7 @@ def install() -> dict:
     dict
         The previous handlers by signal, and the previous
         ``sys.unraisablehook`` and ``sys.excepthook`` (see
-        :func:`_unraisable`), for :func:`restore`.
+        :func:`_unraisable`), for :func:`restore_interrupts`.
 
     Examples
     --------
@@ -194,12 +194,12 @@ def install() -> dict:
 
     >>> import signal
     >>> from bayes_jackal import interrupt
-    >>> previous = interrupt.install()
+    >>> previous = interrupt.install_interrupts()
     >>> signal.getsignal(signal.SIGTERM) is previous[signal.SIGTERM]
     False
     >>> signal.getsignal(signal.SIGXFSZ) == signal.SIG_IGN
     True
-    >>> interrupt.restore(previous)
+    >>> interrupt.restore_interrupts(previous)
     >>> signal.getsignal(signal.SIGTERM) is previous[signal.SIGTERM]
     True
     """
@@ -215,20 +215,20 @@ def install() -> dict:
     return previous | _previous_hooks
 
 
-def restore(previous: dict) -> None:
-    """Put back the handlers :func:`install` returned, and forget any stop they caught.
+def restore_interrupts(previous: dict) -> None:
+    """Put back the handlers :func:`install_interrupts` returned, and forget any stop they caught.
 
     The command line checks for a held stop before it restores them, so none
     is lost; a stop already raised is not raised again by a later
-    :func:`check`.
+    :func:`check_interrupt`.
 
     Examples
     --------
     >>> import signal
     >>> from bayes_jackal import interrupt
     >>> before = signal.getsignal(signal.SIGINT)
-    >>> previous = interrupt.install()
-    >>> interrupt.restore(previous)
+    >>> previous = interrupt.install_interrupts()
+    >>> interrupt.restore_interrupts(previous)
     >>> signal.getsignal(signal.SIGINT) is before
     True
     """
@@ -241,7 +241,7 @@ def restore(previous: dict) -> None:
         signal.signal(signum, handler)
 
 
-def cause(exc: BaseException) -> Interrupted | None:
+def interrupt_cause(exc: BaseException) -> Interrupted | None:
     """The stop behind ``exc``, where a signal was turned into another exception.
 
     A signal landing while a C extension initialises (scipy's HiGHS
@@ -252,14 +252,14 @@ def cause(exc: BaseException) -> Interrupted | None:
     Examples
     --------
     >>> import signal
-    >>> from bayes_jackal._runtime.interrupt import Interrupted, cause
+    >>> from bayes_jackal._runtime.interrupt import Interrupted, interrupt_cause
     >>> try:
     ...     try:
     ...         raise Interrupted(signal.SIGINT)
     ...     except Interrupted as stop:
     ...         raise ImportError("initialization failed") from stop
     ... except ImportError as exc:
-    ...     print(cause(exc), cause(ValueError("x")))
+    ...     print(interrupt_cause(exc), interrupt_cause(ValueError("x")))
     SIGINT None
     """
     seen = set()
@@ -271,33 +271,33 @@ def cause(exc: BaseException) -> Interrupted | None:
     return None
 
 
-def check() -> None:
-    """Raise the stop a signal recorded inside :func:`deferred`, if any.
+def check_interrupt() -> None:
+    """Raise the stop a signal recorded inside :func:`interrupts_deferred`, if any.
 
     Examples
     --------
     Nothing pending: nothing raised.
 
     >>> from bayes_jackal import interrupt
-    >>> interrupt.check()
+    >>> interrupt.check_interrupt()
 
     A long loop checks between steps; a signal landing in a step is raised at
     the next check (the handlers installed for the example, and put back after):
 
     >>> import signal
-    >>> previous = interrupt.install()
+    >>> previous = interrupt.install_interrupts()
     >>> done = []
     >>> try:
     ...     for step in range(5):
-    ...         with interrupt.deferred():  # third-party code: not stopped midway
+    ...         with interrupt.interrupts_deferred():  # third-party code: not stopped midway
     ...             done.append(step)
     ...             if step == 2:
     ...                 signal.raise_signal(signal.SIGTERM)
-    ...             interrupt.check()
+    ...             interrupt.check_interrupt()
     ... except interrupt.Interrupted as stop:
     ...     print(f"{stop} after steps {done}: exit code {stop.exit_code}")
     ... finally:
-    ...     interrupt.restore(previous)
+    ...     interrupt.restore_interrupts(previous)
     SIGTERM after steps [0, 1, 2]: exit code 143
     """
     global _pending
@@ -307,10 +307,10 @@ def check() -> None:
 
 
 @contextlib.contextmanager
-def deferred() -> Iterator[None]:
+def interrupts_deferred() -> Iterator[None]:
     """Hold a signal back as a pending stop while third-party code runs.
 
-    Call :func:`check` where stopping is safe; leaving the outermost block
+    Call :func:`check_interrupt` where stopping is safe; leaving the outermost block
     normally raises a stop still pending. A second signal raises at once.
 
     Examples
@@ -320,15 +320,15 @@ def deferred() -> Iterator[None]:
 
     >>> import signal
     >>> from bayes_jackal import interrupt
-    >>> previous = interrupt.install()
+    >>> previous = interrupt.install_interrupts()
     >>> try:
-    ...     with interrupt.deferred():
+    ...     with interrupt.interrupts_deferred():
     ...         signal.raise_signal(signal.SIGINT)
     ...         print("the block finishes")
     ... except interrupt.Interrupted as stop:
     ...     print(f"then stops: exit code {stop.exit_code}")
     ... finally:
-    ...     interrupt.restore(previous)
+    ...     interrupt.restore_interrupts(previous)
     the block finishes
     then stops: exit code 130
     """
@@ -339,7 +339,7 @@ def deferred() -> Iterator[None]:
     finally:
         _deferring -= 1
     if not _deferring:
-        check()
+        check_interrupt()
 
 
 _late: int | None = None
@@ -350,20 +350,20 @@ def _record_late(signum: int, frame) -> None:
     _late = _late or signum
 
 
-def hold_late() -> None:
+def hold_late_interrupts() -> None:
     """From the command's last line on, record SIGINT and SIGTERM instead of raising them.
 
     The interpreter's shutdown (its exit functions, the modules' teardown)
     runs after the command has written everything; a signal raised there
     would print a traceback, and one ignored would let a stopped process
-    exit 0. :func:`late` says which arrived, for the exit code.
+    exit 0. :func:`late_interrupt` says which arrived, for the exit code.
     """
     for signum in SIGNALS:
         signal.signal(signum, _record_late)
 
 
-def late() -> int | None:
-    """The signal recorded since :func:`hold_late`, if any."""
+def late_interrupt() -> int | None:
+    """The signal recorded since :func:`hold_late_interrupts`, if any."""
     return _late
 
 
@@ -390,7 +390,7 @@ def quiet_worker() -> None:
 
 
 @contextlib.contextmanager
-def blocked() -> Iterator[None]:
+def interrupts_blocked() -> Iterator[None]:
     """Block SIGINT and SIGTERM while starting worker processes.
 
     The children inherit the mask, so a signal during their start-up waits
@@ -403,7 +403,7 @@ def blocked() -> Iterator[None]:
 
     >>> import signal
     >>> from bayes_jackal._runtime.interrupt import blocked
-    >>> with blocked():
+    >>> with interrupts_blocked():
     ...     print(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []))
     True
     >>> signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])

@@ -40,7 +40,7 @@ def console(argv: list[str] | None = None) -> None:
 
     A signal after the command's last line would meet Python's own handler
     during the interpreter's shutdown and print a traceback: from then on
-    SIGINT and SIGTERM are recorded instead (:func:`.interrupt.hold_late`),
+    SIGINT and SIGTERM are recorded instead (:func:`.interrupt.hold_late_interrupts`),
     and the last of the exit functions ends the process with 128 + the
     signal, having said that everything was written.
     """
@@ -50,9 +50,9 @@ def console(argv: list[str] | None = None) -> None:
 
 def _exit_if_stopped() -> None:
     """Exit with 128 + a signal that arrived as the command exited (after its last line)."""
-    from .._runtime import interrupt
+    from .._runtime import late_interrupt
 
-    signum = interrupt.late()
+    signum = late_interrupt()
     if signum is None:
         return
     print(
@@ -73,27 +73,34 @@ def main(argv: list[str] | None = None, *, _exiting: bool = False) -> int:
     (:mod:`bayes_jackal._runtime.interrupt`). The previous handlers are restored on
     return (``_exiting``, for :func:`console`: later signals are recorded, for the exit code).
     """
-    from .._runtime import interrupt
+    from .._runtime import (
+        Interrupted,
+        check_interrupt,
+        hold_late_interrupts,
+        install_interrupts,
+        interrupt_cause,
+        restore_interrupts,
+    )
 
-    previous = interrupt.install()
+    previous = install_interrupts()
     try:
         code = _run(argv)
-        interrupt.check()  # a stop that landed where it could not be raised
+        check_interrupt()  # a stop that landed where it could not be raised
         return code
-    except interrupt.Interrupted as exc:
+    except Interrupted as exc:
         return _interrupted(exc)
     except KeyboardInterrupt:
         print("bayes-jackal: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # a stop another exception carries (an extension's import)
-        stop = interrupt.cause(exc)
+        stop = interrupt_cause(exc)
         if stop is None:
             raise
         return _interrupted(stop)
     finally:
-        interrupt.restore(previous)
+        restore_interrupts(previous)
         if _exiting:
-            interrupt.hold_late()
+            hold_late_interrupts()
 
 
 def _interrupted(stop: BaseException) -> int:
@@ -114,7 +121,7 @@ def _run(argv: list[str] | None) -> int:
 
         print(f"bayes-jackal {__version__}")
         return 0
-    from .._runtime import interrupt
+    from .._runtime import check_interrupt, interrupt_cause
     from .exits import EXIT_BAD_INPUT, print_failure
     from .parser import build_parser
 
@@ -122,7 +129,7 @@ def _run(argv: list[str] | None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # usage errors (2) and --help/--version (0)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
-    from .._runtime.errors import InputError
+    from .._runtime import InputError
     from .paths import command_inputs, guarded
 
     try:
@@ -131,17 +138,19 @@ def _run(argv: list[str] | None) -> int:
         with _warnings_shown(debug=args.debug), guarded(args):
             # The command's module and its imports, numpy and the rest.
             commands = importlib.import_module(_MODULES.get(args.command, ".commands"), __name__)
-            from .._runtime.threads import one_blas_thread
+            from .._runtime import one_blas_thread, printed
 
-            interrupt.check()  # a signal swallowed during the imports (code that cannot raise)
+            check_interrupt()  # a signal swallowed during the imports (code that cannot raise)
             command = getattr(commands, f"cmd_{args.command.replace('-', '_')}")
-            # One BLAS thread for the package's small linear algebra (_runtime.threads).
-            with one_blas_thread():
+            # One BLAS thread for the package's small linear algebra (_runtime.threads);
+            # the package's messages are lines on stdout (on stderr beside --json).
+            stream = "stderr" if getattr(args, "json", False) else "stdout"
+            with one_blas_thread(), printed(stream):
                 return command(args)
     except InputError as exc:  # names its file, field and value
         return print_failure(exc, debug=args.debug)
     except Exception as exc:  # one line naming the input (exit 1); --debug: the traceback
-        if (stop := interrupt.cause(exc)) is not None:
+        if (stop := interrupt_cause(exc)) is not None:
             raise stop from None  # a signal an extension's import turned into its error
         source = getattr(exc, "input_source", None) or ", ".join(command_inputs(args))
         return print_failure(exc, source, debug=args.debug)
@@ -163,7 +172,7 @@ def _warnings_shown(*, debug: bool) -> Iterator[None]:
         if (category, str(message)) in shown:
             return
         shown.add((category, str(message)))
-        from .._runtime.progress import write_line  # tqdm: imported once a warning shows
+        from .._runtime import write_line  # tqdm: imported once a warning shows
 
         where = f" ({category.__name__} at {filename}:{lineno})" if debug else ""
         write_line(f"bayes-jackal: WARNING: {message}{where}", sys.stderr)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import logging
 import sys
 import warnings
 from collections.abc import Callable
@@ -12,41 +13,36 @@ from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
-from .._runtime.defaults import POSE_NOISE
-from .._runtime.errors import InputError, each_input
-from .._runtime.files import chain_path, write_json
-from ..dem.export import export_prior, read_prior, write_prior
-from ..filters.state_estimation import (
-    estimate_columns,
-    estimate_each,
-    score_estimates,
-    write_estimates,
+from .._runtime import POSE_NOISE, InputError, chain_path, each_input, write_json
+from ..dem import export_prior, read_prior, write_prior
+from ..filters import estimate_columns, estimate_each, score_estimates, write_estimates
+from ..inference import (
+    ConvergenceWarning,
+    Executor,
+    SamplerSettings,
+    compare_groups,
+    executor_for,
+    keep_warnings,
+    population,
+    sample_posterior,
 )
-from ..inference.chains import SamplerSettings
-from ..inference.comparison import compare_groups
-from ..inference.executors import Executor, executor_for
-from ..inference.population import population
-from ..inference.sampler_warnings import ConvergenceWarning, keep_warnings
-from ..inference.sampling import sample_posterior
-from ..io.bag_writer import bag_truth, write_bag
-from ..io.experiment import Experiment, write_netcdf
-from ..io.logs import ReadOptions, ingest_logs
-from ..io.simulate import NoiseSettings, simulate_series
-from ..io.tables import write_csv
-from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
-from ..model.kernels import FAMILIES
-from ..model.parameters import prior_overrides
-from ..model.robot import RobotProfile, mass_scaled_damping
-from ..posterior.criticism import criticise
-from ..posterior.posterior import load_posterior, save_posterior
-from ..posterior.summary import summarize
-from ..report.grid_plots import save_grid_plot
-from ..report.page import read_posteriors, save_report
-from ..report.population_plots import save_population_plot
-from ..thesis.gridsearch import damping_grid, grid_search, prior_grid
-from ..thesis.residual_analysis import analyse
-from ..workflow.analysis import analyse_logs
-from ..workflow.demo import DEMO_TRUTH, run_demo
+from ..io import (
+    Experiment,
+    NoiseSettings,
+    ReadOptions,
+    bag_truth,
+    ingest_logs,
+    simulate_series,
+    write_bag,
+    write_csv,
+    write_netcdf,
+)
+from ..likelihood import LikelihoodOptions, resolve_channels
+from ..model import FAMILIES, RobotProfile, mass_scaled_damping, prior_overrides
+from ..posterior import criticise, load_posterior, save_posterior, summarize
+from ..report import read_posteriors, save_grid_plot, save_population_plot, save_report
+from ..thesis import analyse, damping_grid, grid_search, prior_grid
+from ..workflow import DEMO_TRUTH, analyse_logs, run_demo
 from .exits import EXIT_BAD_INPUT, EXIT_OK
 from .output import (
     Failures,
@@ -66,6 +62,9 @@ from .output import (
 from .parser_types import prior_ranges
 from .paths import check_named_outputs, family_files, group_name, summary_file
 from .reading import each_experiment, load_logs, read_options, robot_profile, robot_with_topics
+
+#: The commands' own messages (sampling one experiment, maybe in a worker).
+_log = logging.getLogger(__package__)
 
 
 def _damping(args: argparse.Namespace, robot: RobotProfile) -> tuple[float, float]:
@@ -159,7 +158,7 @@ def cmd_grid(args: argparse.Namespace) -> int:
         discretisation=args.discretisation,
         progress=True,
     )
-    grid_table(result, out.say)
+    grid_table(result, out)
     grid_warnings(result.edge_warnings(), "--{option} START STOP STEP")
     if args.plot:
         out.say(f"wrote {save_grid_plot(result, args.plot)}")
@@ -181,13 +180,13 @@ def cmd_residuals(args: argparse.Namespace) -> int:
     if len(args.experiments) == 1:
         experiments, failed, code = load_logs(args), {}, EXIT_OK
     else:  # each on its own first: a bad one is named, the others analysed together
-        done, failed, code = each_experiment(args, out.say, lambda e: residuals([e]))
+        done, failed, code = each_experiment(args, out, lambda e: residuals([e]))
         experiments = [e for e, _ in done]
     if not experiments:  # every input named on stderr already
         out.result({"experiments": {}, "failed": failed})
         return code
     result = residuals(experiments)
-    residual_table(result, out.say)
+    residual_table(result, out)
     out.result(result | {"failed": failed})
     return code
 
@@ -210,7 +209,6 @@ class _Sampling:
     prior_overrides: dict
     out: Path
     each: bool  # one posterior per experiment, named after it
-    say: Callable[[str], None] | None = None  # in this process only
     chain: bool = True  # the chain file beside the posterior (not on a cluster)
 
     def path(self, group: list[Experiment]) -> Path:
@@ -225,34 +223,32 @@ class _Sampling:
         with keep_warnings() as kept:
             try:
                 likelihood = self.likelihood_options.likelihood(group, self.robot, self.family)
-                if self.say is not None:
-                    self.say(
-                        f"sampling {', '.join(e.name for e in group)} on channels "
-                        f"{', '.join(likelihood.channels)} -> {path}"
-                    )
+                _log.info(
+                    f"sampling {', '.join(e.name for e in group)} on channels "
+                    f"{', '.join(likelihood.channels)} -> {path}"
+                )
                 idata = sample_posterior(
                     likelihood,
                     self.settings,
                     seed=self.seed,
                     chain_file=chain_path(path) if self.chain else None,
                     prior_overrides=self.prior_overrides,
-                    say=self.say,
                 )
             except Exception as exc:  # raised again where the result is used
                 return None, kept, exc
         return idata, kept, None
 
 
-def _save_sample(result: tuple, path: Path, say: Callable[[str], None]) -> dict:
+def _save_sample(result: tuple, path: Path, out: Reporter) -> dict:
     """Save a :class:`_Sampling` result (the chain is beside it), print and return its summary."""
     idata, kept, error = result
     kept.issue()  # raised where it ran (maybe a worker), shown here
     if error is not None:
         raise error
     save_posterior(idata, path)
-    say(f"wrote {path}; the summary and the posterior-predictive checks of the fit:")
+    out.say(f"wrote {path}; the summary and the posterior-predictive checks of the fit:")
     summary = summarize(idata)
-    posterior_table(summary, say)
+    posterior_table(summary, out)
     for message in kept.convergence:
         print(f"bayes-jackal: WARNING: {message}", file=sys.stderr)
     print_criticism(summary["warnings"])
@@ -308,7 +304,7 @@ def _print_each(
     **options,
 ) -> int:
     """:func:`each_experiment`; JSON: ``experiments`` (name -> result) and ``failed``."""
-    done, failed, code = each_experiment(args, out.say, work, outputs, **options)
+    done, failed, code = each_experiment(args, out, work, outputs, **options)
     out.result({"experiments": {e.name: result for e, result in done}, "failed": failed})
     return code
 
@@ -332,7 +328,6 @@ def cmd_sample(args: argparse.Namespace) -> int:
         _prior_overrides(args.prior),
         Path(args.out),
         each=not args.pooled and len(args.experiments) > 1,
-        say=out.say if local else None,
         chain=local,
     )
     with _executor(args) as executor:
@@ -341,7 +336,7 @@ def cmd_sample(args: argparse.Namespace) -> int:
         if not sampling.each:
             group = load_logs(args)
             with executor.run(sampling, [group]) as finished:
-                out.result(_save_sample(next(finished), sampling.path(group), out.say))
+                out.result(_save_sample(next(finished), sampling.path(group), out))
             return EXIT_OK
 
         def outputs(experiment: Experiment) -> list[Path]:
@@ -351,7 +346,7 @@ def cmd_sample(args: argparse.Namespace) -> int:
         return _print_each(
             args,
             out,
-            lambda e, result: _save_sample(result, sampling.path([e]), out.say),
+            lambda e, result: _save_sample(result, sampling.path([e]), out),
             outputs,
             results=lambda loaded, _: executor.run(_Labelled(sampling), list(loaded.items())),
         )
@@ -403,7 +398,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
                 reuse=reuse,
                 on_family=finished,
                 on_failure=on_failure,
-                say=out.say,
             )
             with contextlib.closing(each):
                 yield each
@@ -412,7 +406,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         for message in comparison.convergence_messages():
             print(f"bayes-jackal: WARNING: {message}", file=sys.stderr)
         result = comparison.to_dict() | {"channels": list(resolve_channels(group, args.channels))}
-        comparison_table(result, out.say)
+        comparison_table(result, out)
         name = group_name(group)
         saved = "" if folder is None else f" and {summary_file(folder, name)}"
         family_warnings(result["warnings"], result, where=f"--json{saved}")
@@ -477,12 +471,11 @@ def cmd_population(args: argparse.Namespace) -> int:
             executor=executor,
             out=folder,
             progress=not args.no_progress and args.scheduler is None,
-            say=out.say,
         )
     summary = result.to_dict()
     write_json(folder / "population.json", summary)
     save_population_plot(summary, folder / "population.png")
-    population_text(summary, out.say)
+    population_text(summary, out)
     out.say(f"wrote {folder}/population.json, population.png and units/")
     out.result(summary)
     return EXIT_OK
@@ -538,12 +531,12 @@ def cmd_filter(args: argparse.Namespace) -> int:
         columns = estimate_columns(experiment, estimates)
         return columns, score_estimates(experiment, estimates), refused
 
-    done, failed, code = each_experiment(args, out.say, estimate)
+    done, failed, code = each_experiment(args, out, estimate)
     if done:
         write_estimates(args.out, {e.name: columns for e, (columns, _, _) in done})
         out.say(f"wrote {args.out}")
     for experiment, (_, scores, _) in done:
-        filter_table(experiment.name, scores, out.say)
+        filter_table(experiment.name, scores, out)
     out.result(
         {
             "prior": args.prior_file,
@@ -579,7 +572,6 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             read_options=read_options(args),
             state_estimation=args.state_estimation,
             groups=args.groups,
-            say=out.say,
         )
     return analysis_text(result, out)
 
@@ -587,7 +579,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     result = run_demo(
-        args.out, out.say, progress=not args.no_progress, state_estimation=args.state_estimation
+        args.out, progress=not args.no_progress, state_estimation=args.state_estimation
     )
     noise = NoiseSettings()
     (sigma_c_vx, sigma_c_vy, sigma_c_yaw), sigma_n_yaw = noise.sigma_c, noise.sigma_n[2]
@@ -607,6 +599,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     posteriors, _ = read_posteriors(args.posteriors, on_failure=failures)
     if not posteriors:  # every input named on stderr already
         return failures.code
-    path = save_report(posteriors, args.out, args.formats, say=out.say)
+    path = save_report(posteriors, args.out, args.formats)
     out.say(f"wrote {path} and its figures in {path.parent / (path.stem + '_figures')}/")
     return failures.code

@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 import traceback
 
-from .._runtime.errors import InputError, describe
+from .._runtime import InputError, describe
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILURE", "EXIT_OK", "print_failure"]
 

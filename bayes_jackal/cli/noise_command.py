@@ -4,22 +4,19 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
 from pathlib import Path
 
-from .._runtime.errors import InputError, each_input
-from .._runtime.files import write_json
-from ..dem.export import write_prior
-from ..inference.chains import SamplerSettings
-from ..inference.executors import ProcessExecutor
-from ..noise.characterisation import (
+from .._runtime import InputError, each_input, write_json
+from ..dem import write_prior
+from ..inference import ProcessExecutor, SamplerSettings
+from ..noise import (
     NoiseCharacterisation,
     characterise_noise,
+    export_noise_prior,
+    read_noise_series,
     series_prior_overrides,
 )
-from ..noise.prior import export_noise_prior
-from ..noise.series import read_noise_series
-from ..report.noise_page import NOISE_HEADER, NOISE_REPORT, noise_rows, write_noise_report
+from ..report import NOISE_HEADER, NOISE_REPORT, noise_rows, write_noise_report
 from .output import Failures, Reporter, warn_not_converged
 from .parser_types import prior_ranges
 
@@ -48,18 +45,18 @@ def cmd_noise(args: argparse.Namespace) -> int:
                                         seed=args.seed, engine=args.engine,
                                         executor=executor, prior_overrides=priors)  # fmt: skip
         summary = result.to_dict()
-        noise_table(summary, out.say)
+        noise_table(summary, out)
         if args.out:
             path_out = Path(args.out) / f"{series.name}.noise.json"
             out.say(f"wrote {write_json(path_out, summary)}")
-            _write_prior(result, args.order, Path(args.out), path, out.say)
+            _write_prior(result, args.order, Path(args.out), path, out)
         results[series.name] = summary
         return result
 
     found, failed = each_input(args.series, characterise, catch=Exception, on_failure=failures)
     out.result({"series": results, "failed": failed})  # out before the report, whatever it does
     if args.out and found:
-        _write_report(list(found.values()), Path(args.out) / NOISE_REPORT, args.seed, out.say,
+        _write_report(list(found.values()), Path(args.out) / NOISE_REPORT, args.seed, out,
                       failures)  # fmt: skip
     return failures.code
 
@@ -68,7 +65,7 @@ def _write_report(
     found: list[NoiseCharacterisation],
     path: Path,
     seed: int | None,
-    say: Callable[[str], None],
+    out: Reporter,
     failures: Failures,
 ) -> None:
     """``noise_report.html``; a failure is one line naming it and a non-zero exit code.
@@ -81,7 +78,7 @@ def _write_report(
     except Exception as failed:  # an interrupt (not an Exception) still stops the run
         failures(str(path), failed)
         return
-    say(f"wrote {report} and its figures in {report.parent / (report.stem + '_figures')}/")
+    out.say(f"wrote {report} and its figures in {report.parent / (report.stem + '_figures')}/")
 
 
 def _write_prior(
@@ -89,7 +86,7 @@ def _write_prior(
     order: int | None,
     folder: Path,
     source: str,
-    say: Callable[[str], None],
+    out: Reporter,
 ) -> None:
     """``<series>.prior.json``, the DEM prior of the best family at ``order``.
 
@@ -105,26 +102,26 @@ def _write_prior(
         return
     path = write_prior(prior, folder / f"{result.series.name}.prior.json")
     size = prior["generalised_coordinates"]["order"] + 1
-    say(f"wrote {path}: {prior['family']} noise, embedding order {size - 1} "
+    out.say(f"wrote {path}: {prior['family']} noise, embedding order {size - 1} "
         f"({size} x {size} precision)")  # fmt: skip
     if not prior["converged"]:
         warn_not_converged(f"{result.series.name}'s {prior['family']} fit")
 
 
-def noise_table(summary: dict, say: Callable[[str], None]) -> None:
+def noise_table(summary: dict, out: Reporter) -> None:
     """Each family's evidence and width, the verdict, and the classical widths beside them.
 
     ``summary``: the series' ``NoiseCharacterisation.to_dict()``.
     """
-    say(_text_row(NOISE_HEADER))
+    out.say(_text_row(NOISE_HEADER))
     for row, (name, entry) in zip(noise_rows(summary), summary["families"].items(), strict=True):
-        say(_text_row(row))
+        out.say(_text_row(row))
         for warning in entry["warnings"]:
-            say(f"  WARNING: {name}: {warning['message']}")
-    say(f"verdict: {summary['verdict_text']}")
+            out.say(f"  WARNING: {name}: {warning['message']}")
+    out.say(f"verdict: {summary['verdict_text']}")
     classical = ", ".join(f"{k}: {v:.4g}" for k, v in summary["acf_least_squares"].items())
-    say(f"ACF least-squares width [s] by lag count: {classical}")
-    say(f"the thesis' fit (30 lags): {summary['thesis_fit']:.4g} s")
+    out.say(f"ACF least-squares width [s] by lag count: {classical}")
+    out.say(f"the thesis' fit (30 lags): {summary['thesis_fit']:.4g} s")
 
 
 #: Characters of each column of :func:`noise_table` (``NOISE_HEADER``'s).

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from .._runtime.defaults import (
+from .._runtime import (
     AUTO_ORDER,
     MAX_GAP_STEPS,
     MIN_EVIDENCE_STEPS,

@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 
-from .._runtime.files import json_text
-from .._runtime.progress import write_line
-from ..filters.left_out import method_text
-from ..filters.state_estimation import inexact_note, score_rows
-from ..posterior.criticism import KIND_MEANINGS
-from ..thesis.gridsearch import GridResult
+from .._runtime import json_text, write_line
+from ..filters import inexact_note, method_text, score_rows
+from ..posterior import KIND_MEANINGS
+from ..thesis import GridResult
 from .exits import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, print_failure
 
 
@@ -29,23 +26,23 @@ class Reporter:
             sys.stdout.write(json_text(payload) + "\n")
 
 
-def grid_table(result: GridResult, say: Callable[[str], None]) -> None:
+def grid_table(result: GridResult, out: Reporter) -> None:
     summary = result.summary()
-    say(
+    out.say(
         f"{result.method} MSE of the {result.channel} channel over "
         f"d_lat {result.d_lat[0]:g}..{result.d_lat[-1]:g} ({len(result.d_lat)} values) x "
         f"d_long {result.d_long[0]:g}..{result.d_long[-1]:g} ({len(result.d_long)} values)"
     )
-    say(f"{'':12s} {'runs':>5s} {'d_lat':>8s} {'d_long':>8s} {'ratio':>7s} {'MSE':>11s}")
+    out.say(f"{'':12s} {'runs':>5s} {'d_lat':>8s} {'d_long':>8s} {'ratio':>7s} {'MSE':>11s}")
     rows = [(label, len(s["experiments"]), s) for label, s in summary["series"].items()]
     rows.append(("total (5-3)", sum(n for _, n, _ in rows), summary))
     for label, runs, s in rows:
-        say(
+        out.say(
             f"{label:12s} {runs:5d} {s['d_lat']:8g} {s['d_long']:8g} "
             f"{s['d_lat'] / s['d_long']:7.3f} {s['mse']:11.4g}"
         )
     if result.caveat:
-        say(f"note: {result.caveat}")
+        out.say(f"note: {result.caveat}")
 
 
 def grid_warnings(warnings: list[dict], flag: str) -> None:
@@ -60,12 +57,12 @@ def grid_warnings(warnings: list[dict], flag: str) -> None:
         print(f"bayes-jackal: WARNING: {warning['message']} ({widen})", file=sys.stderr)
 
 
-def residual_table(result: dict, say: Callable[[str], None]) -> None:
-    say(
+def residual_table(result: dict, out: Reporter) -> None:
+    out.say(
         f"one-step residuals (eq. 7-3) of the steady-state window at d_lat={result['d_lat']:g}, "
         f"d_long={result['d_long']:g} N s/m; Ljung-Box and sigma_h fit over {result['lags']} lags"
     )
-    say(
+    out.say(
         f"{'experiment':12s} {'channel':7s} {'n':>6s} {'sd':>10s} {'LB p':>9s} "
         f"{'r1':>7s} {'sigma_h [s]':>11s}"
     )
@@ -75,40 +72,42 @@ def residual_table(result: dict, say: Callable[[str], None]) -> None:
             r1 = row["autocorrelation"][0]
             mark = "*" if row.get("derived") else ""
             derived |= bool(mark)
-            say(
+            out.say(
                 f"{name:12s} {channel + mark:7s} {row['n']:6d} {row['sd']:10.4g} "
                 f"{row['ljung_box_p']:9.3g} {r1:7.3f} {row['sigma_h']:11.3f}"
             )
     if derived:
-        say(
+        out.say(
             "* derived from motion-capture poses by the reader's smoother, as the thesis' data "
             "were: its sigma_h is the smoother's too; the posterior (sample) models the poses"
         )
-    say()
-    say("sigma_h of the yaw channel (thesis table 7-1: v1 0.051, v2 0.041, all 0.047 s)")
-    say(f"{'series':12s} {'runs':>5s} {'sigma_h [s]':>11s}")
+    out.say()
+    out.say("sigma_h of the yaw channel (thesis table 7-1: v1 0.051, v2 0.041, all 0.047 s)")
+    out.say(f"{'series':12s} {'runs':>5s} {'sigma_h [s]':>11s}")
     members = result["series"]
     for label, value in result["sigma_h"].items():
         runs = len(result["experiments"]) if label == "all" else len(members[label])
-        say(f"{label:12s} {runs:5d} {value:11.4f}")
+        out.say(f"{label:12s} {runs:5d} {value:11.4f}")
 
 
-def filter_table(name: str, scores: dict, say: Callable[[str], None]) -> None:
+def filter_table(name: str, scores: dict, out: Reporter) -> None:
     """One experiment's filter scores: innovation RMSE, NIS in its band, state RMSEs."""
     first = next(iter(scores.values()))["first_sample"]
-    say(f"{name}: prediction errors scored from sample {first} on (the first start the filters)")
-    say(
+    out.say(
+        f"{name}: prediction errors scored from sample {first} on (the first start the filters)"
+    )
+    out.say(
         f"{'filter':16s} {'channel':7s} {'innov. RMSE':>11s} {'NIS':>6s} "
         f"{'95% band':>13s} {'':14s} {'state RMSE':>10s} {'smoothed':>10s}"
     )
     for filter_name, channel, rmse, nis, band, verdict, state, smoothed in score_rows(scores):
-        say(
+        out.say(
             f"{filter_name:16s} {channel:7s} {_number(rmse, '11.4g')} {_number(nis, '6.3f')} "
             f"{'-' if band is None else '[{:5.3f},{:5.3f}]'.format(*band):>13s} {verdict:14s} "
             f"{_number(state, '10.4g')} {_number(smoothed, '10.4g')}"
         )
     if note := inexact_note(scores):
-        say(f"  {note}")
+        out.say(f"  {note}")
 
 
 def _number(value: float | None, spec: str) -> str:
@@ -117,27 +116,27 @@ def _number(value: float | None, spec: str) -> str:
     return "-".rjust(width) if value is None else format(value, spec)
 
 
-def posterior_table(summary: dict, say: Callable[[str], None]) -> None:
-    say(
+def posterior_table(summary: dict, out: Reporter) -> None:
+    out.say(
         f"{'':16s} {'mean':>10s} {'sd':>10s} {'hdi_3%':>10s} {'hdi_97%':>10s} "
         f"{'ess':>8s} {'r_hat':>6s}"
     )
     for name, row in summary.items():
         if isinstance(row, dict) and "mean" in row:
-            say(
+            out.say(
                 f"{name:16s} {row['mean']:10.4g} {row['sd']:10.3g} {row['hdi_3%']:10.4g} "
                 f"{row['hdi_97%']:10.4g} {row.get('ess_autocorr', float('nan')):8.0f} "
                 f"{row['r_hat']:6.3f}"
             )
     ratio = summary["ratio"]
-    say(
+    out.say(
         f"corr(d_lat, d_long) = {summary['corr_d_lat_d_long']:.3f}; d_lat/d_long 94 % HDI "
         f"[{ratio['hdi_3%']:.3f}, {ratio['hdi_97%']:.3f}] (thesis: {ratio['thesis']:.4f})"
     )
     taus = summary["autocorr_time"]
     status = "converged" if summary["converged"] else "NOT CONVERGED"
     longest = max(taus.values())
-    say(
+    out.say(
         f"{status}: {summary['n_steps']} steps, {summary['n_steps'] / longest:.0f} times the "
         f"longest autocorrelation time ({longest:.0f} steps); ess: effective draws, r_hat: "
         "the walkers' agreement (1 is best)"
@@ -193,8 +192,8 @@ def _place(finding: dict) -> str:
     return " ".join(str(finding[key]) for key in fields if key in finding)
 
 
-def comparison_table(result: dict, say: Callable[[str], None]) -> None:
-    say(
+def comparison_table(result: dict, out: Reporter) -> None:
+    out.say(
         f"{'family':16s} {'log Z':>12s} {'+-':>6s} {'lnB best':>9s} {'lnB white':>10s}  "
         "width mean [94 % HDI] (s)"
     )
@@ -205,37 +204,37 @@ def comparison_table(result: dict, say: Callable[[str], None]) -> None:
             if label != "hdi_prob"
         )
         versus_white = row["log_bayes_factor_vs_white"]
-        say(
+        out.say(
             f"{name:16s} {row['log_evidence']:12.2f} {row['log_evidence_err']:6.3f} "
             f"{row['log_bayes_factor_vs_best']:9.2f} "
             f"{'' if versus_white is None else f'{versus_white:10.2f}':>10s}  {widths or '-'}"
             + ("" if row["converged"] else "  NOT CONVERGED")
         )
         if "log_evidence_nested" in row:
-            say(
+            out.say(
                 f"{'':16s} {row['log_evidence_nested']:12.2f} "
                 f"{row['log_evidence_nested_err']:6.3f}  (nested sampling)"
             )
-    say(f"best: {result['best']}. Verdict: {result['verdict_text']}")
+    out.say(f"best: {result['best']}. Verdict: {result['verdict_text']}")
 
 
-def population_text(result: dict, say: Callable[[str], None]) -> None:
+def population_text(result: dict, out: Reporter) -> None:
     """``population``'s evidence table, each group's damping, the population and the verdicts."""
-    say(f"{'structure':22s} {'log Z':>14s} {'+-':>6s} {'lnB best':>9s}")
+    out.say(f"{'structure':22s} {'log Z':>14s} {'+-':>6s} {'lnB best':>9s}")
     for name, row in result["evidence"].items():
-        say(
+        out.say(
             f"{name:22s} {row['log_evidence']:14.2f} {row['log_evidence_err']:6.3f} "
             f"{row['log_bayes_factor_vs_best']:9.2f}"
         )
-    say(f"best: {result['best']}. Verdict: {result['verdict']}")
-    say(f"each group's damping, mean [94 % HDI] (N s/m), {result['model']}:")
+    out.say(f"best: {result['best']}. Verdict: {result['verdict']}")
+    out.say(f"each group's damping, mean [94 % HDI] (N s/m), {result['model']}:")
     for label, group in result["groups"].items():
-        say(
+        out.say(
             f"  {label:20s} "
             + "; ".join(f"{name} {_interval(group[name])}" for name in ("d_lat", "d_long"))
         )
     population = result["population"]
-    say(
+    out.say(
         "population mean: "
         + "; ".join(
             f"{name} {_interval(population[name]['mean']['N s/m'])}, a new group "
@@ -244,7 +243,7 @@ def population_text(result: dict, say: Callable[[str], None]) -> None:
         )
     )
     if result["speed_dependence"] is not None:
-        say(f"speed dependence: {result['speed_dependence']['verdict']}")
+        out.say(f"speed dependence: {result['speed_dependence']['verdict']}")
     for warning in result["warnings"]:
         print(f"bayes-jackal: WARNING: {warning['message']}", file=sys.stderr)
 
@@ -253,15 +252,15 @@ def _interval(row: dict) -> str:
     return f"{row['mean']:.4g} [{row['hdi_3%']:.4g}, {row['hdi_97%']:.4g}]"
 
 
-def state_estimation_text(state: dict, say: Callable[[str], None]) -> None:
+def state_estimation_text(state: dict, out: Reporter) -> None:
     """analyse's filter scores on each run left out of the prior; its failures on stderr."""
     if state["skipped"]:
-        say(f"State estimation on runs left out of the prior: not run, {state['skipped']}.")
+        out.say(f"State estimation on runs left out of the prior: not run, {state['skipped']}.")
         return
-    say(f"\nState estimation with the {state['family']} prior fitted to the other runs:")
+    out.say(f"\nState estimation with the {state['family']} prior fitted to the other runs:")
     refit = [run for run, record in state["runs"].items() if record["method"] == "refit"]
     if state["pooled"] is not None:
-        say(
+        out.say(
             f"posteriors without each run: {state['pooled']} reweighted (Pareto-smoothed "
             "importance sampling), refit where the reweighting is unreliable (Pareto k-hat "
             f"> {state['pareto_k_threshold']:g}): "
@@ -269,8 +268,8 @@ def state_estimation_text(state: dict, say: Callable[[str], None]) -> None:
         )
     for run, record in state["runs"].items():
         trained = ", ".join(record["trained_on"])
-        say(f"{run}: posterior without it by {method_text(record)}")
-        filter_table(f"{run} (prior from {trained})", record["scores"], say)
+        out.say(f"{run}: posterior without it by {method_text(record)}")
+        filter_table(f"{run} (prior from {trained})", record["scores"], out)
         for name, reason in record["filters_failed"].items():
             print(f"bayes-jackal: WARNING: {run}: {name} could not run: {reason}", file=sys.stderr)
     for reason in state["failed"].values():
@@ -283,11 +282,11 @@ def analysis_text(result: dict, out: Reporter) -> int:
         f"\n{result['best']}-noise posterior (the best family by evidence), pooled over "
         f"{len(result['experiments'])} experiment(s), channels {', '.join(result['channels'])}:"
     )
-    posterior_table(result["posterior"], out.say)
+    posterior_table(result["posterior"], out)
     out.say(f"Is the noise coloured? {result['comparison']['verdict_text']}")
-    state_estimation_text(result["state_estimation"], out.say)
+    state_estimation_text(result["state_estimation"], out)
     if result["population"] is not None:
-        population_text(result["population"], out.say)
+        population_text(result["population"], out)
     files = result["files"]
     out.say(
         f"Open {files['report']} in a browser. Also written: {files['prior']} (Active "

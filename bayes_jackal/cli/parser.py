@@ -12,7 +12,7 @@ import argparse
 import os
 
 from .. import __version__
-from .._runtime.defaults import (
+from .._runtime import (
     AUTO_ORDER,
     BAG_FORMATS,
     CHANNELS,
@@ -56,8 +56,8 @@ from .._runtime.defaults import (
     THESIS_CHANNEL,
     VELOCITIES,
     WALKERS,
+    InputError,
 )
-from .._runtime.errors import InputError
 from .noise_parser import add_noise_parser
 from .parser_types import add_prior_flag
 from .parser_types import channel_list as _channel_list
@@ -75,9 +75,7 @@ class _Grid(argparse.Action):
     """``--d-lat START STOP STEP``: checked by the grid's own rule (``damping_grid``)."""
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
-        from ..thesis.gridsearch import (
-            damping_grid,  # imported with a grid given: the command runs
-        )
+        from ..thesis import damping_grid  # imported with a grid given: the command runs
 
         try:
             damping_grid(*values, name=option_string)

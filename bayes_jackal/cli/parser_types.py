@@ -10,8 +10,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-from .._runtime.defaults import CHANNELS, FAMILY
-from .._runtime.errors import InputError
+from .._runtime import CHANNELS, FAMILY, InputError
 
 __all__ = [
     "bounded",
@@ -53,7 +52,7 @@ def registered_families() -> tuple[str, ...]:
     The registry is the one list of families (docs/families.md), and reading it
     loads numpy: so ``--help`` does not, and a family flag is checked here.
     """
-    from ..model.kernels import FAMILIES  # imported with a family given: the command runs
+    from ..model import FAMILIES  # imported with a family given: the command runs
 
     return tuple(FAMILIES)
 

@@ -14,11 +14,10 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .._runtime.files import chain_path
-from .._runtime.output_safety import Output, OutputLock, check_outputs, protected, removed_if_empty
+from .._runtime import Output, OutputLock, chain_path, check_outputs, protected, removed_if_empty
 
 if TYPE_CHECKING:  # this module stays light: outputs are checked before numpy loads
-    from ..io.experiment import Experiment
+    from ..io import Experiment
 
 #: Figure suffixes of ``grid --plot`` (matplotlib's formats the README names).
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")

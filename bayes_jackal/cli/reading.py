@@ -9,12 +9,10 @@ from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
-from .._runtime.errors import InputError, describe, each_input
-from ..io.experiment import Experiment
-from ..io.logs import ReadOptions, load_experiments, read_logs
-from ..io.tables import check_column_roles
-from ..model.robot import RobotProfile, load_profile
-from .output import Failures
+from .._runtime import InputError, describe, each_input
+from ..io import Experiment, ReadOptions, check_column_roles, load_experiments, read_logs
+from ..model import RobotProfile, load_profile
+from .output import Failures, Reporter
 from .paths import check_named_outputs
 
 
@@ -35,7 +33,7 @@ def robot_with_topics(args: argparse.Namespace) -> RobotProfile:
 
 def each_experiment(
     args: argparse.Namespace,
-    say: Callable[[str], None],
+    out: Reporter,
     work: Callable[[Experiment], Any],
     outputs: Callable[[Experiment], list[Path]] | None = None,
     *,
@@ -88,7 +86,7 @@ def each_experiment(
     done = {given: done[given] for given in loaded if given in done}
     if failed:
         total = len(args.experiments)
-        say(f"{len(done)} of {total} experiments done; failed: {', '.join(failed)}")
+        out.say(f"{len(done)} of {total} experiments done; failed: {', '.join(failed)}")
     return [(loaded[given], result) for given, result in done.items()], failed, failures.code
 
 

@@ -14,6 +14,7 @@ from .consumer_keys import (
 )
 from .export import (
     MAX_CONDITION,
+    MAX_DRAWS,
     allowed_orders,
     autocorrelation_derivatives,
     checked_precision,
@@ -26,26 +27,12 @@ from .export import (
 from .prior import ActiveInferencePrior
 from .prior_fields import PRIOR_FORMAT, check_prior_fields, prior_field, prior_layout
 
+#: What a user of this stage needs (the API reference); the other names
+#: imported above serve the package's later stages.
 __all__ = [
-    "MAX_CONDITION",
-    "PRIOR_FORMAT",
     "ActiveInferencePrior",
-    "allowed_orders",
-    "autocorrelation_derivatives",
-    "channel_moments",
-    "check_prior_fields",
-    "checked_precision",
-    "checked_sensor_smoothness",
-    "continuous_sd",
     "export_prior",
-    "gaussian_smoothness",
-    "generalised_precision",
-    "log_precision_moments",
-    "matrix_prior",
-    "mean_covariance_precision",
     "operating_point",
-    "prior_field",
-    "prior_layout",
     "read_prior",
     "temporal_covariance",
     "write_prior",

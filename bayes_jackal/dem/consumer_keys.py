@@ -33,12 +33,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._runtime.defaults import CHANNELS, SENSOR_SMOOTHNESS
-from .._runtime.errors import InputError
-from ..io.experiment import Experiment
-from ..model.kernels import get_family
-from ..model.physics import continuous_matrices, discrete_matrices
-from ..model.robot import RobotProfile
+from .._runtime import CHANNELS, SENSOR_SMOOTHNESS, InputError
+from ..io import Experiment
+from ..model import RobotProfile, continuous_matrices, discrete_matrices, get_family
 
 __all__ = [
     "channel_moments",

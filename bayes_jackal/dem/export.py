@@ -60,17 +60,19 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from .._runtime.arviz_quiet import az
-from .._runtime.chunks import thinned_indices
-from .._runtime.defaults import AUTO_ORDER, CHANNELS, SENSOR_SMOOTHNESS
-from .._runtime.errors import DataError, InputError
-from .._runtime.files import require_file, write_json
-from ..model.kernels import get_family
-from ..model.parameters import DAMPING
-from ..model.physics import continuous_matrices, discrete_matrices
-from ..posterior.file_format import ROBOT_CONSTANTS
-from ..posterior.posterior import Posterior
-from ..posterior.summary import interval, summarize
+from .._runtime import (
+    AUTO_ORDER,
+    CHANNELS,
+    SENSOR_SMOOTHNESS,
+    DataError,
+    InputError,
+    az,
+    require_file,
+    thinned_indices,
+    write_json,
+)
+from ..model import DAMPING, continuous_matrices, discrete_matrices, get_family
+from ..posterior import ROBOT_CONSTANTS, Posterior, interval, summarize
 from .consumer_keys import (
     channel_moments,
     check_sensor_smoothness,
@@ -84,6 +86,7 @@ from .prior_fields import PRIOR_FORMAT
 
 __all__ = [
     "MAX_CONDITION",
+    "MAX_DRAWS",
     "allowed_orders",
     "autocorrelation_derivatives",
     "checked_precision",

@@ -16,7 +16,7 @@ from collections.abc import Iterator, Mapping
 from functools import cached_property
 from typing import Any
 
-from .._runtime.errors import InputError
+from .._runtime import InputError
 from .prior_fields import PRIOR_FORMAT, check_prior_fields
 
 __all__ = ["ActiveInferencePrior"]

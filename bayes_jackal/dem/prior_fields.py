@@ -48,11 +48,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .._runtime.defaults import CHANNELS, CONVERSIONS, SENSOR, SENSOR_MODELS
-from .._runtime.errors import DataError, InputError
-from ..model.kernels import FAMILIES
-from ..model.parameters import DAMPING, ParameterLayout
-from ..posterior.file_format import ROBOT_CONSTANTS
+from .._runtime import CHANNELS, CONVERSIONS, SENSOR, SENSOR_MODELS, DataError, InputError
+from ..model import DAMPING, FAMILIES, ParameterLayout
+from ..posterior import ROBOT_CONSTANTS
 
 __all__ = ["PRIOR_FORMAT", "check_prior_fields", "prior_field", "prior_layout"]
 

@@ -64,16 +64,17 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import scipy.linalg
 
-from .._runtime.defaults import CHANNELS, LOOKAHEAD, SENSOR_PRECISIONS
-from .._runtime.errors import InputError
-from ..dem.consumer_keys import continuous_sd, mean_covariance_precision
-from ..dem.export import checked_precision, temporal_covariance
-from ..dem.prior import ActiveInferencePrior
-from ..dem.prior_fields import prior_field
-from ..io.experiment import Experiment
-from ..model.kernels import get_family
-from ..model.parameters import DAMPING
-from ..model.robot import RobotProfile
+from .._runtime import CHANNELS, LOOKAHEAD, SENSOR_PRECISIONS, InputError
+from ..dem import (
+    ActiveInferencePrior,
+    checked_precision,
+    continuous_sd,
+    mean_covariance_precision,
+    prior_field,
+    temporal_covariance,
+)
+from ..io import Experiment
+from ..model import DAMPING, RobotProfile, get_family
 from .generalised_coordinates import embed, shift_operator, taylor_step, white_sensor_precision
 from .kalman_filters import StateEstimate
 from .lti import lti_outputs
@@ -444,7 +445,7 @@ def generalised_filter(
     >>> runs = [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed) for seed in (1, 2)]
     >>> posterior = bj.sample(runs[:1], family="gaussian", channels=["yaw"], max_steps=20, seed=1)
     >>> prior = bj.export_prior(posterior, order=2)
-    >>> estimate = bj.generalised_filter(runs[1], prior)["yaw"]
+    >>> estimate = bj.filters.generalised_filter(runs[1], prior)["yaw"]
     >>> def rmse(x):
     ...     return float(np.sqrt(np.mean((x - runs[1].truth_arrays["yaw_state"]) ** 2)))
     >>> estimate.derivatives.shape[1], rmse(estimate.mean) < rmse(runs[1].yaw_rate)

@@ -26,7 +26,7 @@ import math
 import numpy as np
 import scipy.special
 
-from .._runtime.errors import InputError
+from .._runtime import InputError
 
 __all__ = [
     "embed",

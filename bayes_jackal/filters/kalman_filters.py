@@ -37,10 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._runtime.errors import DataError
-from ..dem.prior import ActiveInferencePrior
-from ..io.experiment import Experiment
-from ..model.robot import RobotProfile
+from .._runtime import DataError
+from ..dem import ActiveInferencePrior
+from ..io import Experiment
+from ..model import RobotProfile
 from .lti import lti_outputs
 from .state_space import ChannelModel, check_prior, filter_models, measured_series
 

@@ -34,8 +34,8 @@ generalised Pareto fit whose shape k-hat says whether they can be trusted:
   reach (typical of few runs: of two, each is half the data), and a few
   draws would carry the weights. That run's posterior is refit on the
   other runs as before (:func:`bayes_jackal.inference.compare_groups`),
-  and ``say``, its record (``method``, ``pareto_k``, ``refit_reason``) and
-  the report say so and why.
+  and its message (the ``bayes_jackal.filters`` logger), its record
+  (``method``, ``pareto_k``, ``refit_reason``) and the report say so and why.
 
 Without ``pooled`` every run is refit. With noise per run the left-out
 run's own noise parameters, which the other runs do not inform, are
@@ -73,25 +73,26 @@ whose posterior or prior fails, or where no filter runs, is named in
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.errors import DataError, describe
-from .._runtime.files import write_json
-from ..dem.export import export_prior, write_prior
-from ..inference.chains import SamplerSettings
-from ..inference.comparison import compare_groups
-from ..inference.executors import Executor
-from ..inference.sampler_warnings import keep_warnings
-from ..io.experiment import Experiment
-from ..likelihood.residual_likelihood import LikelihoodOptions
-from ..model.robot import RobotProfile
-from ..posterior.posterior import Posterior, load_posterior, save_posterior
-from ..posterior.reweighting import PARETO_K_THRESHOLD, PooledPosterior
+from .._runtime import DataError, az, describe, write_json
+from ..dem import export_prior, write_prior
+from ..inference import Executor, SamplerSettings, compare_groups, keep_warnings
+from ..io import Experiment
+from ..likelihood import LikelihoodOptions
+from ..model import RobotProfile
+from ..posterior import (
+    PARETO_K_THRESHOLD,
+    PooledPosterior,
+    Posterior,
+    load_posterior,
+    save_posterior,
+)
 from .kalman_filters import StateEstimate
 from .state_estimation import (
     FILTERS,
@@ -102,6 +103,9 @@ from .state_estimation import (
 )
 
 __all__ = ["FOLDER", "METHODS", "SUMMARY", "LeaveOneOut", "leave_one_out", "method_text"]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 #: The folder of the left-out runs' files, in the analysis folder.
 FOLDER = "state_estimation"
@@ -272,7 +276,6 @@ def leave_one_out(
     likelihood_options: LikelihoodOptions | None = None,
     executor: Executor | None = None,
     filters: Sequence[str] = FILTERS,
-    say: Callable[[str], None] = lambda text: None,
 ) -> LeaveOneOut:
     """Each run's filters, driven by the prior of ``family`` given the other runs.
 
@@ -305,9 +308,6 @@ def leave_one_out(
         position); None: fresh entropy.
     filters : sequence of str
         Names from :data:`bayes_jackal.FILTERS`.
-    say : callable
-        Receives a line per run done, refit or failed (and which posteriors
-        are reused).
 
     Returns
     -------
@@ -368,20 +368,20 @@ def leave_one_out(
     if pooled is not None:  # checked before anything is written
         draws = PooledPosterior(pooled, experiments, robot, family, options, prior_overrides,
                                 source)  # fmt: skip
-        say(
+        _log.info(
             f"state estimation with the {family} prior, each of the {len(order)} runs left out "
             f"in turn: the pooled posterior's {draws.count} draws reweighted by PSIS, refit "
             f"where Pareto k-hat > {PARETO_K_THRESHOLD}:"
         )
     else:
-        say(
+        _log.info(
             f"state estimation with the {family} prior, each of the {len(order)} runs left out "
             f"in turn ({len(order)} more posteriors):"
         )
 
     def failed(name: str, exc: Exception) -> None:
         result.failed[name] = describe(exc, f"leaving out {name}")
-        say(f"  leaving out {name} failed: {result.failed[name]}")
+        _log.info(f"  leaving out {name} failed: {result.failed[name]}")
 
     def done(name: str, idata, fields: dict, warnings: list[str]) -> None:
         record, estimates = _estimate(by_name[name], idata, robot, folder, filters,
@@ -391,7 +391,7 @@ def leave_one_out(
             f"; {filter_name} could not run: {reason}"
             for filter_name, reason in record["filters_failed"].items()
         )
-        say(
+        _log.info(
             f"  leaving out {name}: {method_text(result.runs[name])}; prior from "
             f"{', '.join(record['trained_on'])}; wrote {record['files']['estimates']}{refused}"
         )
@@ -405,12 +405,14 @@ def leave_one_out(
         saved = _reweighting(path)
         if task is not None and saved is not None and saved[1].get("task") == task:
             idata, stored = saved
-            say(f"  leaving out {name}: reusing the PSIS reweighting in {path}")
+            _log.info(f"  leaving out {name}: reusing the PSIS reweighting in {path}")
         else:
             weights = draws.weights(by_name[name])
             if weights.weights is None:
                 refits[name] = weights.fields("refit")
-                say(f"  leaving out {name}: {weights.reason}; refitting it on the other runs")
+                _log.info(
+                    f"  leaving out {name}: {weights.reason}; refitting it on the other runs"
+                )
                 return
             stored = weights.fields("psis") | {
                 "of": source,
@@ -430,7 +432,9 @@ def leave_one_out(
             if _reweighting(posteriors[name]) is None:
                 reuse[name] = {family: posteriors[name]}
             else:  # made from another pooled posterior, whose k-hat was lower
-                say(f"  leaving out {name}: replacing the PSIS reweighting in {posteriors[name]}")
+                _log.info(
+                    f"  leaving out {name}: replacing the PSIS reweighting in {posteriors[name]}"
+                )
 
         def save(name: str, _family: str, _evidence, idata) -> None:
             save_posterior(idata, posteriors[name])
@@ -447,7 +451,6 @@ def leave_one_out(
             reuse=reuse,
             on_family=save,
             on_failure=failed,
-            say=say,
         ):
             try:
                 done(name, comparison.posteriors[family], refits[name],

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from .._runtime.errors import InputError
+from .._runtime import InputError
 
 __all__ = ["lti_outputs", "matrix_powers"]
 

@@ -54,23 +54,23 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
-from .._runtime.defaults import FILTERS, LOOKAHEAD, SENSOR_PRECISIONS
-from .._runtime.errors import InputError
-from .._runtime.files import atomic_path
-from ..dem.prior import ActiveInferencePrior
-from ..io.experiment import CHANNEL_FIELDS, Experiment
-from ..model.robot import RobotProfile
+from .._runtime import FILTERS, LOOKAHEAD, SENSOR_PRECISIONS, InputError, atomic_path
+from ..dem import ActiveInferencePrior
+from ..io import CHANNEL_FIELDS, Experiment
+from ..model import RobotProfile
 from .generalised import generalised_filter
 from .kalman_filters import KALMAN_FILTERS, StateEstimate, kalman_filter
 from .state_space import check_prior
 
 __all__ = [
     "DERIVED",
+    "FILTER_INEXACT",
     "NIS_DRAWS",
     "NIS_PROBABILITY",
     "estimate_columns",
     "estimate_each",
     "estimate_states",
+    "inexact_note",
     "nis_band",
     "score_estimates",
     "score_rows",
@@ -548,7 +548,7 @@ def estimate_columns(
     >>> from bayes_jackal.filters import StateEstimate
     >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, "v2", rng=1)
     >>> estimate = StateEstimate(*np.zeros((4, len(run.t))), steady_from=0)
-    >>> list(bj.estimate_columns(run, {"kalman": {"yaw": estimate, "vx": estimate}}))
+    >>> list(bj.filters.estimate_columns(run, {"kalman": {"yaw": estimate, "vx": estimate}}))
     ['t', 'kalman.yaw_rate', 'kalman.vx']
     """
     columns = {"t": experiment.t}

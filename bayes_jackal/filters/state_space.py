@@ -67,17 +67,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .._runtime.defaults import CHANNELS, FILTER_PARAMETERS, SENSOR, SENSOR_MODELS
-from .._runtime.errors import InputError
-from ..dem.prior import ActiveInferencePrior
-from ..dem.prior_fields import prior_field, prior_layout
-from ..io.experiment import Experiment
-from ..io.pose_increments import body_displacement, tick_poses
-from ..model.kernels import Family, get_family
-from ..model.parameters import DAMPING
-from ..model.physics import step_integrals
-from ..model.robot import RobotProfile, load_profile
-from ..posterior.file_format import ROBOT_CONSTANTS
+from .._runtime import CHANNELS, FILTER_PARAMETERS, SENSOR, SENSOR_MODELS, InputError
+from ..dem import ActiveInferencePrior, prior_field, prior_layout
+from ..io import Experiment, body_displacement, tick_poses
+from ..model import DAMPING, Family, RobotProfile, get_family, load_profile, step_integrals
+from ..posterior import ROBOT_CONSTANTS
 
 __all__ = [
     "NOISE_MODELS",

@@ -18,6 +18,7 @@ fingerprint resumes where it stopped. The posteriors of the robot model
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import warnings
 from collections.abc import Callable
@@ -30,21 +31,26 @@ import numpy as np
 import scipy.fft
 import xarray as xr
 
-from .._runtime import interrupt
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import (
+from .._runtime import (
     AUTOCORR_MULTIPLE,
     BRIDGE_MIN_DRAWS,
     MAX_STEPS,
     MIN_ESS,
     MIN_EVIDENCE_STEPS,
     WALKERS,
+    InputError,
+    OutputError,
+    OutputLock,
+    Phase,
+    Progress,
+    atomic_path,
+    az,
+    check_interrupt,
+    check_space,
+    interrupts_deferred,
+    one_blas_thread,
+    refuse_link,
 )
-from .._runtime.errors import InputError, OutputError
-from .._runtime.files import atomic_path, check_space
-from .._runtime.output_safety import OutputLock, refuse_link
-from .._runtime.progress import Phase, Progress
-from .._runtime.threads import one_blas_thread
 from .moves import (
     Approximation,
     BlockT,
@@ -64,6 +70,9 @@ __all__ = [
     "effective_sizes",
     "run_chain",
 ]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 #: A mixture approximation's fields, each a dataset ``mixture_<field>`` of a chain file.
 MIXTURE_FIELDS = ("weights", "centres", "covariances")
@@ -485,7 +494,7 @@ def _run_until_converged(
     """Advance the chain until the stopping rule holds or the cap is reached.
 
     Returns what the chain still lacks (None once the rule holds) and tau.
-    emcee steps inside :func:`bayes_jackal._runtime.interrupt.deferred` (its catch-all
+    emcee steps inside :func:`bayes_jackal._runtime.interrupt.interrupts_deferred` (its catch-all
     handlers must not see an interrupt); a signal stops the run between steps.
     """
     converged = _replay(sampler, settings, names)
@@ -499,10 +508,10 @@ def _run_until_converged(
                 position=settings.progress_line,
                 initial=sampler.iteration,
             ) as progress,
-            interrupt.deferred(),
+            interrupts_deferred(),
         ):
             for _ in sampler.sample(start, iterations=remaining):
-                interrupt.check()
+                check_interrupt()
                 progress.update()
                 if sampler.iteration % settings.check_every:
                     continue
@@ -560,7 +569,6 @@ def run_chain(
     seed: int | list[int] | None,
     fingerprint: str = "",
     chain_file: str | Path | None = None,
-    say: Callable[[str], None] | None = None,
 ) -> Chain:
     """Run emcee on a log-posterior until it converges (module docstring) or hits the cap.
 
@@ -584,8 +592,6 @@ def run_chain(
         (needed with a ``chain_file``).
     chain_file : str or Path, optional
         HDF5 file of the chain; a run with the same file and fingerprint resumes.
-    say : callable, optional
-        Told "resuming <chain_file> at step N" when a stored chain resumes.
 
     Returns
     -------
@@ -646,8 +652,7 @@ def run_chain(
         else:
             start = backend.get_last_sample()
             approximation, groups, joint = _stored_approximation(backend)
-            if say is not None:
-                say(f"resuming {chain_file} at step {backend.iteration}")
+            _log.info(f"resuming {chain_file} at step {backend.iteration}")
         sampler = emcee.EnsembleSampler(
             walkers,
             ndim,
@@ -662,7 +667,7 @@ def run_chain(
             shortfall, tau = _run_until_converged(sampler, start, settings, tuple(names))
         finally:
             if isinstance(backend, BufferedHDFBackend):
-                with interrupt.deferred():  # a batch is written whole or not at all
+                with interrupts_deferred():  # a batch is written whole or not at all
                     backend.flush()
         if shortfall is not None:
             warnings.warn(

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import warnings
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -31,8 +32,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import (
+from .._runtime import (
     DAMPING_MODEL,
     ENGINE,
     HDI_PROB,
@@ -41,17 +41,14 @@ from .._runtime.defaults import (
     SENSOR,
     STEADY,
     WALKERS,
+    DataError,
+    InputError,
+    az,
 )
-from .._runtime.errors import DataError, InputError
-from ..io.experiment import Experiment, as_experiments
-from ..likelihood.priors import LogPosterior, Prior
-from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
-from ..model.kernels import FAMILIES
-from ..model.robot import RobotProfile, as_profile
-from ..posterior.file_format import store_comparison
-from ..posterior.posterior import Posterior, load_posterior
-from ..posterior.records import Evidence
-from ..posterior.summary import interval, summarize
+from ..io import Experiment, as_experiments
+from ..likelihood import LikelihoodOptions, LogPosterior, Prior, ResidualLikelihood
+from ..model import FAMILIES, RobotProfile, as_profile
+from ..posterior import Evidence, Posterior, interval, load_posterior, store_comparison, summarize
 from .chains import SamplerSettings
 from .evidence import bridge_sampling, evidence_strength, nested_sampling
 from .executors import Executor, ProcessExecutor, SerialExecutor
@@ -66,7 +63,11 @@ __all__ = [
     "compare",
     "compare_families",
     "compare_groups",
+    "width_floor",
 ]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 K = TypeVar("K", bound=Hashable)
 
@@ -165,7 +166,7 @@ class _FamilyRun:
         metadata = Posterior.of(idata).metadata
         return family, metadata.evidence, idata, metadata.evidence_nested, kept or KeptWarnings()
 
-    def reuse(self, family: str, path: Path, say: Callable[[str], None]):
+    def reuse(self, family: str, path: Path):
         """The result saved in ``path`` when its task is this one's, else None (saying why)."""
         if not path.exists():
             return None
@@ -173,17 +174,19 @@ class _FamilyRun:
             idata = load_posterior(path)
             stored = Posterior.of(idata).metadata.task or {}
         except (DataError, ValueError) as exc:
-            say(f"  recomputing {family}: {exc}")
+            _log.info(f"  recomputing {family}: {exc}")
             return None
         if not stored:
-            say(f"  recomputing {family}: {path} holds no record of its settings")
+            _log.info(f"  recomputing {family}: {path} holds no record of its settings")
             return None
         task = self.task(family)
         differ = [part for part in task if stored.get(part) != task[part]]
         if differ:
-            say(f"  recomputing {family}: {path} was computed with other {', '.join(differ)}")
+            _log.info(
+                f"  recomputing {family}: {path} was computed with other {', '.join(differ)}"
+            )
             return None
-        say(f"  reusing {family} from {path}")
+        _log.info(f"  reusing {family} from {path}")
         return self._stored(family, idata)
 
 
@@ -222,7 +225,6 @@ def compare_groups(
     reuse: Mapping[K, Mapping[str, str | Path]] | None = None,
     on_family: Callable[[K, str, Evidence, az.InferenceData], None] | None = None,
     on_failure: Callable[[K, Exception], None] | None = None,
-    say: Callable[[str], None] = lambda text: None,
 ) -> Iterator[tuple[K, Comparison]]:
     """Compare the families on several independent groups of experiments, all jobs at once.
 
@@ -270,8 +272,6 @@ def compare_groups(
         ``on_family`` does): the group is not yielded and the others go on.
         Without it the exception propagates and the jobs still pending
         are stopped.
-    say : callable
-        Told which families are reused, and why others are recomputed.
 
     Yields
     ------
@@ -332,7 +332,7 @@ def compare_groups(
         )
         for key, group in groups.items()
     }
-    return _comparisons(runs, tuple(families), executor, reuse or {}, on_family, on_failure, say)
+    return _comparisons(runs, tuple(families), executor, reuse or {}, on_family, on_failure)
 
 
 def _comparisons(
@@ -342,7 +342,6 @@ def _comparisons(
     reuse: Mapping[K, Mapping[str, str | Path]],
     on_family: Callable[[K, str, Evidence, az.InferenceData], None] | None,
     on_failure: Callable[[K, Exception], None] | None,
-    say: Callable[[str], None],
 ) -> Iterator[tuple[K, Comparison]]:
     """The generator of :func:`compare_groups` (its arguments checked)."""
     done: dict[K, dict[str, list]] = {
@@ -360,7 +359,7 @@ def _comparisons(
         paths = reuse.get(key, {})
         try:
             for family in families:
-                reused = run.reuse(family, Path(paths[family]), say) if family in paths else None
+                reused = run.reuse(family, Path(paths[family])) if family in paths else None
                 if reused is not None:
                     done[key][family] = reused[1:]
         except Exception as exc:  # e.g. a channel its data lack
@@ -426,7 +425,6 @@ def compare_families(
     cross_check: bool = False,
     processes: int = 1,
     reuse: Mapping[str, str | Path] | None = None,
-    say: Callable[[str], None] = lambda text: None,
     *,
     executor: Executor | None = None,
     likelihood_options: LikelihoodOptions | None = None,
@@ -466,8 +464,6 @@ def compare_families(
         sampler settings but the display, seed, cross-check) equals this
         one's is read back, not recomputed, and ``on_family`` is not
         called for it.
-    say : callable
-        Told which families are reused, and why others are recomputed.
     executor : Executor, optional
         Where the families run, one job each
         (:mod:`bayes_jackal.inference.executors`), e.g. ``DaskExecutor("tcp://host:8786")``
@@ -517,7 +513,6 @@ def compare_families(
         executor=executor or ProcessExecutor(processes),
         reuse=None if reuse is None else {0: reuse},
         on_family=None if on_family is None else lambda _, *finished: on_family(*finished),
-        say=say,
     )
     return comparison
 

@@ -27,11 +27,9 @@ import scipy.fft
 import scipy.special
 import scipy.stats
 
-from .._runtime.defaults import BRIDGE_MIN_DRAWS
-from .._runtime.errors import InputError
-from .._runtime.rng import as_rng
-from ..likelihood.priors import Prior
-from ..posterior.records import Evidence
+from .._runtime import BRIDGE_MIN_DRAWS, InputError, as_rng
+from ..likelihood import Prior
+from ..posterior import Evidence
 
 __all__ = ["bridge_sampling", "evidence_strength", "integrated_time", "nested_sampling"]
 

@@ -24,6 +24,7 @@ import asyncio
 import concurrent.futures
 import contextlib
 import functools
+import logging
 import multiprocessing
 import subprocess
 import sys
@@ -35,8 +36,13 @@ from typing import Any, TypeVar
 
 import threadpoolctl
 
-from .._runtime import interrupt
-from .._runtime.errors import InputError
+from .._runtime import (
+    InputError,
+    install_handlers,
+    interrupts_blocked,
+    quiet_worker,
+    worker_handlers,
+)
 
 __all__ = [
     "DaskExecutor",
@@ -81,15 +87,21 @@ def _worker_context() -> multiprocessing.context.BaseContext:
     return context
 
 
-def _start_worker(single_threaded: bool) -> None:
-    """A worker's initializer: quiet on signals and, with ``single_threaded``, one BLAS thread.
+def _start_worker(single_threaded: bool, handlers: list[logging.Handler]) -> None:
+    """A worker's initializer: quiet on signals, the parent's message handlers and,
+    with ``single_threaded``, one BLAS thread.
+
+    The handlers are those printing the package's messages in the parent
+    (:func:`bayes_jackal._runtime.worker_handlers`, the CLI's): a worker's
+    "sampling ..." line is printed as the parent's would be.
 
     A process per core with threaded BLAS in each oversubscribes the cores:
     five families on 2 cores took 85 s that way and 48 s with one thread
     each. (The demo's two families, one 4x slower, took 74 s threaded and
     83 s not.)
     """
-    interrupt.quiet_worker()
+    quiet_worker()
+    install_handlers(handlers)
     if single_threaded:
         threadpoolctl.threadpool_limits(limits=1)
 
@@ -128,10 +140,13 @@ def in_processes(
     context = _worker_context()
     before = set(multiprocessing.active_children())
     with concurrent.futures.ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_start_worker, initargs=(single_threaded,)
+        workers,
+        mp_context=context,
+        initializer=_start_worker,
+        initargs=(single_threaded, worker_handlers()),
     ) as pool:
         try:
-            with interrupt.blocked():  # a signal waits until the workers handle it
+            with interrupts_blocked():  # a signal waits until the workers handle it
                 futures = [pool.submit(work, job) for job in jobs]
             yield (future.result() for future in concurrent.futures.as_completed(futures))
         except BaseException:

@@ -44,10 +44,7 @@ import numpy as np
 import scipy.special
 import scipy.stats
 
-from .._runtime.chunks import chunks
-from .._runtime.defaults import HDI_PROB
-from .._runtime.errors import InputError
-from .._runtime.rng import as_rng
+from .._runtime import HDI_PROB, InputError, as_rng, chunks
 
 __all__ = [
     "DAMPING_NAMES",

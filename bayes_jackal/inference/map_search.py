@@ -18,9 +18,8 @@ import numpy as np
 import scipy.optimize
 from scipy.special import logsumexp
 
-from .._runtime.errors import InputError
-from .._runtime.threads import one_blas_thread
-from ..likelihood.priors import LogPosterior, Prior
+from .._runtime import InputError, one_blas_thread
+from ..likelihood import LogPosterior, Prior
 from ._lockstep import lockstep_maxima, negative_with_gradient
 from .moves import (
     JOINT_SHARE,

@@ -16,15 +16,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from .._runtime import interrupt
-from .._runtime.defaults import (
+from .._runtime import (
     DAMPING_MODEL,
     ENGINE,
     FAMILY,
@@ -33,18 +33,20 @@ from .._runtime.defaults import (
     SENSOR,
     STEADY,
     WALKERS,
+    check_interrupt,
 )
-from ..io.experiment import Experiment, as_experiments
-from ..io.pose_track import POSE_FIELDS
-from ..likelihood.priors import LogPosterior, Prior
-from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
-from ..model.robot import RobotProfile, as_profile
-from ..posterior.posterior import Posterior, build_inference_data
+from ..io import POSE_FIELDS, Experiment, as_experiments
+from ..likelihood import LikelihoodOptions, LogPosterior, Prior, ResidualLikelihood
+from ..model import RobotProfile, as_profile
+from ..posterior import Posterior, build_inference_data
 from .chains import SamplerSettings, run_chain
 from .map_search import damping_design, find_map, laplace_walkers
 from .moves import Start
 
 __all__ = ["run_identity", "sample", "sample_posterior"]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 
 #: Robot fields that do not change a chain: names and where the profile came from.
@@ -120,8 +122,6 @@ def sample_posterior(
     seed: int | None = None,
     chain_file: str | Path | None = None,
     prior_overrides: dict | None = None,
-    *,
-    say: Callable[[str], None] | None = None,
 ) -> Posterior:
     """Sample the posterior of a residual likelihood with emcee.
 
@@ -136,9 +136,6 @@ def sample_posterior(
         HDF5 file of the chain; a run with the same file and settings resumes.
     prior_overrides : dict, optional
         (low, high) per base parameter name, over the profile's ranges.
-    say : callable, optional
-        Told of each phase: the MAP search as it starts and how long it took,
-        and "resuming <chain_file> at step N" when a stored chain resumes.
 
     Returns
     -------
@@ -170,15 +167,16 @@ def sample_posterior(
     log_posterior = LogPosterior(likelihood, prior)
 
     def initial(rng: np.random.Generator, walkers: int) -> Start:
-        tell = say or (lambda text: None)
         started = time.perf_counter()
-        tell(
+        _log.info(
             f"MAP search: the profile likelihood of each noise group on "
             f"{damping_design(settings.design_points)} damping points, then local searches"
         )
         centre = find_map(log_posterior, rng, settings.design_points)
-        interrupt.check()  # a signal swallowed in the search (scipy's Cython code)
-        tell(f"MAP found in {time.perf_counter() - started:.0f} s; the walkers start around it")
+        check_interrupt()  # a signal swallowed in the search (scipy's Cython code)
+        _log.info(
+            f"MAP found in {time.perf_counter() - started:.0f} s; the walkers start around it"
+        )
         return laplace_walkers(log_posterior, centre, walkers, rng)
 
     chain = run_chain(
@@ -188,7 +186,6 @@ def sample_posterior(
         seed=seed,
         fingerprint=_fingerprint(likelihood, prior, settings.n_walkers(len(prior.names)), seed),
         chain_file=chain_file,
-        say=say,
     )
     return build_inference_data(
         likelihood, prior, chain.samples, chain.log_prob, chain.diagnostics

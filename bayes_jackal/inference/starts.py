@@ -54,13 +54,15 @@ import numpy as np
 import scipy.fft
 import scipy.stats
 
-from ..likelihood.measurements import MEASUREMENT_MODELS
-from ..likelihood.residual_likelihood import ResidualLikelihood
-from ..likelihood.series_likelihood import SeriesLikelihood
-from ..likelihood.spectral import ResidualBlock
-from ..likelihood.whittle import expected_periodogram, frequency_weights
-from ..model.kernels import Family, get_family
-from ..model.parameters import SPEED_RATIOS
+from ..likelihood import (
+    MEASUREMENT_MODELS,
+    ResidualBlock,
+    ResidualLikelihood,
+    SeriesLikelihood,
+    expected_periodogram,
+    frequency_weights,
+)
+from ..model import SPEED_RATIOS, Family, get_family
 
 __all__ = ["profile_starts", "series_profile"]
 

@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._runtime.defaults import (
+from .._runtime import (
     MAX_GAP_STEPS,
     OPTIONAL,
     POSE_ROLES,
@@ -65,10 +65,10 @@ from .._runtime.defaults import (
     VELOCITIES,
     VELOCITY_COMMAND,
     WHEEL_COMMAND,
+    DataError,
+    InputError,
 )
-from .._runtime.errors import DataError, InputError
-from ..model.physics import wheel_speeds
-from ..model.robot import RobotProfile, as_profile
+from ..model import RobotProfile, as_profile, wheel_speeds
 from .experiment import Experiment, check_values
 from .held import HeldChannel, held_channel
 from .pose_track import PoseTrack, body_velocities

@@ -25,8 +25,7 @@ from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
-from .._runtime.defaults import BAG_FORMATS
-from .._runtime.errors import DataError, InputError
+from .._runtime import BAG_FORMATS, DataError, InputError
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

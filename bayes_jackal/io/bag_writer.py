@@ -26,12 +26,8 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from scipy.integrate import cumulative_trapezoid
 
-from .._runtime.defaults import CHANNELS, POSE_NOISE
-from .._runtime.errors import InputError
-from .._runtime.files import atomic_path
-from .._runtime.rng import as_rng
-from ..model.physics import continuous_matrices, step_integrals
-from ..model.robot import RobotProfile
+from .._runtime import CHANNELS, POSE_NOISE, InputError, as_rng, atomic_path
+from ..model import RobotProfile, continuous_matrices, step_integrals
 from .bag_reading import typestore
 from .experiment import Experiment
 from .simulate import Series, command_profile

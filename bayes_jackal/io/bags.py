@@ -78,12 +78,8 @@ from pathlib import Path
 import numpy as np
 from rosbags.highlevel import AnyReader
 
-from .._runtime.defaults import MAX_GAP
-from .._runtime.errors import DataError, InputError
-from .._runtime.files import file_sha256, require_file
-from .._runtime.progress import Progress
-from ..model.physics import wheel_speeds
-from ..model.robot import RobotProfile
+from .._runtime import MAX_GAP, DataError, InputError, Progress, file_sha256, require_file
+from ..model import RobotProfile, wheel_speeds
 from .bag_reading import READ_ERRORS, bag_format, header_stamp, open_bag, receive_time_for_zero
 from .experiment import Experiment, detect_steady
 from .pose_track import SMOOTHING_ORDER, SMOOTHING_WINDOW, PoseTrack, body_velocities

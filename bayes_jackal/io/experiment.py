@@ -33,21 +33,25 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import uniform_filter1d
 
-from .._runtime.defaults import CHANNELS, OPTIONAL, REQUIRED
-from .._runtime.errors import DataError
-from .._runtime.files import require_file, write_hdf5
+from .._runtime import CHANNELS, OPTIONAL, REQUIRED, DataError, require_file, write_hdf5
 from .pose_track import POSE_FIELDS, POSITION_LIMIT, PoseTrack
 from .stamps import MIN_SAMPLES, UNIFORM_TOLERANCE, longest_run
 
 __all__ = [
+    "CHANNEL_FIELDS",
+    "MEASURED_PREFIX",
     "MEASUREMENTS",
+    "RATE_FIELDS",
     "STEADY_INPUT_TOLERANCE",
     "STEADY_MIN_DURATION",
     "STEADY_SMOOTHING",
     "STEADY_YAW_FLOOR",
     "STEADY_YAW_TOLERANCE",
+    "UNITS",
+    "UNLABELLED",
     "Experiment",
     "as_experiments",
+    "check_finite",
     "check_values",
     "detect_steady",
     "numeric_array",

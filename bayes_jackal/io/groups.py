@@ -18,8 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._runtime.errors import InputError
-from .._runtime.files import require_file
+from .._runtime import InputError, require_file
 from .experiment import Experiment
 
 __all__ = ["RunGroups", "as_run_groups", "group_runs", "read_groups", "run_group"]

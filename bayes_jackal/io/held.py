@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._runtime.errors import DataError
+from .._runtime import DataError
 from .stamps import GRID, PLAUSIBLE_RATES, UNIFORM, uniform_clock
 
 __all__ = [

@@ -10,14 +10,14 @@ file: ``.csv``, ``.mat``, ``.nc``); :func:`read_logs` and
 from __future__ import annotations
 
 import dataclasses
+import logging
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._runtime.defaults import VELOCITIES
-from .._runtime.errors import DataError, describe, each_input, refuse
-from ..model.robot import RobotProfile, as_profile
+from .._runtime import VELOCITIES, DataError, describe, each_input, refuse
+from ..model import RobotProfile, as_profile
 from .bag_reading import bag_format
 from .bags import read_bag
 from .experiment import Experiment, write_netcdf
@@ -30,6 +30,9 @@ from .tables import (
 )
 
 __all__ = ["ReadOptions", "ingest_logs", "load_experiments", "read_log", "read_logs"]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 
 @dataclass(frozen=True)
@@ -144,13 +147,12 @@ def ingest_logs(
     read_options: ReadOptions | None = None,
     progress: bool = False,
     labels: Mapping[str, Mapping] | None = None,
-    say: Callable[[str], None] = lambda text: None,
 ) -> tuple[list[Experiment], dict[str, str]]:
     """Read every input, write each as ``folder/<name>.nc``; keep going past bad ones.
 
     Two inputs of one experiment name are both kept: the later one is
     written as ``<name>-2.nc`` (``-3``...), named so, with ``renamed_from``
-    in its provenance, and ``say`` tells.
+    in its provenance, and the ``bayes_jackal.io`` logger tells.
 
     Parameters
     ----------
@@ -168,8 +170,6 @@ def ingest_logs(
     labels : mapping, optional
         Per input path (as given), Experiment fields to set, e.g. ``series``
         and ``truth`` of a simulated run.
-    say : callable
-        Receives one line per input.
 
     Returns
     -------
@@ -214,7 +214,7 @@ def ingest_logs(
         experiment = dataclasses.replace(experiment, **(labels or {}).get(str(given), {}))
         if name != experiment.name:  # two inputs of one name: both kept, the second renamed
             taken = owners[experiment.name]
-            say(f"  {given}: its name {experiment.name} is {taken}'s; ingested as {name}")
+            _log.info(f"  {given}: its name {experiment.name} is {taken}'s; ingested as {name}")
             provenance = {**experiment.provenance, "renamed_from": experiment.name}
             experiment = dataclasses.replace(experiment, name=name, provenance=provenance)
         owners[experiment.name] = str(given)
@@ -224,7 +224,7 @@ def ingest_logs(
             if experiment.steady_window
             else "none (whole run)"
         )
-        say(
+        _log.info(
             f"  ingested {given}: {len(experiment.t)} samples at {1 / experiment.dt:.1f} Hz, "
             f"channels {', '.join(experiment.channels)}, steady window {window_text}"
         )
@@ -232,7 +232,7 @@ def ingest_logs(
 
     # one bad input does not lose the others
     ingested, failed = each_input(
-        paths, ingest, on_failure=lambda given, exc: say(f"  skipped {describe(exc, given)}")
+        paths, ingest, on_failure=lambda given, exc: _log.info(f"  skipped {describe(exc, given)}")
     )
     return list(ingested.values()), failed
 

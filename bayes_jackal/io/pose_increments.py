@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._runtime.errors import DataError
+from .._runtime import DataError
 from .experiment import POSE_CHANNELS, Experiment
 from .pose_track import PoseTrack
 

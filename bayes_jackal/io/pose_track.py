@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_filter
 
-from .._runtime.errors import DataError
+from .._runtime import DataError
 
 __all__ = [
     "POSE_FIELDS",

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .._runtime.errors import DataError
+from .._runtime import DataError
 
 __all__ = ["MIN_HOLD", "STEP_TOLERANCE", "command_segments", "label_segments"]
 

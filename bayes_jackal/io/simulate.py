@@ -14,12 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._runtime.defaults import CHANNELS, FAMILY, SIMULATED_NOISE
-from .._runtime.errors import InputError
-from .._runtime.rng import as_rng
-from ..model.kernels import get_family
-from ..model.physics import simulate, wheel_speeds
-from ..model.robot import RobotProfile
+from .._runtime import CHANNELS, FAMILY, SIMULATED_NOISE, InputError, as_rng
+from ..model import RobotProfile, get_family, simulate, wheel_speeds
 from .experiment import Experiment
 
 __all__ = [

@@ -23,9 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._runtime.defaults import MAX_GAP_STEPS
-from .._runtime.errors import DataError
-from .._runtime.validation import positive_number
+from .._runtime import MAX_GAP_STEPS, DataError, positive_number
 
 __all__ = [
     "GRID",

@@ -3,7 +3,7 @@
 Also :func:`load_experiment(s) <load_experiment>`, which reads any experiment
 file by its suffix (the NetCDF experiment file lives in
 :mod:`bayes_jackal.io.experiment`, the MATLAB container in
-:mod:`bayes_jackal.io._matlab`).
+:mod:`bayes_jackal.io.matlab`).
 
 CSV format: a header naming the columns ``t, yaw_rate, omega_r, omega_l`` and
 optionally ``vx, vy``, the motion-capture pose ``x, y, heading`` (with
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime.defaults import (
+from .._runtime import (
     OPTIONAL,
     POSE_ROLES,
     POSE_TIME,
@@ -46,14 +46,16 @@ from .._runtime.defaults import (
     VELOCITIES,
     VELOCITY_COMMAND,
     WHEEL_COMMAND,
+    DataError,
+    InputError,
+    atomic_path,
+    positive_number,
+    require_file,
 )
-from .._runtime.errors import DataError, InputError
-from .._runtime.files import atomic_path, require_file
-from .._runtime.validation import positive_number
-from ..model.robot import RobotProfile
-from ._matlab import mat_arrays, mat_vector
+from ..model import RobotProfile
 from ._table_streams import GROUPS, TableStream, table_experiment
 from .experiment import Experiment, read_netcdf
+from .matlab import mat_arrays, mat_vector
 from .stamps import PLAUSIBLE_RATES, UNIFORM_TOLERANCE
 
 __all__ = [
@@ -62,6 +64,7 @@ __all__ = [
     "check_columns_apply",
     "check_declared_rate",
     "check_sample_time",
+    "check_stamp_rate",
     "check_unique_names",
     "load_experiment",
     "numeric_column",

@@ -79,10 +79,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .._runtime.chunks import chunks
-from .._runtime.errors import InputError
-from ..model.kernels import Family
-from ..model.physics import step_integrals
+from .._runtime import InputError, chunks
+from ..model import Family, step_integrals
 from .toeplitz import banded_loglike
 
 __all__ = ["IrregularSeries", "irregular_loglike", "irregular_residuals", "pattern_coefficients"]

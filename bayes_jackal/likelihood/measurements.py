@@ -66,12 +66,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._runtime.errors import DataError
-from ..io.experiment import Experiment
-from ..io.pose_increments import PoseObservations, pose_observations
-from ..model.kernels import Family
-from ..model.physics import channel_coefficients, step_integrals
-from ..model.robot import RobotProfile
+from .._runtime import DataError
+from ..io import Experiment, PoseObservations, pose_observations
+from ..model import Family, RobotProfile, channel_coefficients, step_integrals
 from .irregular import pattern_coefficients
 
 __all__ = [

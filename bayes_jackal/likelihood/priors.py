@@ -20,14 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.stats
 
-from ..model.parameters import (
+from ..model import (
     SPEED_RATIO,
     SPEED_RATIO_PRIOR,
     ParameterLayout,
+    RobotProfile,
     prior_overrides,
     prior_range,
 )
-from ..model.robot import RobotProfile
 from .residual_likelihood import ResidualLikelihood
 
 __all__ = ["LogPosterior", "Prior"]

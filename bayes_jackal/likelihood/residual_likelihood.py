@@ -60,8 +60,7 @@ from functools import partial
 import numpy as np
 import scipy.fft
 
-from .._runtime.chunks import chunks
-from .._runtime.defaults import (
+from .._runtime import (
     DAMPING_MODEL,
     DAMPING_MODELS,
     DEFAULT_CHANNEL_ORDER,
@@ -74,15 +73,14 @@ from .._runtime.defaults import (
     SENSOR_MODELS,
     SHARED_NOISE,
     STEADY,
+    DataError,
+    InputError,
+    as_rng,
+    chunks,
+    one_blas_thread,
 )
-from .._runtime.errors import DataError, InputError
-from .._runtime.rng import as_rng
-from .._runtime.threads import one_blas_thread
-from ..io.experiment import Experiment
-from ..model.kernels import get_family
-from ..model.parameters import ParameterLayout
-from ..model.physics import channel_coefficients, step_integrals
-from ..model.robot import RobotProfile
+from ..io import Experiment
+from ..model import ParameterLayout, RobotProfile, channel_coefficients, get_family, step_integrals
 from . import spectral
 from .irregular import IrregularSeries, irregular_loglike
 from .measurements import MEASUREMENT_MODELS, Measurement, measurement_of

@@ -17,10 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._runtime.errors import DataError
-from ..io.experiment import CHANNEL_FIELDS, Experiment
-from ..model.physics import channel_coefficients
-from ..model.robot import RobotProfile
+from .._runtime import DataError
+from ..io import CHANNEL_FIELDS, Experiment
+from ..model import RobotProfile, channel_coefficients
 from .irregular import IrregularSeries, irregular_residuals
 from .measurements import measurement_of
 

@@ -69,12 +69,9 @@ from functools import cached_property, partial
 import numpy as np
 import scipy.linalg
 
-from .._runtime.chunks import chunks
-from .._runtime.defaults import FAMILY, SERIES_ENGINES
-from .._runtime.errors import DataError, InputError
-from .._runtime.validation import positive_number
-from ..io.experiment import check_finite, numeric_array
-from ..model.kernels import Exponential, Family, get_family
+from .._runtime import FAMILY, SERIES_ENGINES, DataError, InputError, chunks, positive_number
+from ..io import check_finite, numeric_array
+from ..model import Exponential, Family, get_family
 from .measurements import residual_autocovariance
 from .spectral import CHUNK_ELEMENTS, ResidualBlock, evaluate_on_grids, spectral_forms
 from .toeplitz import fallback_loglike, toeplitz_loglike

@@ -49,7 +49,7 @@ from functools import cached_property
 import numpy as np
 import scipy.fft
 
-from .._runtime.chunks import chunks
+from .._runtime import chunks
 from .whittle import cross_periodogram
 
 __all__ = [

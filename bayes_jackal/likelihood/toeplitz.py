@@ -34,7 +34,7 @@ import numpy as np
 import scipy.fft
 import scipy.linalg
 
-from ..model.kernels import bandwidth
+from ..model import bandwidth
 
 __all__ = [
     "FALLBACK_BAND",

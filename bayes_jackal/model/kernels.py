@@ -36,8 +36,7 @@ import scipy.fft
 import scipy.signal
 import scipy.special
 
-from .._runtime.errors import InputError
-from .._runtime.rng import as_rng
+from .._runtime import InputError, as_rng
 
 __all__ = [
     "FAMILIES",

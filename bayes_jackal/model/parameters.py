@@ -26,8 +26,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .._runtime.defaults import DAMPING_MODELS
-from .._runtime.errors import InputError
+from .._runtime import DAMPING_MODELS, InputError
 from .kernels import FAMILIES, Family, get_family
 from .robot import DEFAULT_PRIORS
 
@@ -35,6 +34,7 @@ __all__ = [
     "DAMPING",
     "POSE_SENSOR",
     "PRIOR_KEYS",
+    "RATE_SENSOR",
     "SHARED_GROUP",
     "SPEED_RATIO",
     "SPEED_RATIOS",

@@ -19,8 +19,7 @@ import scipy.fft
 import scipy.linalg
 import scipy.special
 
-from .._runtime.defaults import CHANNELS
-from .._runtime.errors import InputError
+from .._runtime import CHANNELS, InputError
 from .robot import RobotProfile
 
 __all__ = [

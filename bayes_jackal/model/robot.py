@@ -20,9 +20,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from .._runtime.defaults import CONVERSIONS, D_LAT, D_LONG
-from .._runtime.errors import InputError, ProfileError
-from .._runtime.files import require_file
+from .._runtime import CONVERSIONS, D_LAT, D_LONG, InputError, ProfileError, require_file
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -32,24 +32,26 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import HDI_PROB, NOISE_MAX_STEPS, SERIES_ENGINES
-from .._runtime.errors import InputError
-from ..inference.chains import SamplerSettings, run_chain
-from ..inference.comparison import colour_verdict, width_floor
-from ..inference.evidence import bridge_sampling
-from ..inference.executors import Executor, SerialExecutor
-from ..inference.map_search import climb, laplace_walkers, scan_posterior
-from ..inference.moves import Start
-from ..inference.sampler_warnings import keep_warnings
-from ..inference.starts import series_profile
-from ..likelihood.priors import LogPosterior, Prior
-from ..likelihood.series_likelihood import WHITE_SD, SeriesLikelihood
-from ..model.kernels import FAMILIES
-from ..model.parameters import WIDTH_PRIOR, prior_overrides, prior_range, width_keys
-from ..posterior.criticism import boundary_check
-from ..posterior.records import Evidence
-from ..thesis.acf_fit import acf_least_squares, thesis_fit
+from .._runtime import HDI_PROB, NOISE_MAX_STEPS, SERIES_ENGINES, InputError, az
+from ..inference import (
+    Executor,
+    SamplerSettings,
+    SerialExecutor,
+    Start,
+    bridge_sampling,
+    climb,
+    colour_verdict,
+    keep_warnings,
+    laplace_walkers,
+    run_chain,
+    scan_posterior,
+    series_profile,
+    width_floor,
+)
+from ..likelihood import WHITE_SD, LogPosterior, Prior, SeriesLikelihood
+from ..model import FAMILIES, WIDTH_PRIOR, prior_overrides, prior_range, width_keys
+from ..posterior import Evidence, boundary_check
+from ..thesis import acf_least_squares, thesis_fit
 from .series import NoiseSeries
 
 __all__ = [

@@ -52,18 +52,19 @@ from __future__ import annotations
 import numpy as np
 
 from .. import __version__
-from .._runtime.chunks import thinned_indices
-from .._runtime.errors import InputError
-from ..dem.consumer_keys import (
+from .._runtime import InputError, thinned_indices
+from ..dem import (
+    MAX_DRAWS,
     channel_moments,
+    checked_precision,
     gaussian_smoothness,
     generalised_precision,
     log_precision_moments,
     mean_covariance_precision,
+    temporal_covariance,
 )
-from ..dem.export import MAX_DRAWS, checked_precision, temporal_covariance
-from ..likelihood.series_likelihood import WHITE_SD
-from ..model.kernels import get_family
+from ..likelihood import WHITE_SD
+from ..model import get_family
 from .characterisation import FamilyFit, NoiseCharacterisation
 
 __all__ = ["NOISE_PRIOR_FORMAT", "export_noise_prior"]

@@ -8,7 +8,7 @@ inputs that experiments come in (docs/design.md §2):
   column named ``t`` or ``time`` (any case; another with ``time_column=``),
   or a declared ``rate`` [Hz] stands for them (sample k at k / rate).
 - MATLAB (``.mat``, v5/v7 or v7.3): numeric vectors, struct fields named
-  ``struct.field`` (:func:`bayes_jackal.io._matlab.mat_arrays`); the stamps as
+  ``struct.field`` (:func:`bayes_jackal.io.matlab.mat_arrays`); the stamps as
   in a CSV file, or a struct field so named (``log.t``).
 - ROS bags (``.bag``, ``.mcap``, ``.db3`` or a ROS2 bag directory, the one
   kind of directory read, known by its ``metadata.yaml``; read with
@@ -35,20 +35,23 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime.errors import DataError, InputError
-from .._runtime.files import file_sha256, require_file
-from ..io._matlab import mat_arrays, mat_vector
-from ..io.bag_reading import (
+from .._runtime import DataError, InputError, file_sha256, require_file
+from ..io import (
     BAG_SUFFIXES,
     bag_format,
+    check_declared_rate,
+    check_finite,
+    check_stamp_rate,
     header_stamp,
+    mat_arrays,
+    mat_vector,
+    numeric_column,
     open_bag,
+    read_csv_table,
     receive_time_for_zero,
+    uniform_clock,
 )
-from ..io.experiment import check_finite
-from ..io.stamps import uniform_clock
-from ..io.tables import check_declared_rate, check_stamp_rate, numeric_column, read_csv_table
-from ..likelihood.series_likelihood import check_length, check_series
+from ..likelihood import check_length, check_series
 
 __all__ = ["MIN_SERIES_SAMPLES", "ROS2_METADATA", "TIME_NAMES", "NoiseSeries", "read_noise_series"]
 

@@ -24,13 +24,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import HDI_PROB
-from .._runtime.rng import as_rng
-from ..io.experiment import Experiment
-from ..likelihood.priors import Prior
-from ..likelihood.residuals import channel_residuals
-from ..model.parameters import DAMPING
+from .._runtime import HDI_PROB, as_rng, az
+from ..io import Experiment
+from ..likelihood import Prior, channel_residuals
+from ..model import DAMPING
 from .criticism_inputs import (
     derived_velocities,
     input_noise,

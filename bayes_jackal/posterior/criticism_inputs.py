@@ -18,17 +18,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
-from .._runtime.arviz_quiet import az
-from ..io.experiment import (
-    CHANNEL_FIELDS,
-    STEADY_INPUT_TOLERANCE,
-    STEADY_YAW_TOLERANCE,
-    UNITS,
-    Experiment,
-)
-from ..likelihood.residuals import channel_residuals
-from ..model.parameters import RATE_SENSOR
-from ..model.physics import channel_coefficients
+from .._runtime import az
+from ..io import CHANNEL_FIELDS, STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, UNITS, Experiment
+from ..likelihood import channel_residuals
+from ..model import RATE_SENSOR, channel_coefficients
 from .criticism_statistics import (
     Check,
     cross_correlation,

@@ -19,9 +19,8 @@ import numpy as np
 import scipy.fft
 import scipy.stats
 
-from .._runtime.arviz_quiet import az
-from .._runtime.errors import InputError
-from ..io.experiment import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
+from .._runtime import InputError, az
+from ..io import STEADY_YAW_FLOOR, STEADY_YAW_TOLERANCE, steady_smoothing
 from .series_statistics import ljung_box, sample_autocorrelation
 
 __all__ = [

@@ -25,15 +25,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import __version__
-from .._runtime.defaults import CHANNELS, OPTIONAL, REQUIRED
-from .._runtime.errors import DataError, InputError
-from ..io.experiment import CHANNEL_FIELDS, MEASURED_PREFIX, RATE_FIELDS, Experiment
-from ..io.pose_track import POSE_FIELDS, PoseTrack
-from ..likelihood.priors import Prior
-from ..likelihood.residual_likelihood import ResidualLikelihood
-from ..likelihood.residuals import channel_residuals
-from ..model.parameters import ParameterLayout
-from ..model.robot import RobotProfile, load_profile
+from .._runtime import CHANNELS, OPTIONAL, REQUIRED, DataError, InputError
+from ..io import CHANNEL_FIELDS, MEASURED_PREFIX, POSE_FIELDS, RATE_FIELDS, Experiment, PoseTrack
+from ..likelihood import Prior, ResidualLikelihood, channel_residuals
+from ..model import ParameterLayout, RobotProfile, load_profile
 from .records import Convergence, Evidence, ExperimentRecord, PosteriorMetadata
 
 if TYPE_CHECKING:  # arviz is imported by bayes_jackal.posterior.posterior

@@ -19,18 +19,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.chunks import thinned_indices
-from .._runtime.defaults import CHANNELS, HDI_PROB
-from .._runtime.errors import DataError, InputError
-from .._runtime.files import require_file, write_hdf5
-from ..io.experiment import Experiment
-from ..likelihood.measurements import MEASUREMENT_MODELS
-from ..likelihood.residual_likelihood import ResidualLikelihood
-from ..model.kernels import get_family
-from ..model.parameters import DAMPING, ParameterLayout
-from ..model.physics import discrete_matrices
-from ..model.robot import RobotProfile
+from .._runtime import (
+    CHANNELS,
+    HDI_PROB,
+    DataError,
+    InputError,
+    az,
+    require_file,
+    thinned_indices,
+    write_hdf5,
+)
+from ..io import Experiment
+from ..likelihood import MEASUREMENT_MODELS, ResidualLikelihood
+from ..model import DAMPING, ParameterLayout, RobotProfile, discrete_matrices, get_family
 from .file_format import (
     experiment_arrays,
     experiment_data,

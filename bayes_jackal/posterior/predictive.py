@@ -19,11 +19,9 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.chunks import chunks
-from .._runtime.rng import as_rng
-from ..likelihood.residual_likelihood import sample_stationary
-from ..model.physics import simulate
+from .._runtime import as_rng, az, chunks
+from ..likelihood import sample_stationary
+from ..model import simulate
 from .file_format import observed_residuals
 from .posterior import Posterior, model_autocovariance
 from .records import PosteriorMetadata

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .._runtime.defaults import CHANNELS
-from ..likelihood.priors import Prior
-from ..model.parameters import ParameterLayout
-from ..model.robot import RobotProfile
+from .._runtime import CHANNELS
+from ..likelihood import Prior
+from ..model import ParameterLayout, RobotProfile
 
 __all__ = ["Convergence", "Evidence", "ExperimentRecord", "PosteriorMetadata"]
 

@@ -58,16 +58,10 @@ import numpy as np
 import scipy.linalg
 import scipy.special
 
-from .._runtime.arviz_quiet import az
-from .._runtime.chunks import chunks
-from .._runtime.defaults import REQUIRED
-from .._runtime.errors import InputError
-from ..io.experiment import Experiment
-from ..likelihood.priors import Prior
-from ..likelihood.residual_likelihood import LikelihoodOptions, ResidualLikelihood
-from ..likelihood.spectral import CHUNK_ELEMENTS
-from ..model.parameters import ParameterLayout
-from ..model.robot import RobotProfile
+from .._runtime import REQUIRED, InputError, az, chunks
+from ..io import Experiment
+from ..likelihood import CHUNK_ELEMENTS, LikelihoodOptions, Prior, ResidualLikelihood
+from ..model import ParameterLayout, RobotProfile
 from .file_format import experiment_arrays, store_reweighting
 from .posterior import Posterior, build_inference_data
 

@@ -16,8 +16,7 @@ import scipy.signal
 import scipy.special
 import scipy.stats
 
-from .._runtime.errors import InputError
-from .._runtime.validation import positive_number
+from .._runtime import InputError, positive_number
 
 __all__ = [
     "MATLAB_LEVEL",

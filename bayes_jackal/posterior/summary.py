@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
+from .._runtime import az
 from .criticism import criticise
 from .posterior import Posterior
 

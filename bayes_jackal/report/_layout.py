@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .._runtime.files import atomic_path
+from .._runtime import atomic_path
 
 #: Credible band drawn around posterior-predictive medians (the HDI mass).
 BAND = (3.0, 97.0)

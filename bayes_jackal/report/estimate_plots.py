@@ -14,9 +14,9 @@ from collections.abc import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from .._runtime.errors import InputError
-from ..filters.kalman_filters import StateEstimate
-from ..io.experiment import Experiment
+from .._runtime import InputError
+from ..filters import StateEstimate
+from ..io import Experiment
 from ._layout import DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS
 
 __all__ = ["SHOWN_SECONDS", "plot_state_estimates", "shown_window"]

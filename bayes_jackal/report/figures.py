@@ -10,21 +10,22 @@ from __future__ import annotations
 import base64
 import html
 import io
+import logging
 import re
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .._runtime.defaults import FIGURE_FORMATS
-from .._runtime.errors import InputError
-from .._runtime.files import atomic_path
-from .._runtime.progress import LOG_INTERVAL
+from .._runtime import FIGURE_FORMATS, LOG_INTERVAL, InputError, atomic_path
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = ["DPI", "ReportFigures", "slug"]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 #: Resolution of the embedded and saved PNGs [dots per inch].
 DPI = 130
@@ -65,10 +66,6 @@ class ReportFigures:
     formats : tuple of str
         Files to write per figure, from :data:`FIGURE_FORMATS`; the embedded
         PNG is rendered in any case.
-    say : callable, optional
-        Told how many figures are drawn, at most every
-        :data:`~bayes_jackal._runtime.progress.LOG_INTERVAL` seconds (a
-        report of many posteriors takes minutes).
 
     Raises
     ------
@@ -102,14 +99,13 @@ class ReportFigures:
         self,
         folder: Path,
         formats: tuple[str, ...],
-        say: Callable[[str], None] | None = None,
     ):
         unknown = [f for f in formats if f not in FIGURE_FORMATS]
         if unknown:
             raise InputError(
                 f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}", field="formats"
             )
-        self.folder, self.formats, self.say = folder, formats, say
+        self.folder, self.formats = folder, formats
         self.drawn, self._said = 0, time.monotonic()
 
     def html(self, name: str, caption: str, draw: Callable[[], tuple[Figure, object]]) -> str:
@@ -145,8 +141,8 @@ class ReportFigures:
             with atomic_path(path) as temporary:
                 temporary.write_bytes(rendered[suffix])
         self.drawn += 1
-        if self.say is not None and time.monotonic() - self._said >= LOG_INTERVAL:
-            self.say(f"  report: {self.drawn} figures drawn, the last {name}")
+        if time.monotonic() - self._said >= LOG_INTERVAL:
+            _log.info(f"  report: {self.drawn} figures drawn, the last {name}")
             self._said = time.monotonic()
         data = base64.b64encode(rendered["png"]).decode("ascii")
         return (

@@ -13,7 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from ..thesis.gridsearch import GridResult
+from ..thesis import GridResult
 from ._layout import new_axes, save_figure
 
 __all__ = ["plot_grid", "save_grid_plot"]

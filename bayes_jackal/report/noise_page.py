@@ -20,11 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime.defaults import FIGURE_FORMATS
-from .._runtime.errors import InputError
-from ..noise.characterisation import NoiseCharacterisation
-from ..posterior.criticism import PREDICTIVE_DRAWS
-from ..thesis.acf_fit import THESIS_LAGS
+from .._runtime import FIGURE_FORMATS, InputError
+from ..noise import NoiseCharacterisation
+from ..posterior import PREDICTIVE_DRAWS
+from ..thesis import THESIS_LAGS
 from .figures import ReportFigures, slug
 from .noise_plots import (
     noise_predictive_bands,

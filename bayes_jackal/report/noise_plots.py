@@ -32,15 +32,11 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .._runtime.chunks import thinned_indices
-from .._runtime.errors import InputError
-from .._runtime.rng import as_rng
-from ..likelihood.series_likelihood import SeriesLikelihood
-from ..noise.characterisation import NoiseCharacterisation
-from ..posterior.criticism import PREDICTIVE_DRAWS
-from ..posterior.predictive import stationary_statistics
-from ..posterior.series_statistics import sample_autocorrelation, spectrum
-from ..thesis.acf_fit import THESIS_LAGS
+from .._runtime import InputError, as_rng, thinned_indices
+from ..likelihood import SeriesLikelihood
+from ..noise import NoiseCharacterisation
+from ..posterior import PREDICTIVE_DRAWS, sample_autocorrelation, spectrum, stationary_statistics
+from ..thesis import THESIS_LAGS
 from ._layout import DATA_COLOUR, MODEL_COLOUR, draw_band, new_axes
 from .page import LAGS
 from .predictive_plots import band_statistics

@@ -14,18 +14,24 @@ from __future__ import annotations
 
 import datetime
 import html
+import logging
 import re
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from .. import __version__
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import FIGURE_FORMATS
-from .._runtime.errors import InputError, each_input, refuse
-from .._runtime.files import atomic_path
-from .._runtime.output_safety import refuse_link, removed_if_empty
-from .._runtime.progress import Phase
-from ..posterior.posterior import Posterior, load_posterior
+from .._runtime import (
+    FIGURE_FORMATS,
+    InputError,
+    Phase,
+    atomic_path,
+    az,
+    each_input,
+    refuse,
+    refuse_link,
+    removed_if_empty,
+)
+from ..posterior import Posterior, load_posterior
 from .figures import ReportFigures
 from .sections import evidence_section, losing_banner, posterior_section, summary_section
 
@@ -38,6 +44,9 @@ __all__ = [
     "write_page",
     "write_report",
 ]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 #: Lags of the report's autocorrelation figures.
 LAGS = 30
@@ -149,7 +158,6 @@ def render_report(
     *,
     sections: Sequence[Section] = (),
     highlights: Sequence[str] = (),
-    say: Callable[[str], None] | None = None,
 ) -> str:
     """The HTML text of a report on loaded posteriors.
 
@@ -169,9 +177,6 @@ def render_report(
     highlights : sequence of str
         Further lines of the summary at the top, as HTML (``analyse`` adds
         :func:`~bayes_jackal.report.sections.state_estimation_highlight`).
-    say : callable, optional
-        Receives a line as each posterior's part begins (its model criticism
-        and figures take from seconds to a minute each).
 
     Returns
     -------
@@ -208,10 +213,13 @@ def render_report(
     body.append(evidence_section(posteriors))
     body += [section(figures) for section in sections]
     for number, (path, idata) in enumerate(posteriors, 1):
-        if say is not None:
-            say(f"  report: {path.name} ({number} of {len(posteriors)}): criticism and figures...")
+        _log.info(
+            f"  report: {path.name} ({number} of {len(posteriors)}): criticism and figures..."
+        )
         banner = losing_banner(posteriors, idata)
-        with Phase(f"  report: {path.name}", enabled=say is not None, terminal_only=True):
+        with Phase(
+            f"  report: {path.name}", enabled=_log.isEnabledFor(logging.INFO), terminal_only=True
+        ):
             body.append(posterior_section(path, idata, figures, lags, banner))
     what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
     return report_page("bayes_jackal report", what, figures, body)
@@ -322,7 +330,6 @@ def write_page(
     render: Callable[[ReportFigures], str],
     *,
     formats: tuple[str, ...] = FIGURE_FORMATS,
-    say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the page ``render(figures)`` to ``out``, its figures to ``<out stem>_figures/``.
 
@@ -339,8 +346,6 @@ def write_page(
         write its figures into the folder.
     formats : tuple of str
         Figure files to write, from ``("png", "svg")``.
-    say : callable, optional
-        Told of the figures drawn as they are (:class:`~bayes_jackal.report.ReportFigures`).
 
     Returns
     -------
@@ -368,7 +373,7 @@ def write_page(
     drift.html ['drift.html', 'drift_figures']
     """
     out = Path(out)
-    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats, say)
+    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
     refuse_link(figures.folder, folder=True)
     with removed_if_empty([figures.folder], on_success=False):  # a failed page leaves none
         figures.folder.mkdir(parents=True, exist_ok=True)
@@ -423,7 +428,6 @@ def write_report(
     lags: int = LAGS,
     sections: Sequence[Section] = (),
     highlights: Sequence[str] = (),
-    say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors, in files or in memory, and its figures beside it.
 
@@ -448,8 +452,6 @@ def write_report(
         Further sections after the evidence tables (:func:`render_report`).
     highlights : sequence of str
         Further lines of the summary at the top, as HTML (:func:`render_report`).
-    say : callable, optional
-        Receives a line as each posterior's part begins (:func:`render_report`).
 
     Returns
     -------
@@ -480,9 +482,7 @@ def write_report(
     """
     labelled, failed, count = _labelled(posteriors)
     refuse(failed, count)
-    return save_report(
-        labelled, out, formats, lags, sections=sections, highlights=highlights, say=say
-    )
+    return save_report(labelled, out, formats, lags, sections=sections, highlights=highlights)
 
 
 def save_report(
@@ -493,7 +493,6 @@ def save_report(
     *,
     sections: Sequence[Section] = (),
     highlights: Sequence[str] = (),
-    say: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors already read (:func:`read_posteriors`).
 
@@ -522,8 +521,7 @@ def save_report(
     return write_page(
         out,
         lambda figures: render_report(
-            posteriors, figures, lags, sections=sections, highlights=highlights, say=say
+            posteriors, figures, lags, sections=sections, highlights=highlights
         ),
         formats=formats,
-        say=say,
     )

@@ -17,14 +17,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .._runtime.defaults import CHANNELS
-from ..likelihood.residuals import residual_times
-from ..model.parameters import DAMPING
-from ..posterior.criticism import criticise
-from ..posterior.file_format import observed_residuals
-from ..posterior.posterior import Posterior
-from ..posterior.predictive import model_percentiles
-from ..posterior.summary import THESIS_RATIO
+from .._runtime import CHANNELS
+from ..likelihood import residual_times
+from ..model import DAMPING
+from ..posterior import THESIS_RATIO, Posterior, criticise, model_percentiles, observed_residuals
 from ._layout import BAND, DATA_COLOUR, DATA_LABELS, MODEL_COLOUR, UNITS, new_axes
 
 __all__ = [

@@ -1,6 +1,6 @@
 """The forest plot of a campaign: every unit's and group's damping, with the population's band.
 
-Draws the ``population --json`` object (:meth:`bayes_jackal.Population.to_dict`,
+Draws the ``population --json`` object (:meth:`bayes_jackal.inference.Population.to_dict`,
 or ``population.json`` read back), so a saved result is plotted as the
 fresh one. Built on :class:`matplotlib.figure.Figure` without pyplot.
 """
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from .._runtime.errors import InputError
+from .._runtime import InputError
 from ._layout import DATA_COLOUR, MODEL_COLOUR, save_figure
 
 __all__ = ["plot_population", "save_population_plot"]
@@ -46,7 +46,7 @@ def plot_population(summary: Mapping, *, axes=None) -> tuple[Figure, np.ndarray]
     Parameters
     ----------
     summary : mapping
-        :meth:`bayes_jackal.Population.to_dict`, or ``population.json``.
+        :meth:`bayes_jackal.inference.Population.to_dict`, or ``population.json``.
     axes : sequence of two matplotlib Axes, optional
 
     Returns

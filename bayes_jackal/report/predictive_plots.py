@@ -15,12 +15,16 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .._runtime.errors import InputError
-from ..posterior.file_format import observed_residuals
-from ..posterior.posterior import Posterior
-from ..posterior.predictive import predictive_statistics
-from ..posterior.records import ExperimentRecord
-from ..posterior.series_statistics import autocorrelation_bounds, sample_autocorrelation, spectrum
+from .._runtime import InputError
+from ..posterior import (
+    ExperimentRecord,
+    Posterior,
+    autocorrelation_bounds,
+    observed_residuals,
+    predictive_statistics,
+    sample_autocorrelation,
+    spectrum,
+)
 from ._layout import DATA_COLOUR, MODEL_COLOUR, UNITS, draw_band, new_axes
 
 __all__ = ["band_statistics", "plot_autocorrelation", "plot_spectrum", "predictive_bands"]

@@ -28,21 +28,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import CHANNELS, HDI_PROB
-from ..filters.left_out import LeaveOneOut
-from ..filters.state_estimation import FILTER_INEXACT, inexact_note, score_rows
-from ..inference.comparison import Comparison
-from ..model.physics import discrete_matrices
-from ..posterior.criticism import KIND_MEANINGS
-from ..posterior.posterior import Posterior
-from ..posterior.reweighting import PARETO_K_THRESHOLD
-from ..posterior.summary import summarize
+from .._runtime import CHANNELS, HDI_PROB, az
+from ..filters import FILTER_INEXACT, LeaveOneOut, inexact_note, score_rows
+from ..inference import Comparison
+from ..model import discrete_matrices
+from ..posterior import KIND_MEANINGS, PARETO_K_THRESHOLD, Posterior, summarize
 from . import estimate_plots, plots, population_plots, predictive_plots
 from .figures import ReportFigures
 
 # The page's parts are for :mod:`bayes_jackal.report.page` only; its table serves every report.
-__all__ = ["html_table"]
+__all__ = [
+    "html_table",
+    "population_highlight",
+    "population_section",
+    "state_estimation_highlight",
+    "state_estimation_section",
+]
 
 
 def _number(value) -> str:
@@ -707,7 +708,7 @@ def population_highlight(summary: dict) -> str:
 def population_section(summary: dict, figures: ReportFigures) -> str:
     """The section "Groups of runs": each structure's evidence and the forest plot.
 
-    ``summary`` is :meth:`bayes_jackal.Population.to_dict`'s.
+    ``summary`` is :meth:`bayes_jackal.inference.Population.to_dict`'s.
     """
     evidence = [
         [name, row["log_evidence"], row["log_evidence_err"], row["log_bayes_factor_vs_best"]]

@@ -46,10 +46,9 @@ from collections.abc import Iterable
 import numpy as np
 import scipy.optimize
 
-from .._runtime.defaults import RESIDUAL_LAGS as LAGS
-from .._runtime.errors import InputError
-from .._runtime.validation import positive_number
-from ..posterior.series_statistics import sample_autocorrelation
+from .._runtime import RESIDUAL_LAGS as LAGS
+from .._runtime import InputError, positive_number
+from ..posterior import sample_autocorrelation
 from .residual_analysis import SIGMA_H_GRID, fit_sigma_h
 
 __all__ = ["LEAST_SQUARES_LAGS", "THESIS_LAGS", "acf_least_squares", "thesis_fit"]

@@ -29,21 +29,19 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .._runtime.defaults import (
+from .._runtime import (
     DISCRETISATION,
     GRID_METHODS,
     GRID_POINTS,
     METHOD,
     THESIS_CHANNEL,
+    InputError,
+    Phase,
+    write_hdf5,
 )
-from .._runtime.errors import InputError
-from .._runtime.files import write_hdf5
-from .._runtime.progress import Phase
-from ..io.experiment import UNLABELLED, Experiment
-from ..likelihood.measurements import RateMeasurement
-from ..model.parameters import DAMPING, prior_overrides
-from ..model.physics import Method, channel_coefficients, propagate
-from ..model.robot import RobotProfile
+from ..io import UNLABELLED, Experiment
+from ..likelihood import RateMeasurement
+from ..model import DAMPING, Method, RobotProfile, channel_coefficients, prior_overrides, propagate
 
 __all__ = [
     "GridResult",

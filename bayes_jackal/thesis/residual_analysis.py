@@ -27,20 +27,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._runtime.defaults import CHANNELS, RESIDUAL_CHANNELS
-from .._runtime.defaults import RESIDUAL_LAGS as LAGS
-from .._runtime.errors import DataError, InputError
-from .._runtime.validation import positive_number
-from ..io.experiment import CHANNEL_FIELDS, UNLABELLED, Experiment
-from ..likelihood.residuals import channel_residuals, check_residual_window
-from ..model.kernels import get_family
-from ..model.robot import RobotProfile
-from ..posterior.series_statistics import (
-    autocorrelation_bounds,
-    check_lags,
-    ljung_box,
-    sample_autocorrelation,
-)
+from .._runtime import CHANNELS, RESIDUAL_CHANNELS, DataError, InputError, positive_number
+from .._runtime import RESIDUAL_LAGS as LAGS
+from ..io import CHANNEL_FIELDS, UNLABELLED, Experiment
+from ..likelihood import channel_residuals, check_residual_window
+from ..model import RobotProfile, get_family
+from ..posterior import autocorrelation_bounds, check_lags, ljung_box, sample_autocorrelation
 
 __all__ = [
     "FIRST_LAGS",

@@ -46,40 +46,51 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import logging
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from .._runtime.defaults import DEFAULT_FAMILIES, GRID_METHODS, SHORT_MEMORY, STATE_ESTIMATION
-from .._runtime.errors import DataError, describe
-from .._runtime.files import write_json
-from ..dem.export import export_prior, write_prior
-from ..filters.left_out import SUMMARY, LeaveOneOut, leave_one_out
-from ..inference.chains import SamplerSettings
-from ..inference.comparison import Comparison, compare_families
-from ..inference.executors import Executor, ProcessExecutor
-from ..inference.population import plan_units, population_posterior
-from ..inference.sampler_warnings import keep_warnings
-from ..io.experiment import Experiment
-from ..io.groups import RunGroups, as_run_groups
-from ..io.logs import ReadOptions, ingest_logs
-from ..likelihood.residual_likelihood import LikelihoodOptions, resolve_channels
-from ..model.robot import RobotProfile, load_profile
-from ..posterior.criticism import criticise
-from ..posterior.posterior import save_posterior
-from ..posterior.summary import summarize
-from ..report.grid_plots import save_grid_plot
-from ..report.page import write_report
-from ..report.population_plots import save_population_plot
-from ..report.sections import (
+from .._runtime import (
+    DEFAULT_FAMILIES,
+    GRID_METHODS,
+    SHORT_MEMORY,
+    STATE_ESTIMATION,
+    DataError,
+    describe,
+    write_json,
+)
+from ..dem import export_prior, write_prior
+from ..filters import SUMMARY, LeaveOneOut, leave_one_out
+from ..inference import (
+    Comparison,
+    Executor,
+    ProcessExecutor,
+    SamplerSettings,
+    compare_families,
+    keep_warnings,
+    plan_units,
+    population_posterior,
+)
+from ..io import Experiment, ReadOptions, RunGroups, as_run_groups, ingest_logs
+from ..likelihood import LikelihoodOptions, resolve_channels
+from ..model import RobotProfile, load_profile
+from ..posterior import criticise, save_posterior, summarize
+from ..report import (
     population_highlight,
     population_section,
+    save_grid_plot,
+    save_population_plot,
     state_estimation_highlight,
     state_estimation_section,
+    write_report,
 )
-from ..thesis.gridsearch import grid_search, prior_grid
+from ..thesis import grid_search, prior_grid
 
 __all__ = ["analyse_logs"]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 
 def _common_truth(experiments: list[Experiment]) -> dict | None:
@@ -89,9 +100,7 @@ def _common_truth(experiments: list[Experiment]) -> dict | None:
     return shared if None not in shared.values() and all(t == shared for t in truths) else None
 
 
-def _grids(
-    experiments, robot, folder: Path, say: Callable[[str], None], priors=None, progress=True
-) -> dict:
+def _grids(experiments, robot, folder: Path, priors=None, progress=True) -> dict:
     """The thesis' grid searches over the prior ranges; surfaces as PNG, minima in grid.json."""
     summaries = {}
     for method in GRID_METHODS:
@@ -100,7 +109,7 @@ def _grids(
         best_lat, best_long, _ = result.argmin()
         save_grid_plot(result, folder / f"grid_{method}.png")
         edges = ", ".join(f"{name} {side}" for name, side in result.edges().items())
-        say(
+        _log.info(
             f"  {method} MSE grid minimum: d_lat = {best_lat:.4g}, d_long = {best_long:.4g} N s/m"
             + (f" (on the grid's edge: {edges})" if edges else "")
             + (f"; {result.caveat}" if result.caveat else "")
@@ -116,7 +125,6 @@ def _usable(
     robot: RobotProfile,
     options: LikelihoodOptions,
     family: str,
-    say: Callable[[str], None],
 ) -> tuple[list[Experiment], dict[str, str]]:
     """The experiments a likelihood can take, each alone; the others' reasons, by source.
 
@@ -130,7 +138,7 @@ def _usable(
             options.likelihood([experiment], robot, family)
         except DataError as exc:
             failed[experiment.source] = describe(exc, experiment.source)
-            say(f"  skipped {failed[experiment.source]}")
+            _log.info(f"  skipped {failed[experiment.source]}")
         else:
             usable.append(experiment)
     return usable, failed
@@ -152,7 +160,6 @@ def analyse_logs(
     labels: Mapping[str, Mapping] | None = None,
     state_estimation: bool = STATE_ESTIMATION,
     groups: RunGroups | Mapping[str, str] | str | Path | None = None,
-    say: Callable[[str], None] = lambda text: None,
 ) -> dict:
     """Ingest logs, run the grids, compare the noise families, export the prior, report.
 
@@ -201,8 +208,6 @@ def analyse_logs(
         each group's damping and their population with the best family,
         saved as ``population.json``, ``population.png`` and
         ``population/units/``, and a section of the report.
-    say : callable
-        Receives the progress and summary lines.
 
     Returns
     -------
@@ -284,7 +289,6 @@ def analyse_logs(
         read_options=read_options,
         progress=settings.progress,
         labels=labels,
-        say=say,
     )
     if not experiments:
         raise DataError(
@@ -296,7 +300,7 @@ def analyse_logs(
         families is None,
         tuple(DEFAULT_FAMILIES if families is None else families),
     )
-    experiments, unusable = _usable(experiments, robot, options, families[0], say)
+    experiments, unusable = _usable(experiments, robot, options, families[0])
     failed |= unusable
     if not experiments:
         raise DataError(
@@ -309,9 +313,9 @@ def analyse_logs(
     if groups is not None:  # runs the groups do not name refused before any work
         plan_units(experiments, groups, noise=options.noise)
     channels = options.channels
-    say("thesis grid searches of the yaw channel (ch. 5 and 9-1-2) over the prior ranges:")
-    grids = _grids(experiments, robot, folder, say, prior_overrides, settings.progress)
-    say(
+    _log.info("thesis grid searches of the yaw channel (ch. 5 and 9-1-2) over the prior ranges:")
+    grids = _grids(experiments, robot, folder, prior_overrides, settings.progress)
+    _log.info(
         f"posterior and evidence of {', '.join(families)} noise on {', '.join(channels)}, "
         f"pooled over {len(experiments)} experiment(s):"
     )
@@ -323,20 +327,20 @@ def analyse_logs(
     def finished(family, evidence, idata) -> None:
         criticise(idata)  # cached in its attrs: the saved file and the report reuse it
         save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
-        say(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+        _log.info(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
 
     def compare(families: tuple[str, ...]) -> Comparison:
         return compare_families(experiments, robot, families, settings, seed,
                                 prior_overrides=prior_overrides, on_family=finished,
-                                reuse=paths_by_family, say=say, executor=executor,
+                                reuse=paths_by_family, executor=executor,
                                 likelihood_options=options)  # fmt: skip
 
     try:
         with keep_warnings() as kept:
             comparison = compare(families)
             if automatic and comparison.best == "white" and SHORT_MEMORY not in families:
-                say(f"  white beat gaussian: {SHORT_MEMORY} (short-memory colour) is compared "
-                    "too, as gaussian's smooth kernel fits colour of a few samples worse "
+                _log.info(f"  white beat gaussian: {SHORT_MEMORY} (short-memory colour) is "
+                    "compared too, as gaussian's smooth kernel fits colour of a few samples worse "
                     "than white does")  # fmt: skip
                 families = (*families, SHORT_MEMORY)
                 comparison = compare(families)
@@ -361,32 +365,30 @@ def analyse_logs(
         left_out = leave_one_out(experiments, robot, best, folder, pooled=idata,
                                  pooled_source=str(paths_by_family[best]), settings=settings,
                                  seed=seed, prior_overrides=prior_overrides,
-                                 likelihood_options=options, executor=executor,
-                                 say=say)  # fmt: skip
+                                 likelihood_options=options, executor=executor)  # fmt: skip
     else:
         left_out = LeaveOneOut(best, skipped="turned off (--no-state-estimation)")
     sections = [functools.partial(state_estimation_section, left_out)]
     highlights = [state_estimation_highlight(left_out)]
     campaign = None
     if groups is not None:
-        say(f"each group's damping and their population ({best} noise):")
+        _log.info(f"each group's damping and their population ({best} noise):")
         campaign = population_posterior(
             experiments, robot, groups=groups, family=best, settings=settings, seed=seed,
             prior_overrides=prior_overrides, likelihood_options=options, executor=executor,
-            out=folder / "population", say=say,
+            out=folder / "population",
         ).to_dict()  # fmt: skip
         write_json(folder / "population.json", campaign)
         save_population_plot(campaign, folder / "population.png")
         sections.insert(0, functools.partial(population_section, campaign))
         highlights.insert(0, population_highlight(campaign))
-    say("writing the report (figures as PNG and SVG)...")
+    _log.info("writing the report (figures as PNG and SVG)...")
     ranked = [best, *(family for family in families if family != best)]
     report = write_report(
         [paths_by_family[family] for family in ranked],
         folder / "report.html",
         sections=sections,
         highlights=[line for line in highlights if line],
-        say=say,
     )
     convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
     convergence_left_out = [

@@ -19,20 +19,17 @@ Active Inference prior and the report.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+import logging
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
-from .._runtime.defaults import CHANNELS, DEFAULT_FAMILIES, STATE_ESTIMATION
-from .._runtime.files import write_json
-from .._runtime.rng import as_rng
-from ..inference.chains import SamplerSettings
-from ..io.bag_writer import bag_truth, write_bag
-from ..io.simulate import NoiseSettings, simulate_series
-from ..model.robot import RobotProfile, load_profile
+from .._runtime import CHANNELS, DEFAULT_FAMILIES, STATE_ESTIMATION, as_rng, write_json
+from ..inference import SamplerSettings
+from ..io import NoiseSettings, bag_truth, simulate_series, write_bag
+from ..model import RobotProfile, load_profile
 from .analysis import analyse_logs
 
 __all__ = [
@@ -43,6 +40,9 @@ __all__ = [
     "make_demo_bags",
     "run_demo",
 ]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 DEMO_TRUTH = {"d_lat": 110.0, "d_long": 30.0}
 DEMO_COUNTS = {"v1": 1, "v2": 1}
@@ -118,7 +118,6 @@ def make_demo_bags(folder: str | Path, robot: RobotProfile | None = None) -> Pat
 
 def run_demo(
     folder: str | Path,
-    say: Callable[[str], None],
     progress: bool = True,
     *,
     state_estimation: bool = STATE_ESTIMATION,
@@ -132,8 +131,6 @@ def run_demo(
     ----------
     folder : str or Path
         Output folder (created).
-    say : callable
-        Receives the progress and summary lines.
     progress : bool
         Show the chains' progress on stderr.
     state_estimation : bool
@@ -157,12 +154,12 @@ def run_demo(
     >>> from bayes_jackal.workflow import DEMO_FAMILIES, run_demo
     >>> DEMO_FAMILIES
     ('white', 'gaussian')
-    >>> result = run_demo(tempfile.mkdtemp(), print, progress=False)  # doctest: +SKIP
+    >>> result = run_demo(tempfile.mkdtemp(), progress=False)  # doctest: +SKIP
     >>> result["best"], result["channels"]  # doctest: +SKIP
     ('gaussian', ['yaw', 'vx', 'vy'])
     """
     labels = demo_labels()
-    say(
+    _log.info(
         f"bayes-jackal {__version__} demo on SIMULATED thesis-like runs shipped as ROS1 bags "
         f"(truth d_lat = {DEMO_TRUTH['d_lat']:g}, d_long = {DEMO_TRUTH['d_long']:g} N s/m, "
         f"Gaussian process noise sigma_h = {NoiseSettings().width} s) -> {folder}/"
@@ -176,7 +173,6 @@ def run_demo(
         seed=DEMO_SEED,
         labels=labels,
         state_estimation=state_estimation,
-        say=say,
     )
 
 

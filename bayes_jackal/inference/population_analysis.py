@@ -13,17 +13,17 @@ ranked by evidence.
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .._runtime.arviz_quiet import az
-from .._runtime.defaults import (
+from .._runtime import (
     DAMPING_MODEL,
     ENGINE,
     FAMILY,
@@ -33,15 +33,14 @@ from .._runtime.defaults import (
     SENSOR,
     STEADY,
     WALKERS,
+    InputError,
+    as_rng,
+    az,
 )
-from .._runtime.errors import InputError
-from .._runtime.rng import as_rng
-from ..io.experiment import Experiment, as_experiments
-from ..io.groups import RunGroups, as_run_groups, group_runs, run_group
-from ..likelihood.residual_likelihood import LikelihoodOptions
-from ..model.robot import RobotProfile, as_profile
-from ..posterior.posterior import Posterior, save_posterior
-from ..posterior.records import Evidence
+from ..io import Experiment, RunGroups, as_experiments, as_run_groups, group_runs, run_group
+from ..likelihood import LikelihoodOptions
+from ..model import RobotProfile, as_profile
+from ..posterior import Evidence, Posterior, save_posterior
 from .chains import SamplerSettings
 from .comparison import Comparison, compare_groups
 from .evidence import evidence_strength
@@ -65,6 +64,9 @@ __all__ = [
     "population_posterior",
     "unit_files",
 ]
+
+#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
+_log = logging.getLogger(__package__)
 
 #: The population's two spreads (:data:`~bayes_jackal.inference.TO_SCALE_RATIO`).
 SPREADS = ("scale", "ratio")
@@ -557,7 +559,6 @@ def population(
     out: str | Path | None = None,
     progress: bool = True,
     tau_range: tuple[float, float] = TAU_RANGE,
-    say: Callable[[str], None] = lambda text: None,
 ) -> Population:
     """The damping of a campaign's groups of runs, their population and its speed dependence.
 
@@ -592,8 +593,6 @@ def population(
         Show each chain's progress.
     tau_range : (float, float)
         Log-uniform prior range of the population spread [log d].
-    say : callable
-        Told which units are reused, and each unit's evidence.
 
     Returns
     -------
@@ -648,7 +647,6 @@ def population(
         executor=executor,
         out=out,
         tau_range=tau_range,
-        say=say,
     )
 
 
@@ -666,7 +664,6 @@ def population_posterior(
     executor: Executor | None = None,
     out: str | Path | None = None,
     tau_range: tuple[float, float] = TAU_RANGE,
-    say: Callable[[str], None] = lambda text: None,
 ) -> Population:
     """:func:`population` with its options as objects, as ``analyse --groups`` runs it.
 
@@ -680,7 +677,7 @@ def population_posterior(
         As in :func:`bayes_jackal.inference.sample_posterior`.
     likelihood_options : LikelihoodOptions, optional
         Every unit's likelihood's; ``noise`` decides the units.
-    groups, covariate, family, seed, executor, out, tau_range, say
+    groups, covariate, family, seed, executor, out, tau_range
         As in :func:`population`.
 
     Returns
@@ -714,7 +711,7 @@ def population_posterior(
     files = unit_files(out, list(units), family) if out is not None else {}
 
     def finished(key: str, _family: str, evidence: Evidence, idata) -> None:
-        say(f"  {key}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
+        _log.info(f"  {key}: log Z = {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
         if key in files:
             files[key].parent.mkdir(parents=True, exist_ok=True)
             save_posterior(idata, files[key])
@@ -733,7 +730,6 @@ def population_posterior(
             executor=executor,
             reuse={key: {family: path} for key, path in files.items()},
             on_family=finished,
-            say=say,
         )
         comparisons = dict(units_sampled)  # the jobs run as this consumes them
     return combine_units(

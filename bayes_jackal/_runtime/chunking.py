@@ -34,7 +34,7 @@ def thinned_indices(count: int, limit: int) -> np.ndarray:
     --------
     Four evenly spaced draws out of ten:
 
-    >>> from bayes_jackal._runtime.chunks import thinned_indices
+    >>> from bayes_jackal._runtime.chunking import thinned_indices
     >>> thinned_indices(10, 4).tolist()
     [0, 3, 6, 9]
     >>> thinned_indices(3, 4).tolist()  # fewer draws than the limit: all of them

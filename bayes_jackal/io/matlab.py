@@ -11,8 +11,7 @@ import h5py
 import numpy as np
 import scipy.io
 
-from .._runtime.errors import DataError
-from .._runtime.files import require_file
+from .._runtime import DataError, require_file
 
 __all__ = ["mat_arrays", "mat_vector"]
 
@@ -93,7 +92,7 @@ def mat_vector(
     Examples
     --------
     >>> import numpy as np
-    >>> from bayes_jackal.io._matlab import mat_vector
+    >>> from bayes_jackal.io.matlab import mat_vector
     >>> mat_vector({"log.t": np.arange(3).reshape(1, 3)}, "log.t", "log.mat")
     array([0., 1., 2.])
     """
