@@ -95,7 +95,7 @@ def _bypasses(module: str, tree: ast.Module) -> int:
     home = _subpackage(module)
     count = 0
     for node in ast.walk(tree):
-        if not isinstance(node, ast.ImportFrom) or node.module is None and node.level == 0:
+        if not isinstance(node, ast.ImportFrom) or (node.module is None and node.level == 0):
             continue
         if node.level == 0:
             if not (node.module or "").startswith("bayes_jackal."):

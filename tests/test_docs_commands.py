@@ -69,6 +69,9 @@ PYTHON_SMALL = {
     '"analysis", seed=1)': '"analysis", seed=1, settings=SHORT, state_estimation=False)',
     "seed=1, executor=": "seed=1, settings=SHORT, executor=",
     "characterise_noise(series)": "characterise_noise(series, settings=SHORT)",
+    "executor=bj.inference.ProcessExecutor(2),": (
+        "executor=bj.inference.ProcessExecutor(2), settings=SHORT, state_estimation=False,"
+    ),
 }
 #: A block guarded by this runs as a script of its own: its worker processes
 #: import its file, and would run the page's other blocks again.

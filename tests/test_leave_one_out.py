@@ -95,7 +95,7 @@ def analysis(tmp_path_factory) -> tuple:
         seed=1,
         executor=SerialExecutor(),
     )
-    return inputs, folder / "out", result
+    return inputs, folder / "out", result.to_dict()  # the --json object
 
 
 def test_each_run_is_filtered_with_the_prior_of_exactly_the_others(analysis):

@@ -33,9 +33,9 @@ from bayes_jackal.likelihood import LikelihoodOptions
 from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.posterior.posterior import load_posterior
-from bayes_jackal.workflow import analysis
 from bayes_jackal.workflow.analysis import analyse_logs
 from bayes_jackal.workflow.demo import demo_folder, demo_labels
+from bayes_jackal.workflow.stages import grid_searches
 
 ROBOT = load_profile()
 #: Cursor movement of a redrawn bar: carriage return or an ANSI escape sequence.
@@ -348,7 +348,7 @@ def test_analyse_grids_span_the_profiles_prior_and_flag_an_edge(tmp_path, monkey
     # chain. Its prior is the Jackal's times 200 / 16.523: 121.04-12104.34
     # N s/m, and --prior's damping ranges replace it for the grids too. The
     # figures (1 s for the 1000 x 1000 surface) are checked by the slow tests.
-    monkeypatch.setattr(analysis, "save_grid_plot", lambda result, path: path)
+    monkeypatch.setattr(grid_searches, "save_grid_plot", lambda result, path: path)
     warthog = load_profile("warthog")
     run = simulate_experiment(warthog, 1331.5, 363.1, dataclasses.replace(SHORT, duration=8.0),
                               rng=1)  # fmt: skip

@@ -8,6 +8,7 @@ from .._runtime import json_text, write_line
 from ..filters import inexact_note, method_text, score_rows
 from ..posterior import KIND_MEANINGS
 from ..thesis import GridResult
+from ..workflow import Analysis
 from .exits import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, print_failure
 
 
@@ -276,8 +277,9 @@ def state_estimation_text(state: dict, out: Reporter) -> None:
         print(f"bayes-jackal: WARNING: {reason}", file=sys.stderr)
 
 
-def analysis_text(result: dict, out: Reporter) -> int:
+def analysis_text(analysis: Analysis, out: Reporter) -> int:
     """Print what analyse_logs found; warnings and bad inputs on stderr; the exit code."""
+    result = analysis.to_dict()
     out.say(
         f"\n{result['best']}-noise posterior (the best family by evidence), pooled over "
         f"{len(result['experiments'])} experiment(s), channels {', '.join(result['channels'])}:"

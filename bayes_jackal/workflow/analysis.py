@@ -44,104 +44,19 @@ ch. 7 residual analysis.
 
 from __future__ import annotations
 
-import dataclasses
-import functools
-import logging
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from .._runtime import (
-    DEFAULT_FAMILIES,
-    GRID_METHODS,
-    SHORT_MEMORY,
-    STATE_ESTIMATION,
-    DataError,
-    describe,
-    write_json,
-)
-from ..dem import export_prior, write_prior
-from ..filters import SUMMARY, LeaveOneOut, leave_one_out
-from ..inference import (
-    Comparison,
-    Executor,
-    ProcessExecutor,
-    SamplerSettings,
-    compare_families,
-    keep_warnings,
-    plan_units,
-    population_posterior,
-)
-from ..io import Experiment, ReadOptions, RunGroups, as_run_groups, ingest_logs
-from ..likelihood import LikelihoodOptions, resolve_channels
+from .._runtime import STATE_ESTIMATION
+from ..inference import Executor, ProcessExecutor, SamplerSettings
+from ..io import ReadOptions, RunGroups
+from ..likelihood import LikelihoodOptions
 from ..model import RobotProfile, load_profile
-from ..posterior import criticise, save_posterior, summarize
-from ..report import (
-    population_highlight,
-    population_section,
-    save_grid_plot,
-    save_population_plot,
-    state_estimation_highlight,
-    state_estimation_section,
-    write_report,
-)
-from ..thesis import grid_search, prior_grid
+from .context import RunContext
+from .pipeline import Analysis, run_pipeline
 
 __all__ = ["analyse_logs"]
-
-#: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
-_log = logging.getLogger(__package__)
-
-
-def _common_truth(experiments: list[Experiment]) -> dict | None:
-    """The true damping all experiments share (simulated runs), else None."""
-    truths = [{key: (e.truth or {}).get(key) for key in ("d_lat", "d_long")} for e in experiments]
-    shared = truths[0]
-    return shared if None not in shared.values() and all(t == shared for t in truths) else None
-
-
-def _grids(experiments, robot, folder: Path, priors=None, progress=True) -> dict:
-    """The thesis' grid searches over the prior ranges; surfaces as PNG, minima in grid.json."""
-    summaries = {}
-    for method in GRID_METHODS:
-        d_lat, d_long = (prior_grid(robot, name, method, priors) for name in ("d_lat", "d_long"))
-        result = grid_search(experiments, robot, d_lat, d_long, method=method, progress=progress)
-        best_lat, best_long, _ = result.argmin()
-        save_grid_plot(result, folder / f"grid_{method}.png")
-        edges = ", ".join(f"{name} {side}" for name, side in result.edges().items())
-        _log.info(
-            f"  {method} MSE grid minimum: d_lat = {best_lat:.4g}, d_long = {best_long:.4g} N s/m"
-            + (f" (on the grid's edge: {edges})" if edges else "")
-            + (f"; {result.caveat}" if result.caveat else "")
-        )
-        summaries[method] = result.summary()
-    payload = {"truth": _common_truth(experiments), **summaries}
-    write_json(folder / "grid.json", payload)
-    return summaries
-
-
-def _usable(
-    experiments: list[Experiment],
-    robot: RobotProfile,
-    options: LikelihoodOptions,
-    family: str,
-) -> tuple[list[Experiment], dict[str, str]]:
-    """The experiments a likelihood can take, each alone; the others' reasons, by source.
-
-    Checked before the grids, so that a log no model can use (poses that do
-    not cover its samples, a channel too short) is named and skipped, not
-    found after minutes of work.
-    """
-    usable, failed = [], {}
-    for experiment in experiments:
-        try:
-            options.likelihood([experiment], robot, family)
-        except DataError as exc:
-            failed[experiment.source] = describe(exc, experiment.source)
-            _log.info(f"  skipped {failed[experiment.source]}")
-        else:
-            usable.append(experiment)
-    return usable, failed
 
 
 def analyse_logs(
@@ -160,7 +75,7 @@ def analyse_logs(
     labels: Mapping[str, Mapping] | None = None,
     state_estimation: bool = STATE_ESTIMATION,
     groups: RunGroups | Mapping[str, str] | str | Path | None = None,
-) -> dict:
+) -> Analysis:
     """Ingest logs, run the grids, compare the noise families, export the prior, report.
 
     See the module text for the files written under ``out``.
@@ -211,7 +126,9 @@ def analyse_logs(
 
     Returns
     -------
-    dict
+    Analysis
+        Each stage's typed result (:data:`~bayes_jackal.workflow.PIPELINE`);
+        its ``to_dict()`` is the ``--json`` object of ``analyse``:
         ``experiments`` (name -> file, source, samples, rate [Hz], channels,
         steady window), ``failed`` (input -> reason), ``channels``,
         ``grids`` (method -> :meth:`~bayes_jackal.thesis.GridResult.summary`,
@@ -223,9 +140,10 @@ def analyse_logs(
         run's chain that did not converge (for a reweighting, the pooled
         chain's), with its ``left_out``),
         ``state_estimation`` (``state_estimation.json``:
-        :meth:`~bayes_jackal.filters.LeaveOneOut.to_dict`) and
-        ``files`` (report, prior, posterior, state_estimation (None when
-        not run), folder).
+        :meth:`~bayes_jackal.filters.LeaveOneOut.to_dict`), ``population``
+        (``population.json``, None without groups) and ``files``
+        (posterior, prior, state_estimation (None when not run),
+        population, report, folder).
 
     Raises
     ------
@@ -268,161 +186,28 @@ def analyse_logs(
     ...         executor=SerialExecutor(),
     ...     )
     ...     written = sorted(path.name for path in (Path(folder) / "analysis").iterdir())
-    >>> result["best"], list(result["experiments"]), result["failed"]  # doctest: +SKIP
+    >>> summary = result.to_dict()  # doctest: +SKIP
+    >>> result.best, list(summary["experiments"]), summary["failed"]  # doctest: +SKIP
     ('white', ['short'], {})
-    >>> result["warnings"][0]["message"]  # doctest: +SKIP
+    >>> summary["warnings"][0]["message"]  # doctest: +SKIP
     'white: NOT CONVERGED: 100 steps are fewer than 50 autocorrelation times ...'
     >>> written  # doctest: +SKIP
     ['compare.json', 'experiments', 'grid.json', 'grid_onestep.png', 'grid_simulation.png',
      'posterior.json', 'posterior.nc', 'posteriors', 'prior.json', 'report.html', 'report_figures']
     """
-    folder = Path(out)
-    robot = robot or load_profile()
-    settings = settings or SamplerSettings()
-    settings.check_evidence_steps()  # before the logs are read and the grids written
-    if groups is not None:  # a bad groups file refused before a log is read or copied
-        groups = as_run_groups(groups)
-    experiments, failed = ingest_logs(
-        paths,
-        robot,
-        folder / "experiments",
+    context = RunContext(
+        inputs=tuple(paths),
+        out=Path(out),
+        executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
+        robot=robot or load_profile(),
+        families=None if families is None else tuple(families),
+        settings=settings or SamplerSettings(),
+        seed=seed,
+        prior_overrides=prior_overrides,
+        likelihood_options=likelihood_options,
         read_options=read_options,
-        progress=settings.progress,
         labels=labels,
+        state_estimation=state_estimation,
+        groups=groups,
     )
-    if not experiments:
-        raise DataError(
-            f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
-            field="inputs",
-        )
-    options = LikelihoodOptions.of(likelihood_options)
-    automatic, families = (
-        families is None,
-        tuple(DEFAULT_FAMILIES if families is None else families),
-    )
-    experiments, unusable = _usable(experiments, robot, options, families[0])
-    failed |= unusable
-    if not experiments:
-        raise DataError(
-            f"none of the {len(failed)} inputs could be used: " + "; ".join(failed.values()),
-            field="inputs",
-        )
-    options = dataclasses.replace(
-        options, channels=resolve_channels(experiments, options.channels)
-    )
-    if groups is not None:  # runs the groups do not name refused before any work
-        plan_units(experiments, groups, noise=options.noise)
-    channels = options.channels
-    _log.info("thesis grid searches of the yaw channel (ch. 5 and 9-1-2) over the prior ranges:")
-    grids = _grids(experiments, robot, folder, prior_overrides, settings.progress)
-    _log.info(
-        f"posterior and evidence of {', '.join(families)} noise on {', '.join(channels)}, "
-        f"pooled over {len(experiments)} experiment(s):"
-    )
-
-    paths_by_family = {family: folder / "posteriors" / f"{family}.nc"
-                       for family in (*families, SHORT_MEMORY)}  # fmt: skip
-    executor = executor or ProcessExecutor(processes or os.cpu_count() or 1)
-
-    def finished(family, evidence, idata) -> None:
-        criticise(idata)  # cached in its attrs: the saved file and the report reuse it
-        save_posterior(idata, paths_by_family[family])  # kept if interrupted, reused on a rerun
-        _log.info(f"  {family}: log evidence {evidence.log_evidence:.2f} +- {evidence.error:.3f}")
-
-    def compare(families: tuple[str, ...]) -> Comparison:
-        return compare_families(experiments, robot, families, settings, seed,
-                                prior_overrides=prior_overrides, on_family=finished,
-                                reuse=paths_by_family, executor=executor,
-                                likelihood_options=options)  # fmt: skip
-
-    try:
-        with keep_warnings() as kept:
-            comparison = compare(families)
-            if automatic and comparison.best == "white" and SHORT_MEMORY not in families:
-                _log.info(f"  white beat gaussian: {SHORT_MEMORY} (short-memory colour) is "
-                    "compared too, as gaussian's smooth kernel fits colour of a few samples worse "
-                    "than white does")  # fmt: skip
-                families = (*families, SHORT_MEMORY)
-                comparison = compare(families)
-    finally:
-        # The convergence warnings go into the result; the others reach the user,
-        # also those raised before the comparison failed.
-        kept.issue()
-    best = comparison.best
-    idata = comparison.posteriors[best]
-    save_posterior(idata, folder / "posterior.nc")
-    summary = summarize(idata)
-    write_json(folder / "posterior.json", summary)
-    result = comparison.to_dict()
-    write_json(folder / "compare.json", result)
-    # The highest order the best family allows, up to export.AUTO_ORDER.
-    prior = write_prior(
-        export_prior(idata, order=None, source=str(paths_by_family[best])), folder / "prior.json"
-    )
-    if state_estimation:
-        # Each run's posterior without it: the best family's pooled posterior reweighted
-        # (PSIS), or refit where the reweighting is unreliable.
-        left_out = leave_one_out(experiments, robot, best, folder, pooled=idata,
-                                 pooled_source=str(paths_by_family[best]), settings=settings,
-                                 seed=seed, prior_overrides=prior_overrides,
-                                 likelihood_options=options, executor=executor)  # fmt: skip
-    else:
-        left_out = LeaveOneOut(best, skipped="turned off (--no-state-estimation)")
-    sections = [functools.partial(state_estimation_section, left_out)]
-    highlights = [state_estimation_highlight(left_out)]
-    campaign = None
-    if groups is not None:
-        _log.info(f"each group's damping and their population ({best} noise):")
-        campaign = population_posterior(
-            experiments, robot, groups=groups, family=best, settings=settings, seed=seed,
-            prior_overrides=prior_overrides, likelihood_options=options, executor=executor,
-            out=folder / "population",
-        ).to_dict()  # fmt: skip
-        write_json(folder / "population.json", campaign)
-        save_population_plot(campaign, folder / "population.png")
-        sections.insert(0, functools.partial(population_section, campaign))
-        highlights.insert(0, population_highlight(campaign))
-    _log.info("writing the report (figures as PNG and SVG)...")
-    ranked = [best, *(family for family in families if family != best)]
-    report = write_report(
-        [paths_by_family[family] for family in ranked],
-        folder / "report.html",
-        sections=sections,
-        highlights=[line for line in highlights if line],
-    )
-    convergence = [{"kind": "not-converged", "message": message} for message in kept.convergence]
-    convergence_left_out = [
-        {"kind": "not-converged", "message": f"leaving out {run}: {message}", "left_out": run}
-        for run, record in left_out.runs.items()
-        for message in record["warnings"]
-    ]
-    return {
-        "experiments": {
-            e.name: {
-                "file": str(folder / "experiments" / f"{e.name}.nc"),
-                "source": e.source,
-                "samples": len(e.t),
-                "rate": 1.0 / e.dt,
-                "channels": list(e.channels),
-                "steady_window": e.steady_window,
-            }
-            for e in experiments
-        },
-        "failed": failed,
-        "channels": list(channels),
-        "grids": grids,
-        "comparison": result,
-        "best": best,
-        "posterior": summary,
-        "warnings": convergence + result["warnings"] + convergence_left_out,
-        "state_estimation": left_out.to_dict(),
-        "population": campaign,
-        "files": {
-            "report": str(report),
-            "prior": str(prior),
-            "posterior": str(folder / "posterior.nc"),
-            "state_estimation": str(folder / SUMMARY) if left_out.skipped is None else None,
-            "population": None if campaign is None else str(folder / "population.json"),
-            "folder": str(folder),
-        },
-    }
+    return run_pipeline(context)

@@ -1,0 +1,143 @@
+"""What every stage of an analysis takes, and what each gives.
+
+:class:`RunContext` is one frozen object of the options a whole analysis
+shares (the robot, the families, the sampler, the seed, the priors, the
+likelihood and read options, the executor, the groups, the output folder),
+validated on construction, so that a bad option is refused before a log is
+read. A stage (:mod:`bayes_jackal.workflow.stages`) is a function of the
+context and the results of the stages before it, and returns a
+:class:`StageResult`: its part of the analysis' JSON (``to_dict``), the
+files it wrote, and what it adds to the report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .._runtime import DEFAULT_FAMILIES, STATE_ESTIMATION
+from ..inference import Executor, SamplerSettings
+from ..io import ReadOptions, RunGroups, as_run_groups
+from ..likelihood import LikelihoodOptions
+from ..model import RobotProfile, load_profile
+
+__all__ = ["RunContext", "StageResult"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunContext:
+    """The options of one analysis, which every stage takes.
+
+    Parameters
+    ----------
+    inputs : tuple of str or Path
+        Bags and experiment files (:func:`bayes_jackal.io.ingest_logs`).
+    out : Path
+        The output folder.
+    executor : Executor
+        Where the families, the left-out runs and the population's units run.
+    robot : RobotProfile, optional
+        Default: the Jackal profile.
+    families : tuple of str, optional
+        The noise families compared; None (default): white and gaussian,
+        and the short-memory exponential family too where white wins.
+    settings : SamplerSettings, optional
+        Every chain's walkers, step cap and progress display.
+    seed : int, optional
+        Seeds every chain and the evidence.
+    prior_overrides : mapping, optional
+        Prior ranges by parameter name [natural units].
+    likelihood_options : LikelihoodOptions, optional
+        The channels, the noise sharing, sensor model and engine.
+    read_options : ReadOptions, optional
+        How the logs are read (window, longest gap, columns, rate, velocities).
+    labels : mapping, optional
+        Per input path, Experiment fields to set (the demo's truth).
+    state_estimation : bool
+        Score the filters on each run left out of the prior.
+    groups : RunGroups, optional
+        Each run's group: the population stage runs with it. A mapping, a
+        CSV's path or a RunGroups is read on construction.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from bayes_jackal.inference import SerialExecutor
+    >>> from bayes_jackal.workflow import RunContext
+    >>> context = RunContext(
+    ...     inputs=["run1.bag"], out=Path("analysis"), executor=SerialExecutor(), seed=1
+    ... )
+    >>> context.families, context.robot.name, context.likelihood_options.noise
+    (None, 'jackal', 'shared')
+    >>> context.requested_families
+    ('white', 'gaussian')
+    """
+
+    inputs: tuple[str | Path, ...]
+    out: Path
+    executor: Executor
+    robot: RobotProfile = field(default_factory=load_profile)
+    families: tuple[str, ...] | None = None
+    settings: SamplerSettings = field(default_factory=SamplerSettings)
+    seed: int | None = None
+    prior_overrides: Mapping[str, tuple[float, float]] | None = None
+    likelihood_options: LikelihoodOptions = field(default_factory=LikelihoodOptions)
+    read_options: ReadOptions | None = None
+    labels: Mapping[str, Mapping] | None = None
+    state_estimation: bool = STATE_ESTIMATION
+    groups: RunGroups | None = None
+
+    def __post_init__(self) -> None:
+        # Refused before a log is read or a grid written.
+        self.settings.check_evidence_steps()
+        set_field = object.__setattr__  # normalised once, as the frozen fields they are
+        set_field(self, "inputs", tuple(self.inputs))
+        set_field(self, "out", Path(self.out))
+        set_field(self, "likelihood_options", LikelihoodOptions.of(self.likelihood_options))
+        if self.families is not None:
+            set_field(self, "families", tuple(self.families))
+        if self.groups is not None:  # a bad groups file refused before a log is read
+            set_field(self, "groups", as_run_groups(self.groups))
+
+    @property
+    def requested_families(self) -> tuple[str, ...]:
+        """The families to compare first (the defaults without ``families``)."""
+        return tuple(DEFAULT_FAMILIES) if self.families is None else self.families
+
+    def replace(self, **changes) -> RunContext:
+        """A copy with ``changes`` (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+class StageResult:
+    """What a stage of the analysis gives (a base of the stages' typed results).
+
+    ``to_dict()`` is its part of the analysis' JSON (the ``--json`` object of
+    ``analyse``): its keys join the object's in the pipeline's order, a
+    ``warnings`` list joins the list before it. ``files()`` names the files
+    it wrote (the object's ``files``); ``report_section()`` (a function of
+    the report's figures, returning HTML) and ``highlight()`` (a line of the
+    report's summary) are what it adds to the report, if anything.
+
+    Examples
+    --------
+    >>> from bayes_jackal.workflow import StageResult
+    >>> class Nothing(StageResult):
+    ...     pass
+    >>> Nothing().to_dict(), Nothing().files(), Nothing().report_section()
+    ({}, {}, None)
+    """
+
+    def to_dict(self) -> dict:
+        return {}
+
+    def files(self) -> dict[str, str | None]:
+        return {}
+
+    def report_section(self) -> Callable | None:
+        return None
+
+    def highlight(self) -> str | None:
+        return None
