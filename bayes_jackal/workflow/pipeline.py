@@ -15,15 +15,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from .context import RunContext, StageResult
-from .stages import (
-    families,
-    grids,
-    groups_population,
-    ingest,
-    prior,
-    report,
-    state_estimation,
-)
+from .stages.family_comparison import families
+from .stages.grid_searches import grids
+from .stages.groups import groups_population
+from .stages.ingestion import ingest
+from .stages.left_out import state_estimation
+from .stages.prior_export import prior
+from .stages.report_page import report
 
 __all__ = ["PIPELINE", "Analysis", "run_pipeline"]
 
