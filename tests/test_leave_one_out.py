@@ -150,7 +150,7 @@ def test_the_analysis_writes_its_files_and_says_it_did_not_converge(analysis):
     assert sorted(path.name for path in out.iterdir()) == sorted([
         "compare.json", "experiments", "grid.json", "grid_onestep.png", "grid_simulation.png",
         "posterior.json", "posterior.nc", "posteriors", "prior.json", "report.html",
-        "report_figures", FOLDER, SUMMARY,
+        "report_figures", "residuals.csv", FOLDER, SUMMARY,
     ])  # fmt: skip
 
 

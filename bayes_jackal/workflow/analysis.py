@@ -30,6 +30,8 @@ folder:
   cost). The posterior without each run is the best family's pooled
   posterior reweighted by PSIS, or, where its Pareto k-hat is above 0.7,
   a new posterior on the other runs; ``state_estimation=False`` skips it;
+- ``residuals.csv``: every run's one-step residuals under the best
+  family's posterior (:mod:`bayes_jackal.workflow.stages.residual_table`);
 - with ``groups``: ``population/units/``, ``population.json`` and
   ``population.png``, each group's damping and their population with the
   best family (:func:`bayes_jackal.population`);
@@ -193,7 +195,8 @@ def analyse_logs(
     'white: NOT CONVERGED: 100 steps are fewer than 50 autocorrelation times ...'
     >>> written  # doctest: +SKIP
     ['compare.json', 'experiments', 'grid.json', 'grid_onestep.png', 'grid_simulation.png',
-     'posterior.json', 'posterior.nc', 'posteriors', 'prior.json', 'report.html', 'report_figures']
+     'posterior.json', 'posterior.nc', 'posteriors', 'prior.json', 'report.html', 'report_figures',
+     'residuals.csv']
     """
     context = RunContext(
         inputs=tuple(paths),

@@ -22,6 +22,7 @@ from .stages.ingestion import ingest
 from .stages.left_out import state_estimation
 from .stages.prior_export import prior
 from .stages.report_page import report
+from .stages.residual_table import residual_table
 
 __all__ = ["PIPELINE", "Analysis", "run_pipeline"]
 
@@ -36,6 +37,7 @@ PIPELINE: tuple[Stage, ...] = (
     prior,
     state_estimation,
     groups_population,
+    residual_table,
     report,
 )
 
