@@ -3130,7 +3130,7 @@ ISSUE37_CASES = [
         verb="analyse",
     ),
     # Item 3: speed [m/s] is speed (its slope was dropped in silence), and a speed
-    # given for some runs only is said (covariate_incomplete), naming a run without.
+    # given for some runs only is said (covariate-incomplete), naming a run without.
     _population(
         "population-groups-speed-with-unit-is-speed",
         {**GOOD2, "g.csv": groups("run,group,speed [m/s]\na,A,0.3\nb,B,0.5\n")},

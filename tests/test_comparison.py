@@ -173,7 +173,7 @@ def test_a_warning_raised_while_sampling_is_kept_once_and_carried_back(runs, ove
     run = _FamilyRun(runs["run1"], ROBOT, SETTINGS, 3, None, False, OPTIONS)
     with warnings.catch_warnings():
         warnings.simplefilter("always")  # each raised warning recorded, not pytest's "error"
-        *_, kept = run((0, "white"))
+        kept = run((0, "white")).kept
     kept = pickle.loads(pickle.dumps(kept))  # as it comes back from a worker process
     assert kept.other == [(RuntimeWarning, "overflow encountered in exp")]
     [message] = kept.convergence  # 60 steps do not converge; kept apart, as before

@@ -20,11 +20,12 @@ import numpy as np
 import pytest
 
 import bayes_jackal as bj
+from bayes_jackal._runtime import KIND_MEANINGS
 from bayes_jackal.cli import main
 from bayes_jackal.inference import find_map
 from bayes_jackal.likelihood import LogPosterior, Prior, ResidualLikelihood
 from bayes_jackal.model import simulate
-from bayes_jackal.posterior import KIND_MEANINGS, input_noise
+from bayes_jackal.posterior import input_noise
 from bayes_jackal.posterior.criticism_inputs import INPUT_NOISE_RATIO, input_white_noise
 
 #: Thesis truth (d_lat, d_long [N s/m], sigma_h [s]).

@@ -314,7 +314,7 @@ def test_a_speed_left_empty_for_one_run_is_said_not_dropped_in_silence(floor_run
                       noise="per-experiment")  # fmt: skip
     assert plan.covariate is None
     (note,) = plan.notes
-    assert note["kind"] == "covariate_incomplete" and "'r3' has none" in note["message"]
+    assert note["kind"] == "covariate-incomplete" and "'r3' has none" in note["message"]
     assert plan_units(floor_runs, FLOORS).notes == []  # no speed anywhere: nothing to say
 
 
@@ -438,7 +438,7 @@ def test_population_json_and_its_units_saved_and_reused(floor_runs, floor_popula
     # The yaw rate alone does not pin the dampings' scale: each floor's d_long runs into
     # its prior's floor of 10 N s/m, and the result says so, as it says two groups are few.
     kinds = [w["kind"] for w in summary["warnings"]]
-    assert kinds.count("few_groups") == 1 and "prior_bound" in kinds
+    assert kinds.count("few-groups") == 1 and "prior-boundary" in kinds
     assert "approximate" in summary["verdict"]
     assert any("log Z" in line for line in said)
     for path in unit_files(folder, ["tiles", "carpet"], "white").values():

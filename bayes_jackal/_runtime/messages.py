@@ -22,7 +22,14 @@ from collections.abc import Iterable, Iterator
 
 from .progress import write_line
 
-__all__ = ["ROOT_LOGGER", "LineHandler", "install_handlers", "printed", "worker_handlers"]
+__all__ = [
+    "ROOT_LOGGER",
+    "LineHandler",
+    "install_handlers",
+    "printed",
+    "silenced",
+    "worker_handlers",
+]
 
 #: The root of the package's logger tree.
 ROOT_LOGGER = "bayes_jackal"
@@ -118,3 +125,28 @@ def printed(stream: str) -> Iterator[None]:
 def worker_handlers() -> list[LineHandler]:
     """The :class:`LineHandler` s printing the package's messages here (for workers)."""
     return [h for h in logging.getLogger(ROOT_LOGGER).handlers if isinstance(h, LineHandler)]
+
+
+@contextlib.contextmanager
+def silenced(name: str) -> Iterator[None]:
+    """While the block runs, logger ``name`` tells warnings and errors only.
+
+    For a step whose lines would drown the others' (the start search of
+    each of the families' chains, which run at once).
+
+    Examples
+    --------
+    >>> import logging
+    >>> with printed("stdout"):
+    ...     with silenced("bayes_jackal.inference"):
+    ...         logging.getLogger("bayes_jackal.inference").info("MAP search: ...")
+    ...     logging.getLogger("bayes_jackal.inference").info("shown")
+    shown
+    """
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)

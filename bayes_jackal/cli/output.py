@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .._runtime import json_text, write_line
+from .._runtime import KIND_MEANINGS, json_text, write_line
 from ..filters import inexact_note, method_text, score_rows
-from ..posterior import KIND_MEANINGS
 from ..thesis import GridResult
 from ..workflow import Analysis
 from .exits import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, print_failure
@@ -157,7 +156,7 @@ def print_criticism(findings: list[dict], *, where: str = "--json and the report
     with the count and where the others are (``compare``: per family), or
     each whole where only their text tells them apart. The
     last line says in a phrase what each kind means
-    (:data:`bayes_jackal.posterior.KIND_MEANINGS`) and ``where`` every
+    (:data:`bayes_jackal._runtime.KIND_MEANINGS`) and ``where`` every
     warning is given in full.
     """
     groups: dict[tuple[str, str], list[dict]] = {}

@@ -38,12 +38,15 @@ from .._runtime import (
     HDI_PROB,
     MAX_STEPS,
     NOISE,
+    PREDICTIVE_ACF,
+    PRIOR_BOUNDARY,
     SENSOR,
     STEADY,
     WALKERS,
     DataError,
     InputError,
     az,
+    silenced,
 )
 from ..io import Experiment, as_experiments
 from ..likelihood import LikelihoodOptions, LogPosterior, Prior, ResidualLikelihood
@@ -82,6 +85,17 @@ K = TypeVar("K", bound=Hashable)
 _LONGEST_FIRST = ("moving-average", "triangular", "exponential", "gaussian", "white")
 #: Sampler settings that only change the display, not a family's result.
 _DISPLAY_SETTINGS = ("progress", "progress_label", "progress_line")
+
+
+@dataclass(frozen=True)
+class _FamilyFit:
+    """One family's result in one group: its evidence, posterior, nested check and warnings."""
+
+    family: str
+    evidence: Evidence
+    posterior: az.InferenceData
+    nested: Evidence | None
+    kept: KeptWarnings
 
 
 @dataclass(frozen=True)
@@ -126,7 +140,7 @@ class _FamilyRun:
         return json.loads(json.dumps(task))
 
     def __call__(self, job: tuple[int, str]):
-        """(family, evidence, posterior, nested evidence or None, kept warnings).
+        """The family's :class:`_FamilyFit`.
 
         ``job`` is (position, family): the position picks the progress line.
         The result, kept in the posterior's attributes, is that of
@@ -142,9 +156,11 @@ class _FamilyRun:
                 progress_label=f"{self.label}{family:>14s}",
                 progress_line=position % self.lines,
             )
-            idata = sample_posterior(
-                likelihood, settings, self.seed, prior_overrides=self.prior_overrides
-            )
+            # The families' chains run at once: their start searches are not told.
+            with silenced(__package__):
+                idata = sample_posterior(
+                    likelihood, settings, self.seed, prior_overrides=self.prior_overrides
+                )
             draws, lp = Posterior.of(idata).draws()
             # Keyed on the family, not on which others are compared: results are reusable.
             key = list(FAMILIES).index(family)
@@ -161,10 +177,14 @@ class _FamilyRun:
         return self._stored(family, idata, kept)
 
     @staticmethod
-    def _stored(family: str, idata: az.InferenceData, kept: KeptWarnings | None = None):
-        """(family, evidence, posterior, nested or None, ``kept``) from the posterior's attrs."""
+    def _stored(
+        family: str, idata: az.InferenceData, kept: KeptWarnings | None = None
+    ) -> _FamilyFit:
+        """The family's result from the posterior's attributes, with ``kept``."""
         metadata = Posterior.of(idata).metadata
-        return family, metadata.evidence, idata, metadata.evidence_nested, kept or KeptWarnings()
+        return _FamilyFit(
+            family, metadata.evidence, idata, metadata.evidence_nested, kept or KeptWarnings()
+        )
 
     def reuse(self, family: str, path: Path):
         """The result saved in ``path`` when its task is this one's, else None (saying why)."""
@@ -201,7 +221,7 @@ class _FamilyJob:
 
     catch: bool
 
-    def __call__(self, job: tuple[K, _FamilyRun, int, str]) -> tuple[K, tuple | Exception]:
+    def __call__(self, job: tuple[K, _FamilyRun, int, str]) -> tuple[K, _FamilyFit | Exception]:
         key, run, position, family = job
         try:
             return key, run((position, family))
@@ -344,9 +364,7 @@ def _comparisons(
     on_failure: Callable[[K, Exception], None] | None,
 ) -> Iterator[tuple[K, Comparison]]:
     """The generator of :func:`compare_groups` (its arguments checked)."""
-    done: dict[K, dict[str, list]] = {
-        key: {} for key in runs
-    }  # family -> evidence, posterior, nested
+    done: dict[K, dict[str, _FamilyFit]] = {key: {} for key in runs}
     failed: set[K] = set()
 
     def fail(key, exc: Exception) -> None:
@@ -361,7 +379,7 @@ def _comparisons(
             for family in families:
                 reused = run.reuse(family, Path(paths[family])) if family in paths else None
                 if reused is not None:
-                    done[key][family] = reused[1:]
+                    done[key][family] = reused
         except Exception as exc:  # e.g. a channel its data lack
             fail(key, exc)
     pending = sorted(
@@ -388,12 +406,12 @@ def _comparisons(
             if isinstance(outcome, Exception):
                 fail(key, outcome)
                 continue
-            family, *result = outcome
-            done[key][family] = result
-            result[3].issue(f"{runs[key].label}{family}: ")  # raised in a worker, shown here
+            done[key][outcome.family] = outcome
+            # raised in a worker, shown here
+            outcome.kept.issue(f"{runs[key].label}{outcome.family}: ")
             try:
                 if on_family is not None:
-                    on_family(key, family, *result[:2])
+                    on_family(key, outcome.family, outcome.evidence, outcome.posterior)
             except Exception as exc:
                 fail(key, exc)
                 continue
@@ -401,13 +419,15 @@ def _comparisons(
                 yield key, _comparison(runs[key], families, done[key])
 
 
-def _comparison(run: _FamilyRun, families: tuple[str, ...], results: dict) -> Comparison:
+def _comparison(
+    run: _FamilyRun, families: tuple[str, ...], results: dict[str, _FamilyFit]
+) -> Comparison:
     """A group's comparison, its families in order; its chains' convergence warnings issued."""
     comparison = Comparison(
         [e.name for e in run.experiments],
-        {family: results[family][0] for family in families},
-        {family: results[family][1] for family in families},
-        {family: results[family][2] for family in families if results[family][2] is not None},
+        {family: results[family].evidence for family in families},
+        {family: results[family].posterior for family in families},
+        {family: results[family].nested for family in families if results[family].nested},
     )
     for message in comparison.convergence_messages():
         warnings.warn(ConvergenceWarning(message), stacklevel=3)
@@ -761,7 +781,7 @@ def width_floor(warnings: Sequence[dict], widths: Sequence[str], dt: float) -> f
     A floor below :data:`HIDING_FLOOR_SAMPLES` sample intervals ``dt`` [s]
     does not count: what lies below it is white.
     """
-    bounds = [w["bound"] for w in warnings if w["kind"] == "prior-boundary"
+    bounds = [w["bound"] for w in warnings if w["kind"] == PRIOR_BOUNDARY
               and w.get("side") == "low" and w.get("parameter") in widths
               and w["bound"] >= HIDING_FLOOR_SAMPLES * dt]  # fmt: skip
     return min(bounds) if bounds else None
@@ -847,7 +867,7 @@ def colour_verdict(
             f"prior's floor ({at}): colour of shorter memory was not tried; lower the "
             "floor (--prior sigma_h LOW HIGH, e.g. a quarter of the sample interval)"
         )
-    if value + 2 * error < -WHITE_LOG_BF and "predictive-acf" in white_warnings:
+    if value + 2 * error < -WHITE_LOG_BF and PREDICTIVE_ACF in white_warnings:
         return "inconclusive", (
             f"inconclusive: white over {rival}, {words}, but the white fit misses the "
             "residuals' colour (predictive-acf): a family not compared may be coloured"

@@ -62,6 +62,12 @@ __all__ = [
 DAMPING_NAMES = ("d_lat", "d_long")
 #: How the groups' dampings relate: one for all, drawn from a population, or free.
 POPULATION_STRUCTURES = ("pooled", "hierarchical", "independent")
+#: Each structure's name (its key in the evidence and the JSON) -> how the
+#: groups relate and whether log d has a slope in the covariate.
+STRUCTURE_PARTS = {
+    **{kind: (kind, False) for kind in POPULATION_STRUCTURES},
+    **{f"{kind} + slope": (kind, True) for kind in POPULATION_STRUCTURES},
+}
 #: Log-uniform prior range of the population spread tau of log d [-]: from
 #: 1 % (below what a campaign of runs resolves) to a factor e per sd. Its
 #: log-uniform form is Jeffreys' prior of a scale, under which the
@@ -320,9 +326,10 @@ class Hierarchy:
     @property
     def structures(self) -> tuple[str, ...]:
         """The structures, and with a covariate each with a slope (``"pooled + slope"``)."""
-        if self.covariates is None:
-            return POPULATION_STRUCTURES
-        return (*POPULATION_STRUCTURES, *(f"{kind} + slope" for kind in POPULATION_STRUCTURES))
+        with_slope = self.covariates is not None
+        return tuple(
+            name for name, (_, slope) in STRUCTURE_PARTS.items() if with_slope or not slope
+        )
 
     def _parse(self, structure: str) -> tuple[str, bool]:
         if structure not in self.structures:
@@ -330,8 +337,7 @@ class Hierarchy:
                 f"unknown structure {structure!r}; choose from {list(self.structures)}",
                 field="structure",
             )
-        kind, _, slope = structure.partition(" + ")
-        return kind, bool(slope)
+        return STRUCTURE_PARTS[structure]
 
     def _design(self, kind: str, slope: bool) -> np.ndarray:
         """X of theta = X beta, rows (unit, damping), columns (mu or each a_g, then b)."""

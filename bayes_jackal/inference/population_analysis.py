@@ -24,12 +24,19 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime import (
+    COVARIATE_INCOMPLETE,
     DAMPING_MODEL,
     ENGINE,
     FAMILY,
+    FEW_GROUPS,
     HDI_PROB,
     MAX_STEPS,
     NOISE,
+    NORMAL_SUMMARY,
+    NOT_CONVERGED,
+    ONE_OPERATING_POINT,
+    PRIOR_BOUNDARY,
+    PRIOR_SENSITIVITY,
     SENSOR,
     STEADY,
     WALKERS,
@@ -47,6 +54,7 @@ from .evidence import evidence_strength
 from .executors import Executor
 from .hierarchy import (
     DAMPING_NAMES,
+    STRUCTURE_PARTS,
     TAU_RANGE,
     Hierarchy,
     UnitPosterior,
@@ -223,9 +231,9 @@ class Population:
         if confounded:  # the slope, or the groups' difference: against one damping for all
             sloped, constant = "pooled + slope", "pooled"
         else:
-            sloped = self._highest(name for name in self.evidence if name.endswith(" + slope"))
+            sloped = self._highest(name for name in self.evidence if STRUCTURE_PARTS[name][1])
             constant = self._highest(
-                name for name in self.evidence if not name.endswith(" + slope")
+                name for name in self.evidence if not STRUCTURE_PARTS[name][1]
             )
         slope = self.draws[sloped]["slope"]
         span = self.hierarchy.covariate_span
@@ -289,8 +297,8 @@ class Population:
     def verdict(self) -> str:
         """The best structure, in words."""
         best = self.best
-        kind = best.partition(" + ")[0]
-        others = [name for name in self.evidence if name.partition(" + ")[0] != kind]
+        kind = STRUCTURE_PARTS[best][0]
+        others = [name for name in self.evidence if STRUCTURE_PARTS[name][0] != kind]
         runner_up = self._highest(others)
         value, error = self.log_bayes_factor(best, runner_up)
         meaning = {
@@ -298,7 +306,7 @@ class Population:
             "hierarchical": "the groups' dampings differ, drawn from one population",
             "independent": "the groups' dampings differ, each its own",
         }[kind]
-        doubted = {w["kind"] for w in self.warnings} & {"normal_summary", "prior_bound"}
+        doubted = {w["kind"] for w in self.warnings} & {NORMAL_SUMMARY, PRIOR_BOUNDARY}
         return (
             f"{meaning}: {best} over {runner_up}, ln B = {value:.1f} +- {error:.2f}, "
             f"{evidence_strength(value)}"
@@ -414,7 +422,7 @@ def _partial_speed(experiments: Sequence[Experiment], table: RunGroups | None) -
         return []
     missing = [run.name for run in experiments if run.name not in given]
     return [{
-        "kind": "covariate_incomplete",
+        "kind": COVARIATE_INCOMPLETE,
         "message": f"{len(given)} of {len(experiments)} runs have a speed ({missing[0]!r} has "
                    "none): no state dependence is fitted; give every run's speed, or "
                    "--covariate speed to refuse such a table",
@@ -457,7 +465,7 @@ class UnitPlan:
     covariate : str or None
         The covariate of the slope, None without one.
     notes : list of dict
-        Warnings to keep (``one_operating_point``, ``covariate_incomplete``).
+        Warnings to keep (``one-operating-point``, ``covariate-incomplete``).
 
     Examples
     --------
@@ -474,7 +482,7 @@ class UnitPlan:
     >>> {name: [run.name for run in unit[1]] for name, unit in plan.units.items()}
     {'A': ['r0', 'r1'], 'B': ['r2', 'r3']}
     >>> plan.covariate, [note["kind"] for note in plan.notes]
-    (None, ['one_operating_point'])
+    (None, ['one-operating-point'])
     """
 
     units: dict[str, tuple[str, list[Experiment], float | None]]
@@ -531,7 +539,7 @@ def plan_units(
     if len({value for _, _, value in units.values()}) > 1:
         return UnitPlan(units, name, [])
     note = {
-        "kind": "one_operating_point",
+        "kind": ONE_OPERATING_POINT,
         "message": f"every unit has the same {name}: no state dependence is fitted",
     }
     units = {key: (label, members, None) for key, (label, members, _) in units.items()}
@@ -717,7 +725,7 @@ def population_posterior(
             save_posterior(idata, files[key])
 
     with warnings.catch_warnings():
-        # A chain that hit its cap is in the result's warnings (kind "convergence").
+        # A chain that hit its cap is in the result's warnings (kind "not-converged").
         warnings.simplefilter("ignore", ConvergenceWarning)
         units_sampled = compare_groups(
             {key: members for key, (_, members, _) in units.items()},
@@ -842,13 +850,13 @@ def combine_summaries(
 
 def _unit_warnings(unit: UnitPosterior, convergence: list[str]) -> list[dict]:
     warnings = [
-        {"kind": "convergence", "unit": unit.name, "message": f"{unit.name}: {message}"}
+        {"kind": NOT_CONVERGED, "unit": unit.name, "message": f"{unit.name}: {message}"}
         for message in convergence
     ]
     if abs(unit.coverage - HDI_PROB) > COVERAGE_TOLERANCE or unit.skewness > SKEWNESS_TOLERANCE:
         warnings.append(
             {
-                "kind": "normal_summary",
+                "kind": NORMAL_SUMMARY,
                 "unit": unit.name,
                 "message": (
                     f"{unit.name}: its damping posterior is not normal on the log scale "
@@ -860,7 +868,7 @@ def _unit_warnings(unit: UnitPosterior, convergence: list[str]) -> list[dict]:
     for name in unit.at_bound:
         warnings.append(
             {
-                "kind": "prior_bound",
+                "kind": PRIOR_BOUNDARY,
                 "unit": unit.name,
                 "message": (
                     f"{unit.name}: {name}'s posterior reaches its prior's bound; widen the "
@@ -898,7 +906,7 @@ def _population_warnings(result: Population) -> list[dict]:
     if groups < 3:
         warnings.append(
             {
-                "kind": "few_groups",
+                "kind": FEW_GROUPS,
                 "message": (
                     f"{groups} groups: the population's spread is barely determined; its "
                     "mean's interval is wide by right"
@@ -912,7 +920,7 @@ def _population_warnings(result: Population) -> list[dict]:
             if shift > SENSITIVITY_SHIFT * default[name]["sd"]:
                 warnings.append(
                     {
-                        "kind": "prior_sensitivity",
+                        "kind": PRIOR_SENSITIVITY,
                         "message": (
                             f"the population mean of log {name} moves by {shift:.3f} "
                             f"({shift / default[name]['sd']:.1f} sd) under the {label} "

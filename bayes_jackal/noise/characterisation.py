@@ -32,7 +32,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._runtime import HDI_PROB, NOISE_MAX_STEPS, SERIES_ENGINES, InputError, az
+from .._runtime import (
+    HDI_PROB,
+    NOISE_MAX_STEPS,
+    NOT_CONVERGED,
+    OTHER_WARNING,
+    SERIES_ENGINES,
+    InputError,
+    az,
+)
 from ..inference import (
     Executor,
     SamplerSettings,
@@ -378,8 +386,8 @@ def fit_family(
         evidence = bridge_sampling(log_posterior, chain.samples, chain.log_prob,
                                    rng=np.random.default_rng(bridge_seed))  # fmt: skip
     draws = prior.to_natural(chain.samples.reshape(-1, len(prior.names)))
-    kept_warnings = [{"kind": "convergence", "message": m} for m in kept.convergence] + [
-        {"kind": "warning", "message": message} for _, message in kept.other
+    kept_warnings = [{"kind": NOT_CONVERGED, "message": m} for m in kept.convergence] + [
+        {"kind": OTHER_WARNING, "message": message} for _, message in kept.other
     ]
     return FamilyFit(
         family=family,

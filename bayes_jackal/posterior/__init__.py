@@ -5,7 +5,6 @@ posterior-predictive series, model criticism and PSIS reweighting.
 from .criticism import (
     BOUNDARY_DENSITY,
     BOUNDARY_STRIP,
-    KIND_MEANINGS,
     PORTMANTEAU_LAGS,
     PREDICTIVE_ALARM,
     PREDICTIVE_DRAWS,

@@ -24,7 +24,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._runtime import HDI_PROB, as_rng, az
+from .._runtime import (
+    DAMPING_SCALE_NOT_IDENTIFIED,
+    HDI_PROB,
+    PREDICTIVE_ACF,
+    PRIOR_BOUNDARY,
+    as_rng,
+    az,
+)
 from ..io import Experiment
 from ..likelihood import Prior, channel_residuals
 from ..model import DAMPING
@@ -47,24 +54,9 @@ from .posterior import Posterior
 from .predictive import predictive_series
 from .records import PosteriorMetadata
 
-#: What each kind of warning means for the result, in a phrase (the CLI's summary line).
-KIND_MEANINGS = {
-    "not-converged": "a chain stopped before its criterion held: its numbers are preliminary",
-    "prior-boundary": "a parameter is piled at its prior's bound: the data give only a limit",
-    "damping-scale-not-identified": (
-        "the runs fix the ratio d_lat/d_long, not the damping's scale: report the ratio"
-    ),
-    "residual-input": "the residuals follow the wheel speeds: a dynamic or input is missing",
-    "input-noise": "white noise on the wheel speeds, taken as exact, biases the damping low",
-    "predictive-acf": "the fitted noise misses the residuals' colour: try another family",
-    "not-steady": "an analysed window is not steady cornering, which the model assumes",
-    "derived-velocity": "velocities derived from poses are modelled as measured: damping biased",
-}
-
 __all__ = [
     "BOUNDARY_DENSITY",
     "BOUNDARY_STRIP",
-    "KIND_MEANINGS",
     "PORTMANTEAU_LAGS",
     "PREDICTIVE_ALARM",
     "PREDICTIVE_DRAWS",
@@ -218,7 +210,7 @@ def _boundary_warning(name: str, key: str, bound: float, side: str, interval: tu
             "misses something this parameter absorbs"
         )
     return {
-        "kind": "prior-boundary",
+        "kind": PRIOR_BOUNDARY,
         "parameter": name,
         "bound": bound,
         "side": side,
@@ -362,7 +354,7 @@ def _predictive_warning(
     side = "higher" if p < 0.5 else "lower"
     beaten = round((1.0 - p if p < 0.5 else p) * draws)
     return {
-        "kind": "predictive-acf",
+        "kind": PREDICTIVE_ACF,
         "experiment": experiment,
         "channel": channel,
         "statistic": name,
@@ -458,7 +450,7 @@ def damping_scale(idata: az.InferenceData) -> Check:
         )
     check.warnings.append(
         {
-            "kind": "damping-scale-not-identified",
+            "kind": DAMPING_SCALE_NOT_IDENTIFIED,
             "channels": channels,
             "message": f"{channel} alone identifies {_IDENTIFIES[channel]}; {advice}",
         }
@@ -488,7 +480,7 @@ def _prior_made_warning(
     ratio = az.hdi(damping[:, 0] / damping[:, 1], hdi_prob=HDI_PROB)
     name = max(shift, key=lambda key: abs(shift[key]))
     return {
-        "kind": "damping-scale-not-identified",
+        "kind": DAMPING_SCALE_NOT_IDENTIFIED,
         "channels": channels,
         "prior_shift": shift,
         "message": (

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
-from .._runtime import az
+from .._runtime import DERIVED_VELOCITY, INPUT_NOISE, NOT_STEADY, RESIDUAL_INPUT, az
 from ..io import CHANNEL_FIELDS, STEADY_INPUT_TOLERANCE, STEADY_YAW_TOLERANCE, UNITS, Experiment
 from ..likelihood import channel_residuals
 from ..model import RATE_SENSOR, channel_coefficients
@@ -175,7 +175,7 @@ def _input_warning(
     index = int(np.argmax(np.abs(z)))
     lag = index - len(z) // 2
     return {
-        "kind": "residual-input",
+        "kind": RESIDUAL_INPUT,
         "experiment": experiment,
         "channel": channel,
         "input": name,
@@ -298,7 +298,7 @@ def _input_noise_warning(experiment: str, channel: str, row: dict, noise: np.nda
     right, left = noise
     unit = UNITS[CHANNEL_FIELDS[channel]]
     return {
-        "kind": "input-noise",
+        "kind": INPUT_NOISE,
         "experiment": experiment,
         "channel": channel,
         "ratio": row["ratio"],
@@ -371,7 +371,7 @@ def steady_windows(idata: az.InferenceData) -> Check:
         span = "steady window" if experiment.steady_window else "run"
         check.warnings.append(
             {
-                "kind": "not-steady",
+                "kind": NOT_STEADY,
                 "experiment": experiment.name,
                 "input_deviation": row["input_deviation"],
                 "yaw_drift": row["yaw_drift"],
@@ -485,7 +485,7 @@ def derived_velocities(idata: az.InferenceData) -> Check:
         if channels:
             check.warnings.append(
                 {
-                    "kind": "derived-velocity",
+                    "kind": DERIVED_VELOCITY,
                     "experiment": record.name,
                     "channels": channels,
                     "message": (

@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime import CHANNELS, HDI_PROB, az
+from .._runtime import CHANNELS, HDI_PROB, KIND_MEANINGS, az
 from ..filters import FILTER_INEXACT, LeaveOneOut, inexact_note, score_rows
 from ..inference import Comparison
 from ..model import discrete_matrices
-from ..posterior import KIND_MEANINGS, PARETO_K_THRESHOLD, Posterior, summarize
+from ..posterior import PARETO_K_THRESHOLD, Posterior, summarize
 from . import estimate_plots, plots, population_plots, predictive_plots
 from .figures import ReportFigures
 

@@ -31,6 +31,7 @@ import xarray as xr
 
 from .._runtime import (
     DISCRETISATION,
+    GRID_EDGE,
     GRID_METHODS,
     GRID_POINTS,
     METHOD,
@@ -472,7 +473,7 @@ class GridResult:
             )
             warnings.append(
                 {
-                    "kind": "grid-edge",
+                    "kind": GRID_EDGE,
                     "message": message,
                     "method": self.method,
                     "parameter": name,

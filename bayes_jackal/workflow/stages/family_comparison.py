@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..._runtime import SHORT_MEMORY, az, write_json
+from ..._runtime import NOT_CONVERGED, SHORT_MEMORY, az, write_json
 from ...inference import Comparison, compare_families, keep_warnings
 from ...posterior import criticise, save_posterior, summarize
 from ..context import RunContext, StageResult
@@ -50,7 +50,7 @@ class Families(StageResult):
         return [self.best, *(family for family in self.compared if family != self.best)]
 
     def to_dict(self) -> dict:
-        convergence = [{"kind": "not-converged", "message": m} for m in self.convergence]
+        convergence = [{"kind": NOT_CONVERGED, "message": m} for m in self.convergence]
         return {
             "comparison": self.comparison_json,
             "best": self.best,

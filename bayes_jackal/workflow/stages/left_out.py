@@ -6,6 +6,7 @@ import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
+from ..._runtime import NOT_CONVERGED
 from ...filters import SUMMARY, LeaveOneOut, leave_one_out
 from ...report import state_estimation_highlight, state_estimation_section
 from ..context import RunContext, StageResult
@@ -24,7 +25,7 @@ class StateEstimation(StageResult):
 
     def to_dict(self) -> dict:
         convergence = [
-            {"kind": "not-converged", "message": f"leaving out {run}: {message}", "left_out": run}
+            {"kind": NOT_CONVERGED, "message": f"leaving out {run}: {message}", "left_out": run}
             for run, record in self.left_out.runs.items()
             for message in record["warnings"]
         ]
