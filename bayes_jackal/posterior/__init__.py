@@ -89,7 +89,7 @@ from .series_statistics import (
     sample_autocorrelation,
     spectrum,
 )
-from .summary import INTERVAL_FIELDS, THESIS_RATIO, interval, summarize
+from .summary import INTERVAL_FIELDS, THESIS_RATIO, Summary, interval, summarize
 
 #: What a user of this stage needs (the API reference); the other names
 #: imported above serve the package's later stages.

@@ -11,7 +11,7 @@ from .._runtime import az
 from .criticism import criticise
 from .posterior import Posterior
 
-__all__ = ["INTERVAL_FIELDS", "THESIS_RATIO", "interval", "summarize"]
+__all__ = ["INTERVAL_FIELDS", "THESIS_RATIO", "Summary", "interval", "summarize"]
 
 
 #: The thesis' ridge ratio d_lat / d_long (ch. 5-2-2).
@@ -23,6 +23,41 @@ _SUMMARY_FIELDS = ("mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "ess_tail", "r
 
 #: The fields of a summary row that describe the posterior itself.
 INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
+
+
+class Summary(dict):
+    """The JSON of a posterior's summary (a dict), printed as a table.
+
+    Each parameter's row (and the ratio's) is a dict of arviz's fields;
+    ``to_dict()`` is the plain dict ``sample --json`` prints.
+
+    Examples
+    --------
+    >>> from bayes_jackal.posterior import Summary
+    >>> row = {"mean": 110.2, "sd": 4.1, "hdi_3%": 102.6, "hdi_97%": 117.9, "ess_autocorr": 812.0}
+    >>> print(Summary(family="white", n_steps=4000, converged=True, d_lat=row))
+    white posterior, 4000 steps, converged
+                     mean         sd     hdi_3%    hdi_97%  ess_autocorr
+    d_lat           110.2        4.1      102.6      117.9           812
+    """
+
+    _COLUMNS = (*INTERVAL_FIELDS, "ess_autocorr")
+
+    def to_dict(self) -> dict:
+        return dict(self)
+
+    def __repr__(self) -> str:
+        state = "converged" if self.get("converged") else "NOT CONVERGED"
+        lines = [f"{self.get('family')} posterior, {self.get('n_steps')} steps, {state}"]
+        lines.append(f"{'':10s}" + "".join(f"{column:>11s}" for column in self._COLUMNS[:4])
+                     + f"{self._COLUMNS[4]:>14s}")  # fmt: skip
+        for name, row in self.items():
+            if isinstance(row, dict) and "mean" in row:
+                cells = "".join(f"{row.get(c, float('nan')):11.4g}" for c in self._COLUMNS[:4])
+                lines.append(f"{name:10s}{cells}{row.get('ess_autocorr', float('nan')):14.0f}")
+        return "\n".join(lines)
+
+    __str__ = __repr__
 
 
 def interval(row: dict) -> dict:
@@ -44,8 +79,8 @@ def interval(row: dict) -> dict:
     return {key: row[key] for key in INTERVAL_FIELDS}
 
 
-def summarize(idata: az.InferenceData) -> dict:
-    """JSON-ready summary of a posterior (docs/design.md §6 ``sample --json``).
+def summarize(idata: az.InferenceData) -> Summary:
+    """JSON-ready summary of a posterior (docs/design.md §6 ``sample --json``), printed as a table.
 
     One key per parameter and for the derived ``ratio``, each with arviz's
     ``mean``, ``sd``, ``hdi_3%``, ``hdi_97%``, ``ess_bulk``, ``ess_tail``,
@@ -80,7 +115,7 @@ def summarize(idata: az.InferenceData) -> dict:
     fitted = Posterior.of(idata)
     metadata = fitted.metadata
     convergence = metadata.convergence
-    summary: dict = {}
+    summary = Summary()
     for label, row in fitted.table(round_to="none").iterrows():
         summary[label] = {key: float(row[key]) for key in _SUMMARY_FIELDS}
         if label in convergence.ess_autocorr:
@@ -94,4 +129,5 @@ def summarize(idata: az.InferenceData) -> dict:
     summary["converged"] = convergence.converged
     summary["family"] = metadata.family
     summary["channels"] = list(metadata.channels)
-    return summary | criticise(idata)
+    summary.update(criticise(idata))
+    return summary
