@@ -90,7 +90,16 @@ def test_a_stages_result_joins_the_json_and_its_warnings_the_list(pipeline):
     assert payload["files"] == before["files"]
 
 
-def test_the_pipeline_lists_each_stage_once_the_report_last():
+def test_the_pipeline_lists_each_stage_once_the_report_after_its_sections():
     names = [stage.__name__ for stage in PIPELINE]
-    assert len(set(names)) == len(names) and names[0] == "ingest" and names[-1] == "report"
-    assert names.index("residual_table") > names.index("families")
+    assert len(set(names)) == len(names) and names[0] == "ingest"
+    for sectioned in ("families", "state_estimation", "groups_population"):
+        assert names.index("report") > names.index(sectioned)
+    assert names.index("residual_table") > names.index("report")  # cannot cost the report
+
+
+def test_a_stage_without_a_name_of_its_own_is_refused(pipeline):
+    context = RunContext(inputs=["a.csv"], out="out", executor=SerialExecutor())
+    for stages in ((ingest, ingest), (lambda context, done: None,)):
+        with pytest.raises(bj.InputError, match="needs a name of its own"):
+            run_pipeline(context, stages)

@@ -159,7 +159,7 @@ def interrupt_pending() -> int | None:
     (the handlers installed for the example, and put back after):
 
     >>> import signal
-    >>> from bayes_jackal import interrupt
+    >>> from bayes_jackal._runtime import interrupt
     >>> previous = interrupt.install_interrupts()
     >>> try:
     ...     with interrupt.interrupts_deferred():
@@ -193,7 +193,7 @@ def install_interrupts() -> dict:
     The CLI installs the handlers once; here they are put back at once:
 
     >>> import signal
-    >>> from bayes_jackal import interrupt
+    >>> from bayes_jackal._runtime import interrupt
     >>> previous = interrupt.install_interrupts()
     >>> signal.getsignal(signal.SIGTERM) is previous[signal.SIGTERM]
     False
@@ -225,7 +225,7 @@ def restore_interrupts(previous: dict) -> None:
     Examples
     --------
     >>> import signal
-    >>> from bayes_jackal import interrupt
+    >>> from bayes_jackal._runtime import interrupt
     >>> before = signal.getsignal(signal.SIGINT)
     >>> previous = interrupt.install_interrupts()
     >>> interrupt.restore_interrupts(previous)
@@ -278,7 +278,7 @@ def check_interrupt() -> None:
     --------
     Nothing pending: nothing raised.
 
-    >>> from bayes_jackal import interrupt
+    >>> from bayes_jackal._runtime import interrupt
     >>> interrupt.check_interrupt()
 
     A long loop checks between steps; a signal landing in a step is raised at
@@ -319,7 +319,7 @@ def interrupts_deferred() -> Iterator[None]:
     handlers installed for the example, and put back after):
 
     >>> import signal
-    >>> from bayes_jackal import interrupt
+    >>> from bayes_jackal._runtime import interrupt
     >>> previous = interrupt.install_interrupts()
     >>> try:
     ...     with interrupt.interrupts_deferred():
@@ -402,7 +402,7 @@ def interrupts_blocked() -> Iterator[None]:
     SIGINT and SIGTERM wait while the block runs, e.g. while workers start:
 
     >>> import signal
-    >>> from bayes_jackal._runtime.interrupt import blocked
+    >>> from bayes_jackal._runtime.interrupt import interrupts_blocked
     >>> with interrupts_blocked():
     ...     print(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []))
     True

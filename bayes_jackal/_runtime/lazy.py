@@ -51,6 +51,6 @@ def lazy_exports(
         return value
 
     def __dir__() -> list[str]:
-        return sorted({n for n in namespace if not n.startswith("__")} | set(homes))
+        return sorted(set(namespace) | set(homes) | set(subpackages))
 
     return __getattr__, __dir__

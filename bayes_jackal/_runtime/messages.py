@@ -3,44 +3,44 @@
 Every stage tells what it does through :mod:`logging`, on the logger of its
 subpackage (``bayes_jackal.inference``, ``bayes_jackal.workflow`` ...), at
 ``INFO`` ("sampling v1_01 on channels yaw -> fits/v1_01.nc", "reusing white
-from ...") . A library user routes, silences or captures them as any other
+from ..."). A library user routes, silences or captures them as any other
 library's; by default (no handler configured) nothing is printed, as Python's
 last-resort handler shows warnings and errors only. The command line prints
 them with :func:`printed`, one line each above any progress bar, on stdout
-(on stderr with ``--json``, whose stdout carries the JSON). Worker processes
-print with the same handlers (:func:`worker_handlers`, :func:`install_handlers`).
-Warnings about the data or the fit stay Python warnings (``warnings.warn``),
-which the CLI shows as ``bayes-jackal: WARNING:`` lines.
+(on stderr with ``--json``, whose stdout carries the JSON). A step whose
+lines would drown the others' runs :func:`silenced` (each of the families'
+chains, which run at once). Warnings about the data or the fit stay Python
+warnings (``warnings.warn``), which the CLI shows as ``bayes-jackal:
+WARNING:`` lines.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import logging
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 
 from .progress import write_line
 
-__all__ = [
-    "ROOT_LOGGER",
-    "LineHandler",
-    "install_handlers",
-    "printed",
-    "silenced",
-    "worker_handlers",
-]
+__all__ = ["ROOT_LOGGER", "LineHandler", "printed", "silenced"]
 
 #: The root of the package's logger tree.
 ROOT_LOGGER = "bayes_jackal"
+
+#: The loggers silenced in this thread or task (:func:`silenced`).
+_SILENCED: contextvars.ContextVar[frozenset[str]] = contextvars.ContextVar(
+    "bayes_jackal_silenced", default=frozenset()
+)
 
 
 class LineHandler(logging.Handler):
     """Each record's message as one line on ``sys.stdout`` or ``sys.stderr``.
 
     Written with :func:`~bayes_jackal._runtime.progress.write_line`, above a
-    progress bar that may be drawn. Pickled by the stream's name, so that a
-    worker process writes to its own (inherited) stream.
+    progress bar that may be drawn: the message as it is (the CLI's lines),
+    whatever formatter is set.
 
     Parameters
     ----------
@@ -69,34 +69,14 @@ class LineHandler(logging.Handler):
         # the error is not swallowed, as logging's own handlers swallow it.
         write_line(record.getMessage(), getattr(sys, self.stream))
 
-    def __reduce__(self):
-        return LineHandler, (self.stream,)
-
-
-def install_handlers(handlers: Iterable[logging.Handler]) -> list[logging.Handler]:
-    """Print the package's ``INFO`` messages with ``handlers`` (and nowhere else).
-
-    Returns the handlers, added to the ``bayes_jackal`` logger at level
-    ``INFO``. In a worker process they stay until it exits; :func:`printed`
-    removes its own and restores the logger's level.
-
-    Examples
-    --------
-    >>> handlers = install_handlers(worker_handlers())  # a worker: the parent's
-    """
-    logger = logging.getLogger(ROOT_LOGGER)
-    handlers = list(handlers)
-    for handler in handlers:
-        logger.addHandler(handler)
-    if handlers:
-        logger.setLevel(logging.INFO)
-        logger.propagate = False  # a root handler would print each line twice
-    return handlers
-
 
 @contextlib.contextmanager
 def printed(stream: str) -> Iterator[None]:
     """While the block runs, the package's ``INFO`` messages are lines on ``stream``.
+
+    Only there: the ``bayes_jackal`` logger does not propagate them to a
+    root handler meanwhile (each line would be printed twice). Its level and
+    propagation are restored afterwards.
 
     Parameters
     ----------
@@ -112,8 +92,10 @@ def printed(stream: str) -> Iterator[None]:
     >>> logging.getLogger("bayes_jackal.workflow").info("not shown")
     """
     logger = logging.getLogger(ROOT_LOGGER)
-    saved = logger.level, logger.propagate
-    (handler,) = install_handlers([LineHandler(stream)])
+    handler, saved = LineHandler(stream), (logger.level, logger.propagate)
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
     try:
         yield
     finally:
@@ -122,17 +104,22 @@ def printed(stream: str) -> Iterator[None]:
         logger.propagate = saved[1]
 
 
-def worker_handlers() -> list[LineHandler]:
-    """The :class:`LineHandler` s printing the package's messages here (for workers)."""
-    return [h for h in logging.getLogger(ROOT_LOGGER).handlers if isinstance(h, LineHandler)]
+class _Silence(logging.Filter):
+    """Drops a logger's records below WARNING in a thread or task that silenced it."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= logging.WARNING or record.name not in _SILENCED.get()
+
+
+_SILENCE = _Silence()
 
 
 @contextlib.contextmanager
 def silenced(name: str) -> Iterator[None]:
-    """While the block runs, logger ``name`` tells warnings and errors only.
+    """While the block runs, in this thread or task only, logger ``name`` tells no ``INFO``.
 
-    For a step whose lines would drown the others' (the start search of
-    each of the families' chains, which run at once).
+    Warnings and errors still pass. Other threads (a threaded executor's
+    other jobs) and the logger's children are not affected.
 
     Examples
     --------
@@ -144,9 +131,10 @@ def silenced(name: str) -> Iterator[None]:
     shown
     """
     logger = logging.getLogger(name)
-    level = logger.level
-    logger.setLevel(logging.WARNING)
+    if _SILENCE not in logger.filters:
+        logger.addFilter(_SILENCE)
+    token = _SILENCED.set(_SILENCED.get() | {name})
     try:
         yield
     finally:
-        logger.setLevel(level)
+        _SILENCED.reset(token)

@@ -13,7 +13,7 @@ from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
-from .._runtime import POSE_NOISE, InputError, chain_path, each_input, write_json
+from .._runtime import POSE_NOISE, InputError, chain_path, each_input, silenced, write_json
 from ..dem import export_prior, read_prior, write_prior
 from ..filters import estimate_columns, estimate_each, score_estimates, write_estimates
 from ..inference import (
@@ -103,13 +103,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_ingest(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     folder = Path(args.out)
-    experiments, failed = ingest_logs(
-        args.bags,
-        robot_with_topics(args),
-        folder,
-        read_options=ReadOptions(window=args.window, max_gap=args.max_gap),
-        progress=not args.json,
-    )
+    with silenced("bayes_jackal.io"):  # the table below says what each bag gave
+        experiments, failed = ingest_logs(
+            args.bags,
+            robot_with_topics(args),
+            folder,
+            read_options=ReadOptions(window=args.window, max_gap=args.max_gap),
+            progress=not args.json,
+        )
     for reason in failed.values():
         print(f"bayes-jackal: error: {reason}", file=sys.stderr)
     out.say(

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .._runtime import InputError, each_input, write_json
+from .._runtime import InputError, each_input, silenced, write_json
 from ..dem import write_prior
 from ..inference import ProcessExecutor, SamplerSettings
 from ..noise import (
@@ -74,7 +74,8 @@ def _write_report(
     cannot be drawn or written loses none of them.
     """
     try:
-        report = write_noise_report(found, path, seed=seed or 0)
+        with silenced("bayes_jackal.report"):  # no figure counts: the command says what it wrote
+            report = write_noise_report(found, path, seed=seed or 0)
     except Exception as failed:  # an interrupt (not an Exception) still stops the run
         failures(str(path), failed)
         return

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 from .._runtime import KIND_MEANINGS, json_text, write_line
 from ..filters import inexact_note, method_text, score_rows
 from ..thesis import GridResult
-from ..workflow import Analysis
+
+if TYPE_CHECKING:  # the workflow's stages are not loaded for the other commands
+    from ..workflow import Analysis
 from .exits import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, print_failure
 
 

@@ -59,6 +59,7 @@ from .state_space import (
 #: imported above serve the package's later stages.
 __all__ = [
     "StateEstimate",
+    "estimate_columns",
     "estimate_states",
     "generalised_filter",
     "kalman_filter",

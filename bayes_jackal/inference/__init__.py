@@ -92,6 +92,7 @@ __all__ = [
     "SamplerSettings",
     "SerialExecutor",
     "compare",
+    "compare_groups",
     "population",
     "sample",
 ]

@@ -427,7 +427,11 @@ def _comparison(
         [e.name for e in run.experiments],
         {family: results[family].evidence for family in families},
         {family: results[family].posterior for family in families},
-        {family: results[family].nested for family in families if results[family].nested},
+        {
+            family: results[family].nested
+            for family in families
+            if results[family].nested is not None
+        },
     )
     for message in comparison.convergence_messages():
         warnings.warn(ConvergenceWarning(message), stacklevel=3)

@@ -24,7 +24,6 @@ import asyncio
 import concurrent.futures
 import contextlib
 import functools
-import logging
 import multiprocessing
 import subprocess
 import sys
@@ -36,13 +35,7 @@ from typing import Any, TypeVar
 
 import threadpoolctl
 
-from .._runtime import (
-    InputError,
-    install_handlers,
-    interrupts_blocked,
-    quiet_worker,
-    worker_handlers,
-)
+from .._runtime import InputError, interrupts_blocked, quiet_worker
 
 __all__ = [
     "DaskExecutor",
@@ -87,13 +80,8 @@ def _worker_context() -> multiprocessing.context.BaseContext:
     return context
 
 
-def _start_worker(single_threaded: bool, handlers: list[logging.Handler]) -> None:
-    """A worker's initializer: quiet on signals, the parent's message handlers and,
-    with ``single_threaded``, one BLAS thread.
-
-    The handlers are those printing the package's messages in the parent
-    (:func:`bayes_jackal._runtime.worker_handlers`, the CLI's): a worker's
-    "sampling ..." line is printed as the parent's would be.
+def _start_worker(single_threaded: bool) -> None:
+    """A worker's initializer: quiet on signals and, with ``single_threaded``, one BLAS thread.
 
     A process per core with threaded BLAS in each oversubscribes the cores:
     five families on 2 cores took 85 s that way and 48 s with one thread
@@ -101,7 +89,6 @@ def _start_worker(single_threaded: bool, handlers: list[logging.Handler]) -> Non
     83 s not.)
     """
     quiet_worker()
-    install_handlers(handlers)
     if single_threaded:
         threadpoolctl.threadpool_limits(limits=1)
 
@@ -140,10 +127,7 @@ def in_processes(
     context = _worker_context()
     before = set(multiprocessing.active_children())
     with concurrent.futures.ProcessPoolExecutor(
-        workers,
-        mp_context=context,
-        initializer=_start_worker,
-        initargs=(single_threaded, worker_handlers()),
+        workers, mp_context=context, initializer=_start_worker, initargs=(single_threaded,)
     ) as pool:
         try:
             with interrupts_blocked():  # a signal waits until the workers handle it

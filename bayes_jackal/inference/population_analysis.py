@@ -607,7 +607,7 @@ def population(
     Population
         A unit's chain that hit its step cap raises no
         :class:`~bayes_jackal.inference.ConvergenceWarning`: it is a
-        ``convergence`` entry of its ``warnings``, with the unit's name.
+        ``not-converged`` entry of its ``warnings``, with the unit's name.
 
     Raises
     ------

@@ -96,6 +96,7 @@ from .summary import INTERVAL_FIELDS, THESIS_RATIO, Summary, interval, summarize
 __all__ = [
     "Evidence",
     "Posterior",
+    "Summary",
     "criticise",
     "interval",
     "load_posterior",

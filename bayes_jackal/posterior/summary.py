@@ -26,7 +26,7 @@ INTERVAL_FIELDS = _SUMMARY_FIELDS[:4]
 
 
 class Summary(dict):
-    """The JSON of a posterior's summary (a dict), printed as a table.
+    """The JSON of a posterior's summary (a dict), printed (``str``) as a table.
 
     Each parameter's row (and the ratio's) is a dict of arviz's fields;
     ``to_dict()`` is the plain dict ``sample --json`` prints.
@@ -37,8 +37,8 @@ class Summary(dict):
     >>> row = {"mean": 110.2, "sd": 4.1, "hdi_3%": 102.6, "hdi_97%": 117.9, "ess_autocorr": 812.0}
     >>> print(Summary(family="white", n_steps=4000, converged=True, d_lat=row))
     white posterior, 4000 steps, converged
-                     mean         sd     hdi_3%    hdi_97%  ess_autocorr
-    d_lat           110.2        4.1      102.6      117.9           812
+                           mean         sd     hdi_3%    hdi_97%  ess_autocorr
+    d_lat                 110.2        4.1      102.6      117.9           812
     """
 
     _COLUMNS = (*INTERVAL_FIELDS, "ess_autocorr")
@@ -46,18 +46,16 @@ class Summary(dict):
     def to_dict(self) -> dict:
         return dict(self)
 
-    def __repr__(self) -> str:
+    def __str__(self) -> str:
         state = "converged" if self.get("converged") else "NOT CONVERGED"
         lines = [f"{self.get('family')} posterior, {self.get('n_steps')} steps, {state}"]
-        lines.append(f"{'':10s}" + "".join(f"{column:>11s}" for column in self._COLUMNS[:4])
+        lines.append(f"{'':16s}" + "".join(f"{column:>11s}" for column in self._COLUMNS[:4])
                      + f"{self._COLUMNS[4]:>14s}")  # fmt: skip
         for name, row in self.items():
             if isinstance(row, dict) and "mean" in row:
                 cells = "".join(f"{row.get(c, float('nan')):11.4g}" for c in self._COLUMNS[:4])
-                lines.append(f"{name:10s}{cells}{row.get('ess_autocorr', float('nan')):14.0f}")
+                lines.append(f"{name:16s}{cells}{row.get('ess_autocorr', float('nan')):14.0f}")
         return "\n".join(lines)
-
-    __str__ = __repr__
 
 
 def interval(row: dict) -> dict:

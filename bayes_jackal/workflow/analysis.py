@@ -144,8 +144,8 @@ def analyse_logs(
         ``state_estimation`` (``state_estimation.json``:
         :meth:`~bayes_jackal.filters.LeaveOneOut.to_dict`), ``population``
         (``population.json``, None without groups) and ``files``
-        (posterior, prior, state_estimation (None when not run),
-        population, report, folder).
+        (report, posterior, prior, state_estimation (None when not run),
+        population, residuals, folder).
 
     Raises
     ------

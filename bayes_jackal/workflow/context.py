@@ -12,7 +12,6 @@ files it wrote, and what it adds to the report.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,10 +105,6 @@ class RunContext:
         """The families to compare first (the defaults without ``families``)."""
         return tuple(DEFAULT_FAMILIES) if self.families is None else self.families
 
-    def replace(self, **changes) -> RunContext:
-        """A copy with ``changes`` (validated again)."""
-        return dataclasses.replace(self, **changes)
-
 
 class StageResult:
     """What a stage of the analysis gives (a base of the stages' typed results).
@@ -119,7 +114,9 @@ class StageResult:
     ``warnings`` list joins the list before it. ``files()`` names the files
     it wrote (the object's ``files``); ``report_section()`` (a function of
     the report's figures, returning HTML) and ``highlight()`` (a line of the
-    report's summary) are what it adds to the report, if anything.
+    report's summary) are what it adds to the report, if anything; the
+    report orders them by ``report_rank`` (lower first), then by the
+    pipeline's order.
 
     Examples
     --------
@@ -129,6 +126,9 @@ class StageResult:
     >>> Nothing().to_dict(), Nothing().files(), Nothing().report_section()
     ({}, {}, None)
     """
+
+    #: Where the stage's section and highlight go in the report (lower: earlier).
+    report_rank: int = 0
 
     def to_dict(self) -> dict:
         return {}

@@ -31,6 +31,7 @@ from ..inference import SamplerSettings
 from ..io import NoiseSettings, bag_truth, simulate_series, write_bag
 from ..model import RobotProfile, load_profile
 from .analysis import analyse_logs
+from .pipeline import Analysis
 
 __all__ = [
     "DEMO_FAMILIES",
@@ -118,10 +119,10 @@ def make_demo_bags(folder: str | Path, robot: RobotProfile | None = None) -> Pat
 
 def run_demo(
     folder: str | Path,
-    progress: bool = True,
     *,
+    progress: bool = True,
     state_estimation: bool = STATE_ESTIMATION,
-) -> dict:
+) -> Analysis:
     """Run :func:`bayes_jackal.workflow.analyse_logs` on the shipped bags into ``folder``.
 
     The runs keep their simulated series labels, truth and true states from
@@ -142,7 +143,7 @@ def run_demo(
 
     Returns
     -------
-    dict
+    Analysis
         As :func:`~bayes_jackal.workflow.analyse_logs` returns.
 
     Examples
@@ -155,7 +156,7 @@ def run_demo(
     >>> DEMO_FAMILIES
     ('white', 'gaussian')
     >>> result = run_demo(tempfile.mkdtemp(), progress=False)  # doctest: +SKIP
-    >>> result["best"], result["channels"]  # doctest: +SKIP
+    >>> result.best, result.to_dict()["channels"]  # doctest: +SKIP
     ('gaussian', ['yaw', 'vx', 'vy'])
     """
     labels = demo_labels()

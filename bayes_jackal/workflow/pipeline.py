@@ -6,7 +6,9 @@ and the results of the stages before it (by name), returning a
 :class:`~bayes_jackal.workflow.StageResult`. Adding a stage is one module
 in :mod:`bayes_jackal.workflow.stages` and one line here: its result's
 ``to_dict()`` joins the analysis' JSON, its ``files()`` the files, and its
-``report_section()`` and ``highlight()`` the report (which runs last).
+``report_section()`` and ``highlight()`` the report (a stage before it). A
+stage that only writes files of its own (the residual table) runs after
+the report, so that its failure cannot cost the report.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
+from .._runtime import InputError
 from .context import RunContext, StageResult
 from .stages.family_comparison import families
 from .stages.grid_searches import grids
@@ -37,8 +40,8 @@ PIPELINE: tuple[Stage, ...] = (
     prior,
     state_estimation,
     groups_population,
-    residual_table,
     report,
+    residual_table,
 )
 
 
@@ -70,7 +73,9 @@ class Analysis:
     def to_dict(self) -> dict:
         """The ``--json`` object of ``analyse``: each stage's part in order, then ``files``.
 
-        A stage's ``warnings`` join those of the stages before it.
+        A stage's ``warnings`` join those of the stages before it. ``files``
+        names the report first (the file to open), then each stage's files
+        in order, then the folder.
         """
         payload: dict = {}
         files: dict[str, str | None] = {}
@@ -79,7 +84,8 @@ class Analysis:
                 joined = key == "warnings" and key in payload
                 payload[key] = [*payload[key], *value] if joined else value
             files |= result.files()
-        return {**payload, "files": {**files, "folder": self.folder}}
+        report = {"report": files.pop("report")} if "report" in files else {}
+        return {**payload, "files": {**report, **files, "folder": self.folder}}
 
 
 def run_pipeline(context: RunContext, stages: tuple[Stage, ...] = PIPELINE) -> Analysis:
@@ -117,7 +123,14 @@ def run_pipeline(context: RunContext, stages: tuple[Stage, ...] = PIPELINE) -> A
     >>> analysis["count_inputs"].inputs, analysis.to_dict()
     (2, {'inputs': 2, 'files': {'folder': 'out'}})
     """
+    names = [getattr(stage, "__name__", "<lambda>") for stage in stages]
+    for stage, name in zip(stages, names, strict=True):  # refused before any stage runs
+        if name == "<lambda>" or names.count(name) > 1:
+            raise InputError(
+                f"stages: {stage!r} needs a name of its own (a def), to keep its result by",
+                field="stages",
+            )
     done: dict[str, StageResult] = {}
-    for stage in stages:
-        done[stage.__name__] = stage(context, done)
+    for stage, name in zip(stages, names, strict=True):
+        done[name] = stage(context, done)
     return Analysis(str(context.out), done)

@@ -9,14 +9,14 @@ from pathlib import Path
 
 from ..._runtime import NOT_CONVERGED, SHORT_MEMORY, az, write_json
 from ...inference import Comparison, compare_families, keep_warnings
-from ...posterior import criticise, save_posterior, summarize
+from ...posterior import Summary, criticise, save_posterior, summarize
 from ..context import RunContext, StageResult
 from .ingestion import Ingested
 
 __all__ = ["Families", "families"]
 
 #: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
-_log = logging.getLogger(__package__)
+_log = logging.getLogger(__package__.removesuffix(".stages"))  # the workflow's
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ class Families(StageResult):
     comparison: Comparison
     comparison_json: dict
     compared: tuple[str, ...]
-    summary: dict
+    summary: Summary
     paths: dict[str, Path]
     posterior_file: Path
     convergence: list[str] = field(default_factory=list)
@@ -54,7 +54,7 @@ class Families(StageResult):
         return {
             "comparison": self.comparison_json,
             "best": self.best,
-            "posterior": self.summary,
+            "posterior": self.summary.to_dict(),
             "warnings": convergence + self.comparison_json["warnings"],
         }
 

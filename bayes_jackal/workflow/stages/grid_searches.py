@@ -16,7 +16,7 @@ from .ingestion import Ingested
 __all__ = ["Grids", "grids"]
 
 #: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
-_log = logging.getLogger(__package__)
+_log = logging.getLogger(__package__.removesuffix(".stages"))  # the workflow's
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from .ingestion import Ingested
 __all__ = ["GroupsPopulation", "groups_population"]
 
 #: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
-_log = logging.getLogger(__package__)
+_log = logging.getLogger(__package__.removesuffix(".stages"))  # the workflow's
 
 
 @dataclass(frozen=True)
@@ -25,6 +25,8 @@ class GroupsPopulation(StageResult):
 
     summary: dict | None
     path: str | None
+    #: A campaign's groups come first in the report, before its state estimation.
+    report_rank = -1
 
     def to_dict(self) -> dict:
         return {"population": self.summary}

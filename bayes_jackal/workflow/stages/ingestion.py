@@ -17,7 +17,7 @@ from ..context import RunContext, StageResult
 __all__ = ["Ingested", "ingest"]
 
 #: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
-_log = logging.getLogger(__package__)
+_log = logging.getLogger(__package__.removesuffix(".stages"))  # the workflow's
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from .family_comparison import Families
 __all__ = ["ReportFile", "report"]
 
 #: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
-_log = logging.getLogger(__package__)
+_log = logging.getLogger(__package__.removesuffix(".stages"))  # the workflow's
 
 
 @dataclass(frozen=True)
@@ -32,15 +32,16 @@ def report(context: RunContext, done: Mapping[str, StageResult]) -> ReportFile:
 
     A stage's :meth:`~bayes_jackal.workflow.StageResult.report_section` and
     :meth:`~bayes_jackal.workflow.StageResult.highlight` join the report in
-    the pipeline's order.
+    the order of their ``report_rank``, then of the pipeline.
     """
     _log.info("writing the report (figures as PNG and SVG)...")
     families: Families = done["families"]
+    ranked = sorted(done.values(), key=lambda result: result.report_rank)  # stable
     return ReportFile(
         write_report(
             [families.paths[family] for family in families.ranked],
             context.out / "report.html",
-            sections=[s for r in done.values() if (s := r.report_section()) is not None],
-            highlights=[h for r in done.values() if (h := r.highlight())],
+            sections=[s for r in ranked if (s := r.report_section()) is not None],
+            highlights=[h for r in ranked if (h := r.highlight())],
         )
     )
