@@ -42,6 +42,9 @@ checks). ``run_chain``'s target and start are functions the example defines
 moves; ``BufferedHDFBackend``'s reads the chain file ``bj.sample`` writes;
 ``leave_one_out`` and ``analyse_logs`` write files (the latter's example
 lists them).
+
+The private runtime's modules (``bayes_jackal._runtime``) have examples
+too; they run as they are (:func:`test_the_runtimes_examples_run`).
 """
 
 from __future__ import annotations
@@ -411,3 +414,22 @@ def test_the_examples_run_elsewhere_say_so_and_their_tests_exist():
         assert "# doctest: +SKIP" in getattr(importlib.import_module(module), name).__doc__
         path, test = covering.split("::")
         assert f"def {test}(" in (root / path).read_text(), covering
+
+
+#: The private runtime's modules: their examples run too (none samples a chain).
+RUNTIME = sorted(
+    f"bayes_jackal._runtime.{path.stem}"
+    for path in (Path(bayes_jackal.__file__).parent / "_runtime").glob("*.py")
+    if path.name != "__init__.py"
+)
+
+
+@pytest.mark.parametrize("module", RUNTIME, ids=[m.rsplit(".", 1)[1] for m in RUNTIME])
+def test_the_runtimes_examples_run(module):
+    runner, report = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS), []
+    for test in doctest.DocTestFinder().find(importlib.import_module(module)):
+        runner.run(test, out=report.append)
+    failed, attempted = runner.failures, runner.tries
+    assert failed == 0, "".join(report)
+    # Only the modules of constants show no call.
+    assert attempted > 0 or module.endswith(("arviz_quiet", "defaults", "warning_kinds")), module
