@@ -199,11 +199,11 @@ def analyse_logs(
      'residuals.csv']
     """
     context = RunContext(
-        inputs=tuple(paths),
-        out=Path(out),
+        inputs=paths,
+        out=out,
         executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
         robot=robot or load_profile(),
-        families=None if families is None else tuple(families),
+        families=families,
         settings=settings or SamplerSettings(),
         seed=seed,
         prior_overrides=prior_overrides,

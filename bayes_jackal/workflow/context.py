@@ -22,7 +22,7 @@ from ..io import ReadOptions, RunGroups, as_run_groups
 from ..likelihood import LikelihoodOptions
 from ..model import RobotProfile, load_profile
 
-__all__ = ["RunContext", "StageResult"]
+__all__ = ["RunContext", "StageResult", "WrittenFile"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -141,3 +141,22 @@ class StageResult:
 
     def highlight(self) -> str | None:
         return None
+
+
+@dataclass(frozen=True)
+class WrittenFile(StageResult):
+    """The result of a stage that writes one file: the file, under its key in ``files``.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from bayes_jackal.workflow import WrittenFile
+    >>> WrittenFile("prior", Path("analysis/prior.json")).files()
+    {'prior': 'analysis/prior.json'}
+    """
+
+    key: str
+    path: Path
+
+    def files(self) -> dict[str, str | None]:
+        return {self.key: str(self.path)}

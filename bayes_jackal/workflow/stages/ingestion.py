@@ -69,7 +69,7 @@ def ingest(context: RunContext, done: Mapping[str, StageResult]) -> Ingested:
     )
     _refuse_none(experiments, failed)
     options = context.likelihood_options
-    experiments, unusable = _usable(experiments, context, options)
+    experiments, unusable = _usable(experiments, context)
     _refuse_none(experiments, failed := failed | unusable)
     options = dataclasses.replace(
         options, channels=resolve_channels(experiments, options.channels)
@@ -88,13 +88,15 @@ def _refuse_none(experiments: list[Experiment], failed: dict[str, str]) -> None:
 
 
 def _usable(
-    experiments: list[Experiment], context: RunContext, options: LikelihoodOptions
+    experiments: list[Experiment], context: RunContext
 ) -> tuple[list[Experiment], dict[str, str]]:
     """The experiments a likelihood can take, each alone; the others' reasons, by source."""
     usable, failed = [], {}
     for experiment in experiments:
         try:
-            options.likelihood([experiment], context.robot, context.requested_families[0])
+            context.likelihood_options.likelihood(
+                [experiment], context.robot, context.requested_families[0]
+            )
         except DataError as exc:
             failed[experiment.source] = describe(exc, experiment.source)
             _log.info(f"  skipped {failed[experiment.source]}")

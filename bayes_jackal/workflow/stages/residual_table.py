@@ -13,13 +13,12 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 
 from ..._runtime import atomic_path
 from ...io import CHANNEL_FIELDS, UNITS
 from ...likelihood import residual_times
 from ...posterior import Posterior, observed_residuals
-from ..context import RunContext, StageResult
+from ..context import RunContext, StageResult, WrittenFile
 from .family_comparison import Families
 
 __all__ = ["ResidualTable", "residual_table"]
@@ -29,14 +28,10 @@ COLUMNS = ("run", "channel", "unit", "t", "residual")
 
 
 @dataclass(frozen=True)
-class ResidualTable(StageResult):
-    """Where the residual table was written, and its rows."""
+class ResidualTable(WrittenFile):
+    """Where the residual table was written (``files``' ``residuals``), and its rows."""
 
-    path: Path
     rows: int
-
-    def files(self) -> dict[str, str | None]:
-        return {"residuals": str(self.path)}
 
 
 def residual_table(context: RunContext, done: Mapping[str, StageResult]) -> ResidualTable:
@@ -58,4 +53,4 @@ def residual_table(context: RunContext, done: Mapping[str, StageResult]) -> Resi
                     for t, r in zip(times, residuals, strict=True)
                 )
                 rows += len(residuals)
-    return ResidualTable(path, rows)
+    return ResidualTable("residuals", path, rows)
