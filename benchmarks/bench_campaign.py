@@ -37,6 +37,7 @@ import time
 import warnings
 
 from bayes_jackal import load_profile
+from bayes_jackal.inference import FitOptions
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_groups
 from bayes_jackal.inference.executors import (
@@ -61,11 +62,13 @@ def campaign(runs, families, settings, seed, executor: Executor) -> tuple[float,
         warnings.simplefilter("ignore", ConvergenceWarning)  # short caps do not converge
         for name, comparison in compare_groups(
             {run.name: [run] for run in runs},
-            ROBOT,
+            FitOptions(
+                robot=ROBOT,
+                likelihood_options=LikelihoodOptions(channels=("yaw",)),
+                settings=settings,
+                seed=seed,
+            ),
             families=families,
-            settings=settings,
-            seed=seed,
-            likelihood_options=LikelihoodOptions(channels=("yaw",)),
             executor=executor,
         ):
             evidences[name] = {f: e.log_evidence for f, e in comparison.evidence.items()}

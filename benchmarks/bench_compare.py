@@ -19,6 +19,7 @@ import os
 import time
 
 from bayes_jackal import load_profile
+from bayes_jackal.inference import FitOptions, ProcessExecutor
 from bayes_jackal.inference.comparison import compare_families
 from bayes_jackal.inference.evidence import nested_sampling
 from bayes_jackal.inference.sampling import sample_posterior
@@ -50,7 +51,12 @@ def main() -> None:
 
     processes = os.cpu_count() or 1
     comparison, seconds = timed(
-        lambda: compare_families([run], ROBOT, seed=1, on_family=report, processes=processes)
+        lambda: compare_families(
+            [run],
+            FitOptions(robot=ROBOT, seed=1),
+            executor=ProcessExecutor(processes),
+            on_family=report,
+        )
     )
     print(
         f"five families + bridge sampling on {processes} processes: {seconds:6.1f} s "

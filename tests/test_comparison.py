@@ -18,6 +18,7 @@ import pytest
 
 from bayes_jackal import load_profile
 from bayes_jackal.cli import main
+from bayes_jackal.inference import FitOptions
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import _FamilyRun, compare_families, compare_groups
 from bayes_jackal.inference.executors import ProcessExecutor, SerialExecutor
@@ -33,6 +34,8 @@ SHORT_V2 = Series(0.4, float(np.deg2rad(30.0)), 8.0)
 FAMILIES = ("white", "exponential")
 SETTINGS = SamplerSettings(max_steps=60, progress=False)
 OPTIONS = LikelihoodOptions(channels=("yaw",))
+#: Every chain of these tests: the yaw channel, 60 steps, seed 3.
+FIT = FitOptions(robot=ROBOT, likelihood_options=OPTIONS, settings=SETTINGS, seed=3)
 #: Flags of a quick comparison, the families in this process one after the other.
 QUICK = ["--families", ",".join(FAMILIES), "--seed", "3", "--max-steps", "60"]
 QUICK += ["--channels", "yaw", "--no-progress", "--json", "--processes", "1"]
@@ -57,25 +60,14 @@ def test_every_group_equals_its_comparison_alone(runs):
         together = dict(
             compare_groups(
                 runs,
-                ROBOT,
+                FIT,
                 families=FAMILIES,
-                settings=SETTINGS,
-                seed=3,
-                likelihood_options=OPTIONS,
                 executor=ProcessExecutor(2),  # four jobs, two at a time
                 on_family=lambda key, family, *_: finished.append((key, family)),
             )
         )
         alone = {
-            key: compare_families(
-                group,
-                ROBOT,
-                FAMILIES,
-                SETTINGS,
-                3,
-                executor=SerialExecutor(),
-                likelihood_options=OPTIONS,
-            )
+            key: compare_families(group, FIT, families=FAMILIES, executor=SerialExecutor())
             for key, group in runs.items()
         }
     assert sorted(finished) == sorted((key, family) for key in runs for family in FAMILIES)
@@ -110,11 +102,8 @@ def test_a_group_that_fails_is_reported_and_the_others_go_on(runs):
         done = list(
             compare_groups(
                 runs,
-                ROBOT,
+                FIT.with_settings(max_steps=80),
                 families=("white",),
-                settings=SamplerSettings(max_steps=80, progress=False),
-                seed=3,
-                likelihood_options=OPTIONS,
                 on_family=save,
                 on_failure=lambda key, exc: failed.append((key, str(exc))),
             )
@@ -122,7 +111,7 @@ def test_a_group_that_fails_is_reported_and_the_others_go_on(runs):
     assert failed == [("run1", "disk full")]
     assert [key for key, _ in done] == ["run2"]
     with pytest.raises(OSError, match="disk full"):  # without on_failure it propagates
-        list(compare_groups(runs, ROBOT, families=("white",), settings=SETTINGS, on_family=save))
+        list(compare_groups(runs, FIT, families=("white",), on_family=save))
 
 
 def test_compare_of_two_runs_saves_both_and_a_rerun_reuses_every_family(runs, tmp_path, capsys):
@@ -170,7 +159,7 @@ def overflowing_sampler(monkeypatch):
 
 
 def test_a_warning_raised_while_sampling_is_kept_once_and_carried_back(runs, overflowing_sampler):
-    run = _FamilyRun(runs["run1"], ROBOT, SETTINGS, 3, None, False, OPTIONS)
+    run = _FamilyRun(runs["run1"], FIT, cross_check=False)
     with warnings.catch_warnings():
         warnings.simplefilter("always")  # each raised warning recorded, not pytest's "error"
         kept = run((0, "white")).kept

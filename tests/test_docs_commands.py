@@ -67,7 +67,7 @@ SMALL = {
 PYTHON_SMALL = {
     "seed=1": "seed=1, max_steps=200",
     '"analysis", seed=1)': '"analysis", seed=1, settings=SHORT, state_estimation=False)',
-    "seed=1, executor=": "seed=1, settings=SHORT, executor=",
+    "load_profile(), seed=1)": "load_profile(), seed=1, settings=SHORT)",
     "characterise_noise(series)": "characterise_noise(series, settings=SHORT)",
     "executor=bj.inference.ProcessExecutor(2),": (
         "executor=bj.inference.ProcessExecutor(2), settings=SHORT, state_estimation=False,"

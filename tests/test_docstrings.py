@@ -180,6 +180,7 @@ def shared_calls() -> Iterator[Call]:
 
     import bayes_jackal as bj
     from bayes_jackal.inference import (
+        FitOptions,
         compare_families,
         compare_groups,
         population_posterior,
@@ -216,20 +217,20 @@ def shared_calls() -> Iterator[Call]:
         bj.compare, [run], families=("white", "exponential"), channels=["yaw"], max_steps=20,
         seed=1,
     )  # fmt: skip
-    yield call(
-        compare_families, [run], robot, ("white", "exponential"),
-        bj.SamplerSettings(max_steps=20), seed=1,
+    options = FitOptions(
         likelihood_options=LikelihoodOptions(channels=["yaw"]),
+        settings=bj.SamplerSettings(max_steps=20), seed=1,
     )  # fmt: skip
+    yield call(compare_families, [run], options, families=("white", "exponential"))
     groups = {
         name: [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed, name=name)]
         for seed, name in enumerate(["v1_01", "v1_02"], start=1)
     }
-    yield call(
-        compare_groups, groups, robot, families=["white"],
+    options = FitOptions(
+        robot=robot, likelihood_options=LikelihoodOptions(channels=["yaw"]),
         settings=bj.SamplerSettings(max_steps=20), seed=1,
-        likelihood_options=LikelihoodOptions(channels=["yaw"]),
     )  # fmt: skip
+    yield call(compare_groups, groups, options, families=["white"])
     # population (its example, Population's and the forest plot's): two floors.
     runs = [
         bj.simulate_experiment(robot, 110.0, d_long, rng=seed, name=f"run{seed}")
@@ -240,11 +241,11 @@ def shared_calls() -> Iterator[Call]:
         bj.population, runs, groups=floors, family="white", channels=["yaw"], seed=1,
         max_steps=400, progress=False,
     )  # fmt: skip
-    yield call(
-        population_posterior, runs, robot, groups=floors, family="white", seed=1,
-        settings=bj.SamplerSettings(max_steps=400),
+    options = FitOptions(
         likelihood_options=LikelihoodOptions(channels=["yaw"]),
+        settings=bj.SamplerSettings(max_steps=400), seed=1,
     )  # fmt: skip
+    yield call(population_posterior, runs, options, groups=floors, family="white")
     # characterise_noise (its own example and NoiseCharacterisation's), fit_family.
     rng = np.random.default_rng(2)
     taps = get_family("gaussian").taps(0.03, 0.01)

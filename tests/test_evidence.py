@@ -10,6 +10,7 @@ import pytest
 import scipy.special
 
 from bayes_jackal import InputError, load_profile
+from bayes_jackal.inference import FitOptions, ProcessExecutor
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import Comparison, compare_families
 from bayes_jackal.inference.evidence import (
@@ -243,15 +244,14 @@ def test_unknown_or_repeated_families_are_refused():
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=1)
     for families in (("gaussian", "pink"), ("white", "white"), ()):
         with pytest.raises(InputError, match="families"):
-            compare_families([run], ROBOT, families)
+            compare_families([run], FitOptions(robot=ROBOT), families=families)
 
 
 @pytest.mark.slow
 def test_bridge_and_nested_sampling_agree_on_coloured_noise():
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v2", rng=4)
-    comparison = compare_families(
-        [run], ROBOT, ("gaussian",), seed=2, likelihood_options=LikelihoodOptions(channels=YAW)
-    )
+    options = FitOptions(robot=ROBOT, likelihood_options=LikelihoodOptions(channels=YAW), seed=2)
+    comparison = compare_families([run], options, families=("gaussian",))
     bridge = comparison.evidence["gaussian"]
     likelihood = ResidualLikelihood([run], ROBOT, family="gaussian", channels=YAW)
     # 100 live points: about 45,000 likelihood calls one by one (dynesty's
@@ -281,13 +281,13 @@ def _compare(noise: NoiseSettings, seed: int) -> Comparison:
     run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        return compare_families(
-            [run],
-            ROBOT,
+        options = FitOptions(
+            robot=ROBOT,
+            likelihood_options=LikelihoodOptions(channels=YAW),
             settings=CAPPED,
             seed=seed,
-            likelihood_options=LikelihoodOptions(channels=YAW),
         )
+        return compare_families([run], options)
 
 
 @pytest.mark.slow
@@ -325,12 +325,14 @@ def test_families_in_parallel_processes_give_the_same_result():
             warnings.simplefilter("always", ConvergenceWarning)
             comparison = compare_families(
                 [run],
-                ROBOT,
-                ("white", "gaussian"),
-                quick,
-                seed=3,
-                processes=processes,
-                likelihood_options=LikelihoodOptions(channels=YAW),
+                FitOptions(
+                    robot=ROBOT,
+                    likelihood_options=LikelihoodOptions(channels=YAW),
+                    settings=quick,
+                    seed=3,
+                ),
+                families=("white", "gaussian"),
+                executor=ProcessExecutor(processes),
             )
         results.append(comparison)
         # Both chains stop at the cap; each worker's warning reaches the caller.

@@ -29,6 +29,7 @@ import pytest
 import bayes_jackal
 from bayes_jackal import load_profile
 from bayes_jackal._runtime.errors import InputError
+from bayes_jackal.inference import FitOptions
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_families
 from bayes_jackal.inference.executors import DaskExecutor, ProcessExecutor, SerialExecutor
@@ -66,15 +67,13 @@ def _compare(run, executor):
     settings = SamplerSettings(max_steps=200, progress=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)  # 200 steps do not converge
-        return compare_families(
-            [run],
-            ROBOT,
-            FAMILIES,
-            settings,
-            3,
+        options = FitOptions(
+            robot=ROBOT,
             likelihood_options=LikelihoodOptions(channels=("yaw",)),
-            executor=executor,
+            settings=settings,
+            seed=3,
         )
+        return compare_families([run], options, families=FAMILIES, executor=executor)
 
 
 @pytest.mark.slow  # ~40 s: three comparisons, process and cluster start-ups

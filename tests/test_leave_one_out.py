@@ -31,6 +31,7 @@ from bayes_jackal.cli.output import state_estimation_text
 from bayes_jackal.cli.parser import build_parser
 from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS, StateEstimate
 from bayes_jackal.filters.left_out import FOLDER, SUMMARY, leave_one_out, method_text
+from bayes_jackal.inference import FitOptions
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_families, compare_groups
 from bayes_jackal.inference.executors import SerialExecutor
@@ -207,14 +208,11 @@ def test_a_failing_run_does_not_stop_the_others(analysis, tmp_path):
     with messages() as lines:
         again = leave_one_out(
             experiments,
-            ROBOT,
             "white",
             tmp_path,
+            FitOptions(robot=ROBOT, likelihood_options=OPTIONS, settings=SETTINGS, seed=1),
             pooled=load_posterior(pooled),
             pooled_source=str(pooled),
-            settings=SETTINGS,
-            seed=1,
-            likelihood_options=OPTIONS,
         )
     # The refused PSIS reweighting (a's), and its message tells which and why.
     for run in RUNS:
@@ -274,7 +272,7 @@ def test_the_cli_says_how_each_posterior_without_a_run_was_made(analysis):
 
 def test_one_run_has_nothing_to_leave_out(analysis, tmp_path):
     experiments = [read_netcdf(analysis[0][0])]
-    result = leave_one_out(experiments, ROBOT, "white", tmp_path)
+    result = leave_one_out(experiments, "white", tmp_path, FitOptions(robot=ROBOT))
     assert result.skipped == "needs two or more runs; 1 analysed" and not any(tmp_path.iterdir())
 
 
@@ -400,6 +398,8 @@ def test_psis_weights_refuse_what_they_cannot_weigh():
 FOUR = ("a", "b", "c", "d")
 #: Converged chains (within 1,300-1,500 steps on these runs).
 CONVERGED = SamplerSettings(max_steps=2000, progress=False)
+#: The four runs' chains: the yaw channel, converged.
+CONVERGED_FIT = FitOptions(robot=ROBOT, likelihood_options=OPTIONS, settings=CONVERGED, seed=1)
 
 
 @pytest.fixture(scope="module")
@@ -412,20 +412,14 @@ def four_runs(tmp_path_factory) -> tuple:
         for name, rng in zip(FOUR, children, strict=True)
     ]
     comparison = compare_families(
-        runs,
-        ROBOT,
-        ("white",),
-        CONVERGED,
-        seed=1,
-        executor=SerialExecutor(),
-        likelihood_options=OPTIONS,
+        runs, CONVERGED_FIT, families=("white",), executor=SerialExecutor()
     )
     pooled = comparison.posteriors["white"]
     source = save_posterior(pooled, folder / "white.nc")
     with messages() as lines:
         result = leave_one_out(
-            runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
-            settings=CONVERGED, seed=1, likelihood_options=OPTIONS, executor=SerialExecutor(),
+            runs, "white", folder, CONVERGED_FIT, pooled=pooled, pooled_source=str(source),
+            executor=SerialExecutor(),
         )  # fmt: skip
     return runs, pooled, source, folder, result, lines
 
@@ -455,8 +449,8 @@ def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
     assert stored["weights_ess"] == record["weights_ess"]
     # The independent reference: the chain sampled on the other three runs (another seed).
     reference = compare_families(
-        [run for run in runs if run.name != left], ROBOT, ("white",), CONVERGED, seed=8,
-        executor=SerialExecutor(), likelihood_options=OPTIONS,
+        [run for run in runs if run.name != left], dataclasses.replace(CONVERGED_FIT, seed=8),
+        families=("white",), executor=SerialExecutor(),
     ).posteriors["white"]  # fmt: skip
     logs = {
         name: np.log(Posterior.of(posterior).draws()[0]).reshape(-1, 4)
@@ -486,9 +480,8 @@ def test_a_rerun_reuses_the_reweightings_and_the_json_and_report_carry_k_hat(fou
         assert (record["method"] == "psis") == (record["pareto_k"] <= PARETO_K_THRESHOLD)
     with messages() as lines:
         again = leave_one_out(
-            runs, ROBOT, "white", folder, pooled=pooled, pooled_source=str(source),
-            settings=CONVERGED, seed=1, likelihood_options=OPTIONS,
-        )  # fmt: skip
+            runs, "white", folder, CONVERGED_FIT, pooled=pooled, pooled_source=str(source)
+        )
     reweighted = [run for run, record in result.runs.items() if record["method"] == "psis"]
     reused = [line for line in lines if "reusing the PSIS reweighting" in line]
     assert len(reused) == len(reweighted)
@@ -517,10 +510,8 @@ def test_a_reweighting_with_noise_per_run_keeps_the_other_runs_and_their_log_pos
     options = LikelihoodOptions(channels=("yaw",), noise="per-experiment")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        [(_, comparison)] = compare_groups(
-            {0: runs}, ROBOT, families=("white",), settings=SETTINGS, seed=1,
-            likelihood_options=options,
-        )  # fmt: skip
+        fit = FitOptions(robot=ROBOT, likelihood_options=options, settings=SETTINGS, seed=1)
+        [(_, comparison)] = compare_groups({0: runs}, fit, families=("white",))
     pooled = PooledPosterior(comparison.posteriors["white"], runs, ROBOT, "white", options)
     theta = pooled.theta
     weights = pooled.weights(runs[1])

@@ -31,6 +31,7 @@ from bayes_jackal.inference import (
 )
 from bayes_jackal.inference.population_analysis import SKEWNESS_TOLERANCE, combine_summaries
 from bayes_jackal.io import RunGroups, group_runs, read_groups, run_group
+from bayes_jackal.posterior import Posterior, load_posterior
 
 BOUNDS = np.array([[10.0, 1000.0], [10.0, 1000.0]])  # the Jackal's prior ranges [N s/m]
 #: The midpoint rule's error over the 80 x 80 grid in log tau [nats]: the integral on a grid
@@ -508,6 +509,24 @@ def test_population_command_writes_json_plot_and_refuses_a_bad_table(
     assert blocked.code == 2, blocked.stderr
     assert "--out pop3/units: is an existing file; give a folder" in blocked.stderr
     assert sorted(p.name for p in (tmp_path / "pop3").iterdir()) == ["units"]
+
+
+def test_the_population_command_fits_with_every_modelling_flag(cli, tmp_path, floor_runs):
+    # population once dropped --steady (and --damping): its units fitted every sample.
+    from bayes_jackal.io.experiment import write_netcdf
+
+    for run in floor_runs:
+        write_netcdf(run, tmp_path / f"{run.name}.nc")
+    (tmp_path / "groups.csv").write_text(
+        "run,group\n" + "".join(f"{run}.nc,{label}\n" for run, label in FLOORS.items())
+    )
+    args = ["population", *[f"{r}.nc" for r in FLOORS], "--groups", "groups.csv", "--steady"]
+    flags = ["--family", "white", "--channels", "yaw", "--max-steps", "100", "--seed", "1"]
+    result = cli([*args, "--out", "pop", *flags, "--no-progress"], tmp_path, timeout=300)
+    assert result.code == 0, result.stderr
+    for path in unit_files(tmp_path / "pop", ["tiles", "carpet"], "white").values():
+        task = Posterior.of(load_posterior(path)).metadata.task
+        assert task["likelihood"]["steady"] is True, path
 
 
 def _speed_groups(ratio: float) -> bj.inference.Population:

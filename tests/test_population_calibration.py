@@ -40,7 +40,7 @@ from calibration import least_inside, map_rows, seeds
 from conftest import simulate_thesis_like
 
 import bayes_jackal as bj
-from bayes_jackal.inference import SamplerSettings, population_posterior
+from bayes_jackal.inference import FitOptions, SamplerSettings, population_posterior
 from bayes_jackal.inference.executors import ProcessExecutor
 from bayes_jackal.likelihood import LikelihoodOptions
 
@@ -95,10 +95,10 @@ SETTINGS = SamplerSettings(autocorr_multiple=12)
 
 def _fit(runs: list, seed: int, noise: str = "shared") -> bj.inference.Population:
     with ProcessExecutor(2) as executor:
-        return population_posterior(
-            runs, bj.load_profile(), family="white", settings=SETTINGS, seed=seed,
-            likelihood_options=LikelihoodOptions(noise=noise), executor=executor,
-        )  # fmt: skip
+        options = FitOptions(
+            likelihood_options=LikelihoodOptions(noise=noise), settings=SETTINGS, seed=seed
+        )
+        return population_posterior(runs, options, family="white", executor=executor)
 
 
 def _inside(summary: dict, truth: float) -> bool:

@@ -19,11 +19,12 @@ from ..filters import estimate_columns, estimate_each, score_estimates, write_es
 from ..inference import (
     ConvergenceWarning,
     Executor,
+    FitOptions,
     SamplerSettings,
     compare_groups,
     executor_for,
     keep_warnings,
-    population,
+    population_posterior,
     sample_posterior,
 )
 from ..io import (
@@ -202,12 +203,8 @@ class _Sampling:
     (:class:`~bayes_jackal.inference.KeptWarnings`: a worker's would be lost).
     """
 
-    robot: RobotProfile
+    fit: FitOptions
     family: str
-    likelihood_options: LikelihoodOptions
-    settings: SamplerSettings
-    seed: int | None
-    prior_overrides: dict
     out: Path
     each: bool  # one posterior per experiment, named after it
     chain: bool = True  # the chain file beside the posterior (not on a cluster)
@@ -223,17 +220,18 @@ class _Sampling:
         path = self.path(group)
         with keep_warnings() as kept:
             try:
-                likelihood = self.likelihood_options.likelihood(group, self.robot, self.family)
+                fit = self.fit
+                likelihood = fit.likelihood_options.likelihood(group, fit.robot, self.family)
                 _log.info(
                     f"sampling {', '.join(e.name for e in group)} on channels "
                     f"{', '.join(likelihood.channels)} -> {path}"
                 )
                 idata = sample_posterior(
                     likelihood,
-                    self.settings,
-                    seed=self.seed,
+                    fit.settings,
+                    seed=fit.seed,
                     chain_file=chain_path(path) if self.chain else None,
-                    prior_overrides=self.prior_overrides,
+                    prior_overrides=fit.prior_overrides,
                 )
             except Exception as exc:  # raised again where the result is used
                 return None, kept, exc
@@ -286,6 +284,17 @@ def _likelihood_options(args: argparse.Namespace) -> LikelihoodOptions:
     )
 
 
+def _fit_options(args: argparse.Namespace) -> FitOptions:
+    """The fit options of the shared modelling flags."""
+    return FitOptions(
+        robot=robot_profile(args),
+        likelihood_options=_likelihood_options(args),
+        prior_overrides=_prior_overrides(args.prior),
+        settings=_sampler_settings(args),
+        seed=args.seed,
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class _Labelled:
     """(input, ``job([experiment])``) of an (input, experiment) pair (picklable)."""
@@ -321,12 +330,8 @@ def cmd_sample(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     local = args.scheduler is None
     sampling = _Sampling(
-        robot_profile(args),
+        _fit_options(args),
         args.family,
-        _likelihood_options(args),
-        _sampler_settings(args),
-        args.seed,
-        _prior_overrides(args.prior),
         Path(args.out),
         each=not args.pooled and len(args.experiments) > 1,
         chain=local,
@@ -388,12 +393,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
             warnings.simplefilter("ignore", ConvergenceWarning)  # report() prints them
             each = compare_groups(
                 groups,
-                robot_profile(args),
+                _fit_options(args),
                 families=families,
-                settings=_sampler_settings(args),
-                seed=args.seed,
-                prior_overrides=_prior_overrides(args.prior),
-                likelihood_options=_likelihood_options(args),
                 cross_check=args.nested,
                 executor=executor,
                 reuse=reuse,
@@ -455,23 +456,14 @@ def cmd_population(args: argparse.Namespace) -> int:
     folder = Path(args.out)
     experiments = load_logs(args)
     with _executor(args, args.processes) as executor:
-        result = population(
+        result = population_posterior(
             experiments,
+            _fit_options(args),
             groups=args.groups,
             covariate=args.covariate,
             family=args.family,
-            channels=args.channels,
-            noise=args.noise,
-            sensor=args.sensor_noise,
-            engine=args.engine,
-            seed=args.seed,
-            max_steps=args.max_steps,
-            walkers=args.walkers,
-            priors=_prior_overrides(args.prior),
-            robot=robot_profile(args),
             executor=executor,
             out=folder,
-            progress=not args.no_progress and args.scheduler is None,
         )
     summary = result.to_dict()
     write_json(folder / "population.json", summary)

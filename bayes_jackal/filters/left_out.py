@@ -82,9 +82,8 @@ import numpy as np
 
 from .._runtime import DataError, az, describe, write_json
 from ..dem import export_prior, write_prior
-from ..inference import Executor, SamplerSettings, compare_groups, keep_warnings
+from ..inference import Executor, FitOptions, compare_groups, keep_warnings
 from ..io import Experiment
-from ..likelihood import LikelihoodOptions
 from ..model import RobotProfile
 from ..posterior import (
     PARETO_K_THRESHOLD,
@@ -264,16 +263,12 @@ def _write_summary(result: LeaveOneOut, order: list[str], out: Path) -> None:
 
 def leave_one_out(
     experiments: Sequence[Experiment],
-    robot: RobotProfile,
     family: str,
     out: str | Path,
+    options: FitOptions | None = None,
     *,
     pooled: az.InferenceData | None = None,
     pooled_source: str | None = None,
-    settings: SamplerSettings | None = None,
-    seed: int | None = None,
-    prior_overrides: Mapping | None = None,
-    likelihood_options: LikelihoodOptions | None = None,
     executor: Executor | None = None,
     filters: Sequence[str] = FILTERS,
 ) -> LeaveOneOut:
@@ -287,12 +282,17 @@ def leave_one_out(
     ----------
     experiments : sequence of Experiment
         The runs, with distinct names; fewer than two: nothing is run.
-    robot : RobotProfile
     family : str
         The noise family of every posterior (a name of
         :data:`bayes_jackal.model.FAMILIES`).
     out : str or Path
         The analysis folder.
+    options : FitOptions, optional
+        The analysis' robot, likelihood options, priors, sampler settings
+        and seed (:class:`bayes_jackal.inference.FitOptions`), so that each
+        refit is the analysis' posterior on fewer runs. The seed also seeds
+        each reweighting's resampling (with the run's position); None:
+        fresh entropy.
     pooled : arviz.InferenceData, optional
         The posterior of ``family`` on all of ``experiments`` (in their
         order), sampled with these likelihood options and priors: each
@@ -301,11 +301,8 @@ def leave_one_out(
     pooled_source : str, optional
         Where ``pooled`` was read from or saved (named in each reweighted
         posterior and in the result; default ``<memory>``).
-    settings, seed, prior_overrides, likelihood_options, executor
-        As in :func:`bayes_jackal.inference.compare_groups`: the analysis'
-        own, so that each refit is the analysis' posterior on fewer runs.
-        ``seed`` also seeds each reweighting's resampling (with the run's
-        position); None: fresh entropy.
+    executor : Executor, optional
+        Where the refits run, as in :func:`bayes_jackal.inference.compare_groups`.
     filters : sequence of str
         Names from :data:`bayes_jackal.FILTERS`.
 
@@ -333,6 +330,7 @@ def leave_one_out(
     >>> import tempfile
     >>> import bayes_jackal as bj
     >>> from bayes_jackal.filters import leave_one_out
+    >>> from bayes_jackal.inference import FitOptions
     >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> from bayes_jackal.io import Series
     >>> robot = bj.load_profile()
@@ -340,12 +338,12 @@ def leave_one_out(
     ...     bj.simulate_experiment(robot, 110.0, 30.0, Series(0.3, 0.39, 8.0), rng=seed, name=name)
     ...     for seed, name in [(1, "a"), (2, "b")]
     ... ]
-    >>> settings = bj.SamplerSettings(max_steps=100, design_points=64)
+    >>> options = FitOptions(
+    ...     robot=robot, likelihood_options=LikelihoodOptions(channels=["yaw"]),
+    ...     settings=bj.SamplerSettings(max_steps=100, design_points=64), seed=1,
+    ... )
     >>> with tempfile.TemporaryDirectory() as folder:  # doctest: +SKIP
-    ...     result = leave_one_out(
-    ...         runs, robot, "white", folder, settings=settings, seed=1,
-    ...         likelihood_options=LikelihoodOptions(channels=["yaw"]),
-    ...     )
+    ...     result = leave_one_out(runs, "white", folder, options)
     >>> {run: (record["trained_on"], record["method"])  # doctest: +SKIP
     ...  for run, record in result.runs.items()}
     {'a': (['b'], 'refit'), 'b': (['a'], 'refit')}
@@ -363,11 +361,11 @@ def leave_one_out(
     order = [e.name for e in experiments]
     by_name = dict(zip(order, experiments, strict=True))
     posteriors = {name: folder / "posteriors" / f"{name}.nc" for name in order}
-    options = LikelihoodOptions.of(likelihood_options)
+    fit = FitOptions.of(options)
     draws = None
     if pooled is not None:  # checked before anything is written
-        draws = PooledPosterior(pooled, experiments, robot, family, options, prior_overrides,
-                                source)  # fmt: skip
+        draws = PooledPosterior(pooled, experiments, fit.robot, family, fit.likelihood_options,
+                                fit.prior_overrides, source)  # fmt: skip
         _log.info(
             f"state estimation with the {family} prior, each of the {len(order)} runs left out "
             f"in turn: the pooled posterior's {draws.count} draws reweighted by PSIS, refit "
@@ -384,7 +382,7 @@ def leave_one_out(
         _log.info(f"  leaving out {name} failed: {result.failed[name]}")
 
     def done(name: str, idata, fields: dict, warnings: list[str]) -> None:
-        record, estimates = _estimate(by_name[name], idata, robot, folder, filters,
+        record, estimates = _estimate(by_name[name], idata, fit.robot, folder, filters,
                                       posteriors[name])  # fmt: skip
         result.runs[name] = record | {"warnings": warnings} | fields
         refused = "".join(
@@ -401,7 +399,7 @@ def leave_one_out(
 
     def reweigh(name: str, sequence: np.random.SeedSequence) -> None:
         path = posteriors[name]
-        task = draws.task(name, seed)
+        task = draws.task(name, fit.seed)
         saved = _reweighting(path)
         if task is not None and saved is not None and saved[1].get("task") == task:
             idata, stored = saved
@@ -441,12 +439,8 @@ def leave_one_out(
 
         for name, comparison in compare_groups(
             {name: [e for e in experiments if e.name != name] for name in refits},
-            robot,
+            fit,
             families=(family,),
-            settings=settings,
-            seed=seed,
-            prior_overrides=None if prior_overrides is None else dict(prior_overrides),
-            likelihood_options=options,
             executor=executor,
             reuse=reuse,
             on_family=save,
@@ -466,7 +460,7 @@ def leave_one_out(
                 refits.update({name: dict.fromkeys(_RECORD_FIELDS) | {"method": "refit",
                                "refit_reason": reason} for name in order})  # fmt: skip
             else:
-                sequences = np.random.SeedSequence(seed).spawn(len(order))
+                sequences = np.random.SeedSequence(fit.seed).spawn(len(order))
                 for name, sequence in zip(order, sequences, strict=True):
                     try:
                         reweigh(name, sequence)

@@ -67,6 +67,7 @@ from .moves import (
     moment_matched,
     proposal_efficiency,
 )
+from .options import FitOptions
 from .population_analysis import (
     POPULATION_DRAWS,
     SENSITIVITY_TAU_RANGES,
@@ -87,6 +88,7 @@ __all__ = [
     "Comparison",
     "ConvergenceWarning",
     "DaskExecutor",
+    "FitOptions",
     "Population",
     "ProcessExecutor",
     "SamplerSettings",

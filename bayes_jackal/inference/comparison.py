@@ -50,11 +50,12 @@ from .._runtime import (
 )
 from ..io import Experiment, as_experiments
 from ..likelihood import LikelihoodOptions, LogPosterior, Prior, ResidualLikelihood
-from ..model import FAMILIES, RobotProfile, as_profile
+from ..model import FAMILIES, RobotProfile
 from ..posterior import Evidence, Posterior, interval, load_posterior, store_comparison, summarize
 from .chains import SamplerSettings
 from .evidence import bridge_sampling, evidence_strength, nested_sampling
 from .executors import Executor, ProcessExecutor, SerialExecutor
+from .options import FitOptions
 from .sampler_warnings import ConvergenceWarning, KeptWarnings, keep_warnings
 from .sampling import run_identity, sample_posterior
 
@@ -108,18 +109,15 @@ class _FamilyRun:
     """
 
     experiments: list[Experiment]
-    robot: RobotProfile
-    settings: SamplerSettings | None
-    seed: int | None
-    prior_overrides: dict | None
+    fit: FitOptions
     cross_check: bool
-    likelihood_options: LikelihoodOptions
     lines: int = 1
     label: str = ""
 
     def _model(self, family: str) -> tuple[ResidualLikelihood, Prior]:
-        likelihood = self.likelihood_options.likelihood(self.experiments, self.robot, family)
-        return likelihood, Prior.for_likelihood(likelihood, self.robot, self.prior_overrides)
+        fit = self.fit
+        likelihood = fit.likelihood_options.likelihood(self.experiments, fit.robot, family)
+        return likelihood, Prior.for_likelihood(likelihood, fit.robot, fit.prior_overrides)
 
     def task(self, family: str) -> dict:
         """Everything that defines ``family``'s result, part by part (JSON-ready).
@@ -128,14 +126,14 @@ class _FamilyRun:
         the sampler settings but the display, and the cross-check.
         """
         likelihood, prior = self._model(family)
-        settings = self.settings or SamplerSettings()
+        settings = self.fit.settings
         sampler = {
             key: value
             for key, value in dataclasses.asdict(settings).items()
             if key not in _DISPLAY_SETTINGS
         }
         walkers = settings.n_walkers(len(prior.names))
-        identity = run_identity(likelihood, prior, walkers, self.seed)
+        identity = run_identity(likelihood, prior, walkers, self.fit.seed)
         task = identity | {"sampler": sampler, "cross_check": self.cross_check}
         return json.loads(json.dumps(task))
 
@@ -151,20 +149,18 @@ class _FamilyRun:
         with keep_warnings() as kept:
             likelihood, prior = self._model(family)
             # One labelled progress line per family (processes share the terminal).
-            settings = dataclasses.replace(
-                self.settings or SamplerSettings(),
-                progress_label=f"{self.label}{family:>14s}",
-                progress_line=position % self.lines,
+            fit = self.fit.with_settings(
+                progress_label=f"{self.label}{family:>14s}", progress_line=position % self.lines
             )
             # The families' chains run at once: their start searches are not told.
             with silenced(__package__):
                 idata = sample_posterior(
-                    likelihood, settings, self.seed, prior_overrides=self.prior_overrides
+                    likelihood, fit.settings, fit.seed, prior_overrides=fit.prior_overrides
                 )
             draws, lp = Posterior.of(idata).draws()
             # Keyed on the family, not on which others are compared: results are reusable.
             key = list(FAMILIES).index(family)
-            rng = np.random.default_rng(None if self.seed is None else [self.seed, key])
+            rng = np.random.default_rng(None if fit.seed is None else [fit.seed, key])
             evidence = bridge_sampling(LogPosterior(likelihood, prior), np.log(draws), lp, rng)
             nested = nested_sampling(likelihood, prior, rng) if self.cross_check else None
         store_comparison(
@@ -233,13 +229,9 @@ class _FamilyJob:
 
 def compare_groups(
     groups: Mapping[K, Sequence[Experiment]],
-    robot: RobotProfile,
+    options: FitOptions | None = None,
     *,
     families: Sequence[str] = tuple(FAMILIES),
-    settings: SamplerSettings | None = None,
-    seed: int | None = None,
-    prior_overrides: dict | None = None,
-    likelihood_options: LikelihoodOptions | None = None,
     cross_check: bool = False,
     executor: Executor | None = None,
     reuse: Mapping[K, Mapping[str, str | Path]] | None = None,
@@ -259,20 +251,15 @@ def compare_groups(
         Each group is pooled into one likelihood (shared damping), e.g.
         ``{path: [experiment]}`` for one comparison per run. The keys name
         the groups in what is yielded and in the callbacks.
-    robot : RobotProfile
+    options : FitOptions, optional
+        The robot, likelihood options, priors, sampler settings and seed of
+        every group (default: the defaults'). The seed seeds every chain and
+        the bridges' proposal draws (the same for every group); without
+        ``channels`` each group sees every channel measured in all its
+        experiments; with progress on, each job's bar is labelled with its
+        family (and, with several groups, the group's experiments).
     families : sequence of str
         Names from :data:`bayes_jackal.model.FAMILIES`.
-    settings : SamplerSettings, optional
-        With progress on, each job's bar is labelled with its family
-        (and, with several groups, the group's experiments).
-    seed : int, optional
-        Seeds every chain and the bridges' proposal draws (the same for
-        every group).
-    prior_overrides : dict, optional
-        As in :func:`bayes_jackal.inference.sample_posterior`.
-    likelihood_options : LikelihoodOptions, optional
-        For every group (default: the defaults'). Without ``channels`` each
-        group sees every channel measured in all its experiments.
     cross_check : bool
         Also estimate each evidence by nested sampling (slow).
     executor : Executor, optional
@@ -313,17 +300,18 @@ def compare_groups(
     compares several families) on chains kept short on purpose (20 steps):
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.inference import compare_groups
+    >>> from bayes_jackal.inference import FitOptions, compare_groups
     >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> robot = bj.load_profile()
     >>> runs = {
     ...     name: [bj.simulate_experiment(robot, 110.0, 30.0, rng=seed, name=name)]
     ...     for seed, name in enumerate(["v1_01", "v1_02"], start=1)
     ... }
-    >>> for key, comparison in compare_groups(
-    ...     runs, robot, families=["white"], settings=bj.SamplerSettings(max_steps=20), seed=1,
-    ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
-    ... ):
+    >>> options = FitOptions(
+    ...     robot=robot, likelihood_options=LikelihoodOptions(channels=["yaw"]),
+    ...     settings=bj.SamplerSettings(max_steps=20), seed=1,
+    ... )
+    >>> for key, comparison in compare_groups(runs, options, families=["white"]):
     ...     print(key, comparison.experiments, list(comparison.evidence))
     v1_01 ['v1_01'] ['white']
     v1_02 ['v1_02'] ['white']
@@ -334,20 +322,16 @@ def compare_groups(
             f"families must be distinct names from {list(FAMILIES)}, got {list(families)}",
             field="families",
         )
-    (settings or SamplerSettings()).check_evidence_steps()
+    fit = FitOptions.of(options)
+    fit.settings.check_evidence_steps()
     executor = executor or SerialExecutor()
     if not executor.terminal:  # workers have no terminal
-        settings = dataclasses.replace(settings or SamplerSettings(), progress=False)
-    options = LikelihoodOptions.of(likelihood_options)
+        fit = fit.with_settings(progress=False)
     runs = {
         key: _FamilyRun(
             list(group),
-            robot,
-            settings,
-            seed,
-            prior_overrides,
+            fit,
             cross_check,
-            options,
             label="" if len(groups) == 1 else "+".join(e.name for e in group) + " ",
         )
         for key, group in groups.items()
@@ -440,18 +424,13 @@ def _comparison(
 
 def compare_families(
     experiments: list[Experiment],
-    robot: RobotProfile,
-    families: tuple[str, ...] = tuple(FAMILIES),
-    settings: SamplerSettings | None = None,
-    seed: int | None = None,
-    prior_overrides: dict | None = None,
-    on_family: Callable[[str, Evidence, az.InferenceData], None] | None = None,
-    cross_check: bool = False,
-    processes: int = 1,
-    reuse: Mapping[str, str | Path] | None = None,
+    options: FitOptions | None = None,
     *,
+    families: Sequence[str] = tuple(FAMILIES),
+    cross_check: bool = False,
     executor: Executor | None = None,
-    likelihood_options: LikelihoodOptions | None = None,
+    reuse: Mapping[str, str | Path] | None = None,
+    on_family: Callable[[str, Evidence, az.InferenceData], None] | None = None,
 ) -> Comparison:
     """Sample each family's posterior and estimate its evidence by bridge sampling.
 
@@ -461,26 +440,20 @@ def compare_families(
     ----------
     experiments : list of Experiment
         Pooled into one likelihood (shared damping).
-    robot : RobotProfile
-    families : tuple of str
+    options : FitOptions, optional
+        As in :func:`compare_groups`: the seed seeds every family's chain
+        and the bridge's proposal draws, and the results do not depend on
+        the executor.
+    families : sequence of str
         Names from :data:`bayes_jackal.model.FAMILIES`.
-    settings : SamplerSettings, optional
-        With progress on, each family's bar is labelled and, with several
-        processes, kept on a line of its own.
-    seed : int, optional
-        Seeds every family's chain and the bridge's proposal draws; the
-        results do not depend on ``processes`` nor on the executor.
-    prior_overrides : dict, optional
-        As in :func:`bayes_jackal.inference.sample_posterior`.
-    on_family : callable, optional
-        Called with (family, evidence, posterior) as each family finishes,
-        e.g. to save it at once.
     cross_check : bool
         Also estimate each evidence by
         :func:`~bayes_jackal.inference.nested_sampling` (slow).
-    processes : int
-        Families sampled at once, each in its own process (one per core),
-        when no ``executor`` is given.
+    executor : Executor, optional
+        Where the families run, one job each
+        (:mod:`bayes_jackal.inference.executors`), e.g. ``ProcessExecutor(2)``
+        or ``DaskExecutor("tcp://host:8786")`` for a Dask cluster (no
+        progress bars there). Default: this process, one after the other.
     reuse : mapping of str to path, optional
         Where finished families were saved (family -> posterior file, e.g.
         by ``on_family`` in a run that was interrupted). A family whose
@@ -488,15 +461,9 @@ def compare_families(
         sampler settings but the display, seed, cross-check) equals this
         one's is read back, not recomputed, and ``on_family`` is not
         called for it.
-    executor : Executor, optional
-        Where the families run, one job each
-        (:mod:`bayes_jackal.inference.executors`), e.g. ``DaskExecutor("tcp://host:8786")``
-        for a Dask cluster (no progress bars there). Default:
-        ``ProcessExecutor(processes)``.
-    likelihood_options : LikelihoodOptions, optional
-        Default: the defaults'. Without ``channels`` every family sees every
-        channel measured in all experiments
-        (:func:`~bayes_jackal.likelihood.resolve_channels`).
+    on_family : callable, optional
+        Called with (family, evidence, posterior) as each family finishes,
+        e.g. to save it at once.
 
     Returns
     -------
@@ -512,14 +479,14 @@ def compare_families(
     from converged), so that the example is quick:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.inference import compare_families
+    >>> from bayes_jackal.inference import FitOptions, compare_families
     >>> from bayes_jackal.likelihood import LikelihoodOptions
-    >>> robot = bj.load_profile()
-    >>> run = bj.simulate_experiment(robot, 110.0, 30.0, rng=1)
-    >>> comparison = compare_families(
-    ...     [run], robot, ("white", "exponential"), bj.SamplerSettings(max_steps=20), seed=1,
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> options = FitOptions(
     ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
+    ...     settings=bj.SamplerSettings(max_steps=20), seed=1,
     ... )
+    >>> comparison = compare_families([run], options, families=("white", "exponential"))
     >>> list(comparison.evidence), comparison.best
     (['white', 'exponential'], 'exponential')
     >>> comparison.verdict()[0]
@@ -527,14 +494,10 @@ def compare_families(
     """
     [(_, comparison)] = compare_groups(
         {0: experiments},
-        robot,
+        options,
         families=families,
-        settings=settings,
-        seed=seed,
-        prior_overrides=prior_overrides,
-        likelihood_options=likelihood_options,
         cross_check=cross_check,
-        executor=executor or ProcessExecutor(processes),
+        executor=executor,
         reuse=None if reuse is None else {0: reuse},
         on_family=None if on_family is None else lambda _, *finished: on_family(*finished),
     )
@@ -616,16 +579,8 @@ def compare(
     >>> sorted(comparison.to_dict()["families"]["white"])[:3]
     ['converged', 'log_bayes_factor_vs_best', 'log_bayes_factor_vs_white']
     """
-    return compare_families(
-        as_experiments(experiments),
-        as_profile(robot),
-        families=tuple(FAMILIES if families is None else families),
-        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
-        seed=seed,
-        prior_overrides=priors,
-        cross_check=nested,
-        processes=processes,
-        executor=executor,
+    options = FitOptions(
+        robot=robot,
         likelihood_options=LikelihoodOptions(
             channels=channels,
             noise=noise,
@@ -634,6 +589,16 @@ def compare(
             steady=steady,
             damping=damping,
         ),
+        prior_overrides=priors,
+        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
+        seed=seed,
+    )
+    return compare_families(
+        as_experiments(experiments),
+        options,
+        families=tuple(FAMILIES if families is None else families),
+        cross_check=nested,
+        executor=executor or ProcessExecutor(processes),
     )
 
 

@@ -46,7 +46,7 @@ from .._runtime import (
 )
 from ..io import Experiment, RunGroups, as_experiments, as_run_groups, group_runs, run_group
 from ..likelihood import LikelihoodOptions
-from ..model import RobotProfile, as_profile
+from ..model import RobotProfile
 from ..posterior import Evidence, Posterior, save_posterior
 from .chains import SamplerSettings
 from .comparison import Comparison, compare_groups
@@ -60,6 +60,7 @@ from .hierarchy import (
     UnitPosterior,
     unit_posterior,
 )
+from .options import FitOptions
 from .sampler_warnings import ConvergenceWarning
 
 __all__ = [
@@ -635,15 +636,8 @@ def population(
     >>> result.best, sorted(result.to_dict()["groups"])
     ('hierarchical', ['carpet', 'tiles'])
     """
-    return population_posterior(
-        as_experiments(experiments),
-        as_profile(robot),
-        groups=groups,
-        covariate=covariate,
-        family=family,
-        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
-        seed=seed,
-        prior_overrides=priors,
+    options = FitOptions(
+        robot=robot,
         likelihood_options=LikelihoodOptions(
             channels=channels,
             noise=noise,
@@ -652,6 +646,16 @@ def population(
             steady=steady,
             damping=damping,
         ),
+        prior_overrides=priors,
+        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
+        seed=seed,
+    )
+    return population_posterior(
+        as_experiments(experiments),
+        options,
+        groups=groups,
+        covariate=covariate,
+        family=family,
         executor=executor,
         out=out,
         tau_range=tau_range,
@@ -660,32 +664,24 @@ def population(
 
 def population_posterior(
     experiments: Sequence[Experiment],
-    robot: RobotProfile,
+    options: FitOptions | None = None,
     *,
     groups: RunGroups | Mapping[str, str] | str | Path | None = None,
     covariate: str | None = None,
     family: str = FAMILY,
-    settings: SamplerSettings | None = None,
-    seed: int | None = None,
-    prior_overrides: Mapping[str, tuple[float, float]] | None = None,
-    likelihood_options: LikelihoodOptions | None = None,
     executor: Executor | None = None,
     out: str | Path | None = None,
     tau_range: tuple[float, float] = TAU_RANGE,
 ) -> Population:
-    """:func:`population` with its options as objects, as ``analyse --groups`` runs it.
+    """:func:`population` with its options as an object, as ``analyse --groups`` runs it.
 
     Parameters
     ----------
     experiments : sequence of Experiment
-    robot : RobotProfile
-    settings : SamplerSettings, optional
-        Every unit's chain's.
-    prior_overrides : mapping, optional
-        As in :func:`bayes_jackal.inference.sample_posterior`.
-    likelihood_options : LikelihoodOptions, optional
-        Every unit's likelihood's; ``noise`` decides the units.
-    groups, covariate, family, seed, executor, out, tau_range
+    options : FitOptions, optional
+        Every unit's robot, likelihood options (whose ``noise`` decides the
+        units), priors, sampler settings and seed.
+    groups, covariate, family, executor, out, tau_range
         As in :func:`population`.
 
     Returns
@@ -697,7 +693,7 @@ def population_posterior(
     The call :func:`population`'s example makes:
 
     >>> import bayes_jackal as bj
-    >>> from bayes_jackal.inference import population_posterior
+    >>> from bayes_jackal.inference import FitOptions, population_posterior
     >>> from bayes_jackal.likelihood import LikelihoodOptions
     >>> robot = bj.load_profile()
     >>> runs = [
@@ -705,16 +701,15 @@ def population_posterior(
     ...     for seed, d_long in enumerate([30.0, 30.0, 40.0, 40.0])
     ... ]
     >>> floors = {"run0": "tiles", "run1": "tiles", "run2": "carpet", "run3": "carpet"}
-    >>> result = population_posterior(
-    ...     runs, robot, groups=floors, family="white", seed=1,
-    ...     settings=bj.SamplerSettings(max_steps=400),
+    >>> options = FitOptions(
     ...     likelihood_options=LikelihoodOptions(channels=["yaw"]),
+    ...     settings=bj.SamplerSettings(max_steps=400), seed=1,
     ... )
-    >>> result.best
+    >>> population_posterior(runs, options, groups=floors, family="white").best
     'hierarchical'
     """
-    options = LikelihoodOptions.of(likelihood_options)
-    plan = plan_units(experiments, groups, covariate=covariate, noise=options.noise)
+    fit = FitOptions.of(options)
+    plan = plan_units(experiments, groups, covariate=covariate, noise=fit.likelihood_options.noise)
     units, name = plan.units, plan.covariate
     files = unit_files(out, list(units), family) if out is not None else {}
 
@@ -729,12 +724,8 @@ def population_posterior(
         warnings.simplefilter("ignore", ConvergenceWarning)
         units_sampled = compare_groups(
             {key: members for key, (_, members, _) in units.items()},
-            robot,
+            fit,
             families=[family],
-            settings=settings,
-            seed=seed,
-            prior_overrides=dict(prior_overrides) if prior_overrides else None,
-            likelihood_options=options,
             executor=executor,
             reuse={key: {family: path} for key, path in files.items()},
             on_family=finished,
@@ -746,7 +737,7 @@ def population_posterior(
         family=family,
         covariate=name,
         tau_range=tau_range,
-        seed=seed,
+        seed=fit.seed,
         notes=plan.notes,
     )
 

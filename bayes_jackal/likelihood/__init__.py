@@ -73,6 +73,5 @@ __all__ = [
     "LikelihoodOptions",
     "Prior",
     "ResidualLikelihood",
-    "SeriesLikelihood",
     "channel_residuals",
 ]

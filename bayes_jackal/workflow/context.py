@@ -13,21 +13,23 @@ files it wrote, and what it adds to the report.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from .._runtime import DEFAULT_FAMILIES, STATE_ESTIMATION
-from ..inference import Executor, SamplerSettings
+from ..inference import Executor, FitOptions
 from ..io import ReadOptions, RunGroups, as_run_groups
-from ..likelihood import LikelihoodOptions
-from ..model import RobotProfile, load_profile
 
 __all__ = ["RunContext", "StageResult", "WrittenFile"]
 
 
 @dataclass(frozen=True, kw_only=True)
-class RunContext:
+class RunContext(FitOptions):
     """The options of one analysis, which every stage takes.
+
+    A :class:`~bayes_jackal.inference.FitOptions` (the robot, likelihood
+    options, priors, sampler settings and seed that every chain of the
+    analysis shares), with what the analysis adds.
 
     Parameters
     ----------
@@ -37,19 +39,11 @@ class RunContext:
         The output folder.
     executor : Executor
         Where the families, the left-out runs and the population's units run.
-    robot : RobotProfile, optional
-        Default: the Jackal profile.
+    robot, likelihood_options, prior_overrides, settings, seed
+        As in :class:`~bayes_jackal.inference.FitOptions`.
     families : tuple of str, optional
         The noise families compared; None (default): white and gaussian,
         and the short-memory exponential family too where white wins.
-    settings : SamplerSettings, optional
-        Every chain's walkers, step cap and progress display.
-    seed : int, optional
-        Seeds every chain and the evidence.
-    prior_overrides : mapping, optional
-        Prior ranges by parameter name [natural units].
-    likelihood_options : LikelihoodOptions, optional
-        The channels, the noise sharing, sensor model and engine.
     read_options : ReadOptions, optional
         How the logs are read (window, longest gap, columns, rate, velocities).
     labels : mapping, optional
@@ -77,24 +71,19 @@ class RunContext:
     inputs: tuple[str | Path, ...]
     out: Path
     executor: Executor
-    robot: RobotProfile = field(default_factory=load_profile)
     families: tuple[str, ...] | None = None
-    settings: SamplerSettings = field(default_factory=SamplerSettings)
-    seed: int | None = None
-    prior_overrides: Mapping[str, tuple[float, float]] | None = None
-    likelihood_options: LikelihoodOptions = field(default_factory=LikelihoodOptions)
     read_options: ReadOptions | None = None
     labels: Mapping[str, Mapping] | None = None
     state_estimation: bool = STATE_ESTIMATION
     groups: RunGroups | None = None
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         # Refused before a log is read or a grid written.
         self.settings.check_evidence_steps()
         set_field = object.__setattr__  # normalised once, as the frozen fields they are
         set_field(self, "inputs", tuple(self.inputs))
         set_field(self, "out", Path(self.out))
-        set_field(self, "likelihood_options", LikelihoodOptions.of(self.likelihood_options))
         if self.families is not None:
             set_field(self, "families", tuple(self.families))
         if self.groups is not None:  # a bad groups file refused before a log is read

@@ -71,7 +71,7 @@ def families(context: RunContext, done: Mapping[str, StageResult]) -> Families:
     """
     ingested: Ingested = done["ingest"]
     requested = context.requested_families
-    channels = ingested.likelihood_options.channels
+    channels = ingested.fit.likelihood_options.channels
     _log.info(
         f"posterior and evidence of {', '.join(requested)} noise on {', '.join(channels)}, "
         f"pooled over {len(ingested.experiments)} experiment(s):"
@@ -115,13 +115,9 @@ def _compare(
 
     return compare_families(
         ingested.experiments,
-        context.robot,
-        families,
-        context.settings,
-        context.seed,
-        prior_overrides=context.prior_overrides,
-        on_family=finished,
-        reuse=paths,
+        ingested.fit,
+        families=families,
         executor=context.executor,
-        likelihood_options=ingested.likelihood_options,
+        reuse=paths,
+        on_family=finished,
     )

@@ -55,13 +55,9 @@ def groups_population(context: RunContext, done: Mapping[str, StageResult]) -> G
     _log.info(f"each group's damping and their population ({best} noise):")
     summary = population_posterior(
         ingested.experiments,
-        context.robot,
+        ingested.fit,
         groups=context.groups,
         family=best,
-        settings=context.settings,
-        seed=context.seed,
-        prior_overrides=context.prior_overrides,
-        likelihood_options=ingested.likelihood_options,
         executor=context.executor,
         out=context.out / "population",
     ).to_dict()

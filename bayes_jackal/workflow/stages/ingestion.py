@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..._runtime import DataError, describe
-from ...inference import plan_units
+from ...inference import FitOptions, plan_units
 from ...io import Experiment, ingest_logs
-from ...likelihood import LikelihoodOptions, resolve_channels
+from ...likelihood import resolve_channels
 from ..context import RunContext, StageResult
 
 __all__ = ["Ingested", "ingest"]
@@ -24,13 +24,14 @@ _log = logging.getLogger(__package__.removesuffix(".stages"))  # the workflow's
 class Ingested(StageResult):
     """The experiments every later stage takes, and the inputs that could not be used.
 
-    ``likelihood_options`` are the context's with the channels resolved
-    (every channel all experiments measure, by default).
+    ``fit`` are the context's fit options, the likelihood's channels
+    resolved (every channel all experiments measure, by default): the
+    options of every later chain.
     """
 
     experiments: list[Experiment]
     failed: dict[str, str]
-    likelihood_options: LikelihoodOptions
+    fit: FitOptions
     folder: Path
 
     def to_dict(self) -> dict:
@@ -47,7 +48,7 @@ class Ingested(StageResult):
                 for e in self.experiments
             },
             "failed": self.failed,
-            "channels": list(self.likelihood_options.channels),
+            "channels": list(self.fit.likelihood_options.channels),
         }
 
 
@@ -76,7 +77,8 @@ def ingest(context: RunContext, done: Mapping[str, StageResult]) -> Ingested:
     )
     if context.groups is not None:  # runs the groups do not name refused before any work
         plan_units(experiments, context.groups, noise=options.noise)
-    return Ingested(experiments, failed, options, folder)
+    fit = dataclasses.replace(FitOptions.of(context), likelihood_options=options)
+    return Ingested(experiments, failed, fit, folder)
 
 
 def _refuse_none(experiments: list[Experiment], failed: dict[str, str]) -> None:

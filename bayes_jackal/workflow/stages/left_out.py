@@ -57,15 +57,11 @@ def state_estimation(context: RunContext, done: Mapping[str, StageResult]) -> St
         return StateEstimation(skipped, summary_file)
     left_out = leave_one_out(
         ingested.experiments,
-        context.robot,
         families.best,
         context.out,
+        ingested.fit,
         pooled=families.posterior,
         pooled_source=str(families.paths[families.best]),
-        settings=context.settings,
-        seed=context.seed,
-        prior_overrides=context.prior_overrides,
-        likelihood_options=ingested.likelihood_options,
         executor=context.executor,
     )
     return StateEstimation(left_out, summary_file)

@@ -1,0 +1,79 @@
+"""What every chain of an analysis shares: one object instead of five arguments."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from ..likelihood import LikelihoodOptions
+from ..model import RobotProfile, as_profile
+from .chains import SamplerSettings
+
+__all__ = ["FitOptions"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FitOptions:
+    """What a posterior's numbers depend on besides its data and noise family.
+
+    The robot, the likelihood options, the priors, the sampler settings
+    and the seed: :func:`bayes_jackal.inference.compare_groups`, the
+    population's units and the runs left out of a prior all take one, and
+    the analysis' :class:`~bayes_jackal.workflow.RunContext` is one. Where
+    the chains run (the executor) is not part of it: it changes no number.
+
+    Parameters
+    ----------
+    robot : RobotProfile, str or Path, optional
+        A profile, or a packaged profile's name or a TOML file
+        (:func:`bayes_jackal.load_profile`); default: the Jackal's.
+    likelihood_options : LikelihoodOptions, optional
+        The channels, the noise sharing, sensor model, engine, window and
+        damping model (default: the defaults').
+    prior_overrides : mapping, optional
+        Prior ranges (low, high) by base parameter name [natural units],
+        over the profile's.
+    settings : SamplerSettings, optional
+        Every chain's walkers, step cap and progress display.
+    seed : int, optional
+        Seeds every chain and the draws made from them: same seed, same
+        result, whichever executor ran them. None: fresh entropy.
+
+    Examples
+    --------
+    >>> from bayes_jackal.inference import FitOptions, SamplerSettings
+    >>> options = FitOptions(robot="husky", settings=SamplerSettings(max_steps=500), seed=1)
+    >>> options.robot.name, options.settings.max_steps, options.likelihood_options.noise
+    ('husky', 500, 'shared')
+    """
+
+    robot: RobotProfile = field(default_factory=lambda: as_profile(None))
+    likelihood_options: LikelihoodOptions = field(default_factory=LikelihoodOptions)
+    prior_overrides: Mapping[str, tuple[float, float]] | None = None
+    settings: SamplerSettings = field(default_factory=SamplerSettings)
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        set_field = object.__setattr__  # normalised once, as the frozen fields they are
+        set_field(self, "robot", as_profile(self.robot))
+        set_field(self, "likelihood_options", LikelihoodOptions.of(self.likelihood_options))
+        set_field(self, "settings", self.settings or SamplerSettings())
+        if self.prior_overrides is not None:
+            set_field(self, "prior_overrides", dict(self.prior_overrides) or None)
+
+    @classmethod
+    def of(cls, options: FitOptions | None) -> FitOptions:
+        """``options``' own fields alone (a RunContext's), or the defaults for None.
+
+        What a job sends to a worker: none of a larger context's other fields.
+        """
+        if options is None:
+            return cls()
+        if type(options) is cls:
+            return options
+        return cls(**{f.name: getattr(options, f.name) for f in dataclasses.fields(cls)})
+
+    def with_settings(self, **changes) -> FitOptions:
+        """The same options, the sampler settings changed (e.g. ``progress=False``)."""
+        return dataclasses.replace(self, settings=dataclasses.replace(self.settings, **changes))
