@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 import pytest
 
-from bayes_jackal import load_profile
+from bayes_jackal import InputError, ProfileError, load_profile
 from bayes_jackal.cli import main
 from bayes_jackal.inference import FitOptions
 from bayes_jackal.inference.chains import SamplerSettings
@@ -186,3 +186,19 @@ def test_a_warning_raised_while_sampling_reaches_the_user_once(
     shown = [line for line in err if "overflow" in line]
     assert shown == [f"bayes-jackal: WARNING: {named}overflow encountered in exp"]
     assert any("WARNING: " in line and "NOT CONVERGED" in line for line in err)
+
+
+def test_fit_options_refuse_a_bad_prior_or_robot_on_construction(tmp_path):
+    # Before any chain: a misspelt name, an empty range, a profile that is not there.
+    with pytest.raises(InputError, match="unknown prior 'd_latt'") as misspelt:
+        FitOptions(prior_overrides={"d_latt": (50.0, 500.0)})
+    assert misspelt.value.field == "prior_overrides"
+    with pytest.raises(InputError, match=r"0 < low < high, got \[500\.0, 50\.0\]"):
+        FitOptions(prior_overrides={"d_lat": (500.0, 50.0)})
+    with pytest.raises(ProfileError, match=r"nowhere\.toml"):
+        FitOptions(robot=tmp_path / "nowhere.toml")
+    # Keys normalised once: a width's range under either name is sigma_h's.
+    assert FitOptions(prior_overrides={"width": (0.01, 0.5)}).prior_overrides == {
+        "sigma_h": (0.01, 0.5)
+    }
+    assert FitOptions(prior_overrides={}).prior_overrides is None

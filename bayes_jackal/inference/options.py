@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from ..likelihood import LikelihoodOptions
-from ..model import RobotProfile, as_profile
+from ..model import RobotProfile, as_profile, prior_overrides
 from .chains import SamplerSettings
 
 __all__ = ["FitOptions"]
@@ -33,19 +33,32 @@ class FitOptions:
         damping model (default: the defaults').
     prior_overrides : mapping, optional
         Prior ranges (low, high) by base parameter name [natural units],
-        over the profile's.
+        over the profile's (:func:`bayes_jackal.model.prior_overrides`).
     settings : SamplerSettings, optional
         Every chain's walkers, step cap and progress display.
     seed : int, optional
         Seeds every chain and the draws made from them: same seed, same
         result, whichever executor ran them. None: fresh entropy.
 
+    Raises
+    ------
+    InputError
+        For a prior range of an unknown parameter or not 0 < low < high.
+    ProfileError
+        For a robot profile that cannot be read.
+
     Examples
     --------
+    >>> import bayes_jackal as bj
     >>> from bayes_jackal.inference import FitOptions, SamplerSettings
     >>> options = FitOptions(robot="husky", settings=SamplerSettings(max_steps=500), seed=1)
     >>> options.robot.name, options.settings.max_steps, options.likelihood_options.noise
     ('husky', 500, 'shared')
+    >>> try:
+    ...     FitOptions(prior_overrides={"d_latt": (50, 500)})
+    ... except bj.InputError as error:
+    ...     print(error.field)
+    prior_overrides
     """
 
     robot: RobotProfile = field(default_factory=lambda: as_profile(None))
@@ -59,8 +72,8 @@ class FitOptions:
         set_field(self, "robot", as_profile(self.robot))
         set_field(self, "likelihood_options", LikelihoodOptions.of(self.likelihood_options))
         set_field(self, "settings", self.settings or SamplerSettings())
-        if self.prior_overrides is not None:
-            set_field(self, "prior_overrides", dict(self.prior_overrides) or None)
+        # Validated here (names and 0 < low < high), not when the first chain starts.
+        set_field(self, "prior_overrides", prior_overrides(self.prior_overrides) or None)
 
     @classmethod
     def of(cls, options: FitOptions | None) -> FitOptions:
