@@ -27,6 +27,7 @@ from bayes_jackal.inference.sampling import sample_posterior
 from bayes_jackal.io.experiment import write_netcdf
 from bayes_jackal.io.simulate import Series, simulate_experiment
 from bayes_jackal.likelihood import LikelihoodOptions
+from bayes_jackal.workflow import RunContext
 
 ROBOT = load_profile()
 #: The v2 command (0.4 m/s, 30 deg/s) for 8 s instead of its 26 s.
@@ -193,10 +194,17 @@ def test_fit_options_refuse_a_bad_prior_or_robot_on_construction(tmp_path):
     with pytest.raises(InputError, match="unknown prior 'd_latt'") as misspelt:
         FitOptions(prior_overrides={"d_latt": (50.0, 500.0)})
     assert misspelt.value.field == "prior_overrides"
-    with pytest.raises(InputError, match=r"0 < low < high, got \[500\.0, 50\.0\]"):
+    with pytest.raises(InputError, match=r"0 < low < high, got \[500\.0, 50\.0\]") as empty:
         FitOptions(prior_overrides={"d_lat": (500.0, 50.0)})
+    assert empty.value.field == "priors.d_lat"
     with pytest.raises(ProfileError, match=r"nowhere\.toml"):
         FitOptions(robot=tmp_path / "nowhere.toml")
+    with pytest.raises(InputError, match="unknown prior 'd_latt'"):  # the analysis' context too
+        RunContext(inputs=["a.csv"], out=tmp_path, executor=SerialExecutor(),
+                   prior_overrides={"d_latt": (50.0, 500.0)})  # fmt: skip
+    # A robot where the options go (the old signature) is named, not an AttributeError.
+    with pytest.raises(InputError, match=r"must be a FitOptions .* got a RobotProfile"):
+        list(compare_groups({"run1": []}, ROBOT))
     # Keys normalised once: a width's range under either name is sigma_h's.
     assert FitOptions(prior_overrides={"width": (0.01, 0.5)}).prior_overrides == {
         "sigma_h": (0.01, 0.5)

@@ -511,8 +511,11 @@ def test_population_command_writes_json_plot_and_refuses_a_bad_table(
     assert sorted(p.name for p in (tmp_path / "pop3").iterdir()) == ["units"]
 
 
-def test_the_population_command_fits_with_every_modelling_flag(cli, tmp_path, floor_runs):
-    # population once dropped --steady (and --damping): its units fitted every sample.
+def test_the_population_command_fits_with_its_modelling_flags(cli, tmp_path, floor_runs):
+    # population once dropped --steady and --damping (its units fitted every sample, one
+    # damping); its flags now reach the units through the one FitOptions every verb builds.
+    # The units' task records the window, the priors and the walkers (not the damping model,
+    # which these runs at one speed cannot take).
     from bayes_jackal.io.experiment import write_netcdf
 
     for run in floor_runs:
@@ -521,12 +524,15 @@ def test_the_population_command_fits_with_every_modelling_flag(cli, tmp_path, fl
         "run,group\n" + "".join(f"{run}.nc,{label}\n" for run, label in FLOORS.items())
     )
     args = ["population", *[f"{r}.nc" for r in FLOORS], "--groups", "groups.csv", "--steady"]
+    args += ["--prior", "d_lat", "50", "400", "--walkers", "40"]
     flags = ["--family", "white", "--channels", "yaw", "--max-steps", "100", "--seed", "1"]
     result = cli([*args, "--out", "pop", *flags, "--no-progress"], tmp_path, timeout=300)
     assert result.code == 0, result.stderr
     for path in unit_files(tmp_path / "pop", ["tiles", "carpet"], "white").values():
         task = Posterior.of(load_posterior(path)).metadata.task
         assert task["likelihood"]["steady"] is True, path
+        assert (task["priors"]["low"][0], task["priors"]["high"][0]) == (50.0, 400.0)
+        assert task["walkers"] == 40
 
 
 def _speed_groups(ratio: float) -> bj.inference.Population:

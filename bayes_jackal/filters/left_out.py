@@ -352,6 +352,7 @@ def leave_one_out(
     >>> [round(x, 3) for x in band], result.runs["a"]["converged"]  # doctest: +SKIP
     ([0.796, 1.252], False)
     """
+    fit = FitOptions.of(options)
     source = None if pooled is None else pooled_source or "<memory>"
     result = LeaveOneOut(family, pooled=source)
     if len(experiments) < 2:
@@ -361,7 +362,6 @@ def leave_one_out(
     order = [e.name for e in experiments]
     by_name = dict(zip(order, experiments, strict=True))
     posteriors = {name: folder / "posteriors" / f"{name}.nc" for name in order}
-    fit = FitOptions.of(options)
     draws = None
     if pooled is not None:  # checked before anything is written
         draws = PooledPosterior(pooled, experiments, fit.robot, family, fit.likelihood_options,

@@ -443,7 +443,8 @@ def compare_families(
     options : FitOptions, optional
         As in :func:`compare_groups`: the seed seeds every family's chain
         and the bridge's proposal draws, and the results do not depend on
-        the executor.
+        the executor. With progress on, each family's bar is labelled and,
+        with several processes, kept on a line of its own.
     families : sequence of str
         Names from :data:`bayes_jackal.model.FAMILIES`.
     cross_check : bool

@@ -6,6 +6,7 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from .._runtime import InputError
 from ..likelihood import LikelihoodOptions
 from ..model import RobotProfile, as_profile, prior_overrides
 from .chains import SamplerSettings
@@ -83,6 +84,12 @@ class FitOptions:
         """
         if options is None:
             return cls()
+        if not isinstance(options, FitOptions):  # e.g. a robot where the options go
+            raise InputError(
+                f"must be a FitOptions (e.g. FitOptions(robot=...)), got a "
+                f"{type(options).__name__}",
+                field="options",
+            )
         if type(options) is cls:
             return options
         return cls(**{f.name: getattr(options, f.name) for f in dataclasses.fields(cls)})
