@@ -239,10 +239,16 @@ def test_no_state_estimation_skips_it(analysis, tmp_path, capsys):
     shutil.copytree(out / "posteriors", tmp_path / "out" / "posteriors")
     quick = ["--families", "white", "--channels", "yaw", "--max-steps", "100", "--seed", "1"]
     flags = ["--no-progress", "--processes", "1", "--no-state-estimation", "--json"]
+    flags += ["--formats", "png,svg"]  # vector figures on request
     code = main(["analyse", *map(str, inputs), "--out", str(tmp_path / "out"), *quick, *flags])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert "reusing white" in captured.err
+    assert "writing the report (figures as PNG and SVG)..." in captured.err
+    figures = tmp_path / "out" / "report_figures"
+    pngs, svgs = ({p.stem for p in figures.glob(f"*.{suffix}")} for suffix in ("png", "svg"))
+    assert pngs and svgs == pngs
+    assert not list((out / "report_figures").glob("*.svg"))  # by default PNG alone
     state = json.loads(captured.out)["state_estimation"]
     assert state["skipped"] == "turned off (--no-state-estimation)" and state["runs"] == {}
     assert not (tmp_path / "out" / FOLDER).exists() and not (tmp_path / "out" / SUMMARY).exists()

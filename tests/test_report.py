@@ -84,7 +84,9 @@ def _report(paths, out: Path, *extra) -> tuple[int, str]:
 
 
 def test_report_embeds_every_figure_and_saves_png_and_svg(posteriors, tmp_path, capsys):
-    code, text = _report([posteriors["converged"]], tmp_path / "report.html")
+    code, text = _report(
+        [posteriors["converged"]], tmp_path / "report.html", "--formats", "png,svg"
+    )
     assert code == 0
     images = re.findall(r'<img alt="[^"]*" src="data:image/png;base64,', text)
     # damping, sigma_h, traces, criticism; model and residuals; acf and psd of 2 channels.

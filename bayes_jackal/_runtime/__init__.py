@@ -71,6 +71,7 @@ _LAZY = {
     "POSE_NOISE": ".defaults",
     "POSE_ROLES": ".defaults",
     "POSE_TIME": ".defaults",
+    "REPORT_FORMATS": ".defaults",
     "REQUIRED": ".defaults",
     "RESIDUAL_CHANNELS": ".defaults",
     "RESIDUAL_LAGS": ".defaults",

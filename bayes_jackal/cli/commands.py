@@ -565,6 +565,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
             read_options=read_options(args),
             state_estimation=args.state_estimation,
             groups=args.groups,
+            figure_formats=args.formats,
         )
     return analysis_text(result, out)
 
@@ -572,7 +573,10 @@ def cmd_analyse(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     out = Reporter(args.json)
     result = run_demo(
-        args.out, progress=not args.no_progress, state_estimation=args.state_estimation
+        args.out,
+        progress=not args.no_progress,
+        state_estimation=args.state_estimation,
+        figure_formats=args.formats,
     )
     noise = NoiseSettings()
     (sigma_c_vx, sigma_c_vy, sigma_c_yaw), sigma_n_yaw = noise.sigma_c, noise.sigma_n[2]

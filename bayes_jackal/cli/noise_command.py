@@ -56,26 +56,27 @@ def cmd_noise(args: argparse.Namespace) -> int:
     found, failed = each_input(args.series, characterise, catch=Exception, on_failure=failures)
     out.result({"series": results, "failed": failed})  # out before the report, whatever it does
     if args.out and found:
-        _write_report(list(found.values()), Path(args.out) / NOISE_REPORT, args.seed, out,
-                      failures)  # fmt: skip
+        _write_report(list(found.values()), Path(args.out) / NOISE_REPORT, args, out, failures)
     return failures.code
 
 
 def _write_report(
     found: list[NoiseCharacterisation],
     path: Path,
-    seed: int | None,
+    args: argparse.Namespace,
     out: Reporter,
     failures: Failures,
 ) -> None:
-    """``noise_report.html``; a failure is one line naming it and a non-zero exit code.
+    """``noise_report.html`` (``--seed``, ``--formats``); a failure is one line naming it.
+
+    A failure also gives a non-zero exit code.
 
     The series' results are printed and written already: a report that
     cannot be drawn or written loses none of them.
     """
     try:
         with silenced("bayes_jackal.report"):  # no figure counts: the command says what it wrote
-            report = write_noise_report(found, path, seed=seed or 0)
+            report = write_noise_report(found, path, formats=args.formats, seed=args.seed or 0)
     except Exception as failed:  # an interrupt (not an Exception) still stops the run
         failures(str(path), failed)
         return

@@ -16,7 +16,7 @@ from .._runtime import (
     NOISE_MAX_STEPS,
     SERIES_ENGINES,
 )
-from .parser_types import add_prior_flag, count, family_list, natural, positive
+from .parser_types import add_formats_flag, add_prior_flag, count, family_list, natural, positive
 
 
 def add_noise_parser(commands: argparse._SubParsersAction) -> None:
@@ -80,6 +80,7 @@ def add_noise_parser(commands: argparse._SubParsersAction) -> None:
         "replace a prior range: sigma_h (or width, the width [s]), sigma_c, sigma_n, sigma "
         "(white noise's sd), e.g. --prior width 0.001 2",
     )
+    add_formats_flag(noise)
     noise.add_argument(
         "--engine",
         choices=SERIES_ENGINES,

@@ -29,7 +29,6 @@ from .._runtime import (
     ENGINES,
     EXPERIMENT_FORMATS,
     FAMILY,
-    FIGURE_FORMATS,
     FILTER_PARAMETERS,
     FILTERS,
     GRID_METHODS,
@@ -59,7 +58,7 @@ from .._runtime import (
     InputError,
 )
 from .noise_parser import add_noise_parser
-from .parser_types import add_prior_flag
+from .parser_types import add_formats_flag, add_prior_flag
 from .parser_types import channel_list as _channel_list
 from .parser_types import count as _count
 from .parser_types import family as _family
@@ -303,6 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
         "each group's damping, their population and its speed dependence (as `population`)",
     )
     _add_state_estimation(analysis)
+    add_formats_flag(analysis)
     _add_bag_flags(analysis, max_gap=None)
     _add_input_flags(analysis)
     _add_model_flags(analysis, pooling=False)
@@ -315,6 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-progress", action="store_true", help="no progress display")
     demo.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _add_state_estimation(demo)
+    add_formats_flag(demo)
 
     sim = commands.add_parser("simulate", help="write thesis-like experiments with known truth")
     sim.add_argument("--out", required=True, help="output folder")
@@ -582,13 +583,7 @@ def build_parser() -> argparse.ArgumentParser:
         "posteriors", nargs="+", metavar="POSTERIOR.nc", help="posterior files or folders"
     )
     report.add_argument("--out", required=True, metavar="report.html", help="output HTML")
-    report.add_argument(
-        "--formats",
-        type=_name_list(FIGURE_FORMATS, "figure formats"),
-        default=FIGURE_FORMATS,
-        metavar="png,svg",
-        help="figure files written beside the report (png,svg)",
-    )
+    add_formats_flag(report)
     for command in commands.choices.values():
         _add_debug(command, default=argparse.SUPPRESS)  # keeps a --debug given before COMMAND
     return parser

@@ -10,7 +10,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-from .._runtime import CHANNELS, FAMILY, InputError
+from .._runtime import CHANNELS, FAMILY, FIGURE_FORMATS, REPORT_FORMATS, InputError
 
 __all__ = [
     "bounded",
@@ -105,6 +105,18 @@ count = bounded(int, "an integer >= 1", minimum=1)
 positive = bounded(float, "a finite number > 0", minimum=0.0, strict=True)
 non_negative = bounded(float, "a finite number >= 0", minimum=0.0)
 finite = bounded(float, "a finite number", minimum=-math.inf)
+
+
+def add_formats_flag(parser: argparse.ArgumentParser) -> None:
+    """``--formats``: the figure files beside a report (report, analyse, demo and noise)."""
+    parser.add_argument(
+        "--formats",
+        type=name_list(FIGURE_FORMATS, "figure formats"),
+        default=REPORT_FORMATS,
+        metavar="png,svg",
+        help=f"figure files written beside the report, from {','.join(FIGURE_FORMATS)} "
+        f"({','.join(REPORT_FORMATS)}; add svg for vector figures)",
+    )
 
 
 def add_prior_flag(parser: argparse.ArgumentParser, help: str) -> None:

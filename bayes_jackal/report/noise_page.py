@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._runtime import FIGURE_FORMATS, InputError
+from .._runtime import REPORT_FORMATS, InputError
 from ..noise import NoiseCharacterisation
 from ..posterior import PREDICTIVE_DRAWS
 from ..thesis import THESIS_LAGS
@@ -250,7 +250,7 @@ def write_noise_report(
     results: Sequence[NoiseCharacterisation],
     out: str | Path,
     *,
-    formats: tuple[str, ...] = FIGURE_FORMATS,
+    formats: tuple[str, ...] = REPORT_FORMATS,
     seed: int | None = 0,
 ) -> Path:
     """Write the HTML report on noise series, and its figures beside it.
@@ -263,7 +263,8 @@ def write_noise_report(
         The HTML file; figures go to ``<out stem>_figures/``, named
         ``<series>-acf``, ``<series>-psd`` and ``<series>-widths``.
     formats : tuple of str
-        Figure files to write, from ``("png", "svg")``.
+        Figure files to write, from ``("png", "svg")`` (default PNG alone; every
+        figure is embedded as PNG in any case).
     seed : int, optional
         As :func:`render_noise_report`'s.
 

@@ -6,8 +6,8 @@ page (:func:`render_report`): a title, a summary of the answer and of what
 to distrust, a banner naming the chains that did not converge, the
 evidence tables, then one section per posterior. The
 sections' content is :mod:`bayes_jackal.report.sections`'s; the figures are
-embedded as PNG and written beside the report as PNG and SVG by
-:mod:`bayes_jackal.report.figures`.
+embedded as PNG and written beside the report as PNG (and SVG on
+request) by :mod:`bayes_jackal.report.figures`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from .. import __version__
 from .._runtime import (
-    FIGURE_FORMATS,
+    REPORT_FORMATS,
     InputError,
     Phase,
     atomic_path,
@@ -304,7 +304,7 @@ def report_page(title: str, what: str, figures: ReportFigures, body: Sequence[st
     >>> from pathlib import Path
     >>> from bayes_jackal.report import report_page
     >>> from bayes_jackal.report import ReportFigures
-    >>> figures = ReportFigures(Path("drift_figures"), ())
+    >>> figures = ReportFigures(Path("drift_figures"), ("png", "svg"))
     >>> page = report_page("drift <test>", "series: gyro", figures, ["<p>body</p>"])
     >>> page.startswith("<!DOCTYPE html>"), "<title>drift &lt;test&gt;</title>" in page
     (True, True)
@@ -312,10 +312,11 @@ def report_page(title: str, what: str, figures: ReportFigures, body: Sequence[st
     True
     """
     created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    files = " and ".join(suffix.upper() for suffix in figures.formats)
+    where = f" Figures as {files} in <code>{html.escape(figures.folder.name)}/</code>."
     head = (
         f"<h1>{html.escape(title)}</h1><p>bayes_jackal {__version__}, {created}; "
-        f"{html.escape(what)}. Figures as PNG and SVG in "
-        f"<code>{html.escape(figures.folder.name)}/</code>.</p>"
+        f"{html.escape(what)}.{where if files else ''}</p>"
     )
     return (
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
@@ -329,7 +330,7 @@ def write_page(
     out: str | Path,
     render: Callable[[ReportFigures], str],
     *,
-    formats: tuple[str, ...] = FIGURE_FORMATS,
+    formats: tuple[str, ...] = REPORT_FORMATS,
 ) -> Path:
     """Write the page ``render(figures)`` to ``out``, its figures to ``<out stem>_figures/``.
 
@@ -345,7 +346,8 @@ def write_page(
         given the :class:`~bayes_jackal.report.ReportFigures` that
         write its figures into the folder.
     formats : tuple of str
-        Figure files to write, from ``("png", "svg")``.
+        Figure files to write, from ``("png", "svg")`` (default PNG alone; every
+        figure is embedded as PNG in any case).
 
     Returns
     -------
@@ -424,7 +426,7 @@ def write_report(
     posteriors: Posteriors,
     out: str | Path,
     *,
-    formats: tuple[str, ...] = FIGURE_FORMATS,
+    formats: tuple[str, ...] = REPORT_FORMATS,
     lags: int = LAGS,
     sections: Sequence[Section] = (),
     highlights: Sequence[str] = (),
@@ -445,7 +447,8 @@ def write_report(
     out : str or Path
         The HTML file; figures go to ``<out stem>_figures/``.
     formats : tuple of str
-        Figure files to write, from ``("png", "svg")``.
+        Figure files to write, from ``("png", "svg")`` (default PNG alone; every
+        figure is embedded as PNG in any case).
     lags : int
         Lags of the autocorrelation figures.
     sections : sequence of callable
@@ -488,7 +491,7 @@ def write_report(
 def save_report(
     posteriors: list[tuple[Path, az.InferenceData]],
     out: str | Path,
-    formats: tuple[str, ...] = FIGURE_FORMATS,
+    formats: tuple[str, ...] = REPORT_FORMATS,
     lags: int = LAGS,
     *,
     sections: Sequence[Section] = (),

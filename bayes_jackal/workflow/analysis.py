@@ -50,7 +50,7 @@ import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from .._runtime import STATE_ESTIMATION
+from .._runtime import REPORT_FORMATS, STATE_ESTIMATION
 from ..inference import Executor, ProcessExecutor, SamplerSettings
 from ..io import ReadOptions, RunGroups
 from ..likelihood import LikelihoodOptions
@@ -77,6 +77,7 @@ def analyse_logs(
     labels: Mapping[str, Mapping] | None = None,
     state_estimation: bool = STATE_ESTIMATION,
     groups: RunGroups | Mapping[str, str] | str | Path | None = None,
+    figure_formats: Sequence[str] = REPORT_FORMATS,
 ) -> Analysis:
     """Ingest logs, run the grids, compare the noise families, export the prior, report.
 
@@ -125,6 +126,10 @@ def analyse_logs(
         each group's damping and their population with the best family,
         saved as ``population.json``, ``population.png`` and
         ``population/units/``, and a section of the report.
+    figure_formats : tuple of str
+        The figure files written beside the report in ``report_figures/``
+        (``--formats``): PNG alone by default, ``("png", "svg")`` for vector
+        figures too.
 
     Returns
     -------
@@ -212,5 +217,6 @@ def analyse_logs(
         labels=labels,
         state_estimation=state_estimation,
         groups=groups,
+        figure_formats=tuple(figure_formats),
     )
     return run_pipeline(context)

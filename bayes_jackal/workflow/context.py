@@ -16,7 +16,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._runtime import DEFAULT_FAMILIES, STATE_ESTIMATION
+from .._runtime import (
+    DEFAULT_FAMILIES,
+    FIGURE_FORMATS,
+    REPORT_FORMATS,
+    STATE_ESTIMATION,
+    InputError,
+)
 from ..inference import Executor, FitOptions
 from ..io import ReadOptions, RunGroups, as_run_groups
 
@@ -53,6 +59,10 @@ class RunContext(FitOptions):
     groups : RunGroups, optional
         Each run's group: the population stage runs with it. A mapping, a
         CSV's path or a RunGroups is read on construction.
+    figure_formats : tuple of str
+        The figure files written beside the report, from
+        :data:`~bayes_jackal._runtime.defaults.FIGURE_FORMATS` (default PNG
+        alone; ``("png", "svg")`` for vector figures too).
 
     Examples
     --------
@@ -76,6 +86,7 @@ class RunContext(FitOptions):
     labels: Mapping[str, Mapping] | None = None
     state_estimation: bool = STATE_ESTIMATION
     groups: RunGroups | None = None
+    figure_formats: tuple[str, ...] = REPORT_FORMATS
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -88,6 +99,13 @@ class RunContext(FitOptions):
             set_field(self, "families", tuple(self.families))
         if self.groups is not None:  # a bad groups file refused before a log is read
             set_field(self, "groups", as_run_groups(self.groups))
+        set_field(self, "figure_formats", tuple(self.figure_formats))
+        unknown = [f for f in self.figure_formats if f not in FIGURE_FORMATS]
+        if unknown:
+            raise InputError(
+                f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}",
+                field="figure_formats",
+            )
 
     @property
     def requested_families(self) -> tuple[str, ...]:

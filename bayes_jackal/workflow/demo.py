@@ -20,13 +20,21 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
-from .._runtime import CHANNELS, DEFAULT_FAMILIES, STATE_ESTIMATION, as_rng, write_json
+from .._runtime import (
+    CHANNELS,
+    DEFAULT_FAMILIES,
+    REPORT_FORMATS,
+    STATE_ESTIMATION,
+    as_rng,
+    write_json,
+)
 from ..inference import SamplerSettings
 from ..io import NoiseSettings, bag_truth, simulate_series, write_bag
 from ..model import RobotProfile, load_profile
@@ -122,6 +130,7 @@ def run_demo(
     *,
     progress: bool = True,
     state_estimation: bool = STATE_ESTIMATION,
+    figure_formats: Sequence[str] = REPORT_FORMATS,
 ) -> Analysis:
     """Run :func:`bayes_jackal.workflow.analyse_logs` on the shipped bags into ``folder``.
 
@@ -140,6 +149,8 @@ def run_demo(
         half the data, too much for the pooled posterior's PSIS reweighting
         (Pareto k-hat above 0.7), so each is usually refit: two more
         posteriors, side by side, ~20 s on 2 cores.
+    figure_formats : sequence of str
+        As in :func:`~bayes_jackal.workflow.analyse_logs`.
 
     Returns
     -------
@@ -174,6 +185,7 @@ def run_demo(
         seed=DEMO_SEED,
         labels=labels,
         state_estimation=state_estimation,
+        figure_formats=figure_formats,
     )
 
 

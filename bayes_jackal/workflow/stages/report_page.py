@@ -22,7 +22,8 @@ def report(context: RunContext, done: Mapping[str, StageResult]) -> WrittenFile:
     :meth:`~bayes_jackal.workflow.StageResult.highlight` join the report in
     the order of their ``report_rank``, then of the pipeline.
     """
-    _log.info("writing the report (figures as PNG and SVG)...")
+    files = " and ".join(suffix.upper() for suffix in context.figure_formats)
+    _log.info(f"writing the report (figures as {files or 'embedded images only'})...")
     families: Families = done["families"]
     ranked = sorted(done.values(), key=lambda result: result.report_rank)  # stable
     return WrittenFile(
@@ -30,6 +31,7 @@ def report(context: RunContext, done: Mapping[str, StageResult]) -> WrittenFile:
         write_report(
             [families.paths[family] for family in families.ranked],
             context.out / "report.html",
+            formats=context.figure_formats,
             sections=[s for r in ranked if (s := r.report_section()) is not None],
             highlights=[h for r in ranked if (h := r.highlight())],
         ),
