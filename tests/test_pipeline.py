@@ -103,3 +103,12 @@ def test_a_stage_without_a_name_of_its_own_is_refused(pipeline):
     for stages in ((ingest, ingest), (lambda context, done: None,)):
         with pytest.raises(bj.InputError, match="needs a name of its own"):
             run_pipeline(context, stages)
+
+
+def test_an_unknown_figure_format_is_refused_before_a_log_is_read(tmp_path):
+    with pytest.raises(bj.InputError, match=r"unknown figure formats \['eps'\]") as refused:
+        RunContext(inputs=["a.csv"], out=tmp_path, executor=SerialExecutor(),
+                   figure_formats=("png", "eps"))  # fmt: skip
+    assert refused.value.field == "figure_formats" and not any(tmp_path.iterdir())
+    context = RunContext(inputs=["a.csv"], out=tmp_path, executor=SerialExecutor())
+    assert context.figure_formats == ("png",)  # SVG on request

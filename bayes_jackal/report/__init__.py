@@ -1,7 +1,7 @@
 """Self-contained HTML reports and every figure in them."""
 
 from .estimate_plots import SHOWN_SECONDS, plot_state_estimates, shown_window
-from .figures import DPI, ReportFigures, slug
+from .figures import DPI, ReportFigures, figure_formats, formats_text, slug
 from .grid_plots import plot_grid, save_grid_plot
 from .noise_page import (
     NOISE_HEADER,

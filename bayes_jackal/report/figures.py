@@ -13,7 +13,7 @@ import io
 import logging
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,13 +22,47 @@ from .._runtime import FIGURE_FORMATS, LOG_INTERVAL, InputError, atomic_path
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["DPI", "ReportFigures", "slug"]
+__all__ = ["DPI", "ReportFigures", "figure_formats", "formats_text", "slug"]
 
 #: The stage's messages (INFO): :mod:`bayes_jackal._runtime.messages`.
 _log = logging.getLogger(__package__)
 
 #: Resolution of the embedded and saved PNGs [dots per inch].
 DPI = 130
+
+
+def figure_formats(formats: Sequence[str], *, field: str = "formats") -> tuple[str, ...]:
+    """``formats`` as a tuple, each a name of :data:`FIGURE_FORMATS`.
+
+    Raises
+    ------
+    InputError
+        Naming ``field`` and the unknown formats.
+
+    Examples
+    --------
+    >>> from bayes_jackal.report import figure_formats
+    >>> figure_formats(["png", "svg"])
+    ('png', 'svg')
+    """
+    unknown = [f for f in formats if f not in FIGURE_FORMATS]
+    if unknown:
+        raise InputError(
+            f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}", field=field
+        )
+    return tuple(formats)
+
+
+def formats_text(formats: Sequence[str]) -> str:
+    """The formats as a reader names them (``"PNG and SVG"``; empty for none).
+
+    Examples
+    --------
+    >>> from bayes_jackal.report import formats_text
+    >>> formats_text(("png", "svg")), formats_text(())
+    ('PNG and SVG', '')
+    """
+    return " and ".join(suffix.upper() for suffix in formats)
 
 
 def slug(text: str) -> str:
@@ -100,12 +134,7 @@ class ReportFigures:
         folder: Path,
         formats: tuple[str, ...],
     ):
-        unknown = [f for f in formats if f not in FIGURE_FORMATS]
-        if unknown:
-            raise InputError(
-                f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}", field="formats"
-            )
-        self.folder, self.formats = folder, formats
+        self.folder, self.formats = folder, figure_formats(formats)
         self.drawn, self._said = 0, time.monotonic()
 
     def html(self, name: str, caption: str, draw: Callable[[], tuple[Figure, object]]) -> str:

@@ -32,7 +32,7 @@ from .._runtime import (
     removed_if_empty,
 )
 from ..posterior import Posterior, load_posterior
-from .figures import ReportFigures
+from .figures import ReportFigures, formats_text
 from .sections import evidence_section, losing_banner, posterior_section, summary_section
 
 __all__ = [
@@ -312,7 +312,7 @@ def report_page(title: str, what: str, figures: ReportFigures, body: Sequence[st
     True
     """
     created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    files = " and ".join(suffix.upper() for suffix in figures.formats)
+    files = formats_text(figures.formats)
     where = f" Figures as {files} in <code>{html.escape(figures.folder.name)}/</code>."
     head = (
         f"<h1>{html.escape(title)}</h1><p>bayes_jackal {__version__}, {created}; "

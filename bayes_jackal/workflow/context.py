@@ -18,13 +18,12 @@ from pathlib import Path
 
 from .._runtime import (
     DEFAULT_FAMILIES,
-    FIGURE_FORMATS,
     REPORT_FORMATS,
     STATE_ESTIMATION,
-    InputError,
 )
 from ..inference import Executor, FitOptions
 from ..io import ReadOptions, RunGroups, as_run_groups
+from ..report import figure_formats
 
 __all__ = ["RunContext", "StageResult", "WrittenFile"]
 
@@ -99,13 +98,8 @@ class RunContext(FitOptions):
             set_field(self, "families", tuple(self.families))
         if self.groups is not None:  # a bad groups file refused before a log is read
             set_field(self, "groups", as_run_groups(self.groups))
-        set_field(self, "figure_formats", tuple(self.figure_formats))
-        unknown = [f for f in self.figure_formats if f not in FIGURE_FORMATS]
-        if unknown:
-            raise InputError(
-                f"unknown figure formats {unknown}; use {list(FIGURE_FORMATS)}",
-                field="figure_formats",
-            )
+        formats = figure_formats(self.figure_formats, field="figure_formats")
+        set_field(self, "figure_formats", formats)
 
     @property
     def requested_families(self) -> tuple[str, ...]:

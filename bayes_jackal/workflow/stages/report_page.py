@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
-from ...report import write_report
+from ...report import formats_text, write_report
 from ..context import RunContext, StageResult, WrittenFile
 from .family_comparison import Families
 
@@ -22,7 +22,7 @@ def report(context: RunContext, done: Mapping[str, StageResult]) -> WrittenFile:
     :meth:`~bayes_jackal.workflow.StageResult.highlight` join the report in
     the order of their ``report_rank``, then of the pipeline.
     """
-    files = " and ".join(suffix.upper() for suffix in context.figure_formats)
+    files = formats_text(context.figure_formats)
     _log.info(f"writing the report (figures as {files or 'embedded images only'})...")
     families: Families = done["families"]
     ranked = sorted(done.values(), key=lambda result: result.report_rank)  # stable
