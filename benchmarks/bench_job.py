@@ -26,7 +26,6 @@ import argparse
 import ctypes
 import json
 import os
-import resource
 import subprocess
 import sys
 import time
@@ -49,31 +48,45 @@ PHASES = {
 
 
 def timed_job(arguments: list[str], folder: Path) -> dict:
-    """``bayes-jackal <arguments> --json`` in a fresh process: wall, CPU, peak memory, phases."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    """``bayes-jackal <arguments> --json`` in a fresh process: wall, CPU, peak memory, phases.
+
+    The package is this checkout's (``PYTHONPATH``), as the baseline's. The
+    last phase, the report, also holds the residual table written after it.
+    """
     start = time.perf_counter()
     command = [sys.executable, "-m", "bayes_jackal.cli", *arguments, "--json", "--no-progress"]
     process = subprocess.Popen(
-        command, cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        command,
+        cwd=folder,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     starts = {"ingest": 0.0}
     for line in process.stderr:
         for text, phase in PHASES.items():
             if line.lstrip().startswith(text) and phase not in starts:
                 starts[phase] = time.perf_counter() - start
-    if process.wait() != 0:
-        raise RuntimeError(f"{' '.join(arguments)} exited {process.returncode}")
+    _, status, usage = os.wait4(process.pid, 0)
+    process.returncode = os.waitstatus_to_exitcode(status)
     seconds = time.perf_counter() - start
+    if process.returncode != 0:
+        raise RuntimeError(f"{' '.join(arguments)} exited {process.returncode}")
+    missing = [phase for phase in PHASES.values() if phase not in starts]
+    if missing:  # a message reworded: its time would join the phase before
+        raise RuntimeError(f"{' '.join(arguments)}: no line began the phases {missing}")
+    usages = [usage]
     while True:  # the worker processes it left, adopted by this one: their CPU counts too
         try:
-            os.wait()
+            usages.append(os.wait4(-1, 0)[2])
         except ChildProcessError:
             break
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    cpu = sum(u.ru_utime + u.ru_stime for u in usages)
     ends = [*list(starts.values())[1:], seconds]  # a phase ends where the next starts
     phases = {name: end - begun for (name, begun), end in zip(starts.items(), ends, strict=True)}
-    return {"seconds": seconds, "cpu": cpu, "peak_mb": after.ru_maxrss / 1024, "phases": phases}
+    peak = max(u.ru_maxrss for u in usages) / 1024  # of the largest process [MB]
+    return {"seconds": seconds, "cpu": cpu, "peak_mb": peak, "phases": phases}
 
 
 def chain_steps(folder: Path) -> dict[str, int]:

@@ -248,7 +248,8 @@ def test_no_state_estimation_skips_it(analysis, tmp_path, capsys):
     figures = tmp_path / "out" / "report_figures"
     pngs, svgs = ({p.stem for p in figures.glob(f"*.{suffix}")} for suffix in ("png", "svg"))
     assert pngs and svgs == pngs
-    assert not list((out / "report_figures").glob("*.svg"))  # by default PNG alone
+    default = out / "report_figures"  # by default PNG alone
+    assert list(default.glob("*.png")) and not list(default.glob("*.svg"))
     state = json.loads(captured.out)["state_estimation"]
     assert state["skipped"] == "turned off (--no-state-estimation)" and state["runs"] == {}
     assert not (tmp_path / "out" / FOLDER).exists() and not (tmp_path / "out" / SUMMARY).exists()

@@ -110,8 +110,9 @@ def test_report_embeds_every_figure_and_saves_png_and_svg(posteriors, tmp_path, 
 
 
 def test_an_unconverged_posterior_says_so_at_the_top_in_red(posteriors, tmp_path):
-    code, text = _report([posteriors["short"]], tmp_path / "report.html", "--formats", "png")
+    code, text = _report([posteriors["short"]], tmp_path / "report.html")  # PNG by default
     assert code == 0
+    assert "Figures as PNG in <code>report_figures/</code>." in text
     banner = text.index('<div class="not-converged">NOT CONVERGED')
     assert banner < text.index("<section>")
     # The summary above it says so too, and that its numbers are preliminary.

@@ -115,7 +115,7 @@ def add_formats_flag(parser: argparse.ArgumentParser) -> None:
         default=REPORT_FORMATS,
         metavar="png,svg",
         help=f"figure files written beside the report, from {','.join(FIGURE_FORMATS)} "
-        f"({','.join(REPORT_FORMATS)}; add svg for vector figures)",
+        f"(default {','.join(REPORT_FORMATS)}; add svg for vector figures)",
     )
 
 

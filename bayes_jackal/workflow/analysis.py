@@ -217,6 +217,6 @@ def analyse_logs(
         labels=labels,
         state_estimation=state_estimation,
         groups=groups,
-        figure_formats=tuple(figure_formats),
+        figure_formats=figure_formats,
     )
     return run_pipeline(context)
