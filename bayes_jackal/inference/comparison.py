@@ -49,10 +49,9 @@ from .._runtime import (
     silenced,
 )
 from ..io import Experiment, as_experiments
-from ..likelihood import LikelihoodOptions, LogPosterior, Prior, ResidualLikelihood
+from ..likelihood import LogPosterior, Prior, ResidualLikelihood
 from ..model import FAMILIES, RobotProfile
 from ..posterior import Evidence, Posterior, interval, load_posterior, store_comparison, summarize
-from .chains import SamplerSettings
 from .evidence import bridge_sampling, evidence_strength, nested_sampling
 from .executors import Executor, ProcessExecutor, SerialExecutor
 from .options import FitOptions
@@ -580,20 +579,7 @@ def compare(
     >>> sorted(comparison.to_dict()["families"]["white"])[:3]
     ['converged', 'log_bayes_factor_vs_best', 'log_bayes_factor_vs_white']
     """
-    options = FitOptions(
-        robot=robot,
-        likelihood_options=LikelihoodOptions(
-            channels=channels,
-            noise=noise,
-            sensor=sensor,
-            engine=engine,
-            steady=steady,
-            damping=damping,
-        ),
-        prior_overrides=priors,
-        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
-        seed=seed,
-    )
+    options = FitOptions.of_keywords(locals())  # the keywords above, as they were given
     return compare_families(
         as_experiments(experiments),
         options,

@@ -13,6 +13,11 @@ from .chains import SamplerSettings
 
 __all__ = ["FitOptions"]
 
+#: The verbs' flat keywords (``bj.sample``, ``bj.compare``, ``bj.population``)
+#: that are fields of the likelihood options, and of the sampler settings.
+_LIKELIHOOD_KEYWORDS = ("channels", "noise", "sensor", "engine", "steady", "damping")
+_SAMPLER_KEYWORDS = ("walkers", "max_steps", "progress")
+
 
 @dataclass(frozen=True, kw_only=True)
 class FitOptions:
@@ -93,6 +98,33 @@ class FitOptions:
         if type(options) is cls:
             return options
         return cls(**{f.name: getattr(options, f.name) for f in dataclasses.fields(cls)})
+
+    @classmethod
+    def of_keywords(cls, keywords: Mapping[str, object]) -> FitOptions:
+        """The options the verbs' flat keywords give (``robot``, ``priors``, ``seed``, ...).
+
+        ``keywords`` holds at least the likelihood's (``channels``, ``noise``,
+        ``sensor``, ``engine``, ``steady``, ``damping``) and the sampler's
+        (``walkers``, ``max_steps``, ``progress``) under the verbs' names;
+        other keys are not read.
+
+        Examples
+        --------
+        >>> from bayes_jackal.inference import FitOptions
+        >>> keywords = dict(robot=None, priors=None, seed=1, channels=["yaw"], noise="shared",
+        ...                 sensor="ma1", engine="fast", steady=False, damping="constant",
+        ...                 walkers=0, max_steps=200, progress=False, family="white")
+        >>> options = FitOptions.of_keywords(keywords)
+        >>> options.likelihood_options.channels, options.settings.max_steps, options.seed
+        (('yaw',), 200, 1)
+        """
+        return cls(
+            robot=keywords["robot"],
+            likelihood_options=LikelihoodOptions(**{k: keywords[k] for k in _LIKELIHOOD_KEYWORDS}),
+            prior_overrides=keywords["priors"],
+            settings=SamplerSettings(**{k: keywords[k] for k in _SAMPLER_KEYWORDS}),
+            seed=keywords["seed"],
+        )
 
     def with_settings(self, **changes) -> FitOptions:
         """The same options, the sampler settings changed (e.g. ``progress=False``)."""

@@ -45,10 +45,8 @@ from .._runtime import (
     az,
 )
 from ..io import Experiment, RunGroups, as_experiments, as_run_groups, group_runs, run_group
-from ..likelihood import LikelihoodOptions
 from ..model import RobotProfile
 from ..posterior import Evidence, Posterior, save_posterior
-from .chains import SamplerSettings
 from .comparison import Comparison, compare_groups
 from .evidence import evidence_strength
 from .executors import Executor
@@ -636,20 +634,7 @@ def population(
     >>> result.best, sorted(result.to_dict()["groups"])
     ('hierarchical', ['carpet', 'tiles'])
     """
-    options = FitOptions(
-        robot=robot,
-        likelihood_options=LikelihoodOptions(
-            channels=channels,
-            noise=noise,
-            sensor=sensor,
-            engine=engine,
-            steady=steady,
-            damping=damping,
-        ),
-        prior_overrides=priors,
-        settings=SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
-        seed=seed,
-    )
+    options = FitOptions.of_keywords(locals())  # the keywords above, as they were given
     return population_posterior(
         as_experiments(experiments),
         options,

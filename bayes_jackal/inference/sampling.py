@@ -36,12 +36,13 @@ from .._runtime import (
     check_interrupt,
 )
 from ..io import POSE_FIELDS, Experiment, as_experiments
-from ..likelihood import LikelihoodOptions, LogPosterior, Prior, ResidualLikelihood
-from ..model import RobotProfile, as_profile
+from ..likelihood import LogPosterior, Prior, ResidualLikelihood
+from ..model import RobotProfile
 from ..posterior import Posterior, build_inference_data
 from .chains import SamplerSettings, run_chain
 from .map_search import damping_design, find_map, laplace_walkers
 from .moves import Start
+from .options import FitOptions
 
 __all__ = ["run_identity", "sample", "sample_posterior"]
 
@@ -289,19 +290,12 @@ def sample(
     >>> summary["family"], summary["channels"], summary["converged"]
     ('white', ['yaw'], False)
     """
-    options = LikelihoodOptions(
-        channels=channels,
-        noise=noise,
-        sensor=sensor,
-        engine=engine,
-        steady=steady,
-        damping=damping,
-    )
-    likelihood = options.likelihood(as_experiments(experiments), as_profile(robot), family)
+    fit = FitOptions.of_keywords(locals())  # the keywords above, as they were given
+    likelihood = fit.likelihood_options.likelihood(as_experiments(experiments), fit.robot, family)
     return sample_posterior(
         likelihood,
-        SamplerSettings(walkers=walkers, max_steps=max_steps, progress=progress),
-        seed=seed,
+        fit.settings,
+        seed=fit.seed,
         chain_file=chain_file,
-        prior_overrides=priors,
+        prior_overrides=fit.prior_overrides,
     )

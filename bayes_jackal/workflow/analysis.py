@@ -54,7 +54,7 @@ from .._runtime import REPORT_FORMATS, STATE_ESTIMATION
 from ..inference import Executor, ProcessExecutor, SamplerSettings
 from ..io import ReadOptions, RunGroups
 from ..likelihood import LikelihoodOptions
-from ..model import RobotProfile, load_profile
+from ..model import RobotProfile
 from .context import RunContext
 from .pipeline import Analysis, run_pipeline
 
@@ -207,9 +207,9 @@ def analyse_logs(
         inputs=paths,
         out=out,
         executor=executor or ProcessExecutor(processes or os.cpu_count() or 1),
-        robot=robot or load_profile(),
+        robot=robot,
         families=families,
-        settings=settings or SamplerSettings(),
+        settings=settings,
         seed=seed,
         prior_overrides=prior_overrides,
         likelihood_options=likelihood_options,
