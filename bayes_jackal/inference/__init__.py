@@ -55,6 +55,7 @@ from .moves import (
     MIN_PROPOSAL_EFFICIENCY,
     SHARED_WEIGHT,
     BlockT,
+    BoundedLaplace,
     GroupGrid,
     GroupMove,
     IndependenceMove,

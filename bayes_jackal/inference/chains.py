@@ -22,7 +22,7 @@ import logging
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import emcee
@@ -54,6 +54,7 @@ from .._runtime import (
 from .moves import (
     Approximation,
     BlockT,
+    BoundedLaplace,
     GroupGrid,
     LaplaceApproximation,
     MixtureApproximation,
@@ -76,6 +77,8 @@ _log = logging.getLogger(__package__)
 
 #: A mixture approximation's fields, each a dataset ``mixture_<field>`` of a chain file.
 MIXTURE_FIELDS = ("weights", "centres", "covariances")
+#: A bounded Laplace approximation's, each a dataset ``bounded_<field>``.
+BOUNDED_FIELDS = tuple(field.name for field in fields(BoundedLaplace))
 #: The fields of each kind of block proposal kept in a chain file, in its class's order.
 BLOCK_FIELDS = {
     "grid": (
@@ -94,6 +97,11 @@ BLOCK_FIELDS = {
         ),
     ),
     "t": (BlockT, ("columns", "centre", "covariance")),
+}
+#: The approximations kept as datasets: their prefix in a chain file, and their fields.
+_KIND = {
+    MixtureApproximation: ("mixture", MIXTURE_FIELDS),
+    BoundedLaplace: ("bounded", BOUNDED_FIELDS),
 }
 
 
@@ -691,9 +699,10 @@ def _store_approximation(
     attributes of the chain's group; a mixture as its datasets
     ``mixture_weights``, ``mixture_centres`` and ``mixture_covariances``
     (16 covariances of 23 parameters would pass HDF5's 64 KiB limit of an
-    attribute); the blocks' proposals as datasets ``block_<i>_<field>`` with
-    their kind in the attribute ``block_<i>``, the share of walkers that
-    draw them all at once as ``block_joint``.
+    attribute), a bounded Laplace approximation as ``bounded_<field>``; the
+    blocks' proposals as datasets ``block_<i>_<field>`` with their kind in
+    the attribute ``block_<i>``, the share of walkers that draw them all at
+    once as ``block_joint``.
     """
     if not isinstance(backend, BufferedHDFBackend) or (approximation is None and not groups):
         return
@@ -707,9 +716,10 @@ def _store_approximation(
                 group.create_dataset(f"block_{i}_{key}", data=getattr(block, key))
         if approximation is None:
             return
-        if isinstance(approximation, MixtureApproximation):
-            for key in MIXTURE_FIELDS:
-                group.create_dataset(f"mixture_{key}", data=getattr(approximation, key))
+        if isinstance(approximation, MixtureApproximation | BoundedLaplace):
+            prefix, keys = _KIND[type(approximation)]
+            for key in keys:
+                group.create_dataset(f"{prefix}_{key}", data=getattr(approximation, key))
         else:
             group.attrs["laplace_centre"] = approximation.centre
             group.attrs["laplace_covariance"] = approximation.covariance
@@ -733,9 +743,10 @@ def _stored_approximation(
                 key: group[f"block_{i}_{key}"][()] for key in fields if f"block_{i}_{key}" in group
             }
             grids.append(kind(**stored_fields))
-        if "mixture_weights" in group:
-            fields = (group[f"mixture_{key}"][()] for key in MIXTURE_FIELDS)
-            return MixtureApproximation(*fields), tuple(grids), joint
+        for kind, (prefix, keys) in _KIND.items():
+            if f"{prefix}_{keys[0]}" in group:
+                values = (group[f"{prefix}_{key}"][()] for key in keys)
+                return kind(*values), tuple(grids), joint
         if "laplace_centre" not in group.attrs:
             return None, tuple(grids), joint
         return (

@@ -27,7 +27,9 @@ from .moves import (
     MIN_PROPOSAL_EFFICIENCY,
     Approximation,
     BlockT,
+    BoundedLaplace,
     GroupGrid,
+    IndependenceMove,
     LaplaceApproximation,
     MixtureApproximation,
     Start,
@@ -80,6 +82,9 @@ CONDITIONAL_TOLERANCE = 0.05
 RIDGE_CELLS = 16
 #: How far below the highest cell's conditional maximum [nats] a cell still gets a component.
 RIDGE_DEPTH = 30.0
+#: How close to a bound, in units of the prior's range, a MAP's column is on it
+#: (:func:`laplace_walkers` expands the log-posterior that far inside).
+BOUND_DISTANCE = 1e-3
 
 
 def damping_design(design_points: int) -> int:
@@ -364,8 +369,12 @@ def laplace_walkers(
     curved ridge: the damping's scale unidentified, the noise bending along
     it), the approximation is a mixture along the ridge
     (:func:`ridge_mixture`); block moves (:func:`block_proposals`) go beside
-    either, at the approximation's mean and covariance. Where that fails
-    too, the walkers start in a small ball, and the chain moves by
+    either, at the approximation's mean and covariance. Where the MAP is
+    on bounds of the prior, with the log-posterior rising towards them
+    (a family that does not fit), the approximation is the expansion's
+    tail inside them (:class:`~bayes_jackal.inference.BoundedLaplace`),
+    tried last so that the other starts' chains stay as they were. Where
+    that fails too, the walkers start in a small ball, and the chain moves by
     differential evolution, and by block moves at the Hessian's approximation
     where there is one.
 
@@ -404,8 +413,8 @@ def laplace_walkers(
     """
     prior = log_posterior.prior
     span = prior.z_high - prior.z_low
-    step = 1e-4 * span
-    centre = np.clip(centre, prior.z_low + 10 * step, prior.z_high - 10 * step)
+    step = BOUND_DISTANCE / 10 * span
+    peak, centre = centre, np.clip(centre, prior.z_low + 10 * step, prior.z_high - 10 * step)
     gradient, hessian = _derivatives(log_posterior, centre, step)
     approximation, exact = _hessian_approximation(centre, gradient, hessian, span)
     points = None
@@ -426,9 +435,13 @@ def laplace_walkers(
         if start is None and axis not in _gridded_columns(log_posterior):
             mixture = ridge_mixture(log_posterior, approximation.centre, widest.covariance)
             start = _efficient_start(log_posterior, mixture, walkers, rng)
-        if start is not None:  # block moves beside it, for what the approximation spreads over
-            blocks = block_proposals(log_posterior, as_laplace(start.approximation))
-            return Start(start.walkers, start.approximation, blocks)
+        if start is not None:
+            return _with_blocks(log_posterior, start)
+    # A posterior piled against bounds of the prior: the tail of the expansion there.
+    bounded = _bounded_approximation(prior, peak, gradient, hessian)
+    start = _efficient_start(log_posterior, bounded, walkers, rng.spawn(1)[0])
+    if start is not None:
+        return _with_blocks(log_posterior, start)
     if points is None:  # no approximation of the posterior: a small ball
         ball = rng.multivariate_normal(centre, np.diag((1e-3 * span) ** 2), size=8 * walkers)
         points = ball[prior.inside(ball)][:walkers]
@@ -729,6 +742,61 @@ def _bounded_covariance(gradient: np.ndarray, hessian: np.ndarray, span: np.ndar
     return (vectors / values) @ vectors.T * quarter
 
 
+def _with_blocks(log_posterior: LogPosterior, start: Start) -> Start:
+    """``start`` with block moves beside its approximation, at its mean and covariance,
+    for what the approximation spreads over."""
+    blocks = block_proposals(log_posterior, as_laplace(start.approximation))
+    return Start(start.walkers, start.approximation, blocks)
+
+
+def _bounded_approximation(
+    prior: Prior, centre: np.ndarray, gradient: np.ndarray, hessian: np.ndarray
+) -> BoundedLaplace | None:
+    """The :class:`~bayes_jackal.inference.BoundedLaplace` of a MAP on bounds of the prior.
+
+    A column is bound where ``centre`` is within :data:`BOUND_DISTANCE` of
+    its prior range from a bound and the ``gradient`` (at the clipped
+    centre, inside) rises towards it. The expansion is
+    g x + x' H x / 2 (x the offset from the clipped centre): given the
+    bound columns B, the others I have precision -H_II and mean
+    (-H_II)^-1 (g_I + H_IB x_B); integrated out, they leave the bound
+    columns the slope g_B + H_BI (-H_II)^-1 g_I and the curvature of the
+    Schur complement -(H_BB + H_BI (-H_II)^-1 H_IB), each column's
+    diagonal taken alone. None where no column is bound, every one is,
+    the others' precision is not positive definite, or a bound column's
+    density would not fall inward.
+    """
+    span = prior.z_high - prior.z_low
+    at_low = (centre - prior.z_low <= BOUND_DISTANCE * span) & (gradient < 0)
+    at_high = (prior.z_high - centre <= BOUND_DISTANCE * span) & (gradient > 0)
+    bound = np.flatnonzero(at_low | at_high)
+    interior = np.flatnonzero(~(at_low | at_high))
+    if not len(bound) or not len(interior):
+        return None
+    try:
+        conditional = np.linalg.inv(-hessian[np.ix_(interior, interior)])
+        np.linalg.cholesky(conditional)
+    except np.linalg.LinAlgError:
+        return None
+    expanded_at = np.clip(
+        centre, prior.z_low + BOUND_DISTANCE * span, prior.z_high - BOUND_DISTANCE * span
+    )
+    coupling = hessian[np.ix_(interior, bound)]
+    gains = conditional @ coupling
+    signs = np.where(at_low, 1.0, -1.0)[bound]
+    edges = np.where(at_low, prior.z_low, prior.z_high)[bound]
+    curvature = -(hessian[np.ix_(bound, bound)] + coupling.T @ gains)
+    to_edges = edges - expanded_at[bound]
+    slopes = signs * (gradient[bound] + gains.T @ gradient[interior] - curvature @ to_edges)
+    curvatures = np.maximum(np.diag(curvature), 0.0)
+    if not np.all(np.isfinite(slopes)) or np.any((slopes >= 0) & (curvatures == 0)):
+        return None
+    mode = expanded_at.copy()
+    mode[bound] = edges
+    mode[interior] += conditional @ (gradient[interior] + coupling @ to_edges)
+    return BoundedLaplace(mode, bound, signs, span[bound], slopes, curvatures, gains, conditional)
+
+
 def _efficient_start(
     log_posterior: LogPosterior,
     approximation: Approximation | None,
@@ -761,7 +829,12 @@ def _walkers_inside(
     A mixture's draws come from its components by weight. None when fewer
     than ``walkers`` of 8 times as many draws are.
     """
-    mixture, count = as_mixture(approximation), 8 * walkers
+    count = 8 * walkers
+    if isinstance(approximation, BoundedLaplace):
+        random = np.random.RandomState(int(rng.integers(2**32)))
+        points = IndependenceMove(approximation, scale=0.5).draw(count, random)
+        return _finite_inside(log_posterior, points, walkers)
+    mixture = as_mixture(approximation)
     if len(mixture.weights) == 1:
         points = rng.multivariate_normal(
             mixture.centres[0], 0.25 * mixture.covariances[0], size=count
@@ -771,6 +844,13 @@ def _walkers_inside(
         normal = rng.standard_normal((count, mixture.centres.shape[1]))
         factors = np.linalg.cholesky(mixture.covariances)[chosen]
         points = mixture.centres[chosen] + 0.5 * np.einsum("nij,nj->ni", factors, normal)
+    return _finite_inside(log_posterior, points, walkers)
+
+
+def _finite_inside(
+    log_posterior: LogPosterior, points: np.ndarray, walkers: int
+) -> np.ndarray | None:
+    """The first ``walkers`` of ``points`` inside the prior and finite; None if fewer are."""
     points = points[log_posterior.prior.inside(points)]
     points = points[np.isfinite(log_posterior(points))]
     return points[:walkers] if len(points) >= walkers else None

@@ -23,7 +23,11 @@ Where the posterior is a curved ridge (the damping's scale unidentified,
 with the noise parameters bending along it), no single t fits it: the
 proposal is then a mixture of t's along the ridge
 (:class:`MixtureApproximation`, built by
-:func:`bayes_jackal.inference.ridge_mixture`).
+:func:`bayes_jackal.inference.ridge_mixture`). Where it is piled against
+bounds of the prior (a family that does not fit the data: d_long at its
+floor, a sensor sd at its smallest), the proposal is a truncated normal
+or exponential in each bound column and the conditional t in the others
+(:class:`BoundedLaplace`).
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from functools import cached_property
 
 import emcee
 import numpy as np
+from scipy import stats
 from scipy.special import logsumexp
 
 __all__ = [
@@ -43,6 +48,7 @@ __all__ = [
     "MIN_PROPOSAL_EFFICIENCY",
     "SHARED_WEIGHT",
     "BlockT",
+    "BoundedLaplace",
     "GroupGrid",
     "GroupMove",
     "IndependenceMove",
@@ -155,8 +161,96 @@ class MixtureApproximation:
     covariances: np.ndarray
 
 
+@dataclass(frozen=True)
+class BoundedLaplace:
+    """A Laplace approximation of a posterior piled against bounds of its prior, in z.
+
+    Where the MAP sits on a bound with the log-posterior rising towards it
+    (a noise family that does not fit the data: d_long at its floor, a
+    sensor sd at its smallest), the posterior near it is not a Gaussian
+    but the tail of one. The quadratic expansion of the log-posterior at
+    the MAP, the other columns integrated out, makes each bound column's
+    distance from its bound a normal truncated to the prior's range (an
+    exponential where its curvature is not positive; the columns
+    independent); given the bound columns, the others are the expansion's
+    conditional Gaussian, whose mean moves linearly with them. Measured on
+    the demo's two runs under the white family (d_long and sigma_n[yaw] at
+    their floors): importance sampling from it is 0.42 efficient, from the
+    Laplace t 0.06; the chain needs 500 steps instead of 4,800.
+
+    Attributes
+    ----------
+    centre : ndarray, shape (k,)
+        The bound columns at their bounds, the others at the expansion's
+        conditional mode there.
+    columns : ndarray of int, shape (b,)
+        The bound columns.
+    signs : ndarray, shape (b,)
+        +1 where the bound is the lower one (the column moves inward
+        upwards), -1 where it is the upper one.
+    lengths : ndarray, shape (b,)
+        The prior's range of each bound column.
+    slopes : ndarray, shape (b,)
+        The marginal log-density's slope inward from each bound, per unit
+        of z (negative where the curvature is 0).
+    curvatures : ndarray, shape (b,)
+        Its curvature (minus its second derivative, >= 0).
+    gains : ndarray, shape (k - b, b)
+        The other columns' conditional mean per unit of each bound column.
+    conditional : ndarray, shape (k - b, k - b)
+        Their conditional covariance.
+
+    Examples
+    --------
+    One column against its lower bound (slope -2, no curvature: an
+    exponential of mean 1/2 from the bound), the other interior:
+
+    >>> import numpy as np
+    >>> from bayes_jackal.inference import BoundedLaplace, as_laplace
+    >>> bounded = BoundedLaplace(
+    ...     np.zeros(2), np.array([0]), np.ones(1), np.array([100.0]),
+    ...     np.array([-2.0]), np.zeros(1), np.zeros((1, 1)), np.eye(1),
+    ... )
+    >>> moments = as_laplace(bounded)
+    >>> np.round(moments.centre, 3).tolist(), np.round(np.diag(moments.covariance), 3).tolist()
+    ([0.5, 0.0], [0.25, 1.0])
+    """
+
+    centre: np.ndarray
+    columns: np.ndarray
+    signs: np.ndarray
+    lengths: np.ndarray
+    slopes: np.ndarray
+    curvatures: np.ndarray
+    gains: np.ndarray
+    conditional: np.ndarray
+
+    @cached_property
+    def interior(self) -> np.ndarray:
+        """The columns that are not bound."""
+        return np.setdiff1d(np.arange(len(self.centre)), self.columns)
+
+    def inward(self, scale: float = 1.0) -> list:
+        """Each bound column's distance from its bound, as a frozen scipy distribution.
+
+        ``scale`` widens it as it widens a t: the slope divided by it, the
+        curvature by its square.
+        """
+        distances = []
+        for slope, curvature, length in zip(
+            self.slopes / scale, self.curvatures / scale**2, self.lengths, strict=True
+        ):
+            if curvature > 0:
+                mean, sd = slope / curvature, 1.0 / np.sqrt(curvature)
+                lower, upper = -mean / sd, (length - mean) / sd
+                distances.append(stats.truncnorm(lower, upper, loc=mean, scale=sd))
+            else:
+                distances.append(stats.truncexpon(-slope * length, scale=-1.0 / slope))
+        return distances
+
+
 #: What the independence moves propose from.
-Approximation = LaplaceApproximation | MixtureApproximation
+Approximation = LaplaceApproximation | MixtureApproximation | BoundedLaplace
 
 
 def as_mixture(approximation: Approximation) -> MixtureApproximation:
@@ -221,11 +315,32 @@ def as_laplace(approximation: Approximation) -> LaplaceApproximation:
     >>> matched.centre.tolist(), matched.covariance.tolist()
     ([0.0], [[2.0]])
     """
+    if isinstance(approximation, BoundedLaplace):
+        return _bounded_moments(approximation)
     mixture = as_mixture(approximation)
     centre = mixture.weights @ mixture.centres
     offsets = mixture.centres - centre
     covariance = np.einsum("m,mij->ij", mixture.weights, mixture.covariances) + np.einsum(
         "m,mi,mj->ij", mixture.weights, offsets, offsets
+    )
+    return LaplaceApproximation(centre, covariance)
+
+
+def _bounded_moments(bounded: BoundedLaplace) -> LaplaceApproximation:
+    """The mean and covariance of a :class:`BoundedLaplace`."""
+    distances = bounded.inward()
+    shift = bounded.signs * np.array([distance.mean() for distance in distances])
+    variances = np.array([distance.var() for distance in distances])
+    bound, interior = bounded.columns, bounded.interior
+    centre = bounded.centre.copy()
+    centre[bound] += shift
+    centre[interior] += bounded.gains @ shift
+    covariance = np.zeros((len(centre), len(centre)))
+    covariance[bound, bound] = variances
+    covariance[np.ix_(interior, bound)] = bounded.gains * variances
+    covariance[np.ix_(bound, interior)] = (bounded.gains * variances).T
+    covariance[np.ix_(interior, interior)] = (
+        bounded.conditional + (bounded.gains * variances) @ bounded.gains.T
     )
     return LaplaceApproximation(centre, covariance)
 
@@ -484,9 +599,11 @@ class IndependenceMove(emcee.moves.MHMove):
 
     Parameters
     ----------
-    approximation : LaplaceApproximation or MixtureApproximation
+    approximation : LaplaceApproximation, MixtureApproximation or BoundedLaplace
         The t's centre and, times ``scale``^2, its scale matrix; for a
-        mixture, each component's, drawn with its weight.
+        mixture, each component's, drawn with its weight; for a
+        :class:`BoundedLaplace`, the truncated distance from each bound
+        (widened by ``scale``) and the conditional t of the other columns.
     box : tuple of ndarray, optional
         (low, high) bounds of z; None: no truncation.
     dof : float
@@ -513,7 +630,38 @@ class IndependenceMove(emcee.moves.MHMove):
         dof: float = PROPOSAL_DOF,
         scale: float = PROPOSAL_SCALE,
     ):
-        mixture = as_mixture(approximation)
+        if isinstance(approximation, BoundedLaplace):
+            self.proposal = _BoundedT(approximation, dof, scale)
+        else:
+            self.proposal = _MixtureT(as_mixture(approximation), dof, scale)
+        self.box = box
+        super().__init__(self._propose)
+
+    def log_density(self, z: np.ndarray) -> np.ndarray:
+        """The proposal's log-density at each row of ``z``, up to a constant."""
+        return self.proposal.log_density(z)
+
+    def draw(self, count: int, random: np.random.RandomState) -> np.ndarray:
+        """``count`` draws from the proposal, not truncated to the box."""
+        return self.proposal.draw(count, random)
+
+    def _propose(self, z: np.ndarray, random: np.random.RandomState):
+        """Draws for every walker of ``z``, and log q(old) - log q(new) (emcee's factors)."""
+        new = self.draw(len(z), random)
+        if self.box is not None:
+            for _ in range(REDRAWS):
+                outside = np.flatnonzero(np.any((new <= self.box[0]) | (new >= self.box[1]), 1))
+                if not len(outside):
+                    break
+                new[outside] = self.draw(len(outside), random)
+        return new, self.log_density(z) - self.log_density(new)
+
+
+class _MixtureT:
+    """A t, or a mixture of t's, around each component's centre; its scale matrix the
+    component's covariance times ``scale``^2."""
+
+    def __init__(self, mixture: MixtureApproximation, dof: float, scale: float):
         self.weights = np.asarray(mixture.weights, float)
         self.centres = np.asarray(mixture.centres, float)
         self.factors = scale * np.linalg.cholesky(mixture.covariances)
@@ -522,8 +670,7 @@ class IndependenceMove(emcee.moves.MHMove):
             np.log(np.diagonal(self.factors, axis1=1, axis2=2)), axis=1
         )
         self.log_norms = log_norms - np.max(log_norms)
-        self.box, self.dof = box, dof
-        super().__init__(self._propose)
+        self.dof = dof
 
     def log_density(self, z: np.ndarray) -> np.ndarray:
         """The t's (the mixture's) log-density at each row of ``z``, up to a constant."""
@@ -533,18 +680,7 @@ class IndependenceMove(emcee.moves.MHMove):
         terms = -0.5 * (self.dof + k) * np.log1p(np.sum(whitened**2, axis=1) / self.dof)
         return logsumexp(self.log_norms[:, None] + terms, axis=0)
 
-    def _propose(self, z: np.ndarray, random: np.random.RandomState):
-        """Draws for every walker of ``z``, and log q(old) - log q(new) (emcee's factors)."""
-        new = self._draw(len(z), random)
-        if self.box is not None:
-            for _ in range(REDRAWS):
-                outside = np.flatnonzero(np.any((new <= self.box[0]) | (new >= self.box[1]), 1))
-                if not len(outside):
-                    break
-                new[outside] = self._draw(len(outside), random)
-        return new, self.log_density(z) - self.log_density(new)
-
-    def _draw(self, count: int, random: np.random.RandomState) -> np.ndarray:
+    def draw(self, count: int, random: np.random.RandomState) -> np.ndarray:
         """``count`` draws from the t (each from a component drawn by weight)."""
         components = len(self.weights)
         chosen = random.choice(components, size=count, p=self.weights) if components > 1 else 0
@@ -554,6 +690,47 @@ class IndependenceMove(emcee.moves.MHMove):
         if components == 1:
             return self.centres[0] + scaled @ self.factors[0].T
         return self.centres[chosen] + np.einsum("nij,nj->ni", self.factors[chosen], scaled)
+
+
+class _BoundedT:
+    """A :class:`BoundedLaplace`'s proposal: each bound column's distance from its bound
+    drawn from its truncated distribution, then the others from the conditional t
+    around their mean given those (both widened by ``scale``)."""
+
+    def __init__(self, bounded: BoundedLaplace, dof: float, scale: float):
+        self.bounded = bounded
+        self.distances = bounded.inward(scale)
+        self.interior = _MixtureT(
+            as_mixture(LaplaceApproximation(np.zeros(len(bounded.interior)), bounded.conditional)),
+            dof,
+            scale,
+        )
+
+    def _deviations(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The distances from the bounds, and the other columns' from their mean given those."""
+        b = self.bounded
+        offsets = z[:, b.columns] - b.centre[b.columns]
+        mean = b.centre[b.interior] + offsets @ b.gains.T
+        return offsets * b.signs, z[:, b.interior] - mean
+
+    def log_density(self, z: np.ndarray) -> np.ndarray:
+        """The proposal's log-density at each row of ``z``, up to a constant."""
+        distances, deviations = self._deviations(z)
+        bound = sum(law.logpdf(distances[:, j]) for j, law in enumerate(self.distances))
+        return bound + self.interior.log_density(deviations)
+
+    def draw(self, count: int, random: np.random.RandomState) -> np.ndarray:
+        """``count`` draws: the bound columns first, then the others given them."""
+        b = self.bounded
+        distances = np.column_stack(
+            [law.rvs(size=count, random_state=random) for law in self.distances]
+        )
+        offsets = distances * b.signs
+        z = np.empty((count, len(b.centre)))
+        z[:, b.columns] = b.centre[b.columns] + offsets
+        z[:, b.interior] = b.centre[b.interior] + offsets @ b.gains.T
+        z[:, b.interior] += self.interior.draw(count, random)
+        return z
 
 
 def ensemble_moves(
@@ -648,7 +825,16 @@ def proposal_efficiency(
     True
     """
     move = IndependenceMove(approximation)
-    return _efficiency(log_posterior, move, np.zeros(move.centres.shape[1]), rng, draws)
+    return _efficiency(log_posterior, move, _origin(approximation), rng, draws)
+
+
+def _origin(approximation: Approximation) -> np.ndarray:
+    """A point of finite proposal density, from which :func:`_importance_draws` proposes
+    (its density a constant of every weight): 0 for a t, the mean inside the bounds for a
+    :class:`BoundedLaplace`."""
+    if isinstance(approximation, BoundedLaplace):
+        return as_laplace(approximation).centre
+    return np.zeros(as_mixture(approximation).centres.shape[1])
 
 
 def joint_efficiency(

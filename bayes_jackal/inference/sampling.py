@@ -161,7 +161,7 @@ def sample_posterior(
     >>> sorted(posterior.groups())
     ['constant_data', 'observed_data', 'posterior', 'sample_stats']
     >>> dict(posterior.posterior.sizes)
-    {'chain': 32, 'draw': 10, 'state': 3, 'wheel': 2}
+    {'chain': 32, 'draw': 16, 'state': 3, 'wheel': 2}
     """
     settings = settings or SamplerSettings()
     prior = Prior.for_likelihood(likelihood, likelihood.robot, prior_overrides)

@@ -126,7 +126,7 @@ def residual_input(idata: az.InferenceData, *, lags: int = RESIDUAL_INPUT_LAGS) 
     >>> check = residual_input(posterior)
     >>> row = check.numbers["v1"]["yaw"]
     >>> row["lags"], round(row["threshold"], 2), round(row["max_abs_z"], 1), check.warnings
-    (25, 3.9, 1.1, [])
+    (25, 3.9, 1.0, [])
     """
     posterior = Posterior.of(idata)
     metadata = posterior.metadata

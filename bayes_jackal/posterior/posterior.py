@@ -225,7 +225,7 @@ class Posterior(az.InferenceData):
     (('d_lat', 'd_long', 'sigma_c', 'sigma_n'), (('yaw', 'all'),))
     >>> draws, lp = posterior.draws()
     >>> draws.shape, lp.shape, posterior.thinned_draws(10).shape
-    ((10, 32, 4), (10, 32), (10, 4))
+    ((16, 32, 4), (16, 32), (10, 4))
     >>> posterior.truth["d_lat"], posterior.metadata.convergence.converged
     (110.0, False)
     """
