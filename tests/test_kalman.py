@@ -226,3 +226,20 @@ def test_the_steady_smoother_equals_its_recursion(family):
     np.testing.assert_allclose(fast.smoothed_variance, slow.smoothed_variance, rtol=1e-10)
     truth = run.truth_arrays["yaw_state"][:2000]
     assert np.std(fast.smoothed - truth) < np.std(fast.mean - truth)
+
+
+def test_a_filter_without_the_smoother_has_the_same_innovations_bit_for_bit():
+    # The NIS spread over a prior's draws reads the innovations alone: the
+    # filter run without its smoother gives them unchanged, and no smoothed fields.
+    noise = NoiseSettings(family="gaussian", width=WIDTHS["gaussian"])
+    run = simulate_experiment(ROBOT, 110.0, 30.0, "v1", noise, rng=4)
+    model = channel_model(
+        "yaw", ALPHA, ROW, family="gaussian", width=WIDTHS["gaussian"], sigma_c=SIGMA_C,
+        sigma_n=SIGMA_N, dt=DT,
+    )  # fmt: skip
+    for fast in (False, True):
+        full = kalman(model, run.yaw_rate, run.inputs, fast=fast)
+        alone = kalman(model, run.yaw_rate, run.inputs, fast=fast, smooth=False)
+        assert alone.smoothed is None and alone.smoothed_variance is None
+        for field in ("mean", "variance", "innovation", "innovation_variance"):
+            np.testing.assert_array_equal(getattr(alone, field), getattr(full, field))

@@ -158,6 +158,18 @@ def test_an_evidence_table_appears_for_compared_families(compared, tmp_path):
     banner = f"NOT THE REPORTED POSTERIOR: the {loser} family lost to {best}"
     assert banner in sections[loser][: sections[loser].index("</h2>") + 400]
     assert "NOT THE REPORTED POSTERIOR" not in sections[best].split("<section>")[0]
+    # The loser's figures are those a reader compares; each run's are the winner's alone
+    # (its criticism, damping, traces; the winner's also its run's model, residuals,
+    # and yaw acf and psd), and its report alone draws them.
+    files = {path.stem for path in (tmp_path / "report_figures").glob("*.png")}
+    assert {name for name in files if name.startswith(f"v1_01.{loser}")} == {
+        f"v1_01.{loser}-{figure}" for figure in ("criticism", "damping", "traces")
+    }
+    runs = {"model", "residuals", "yaw-acf", "yaw-psd"}
+    assert {f"v1_01.{best}-v1_01-{figure}" for figure in runs} <= files
+    assert f"bayes-jackal report {folder / f'v1_01.{loser}.nc'}</code>" in sections[loser]
+    code, alone = _report([folder / f"v1_01.{loser}.nc"], tmp_path / "alone.html")
+    assert code == 0 and alone.count("<figure>") == 3 + len(runs)
     # Contents after the summary, an anchor per section, the loser's entry marked (item 18).
     contents = text[text.index('<nav class="contents">') : text.index("</nav>")]
     assert text.index("</section>") < text.index('<nav class="contents">')

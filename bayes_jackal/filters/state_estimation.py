@@ -165,7 +165,7 @@ def estimate_states(
         if name in KALMAN_FILTERS:
             options = {"noise": KALMAN_FILTERS[name], "channels": channels, "robot": robot}
             estimate = kalman_filter(experiment, prior, parameters=parameters, **options)
-            spread = _nis_spread([kalman_filter(experiment, at_draw, **options)
+            spread = _nis_spread([kalman_filter(experiment, at_draw, smooth=False, **options)
                                   for at_draw in _draw_priors(prior)])  # fmt: skip
             estimates[name] = {
                 c: replace(e, nis_spread=spread.get(c)) for c, e in estimate.items()
