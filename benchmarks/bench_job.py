@@ -11,7 +11,9 @@ process, on the demo's two shipped bags:
 - the baseline: ``sample --pooled --family gaussian`` of the two bags
   (seed 2026, the demo's);
 - ``demo``: its phases timed from the lines it writes as each starts
-  (ingest, grids, families, state estimation, report);
+  (ingest, families, state estimation, report; the grids run beside the
+  families' chains and the report's figures beside the state estimation,
+  so neither is a phase of its own);
 - ``analyse`` of the same two bags (seed 2026, default flags).
 
 Each line gives the wall and CPU time (the command's and its workers') and
@@ -40,7 +42,6 @@ from bayes_jackal.workflow.demo import DEMO_SEED
 ROOT = Path(__file__).resolve().parents[1]
 #: The line each phase starts with (the demo's and analyse's messages, stderr).
 PHASES = {
-    "thesis grid searches": "grids",
     "posterior and evidence of": "families",
     "state estimation with": "state estimation",
     "writing the report": "report",

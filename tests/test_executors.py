@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
+import multiprocessing
 import os
 import shutil
 import signal
@@ -28,11 +30,17 @@ import pytest
 
 import bayes_jackal
 from bayes_jackal import load_profile
+from bayes_jackal._runtime import printed
 from bayes_jackal._runtime.errors import InputError
 from bayes_jackal.inference import FitOptions
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_families
-from bayes_jackal.inference.executors import DaskExecutor, ProcessExecutor, SerialExecutor
+from bayes_jackal.inference.executors import (
+    Background,
+    DaskExecutor,
+    ProcessExecutor,
+    SerialExecutor,
+)
 from bayes_jackal.inference.sampler_warnings import ConvergenceWarning
 from bayes_jackal.io.simulate import simulate_experiment
 from bayes_jackal.likelihood import LikelihoodOptions
@@ -199,8 +207,9 @@ def test_compare_on_a_dask_scheduler_through_the_console_script(tmp_path):
 
 
 def test_unreachable_scheduler_is_bad_input_named_fast(tmp_path, cli):
+    (tmp_path / "never-read.nc").touch()  # the scheduler is refused before any input is read
     start = time.perf_counter()
-    argv = ["compare", str(tmp_path / "missing.nc"), "--scheduler", DEAD_ADDRESS]
+    argv = ["compare", str(tmp_path / "never-read.nc"), "--scheduler", DEAD_ADDRESS]
     done = cli(argv, tmp_path, timeout=60, setup=SHORT_TIMEOUT)
     assert done.code == 2, done.stderr
     assert DEAD_ADDRESS in done.stderr and "dask scheduler" in done.stderr
@@ -229,7 +238,8 @@ def test_a_port_that_is_not_a_scheduler_is_refused_not_waited_on(tmp_path, cli, 
     try:
         _listening(port)
         address = f"tcp://127.0.0.1:{port}"
-        argv = [command, "missing.nc", "--out", out, "--scheduler", address]
+        (tmp_path / "never-read.nc").touch()  # refused before any input is read
+        argv = [command, "never-read.nc", "--out", out, "--scheduler", address]
         # The Dask check's 1 s timeout, far from this on any load.
         done = cli(argv, tmp_path, timeout=120, setup=SHORT_TIMEOUT)
     finally:
@@ -271,8 +281,9 @@ def test_a_peer_that_answers_the_handshake_with_garbage_is_refused_by_name(reply
 @pytest.mark.parametrize("address", ["not-an-address", "bogus://"])
 def test_a_scheduler_address_that_is_garbage_gives_one_line(tmp_path, address):
     """Issue 24, item 7: the refusal was followed by a Client.__del__ traceback."""
+    (tmp_path / "never-read.nc").touch()  # refused before any input is read
     done = subprocess.run(
-        [BIN / "bayes-jackal", "sample", "missing.nc", "--out", "p.nc", "--scheduler", address],
+        [BIN / "bayes-jackal", "sample", "never-read.nc", "--out", "p.nc", "--scheduler", address],
         cwd=tmp_path,
         capture_output=True,
         text=True,
@@ -333,3 +344,45 @@ def test_workers_run_the_package_this_process_imported(tmp_path):
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
     )
     assert done.stdout.split() == ["True", str(tmp_path / "bayes_jackal" / "__init__.py")]
+
+
+def _doubled_with_a_word(value: int, pid_file: Path | None = None) -> int:
+    """A job that tells, warns and fails as the package's own do (or waits, named by pid)."""
+    if pid_file is not None:
+        pid_file.write_text(str(os.getpid()))
+        time.sleep(600)
+    if value < 0:
+        raise InputError(f"must be >= 0, got {value}", field="value")
+    logging.getLogger("bayes_jackal.workflow").info(f"doubling {value}")
+    warnings.warn(ConvergenceWarning(f"NOT CONVERGED: doubling {value}"), stacklevel=2)
+    return 2 * value
+
+
+@pytest.mark.parametrize("local", [True, False], ids=["in-a-worker", "here"])
+def test_a_background_job_tells_and_warns_once_where_its_result_is_taken(local, capsys):
+    # The job of 4 is never taken: the block's end takes it, its line told last.
+    with printed("stdout"), pytest.warns(ConvergenceWarning, match="doubling 4"):
+        with Background(local=local) as background:
+            pending, failing, _ = (background.submit(_doubled_with_a_word, v) for v in (21, -1, 4))
+            assert capsys.readouterr().out == ""  # nothing told before a result is taken
+            with pytest.warns(ConvergenceWarning, match="NOT CONVERGED: doubling 21"):
+                assert pending.result() == 42
+            assert pending.result() == 42  # taken again: told once only
+            with pytest.raises(InputError, match="value: must be >= 0, got -1"):
+                failing.result()
+            assert capsys.readouterr().out == "doubling 21\n"
+    assert capsys.readouterr().out == "doubling 4\n"
+
+
+def test_a_background_job_is_stopped_when_its_block_fails(tmp_path):
+    # The worker waits 600 s: leaving the block on an interrupt ends it at once.
+    pid_file = tmp_path / "worker.pid"
+    with pytest.raises(KeyboardInterrupt), Background(local=True) as background:
+        background.submit(_doubled_with_a_word, 1, pid_file)
+        while not pid_file.exists():
+            time.sleep(0.05)
+        raise KeyboardInterrupt
+    worker = int(pid_file.read_text())
+    assert worker not in {child.pid for child in multiprocessing.active_children()}
+    with pytest.raises(ProcessLookupError):
+        os.kill(worker, 0)

@@ -256,10 +256,11 @@ def test_a_step_cap_too_short_for_bridge_sampling_is_refused_before_sampling(tmp
     with pytest.raises(bj.InputError, match=r"max_steps: must be at least 16"):  # analyse's
         bj.analyse_logs([tmp_path / "none.csv"], tmp_path / "out", settings=short)
     assert not (tmp_path / "out").exists()  # refused before any log is read or file written
-    # The command refuses it before reading any series (this one does not exist).
-    code = main(["noise", str(tmp_path / "none.csv"), "--max-steps", "15"])
+    # The command refuses it before reading any series (this one, empty, would be refused).
+    (tmp_path / "empty.csv").touch()
+    code = main(["noise", str(tmp_path / "empty.csv"), "--max-steps", "15"])
     err = capsys.readouterr().err
-    assert code == 2 and "max_steps: must be at least 16" in err and "none.csv" not in err
+    assert code == 2 and "max_steps: must be at least 16" in err and "empty.csv" not in err
 
 
 def test_noise_command_time_column_prior_and_progress_labels(tmp_path, capsys):
@@ -312,8 +313,10 @@ def test_a_series_and_a_robot_take_the_same_names_of_the_width(monkeypatch):
 def test_a_prior_given_twice_is_refused_by_noise_and_sample(tmp_path, capsys):
     # argparse keeps every --prior item; the last of a name would silently win.
     # One rule (cli.parser_types.prior_ranges) refuses it for every command,
-    # before any input is read (these do not exist).
+    # before any input is read (these, empty, would be refused).
     twice = ["--prior", "width", "0.1", "1", "--prior", "width", "0.2", "2"]
+    for name in ("none.csv", "none.nc"):
+        (tmp_path / name).touch()
     for argv in (
         ["noise", str(tmp_path / "none.csv"), *twice],
         ["sample", str(tmp_path / "none.nc"), "--out", str(tmp_path / "p.nc"), *twice],

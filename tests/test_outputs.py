@@ -138,6 +138,29 @@ def test_a_second_run_on_a_held_output_is_refused_before_the_imports(runs, tmp_p
 
 
 @pytest.mark.parametrize(
+    ("command", "absent"),
+    [
+        (["sample", "{tmp}/nothere.bag", "--out", "{tmp}/p.nc"], ["nothere.bag"]),
+        (["analyse", "{tmp}/a.bag", "{tmp}/b.bag", "--out", "{tmp}/analysis"], ["a.bag", "b.bag"]),
+        (["report", "{tmp}/absent.nc", "--out", "{tmp}/r.html"], ["absent.nc"]),
+        (["export-prior", "{tmp}/absent.nc", "--out", "{tmp}/prior.json"], ["absent.nc"]),
+    ],
+    ids=["sample", "analyse-two", "report", "export-prior"],
+)
+def test_a_command_none_of_whose_inputs_exists_is_refused_before_the_imports(
+    command, absent, tmp_path, capsys
+):
+    # Where some inputs exist, the command runs and names the absent ones
+    # (tests/test_cli.py: ..._finishes_the_good_inputs_and_names_the_bad_one).
+    argv = [part.format(tmp=tmp_path) for part in command]
+    assert _refusal_in_a_fresh_process(argv) == (2, False)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert all(f"{tmp_path / name}: no such file" in err for name in absent), err
+    assert list(tmp_path.iterdir()) == []  # no folder, chain or lock left
+
+
+@pytest.mark.parametrize(
     "command",
     [
         ["sample", "{exp}", "--out", "{fifo}"],

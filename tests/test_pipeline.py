@@ -10,17 +10,27 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import re
 import warnings
 
 import numpy as np
 import pytest
 
 import bayes_jackal as bj
-from bayes_jackal.inference import SerialExecutor
+from bayes_jackal._runtime import printed
+from bayes_jackal.inference import ProcessExecutor, SerialExecutor
 from bayes_jackal.likelihood import LikelihoodOptions, channel_residuals, residual_times
-from bayes_jackal.workflow import PIPELINE, Analysis, RunContext, StageResult, run_pipeline
+from bayes_jackal.workflow import (
+    PIPELINE,
+    Analysis,
+    RunContext,
+    StageResult,
+    background_jobs,
+    run_pipeline,
+)
 from bayes_jackal.workflow.stages.family_comparison import families
 from bayes_jackal.workflow.stages.ingestion import ingest
+from bayes_jackal.workflow.stages.report_page import report, report_sections
 from bayes_jackal.workflow.stages.residual_table import residual_table
 
 ROBOT = bj.load_profile()
@@ -96,6 +106,31 @@ def test_the_pipeline_lists_each_stage_once_the_report_after_its_sections():
     for sectioned in ("families", "state_estimation", "groups_population"):
         assert names.index("report") > names.index(sectioned)
     assert names.index("residual_table") > names.index("report")  # cannot cost the report
+
+
+def _report_drawn(pipeline, out, executor, capsys) -> tuple[str, dict[str, bytes], str]:
+    """The report of the pipeline's families, its sections drawn beside (or before) the page.
+
+    Its text, its figure files and the lines it told, which must have waited for the page.
+    """
+    context = RunContext(inputs=["a.csv"], out=out, executor=executor)
+    with printed("stdout"), background_jobs(context):
+        done = {**pipeline.results, "report_sections": report_sections(context, pipeline.results)}
+        if capsys.readouterr().out:
+            raise AssertionError("the sections told something before the page was written")
+        page = report(context, done).path
+    figures = {path.name: path.read_bytes() for path in (out / "report_figures").iterdir()}
+    text = re.sub(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", "(written)", page.read_text())  # its minute
+    return text, figures, capsys.readouterr().out
+
+
+def test_sections_drawn_in_a_worker_make_the_report_drawn_in_place(pipeline, tmp_path, capsys):
+    # A process executor draws the families' sections in one more process
+    # while the stages after them run; a serial one, in place. Same page.
+    in_place = _report_drawn(pipeline, tmp_path / "serial", SerialExecutor(), capsys)
+    beside = _report_drawn(pipeline, tmp_path / "processes", ProcessExecutor(2), capsys)
+    assert beside[0] == in_place[0] and beside[1] == in_place[1] and len(beside[1]) >= 3
+    assert beside[2] == in_place[2] and "report: white.nc (1 of 1)" in beside[2]
 
 
 def test_a_stage_without_a_name_of_its_own_is_refused(pipeline):

@@ -215,11 +215,13 @@ def test_the_traces_draw_one_line_per_walker_per_parameter_in_order(idata):
     _, axes = plots.plot_traces(idata)
     assert len(axes) == len(TRUTH)
     for ax, centre in zip(axes, TRUTH, strict=True):
-        assert len(ax.lines) == WALKERS
-        draws = np.array([line.get_ydata() for line in ax.lines])
-        assert draws.shape == (WALKERS, DRAWS)
-        assert np.median(draws) == pytest.approx(centre, rel=0.02)
-    d_lat = np.array([line.get_ydata() for line in axes[0].lines])
+        [walkers] = ax.collections  # one line per walker, against the draw
+        lines = np.array(walkers.get_segments())
+        assert lines.shape == (WALKERS, DRAWS, 2)
+        np.testing.assert_array_equal(lines[..., 0], np.tile(np.arange(DRAWS), (WALKERS, 1)))
+        assert np.median(lines[..., 1]) == pytest.approx(centre, rel=0.02)
+        assert ax.get_ylim()[0] <= lines[..., 1].min() and lines[..., 1].max() <= ax.get_ylim()[1]
+    d_lat = np.array(axes[0].collections[0].get_segments())[..., 1]
     np.testing.assert_array_equal(d_lat, idata.posterior["d_lat"].values)
 
 

@@ -34,8 +34,11 @@ from bayes_jackal.likelihood.residual_likelihood import ResidualLikelihood
 from bayes_jackal.model.robot import load_profile
 from bayes_jackal.posterior.posterior import load_posterior
 from bayes_jackal.workflow.analysis import analyse_logs
+from bayes_jackal.workflow.context import RunContext
 from bayes_jackal.workflow.demo import demo_folder, demo_labels
+from bayes_jackal.workflow.pipeline import run_pipeline
 from bayes_jackal.workflow.stages import grid_searches
+from bayes_jackal.workflow.stages.ingestion import ingest
 
 ROBOT = load_profile()
 #: Cursor movement of a redrawn bar: carriage return or an ANSI escape sequence.
@@ -274,7 +277,8 @@ def test_ingest_logs_mixes_files_and_bags_and_renames_a_repeated_name(short_runs
     ],
 )
 def test_analyse_checks_the_modelling_flags_of_sample(tmp_path, capsys, extra, pattern):
-    code = main(["analyse", str(tmp_path / "run.bag"), "--out", str(tmp_path), *extra])
+    (tmp_path / "run.bag").touch()  # refused before it is read
+    code = main(["analyse", str(tmp_path / "run.bag"), "--out", str(tmp_path / "out"), *extra])
     err = capsys.readouterr().err
     assert code == 2 and re.search(pattern, err), err
 
@@ -338,29 +342,22 @@ def test_analyse_shows_the_warnings_kept_before_the_comparison_fails(tmp_path):
     assert (tmp_path / "out" / "posteriors" / "white.nc").exists()  # the family done is kept
 
 
-class _GridsDone(Exception):
-    """Raised by a test's logging handler once analyse has written its grids."""
-
-
 def test_analyse_grids_span_the_profiles_prior_and_flag_an_edge(tmp_path, monkeypatch):
     # A Warthog run (8 s) at the thesis' damping scaled to its mass, (1331.5,
-    # 363.1) N s/m; analyse stopped after its grids (by a logging handler), before any
-    # chain. Its prior is the Jackal's times 200 / 16.523: 121.04-12104.34
-    # N s/m, and --prior's damping ranges replace it for the grids too. The
-    # figures (1 s for the 1000 x 1000 surface) are checked by the slow tests.
+    # 363.1) N s/m; analyse's first stages alone, the grids with them (in this
+    # process: a serial analysis runs them where the pipeline ends). Its prior
+    # is the Jackal's times 200 / 16.523: 121.04-12104.34 N s/m, and --prior's
+    # damping ranges replace it for the grids too. The figures (1 s for the
+    # 1000 x 1000 surface) are checked by the slow tests.
     monkeypatch.setattr(grid_searches, "save_grid_plot", lambda result, path: path)
     warthog = load_profile("warthog")
     run = simulate_experiment(warthog, 1331.5, 363.1, dataclasses.replace(SHORT, duration=8.0),
                               rng=1)  # fmt: skip
     source = write_netcdf(run, tmp_path / "run.nc")
-
-    def stop(line: str) -> None:
-        if line.startswith("posterior and evidence of"):
-            raise _GridsDone
-
-    with pytest.raises(_GridsDone), messages(stop) as lines:
-        analyse_logs([source], tmp_path / "out", robot=warthog,
-                     prior_overrides={"d_lat": (200.0, 20000.0)})  # fmt: skip
+    context = RunContext(inputs=[source], out=tmp_path / "out", executor=SerialExecutor(),
+                         robot=warthog, prior_overrides={"d_lat": (200.0, 20000.0)})  # fmt: skip
+    with messages(lambda line: None) as lines:
+        run_pipeline(context, (ingest, grid_searches.grids))
     grids = json.loads((tmp_path / "out" / "grid.json").read_text())
     for method, count in (("onestep", 1000), ("simulation", 100)):
         low, high, values = grids[method]["grid"]["d_long"]

@@ -10,11 +10,20 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .._runtime import Output, OutputLock, chain_path, check_outputs, protected, removed_if_empty
+from .._runtime import (
+    Output,
+    OutputLock,
+    chain_path,
+    check_outputs,
+    protected,
+    refuse,
+    removed_if_empty,
+)
 
 if TYPE_CHECKING:  # this module stays light: outputs are checked before numpy loads
     from ..io import Experiment
@@ -55,6 +64,12 @@ def planned_outputs(args: argparse.Namespace) -> list[Output]:
 
 def command_inputs(args: argparse.Namespace) -> list[str]:
     """The files and folders the command reads: never to be replaced by an output."""
+    robot = getattr(args, "robot", None)  # last: failures name the data first
+    return [*_data_inputs(args), *([robot] if robot else [])]
+
+
+def _data_inputs(args: argparse.Namespace) -> list[str]:
+    """The logs, experiments, posteriors and tables the command reads (not the robot)."""
     inputs = [
         getattr(args, "posterior", None),
         getattr(args, "prior_file", None),
@@ -62,8 +77,21 @@ def command_inputs(args: argparse.Namespace) -> list[str]:
     ]
     for name in ("experiments", "posteriors", "bags", "inputs", "series"):
         inputs += getattr(args, name, None) or []
-    inputs.append(getattr(args, "robot", None))  # last: failures name the data first
     return [given for given in inputs if given]
+
+
+def refuse_absent_inputs(args: argparse.Namespace) -> None:
+    """Refuse (DataError) a command none of whose data inputs exists, before the imports.
+
+    A mistyped path is told in a blink, not after the seconds numpy, scipy
+    and the sampler take to load; where some inputs exist, the command runs
+    and names the absent ones as it meets them (one bad file among many
+    does not stop the others).
+    """
+    inputs = _data_inputs(args)
+    absent = {given: f"{given}: no such file" for given in inputs if not os.path.lexists(given)}
+    if inputs and len(absent) == len(inputs):
+        refuse(absent, len(inputs))
 
 
 def check_named_outputs(args: argparse.Namespace, paths: Iterable[Path]) -> None:
@@ -107,4 +135,5 @@ def guarded(args: argparse.Namespace) -> Iterator[None]:
             main = outputs[0]
             stack.enter_context(OutputLock(main.path, folder=main.kind == "folder"))
         stack.enter_context(protected(inputs))
+        refuse_absent_inputs(args)
         yield

@@ -22,8 +22,10 @@ from .comparison import (
 )
 from .evidence import bridge_sampling, evidence_strength, integrated_time, nested_sampling
 from .executors import (
+    Background,
     DaskExecutor,
     Executor,
+    Pending,
     ProcessExecutor,
     SerialExecutor,
     executor_for,

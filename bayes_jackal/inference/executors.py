@@ -5,6 +5,8 @@ finish: :class:`SerialExecutor` in this process, one after the other;
 :class:`ProcessExecutor` in local processes (:func:`in_processes`);
 :class:`DaskExecutor` as tasks of a Dask distributed cluster (``dask
 scheduler`` and ``dask worker``; optional extra ``bayes-jackal[cluster]``).
+:class:`Background` runs a job beside the caller's own work, in one more
+local process (the report's figures while the filters run).
 A job carries everything its result depends on, its seed included, so the
 results do not depend on the executor.
 
@@ -24,22 +26,28 @@ import asyncio
 import concurrent.futures
 import contextlib
 import functools
+import io
+import logging
 import multiprocessing
 import subprocess
 import sys
 import threading
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 import threadpoolctl
 
-from .._runtime import InputError, interrupts_blocked, quiet_worker
+from .._runtime import ROOT_LOGGER, InputError, interrupts_blocked, quiet_worker
 
 __all__ = [
+    "Background",
     "DaskExecutor",
     "Executor",
+    "Pending",
     "ProcessExecutor",
     "SerialExecutor",
     "executor_for",
@@ -138,6 +146,166 @@ def in_processes(
             for child in set(multiprocessing.active_children()) - before:
                 child.terminate()
             raise
+
+
+class _Kept(logging.Handler):
+    """Keeps the records of the package's loggers (a background job's messages)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.INFO)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        record.msg, record.args, record.exc_info = record.getMessage(), None, None  # picklable
+        self.records.append(record)
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What a background job gave: its value or error, its messages and warnings."""
+
+    value: Any = None
+    error: BaseException | None = None
+    records: tuple[logging.LogRecord, ...] = ()
+    warned: tuple[tuple[type[Warning], str], ...] = ()
+
+
+def _kept_outcome(work: Callable[..., R], args: tuple) -> _Outcome:
+    """``work(*args)`` with its INFO messages and warnings kept, nothing on stderr.
+
+    Runs in the background worker: no ticking line of its own (its stderr,
+    the terminal's, is a buffer meanwhile), and what it tells the user comes
+    back with its value, told where the value is taken (:meth:`Pending.result`).
+    """
+    logger, handler = logging.getLogger(ROOT_LOGGER), _Kept()
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    value, error = None, None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")  # each one, to be filtered where it is told
+        try:
+            with contextlib.redirect_stderr(io.StringIO()):
+                value = work(*args)
+        except Exception as exc:  # raised where the result is taken
+            error = exc
+        finally:
+            logger.removeHandler(handler)
+    warned = tuple((w.category, str(w.message)) for w in caught)
+    return _Outcome(value, error, tuple(handler.records), warned)
+
+
+class Pending:
+    """A background job's result, to take once it is needed (:meth:`Background.submit`)."""
+
+    def __init__(self, work: Callable, args: tuple, future: concurrent.futures.Future | None):
+        self._work, self._args, self._future = work, args, future
+        self._outcome: _Outcome | None = None
+
+    @property
+    def taken(self) -> bool:
+        """Whether the result was taken (its messages told, its error raised)."""
+        return self._outcome is not None
+
+    def result(self) -> Any:
+        """The job's value, waiting for it, or its error raised; its messages told the first time.
+
+        Of a job that did not run in the background (a serial analysis), the job runs now, here.
+        """
+        if self._outcome is None:
+            if self._future is None:
+                try:
+                    self._outcome = _Outcome(self._work(*self._args))
+                except Exception as exc:  # raised below, and not again at the block's end
+                    self._outcome = _Outcome(error=exc)
+            else:
+                self._outcome = self._future.result()
+                for record in self._outcome.records:  # as if logged here
+                    logger = logging.getLogger(record.name)
+                    if logger.isEnabledFor(record.levelno):
+                        logger.handle(record)
+                for category, message in self._outcome.warned:
+                    warnings.warn(message, category, stacklevel=2)
+        if self._outcome.error is not None:
+            raise self._outcome.error
+        return self._outcome.value
+
+
+class Background:
+    """Jobs that run beside the caller's own work, in one more local process.
+
+    Within ``with Background(local=True) as background:``,
+    :meth:`submit` starts a job in a worker process (forked as
+    :func:`in_processes`'s, with one BLAS thread) and returns at once; the
+    job's value, messages and warnings reach the caller where it takes the
+    :class:`Pending` result. Leaving the block takes every result not yet
+    taken, in the order submitted (its messages told, its error raised);
+    on an exception (an interrupt included) the worker is terminated at once.
+    With ``local=False`` (a serial analysis) a job runs where its result
+    is first taken, here, as if it had not been sent away. A job's value
+    never depends on where it ran.
+
+    Parameters
+    ----------
+    local : bool
+        Run the jobs in a worker process (True) or here, at once (False).
+
+    Examples
+    --------
+    >>> from bayes_jackal.inference.executors import Background
+    >>> with Background(local=True) as background:
+    ...     pending = background.submit(sum, [1, 2, 3])
+    ...     pending.result()
+    6
+    >>> Background(local=False).submit(abs, -4).result()
+    4
+    """
+
+    def __init__(self, local: bool):
+        self.local = local
+        self._pool: concurrent.futures.ProcessPoolExecutor | None = None
+        self._before: set = set()
+        self._submitted: list[Pending] = []
+
+    def __enter__(self) -> Background:
+        return self
+
+    def __exit__(self, kind, *exc_info) -> None:
+        if kind is not None:
+            self._stop()
+            return
+        try:
+            for pending in self._submitted:  # each told, and its error raised, once
+                if not pending.taken:
+                    pending.result()
+        except BaseException:
+            self._stop()
+            raise
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+
+    def _stop(self) -> None:
+        """Cancel the jobs not started and end the worker at once."""
+        if self._pool is None:
+            return
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for child in set(multiprocessing.active_children()) - self._before:
+            child.terminate()
+            child.join(timeout=5.0)  # SIGTERM ends a worker at once (quiet_worker)
+
+    def submit(self, work: Callable[..., R], *args) -> Pending:
+        """Start ``work(*args)`` (picklable, as an executor's jobs); its result to take later."""
+        if not self.local:
+            self._submitted.append(Pending(work, args, None))
+            return self._submitted[-1]
+        if self._pool is None:
+            self._before = set(multiprocessing.active_children())
+            self._pool = concurrent.futures.ProcessPoolExecutor(
+                1, mp_context=_worker_context(), initializer=_start_worker, initargs=(True,)
+            )
+        with interrupts_blocked():  # a signal waits until the worker handles it
+            future = self._pool.submit(_kept_outcome, work, args)
+        self._submitted.append(Pending(work, args, future))
+        return self._submitted[-1]
 
 
 class Executor:

@@ -19,6 +19,8 @@ from .noise_plots import (
 )
 from .page import (
     LAGS,
+    draw_posterior_sections,
+    posterior_sections,
     read_posteriors,
     render_report,
     report_page,

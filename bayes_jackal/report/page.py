@@ -37,6 +37,8 @@ from .sections import evidence_section, losing_banner, posterior_section, summar
 
 __all__ = [
     "LAGS",
+    "draw_posterior_sections",
+    "posterior_sections",
     "read_posteriors",
     "render_report",
     "report_page",
@@ -158,6 +160,7 @@ def render_report(
     *,
     sections: Sequence[Section] = (),
     highlights: Sequence[str] = (),
+    drawn: Sequence[str] | None = None,
 ) -> str:
     """The HTML text of a report on loaded posteriors.
 
@@ -177,6 +180,10 @@ def render_report(
     highlights : sequence of str
         Further lines of the summary at the top, as HTML (``analyse`` adds
         :func:`~bayes_jackal.report.sections.state_estimation_highlight`).
+    drawn : sequence of str, optional
+        Each posterior's section, in order, drawn beforehand
+        (:func:`draw_posterior_sections`: ``analyse`` draws them while its
+        filters run); None: drawn here (:func:`posterior_sections`).
 
     Returns
     -------
@@ -212,6 +219,26 @@ def render_report(
         )
     body.append(evidence_section(posteriors))
     body += [section(figures) for section in sections]
+    if drawn is None:
+        drawn = posterior_sections(posteriors, figures, lags)
+    elif len(drawn) != len(posteriors):
+        raise InputError(
+            f"{len(drawn)} sections drawn for {len(posteriors)} posteriors", field="drawn"
+        )
+    body += drawn
+    what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
+    return report_page("bayes_jackal report", what, figures, body)
+
+
+def posterior_sections(
+    posteriors: list[tuple[Path, az.InferenceData]], figures: ReportFigures, lags: int = LAGS
+) -> list[str]:
+    """Each posterior's section of a report, its figures drawn by ``figures``.
+
+    A posterior that lost by evidence to another of ``posteriors`` says so
+    under its title (:func:`~bayes_jackal.report.sections.losing_banner`).
+    """
+    parts = []
     for number, (path, idata) in enumerate(posteriors, 1):
         _log.info(
             f"  report: {path.name} ({number} of {len(posteriors)}): criticism and figures..."
@@ -220,9 +247,44 @@ def render_report(
         with Phase(
             f"  report: {path.name}", enabled=_log.isEnabledFor(logging.INFO), terminal_only=True
         ):
-            body.append(posterior_section(path, idata, figures, lags, banner))
-    what = f"posteriors: {', '.join(str(p) for p, _ in posteriors)}"
-    return report_page("bayes_jackal report", what, figures, body)
+            parts.append(posterior_section(path, idata, figures, lags, banner))
+    return parts
+
+
+def draw_posterior_sections(
+    paths: Sequence[str | Path],
+    out: str | Path,
+    formats: tuple[str, ...] = REPORT_FORMATS,
+    lags: int = LAGS,
+) -> list[str]:
+    """The posterior files' sections of the report ``out``, drawn before the page.
+
+    What :func:`save_report` takes as ``drawn``; the figures are written
+    where the page's go (``<out stem>_figures/``, made). ``analyse`` draws
+    them in a process of their own while its filters run.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import bayes_jackal as bj
+    >>> from bayes_jackal.report import draw_posterior_sections, save_report
+    >>> run = bj.simulate_experiment(bj.load_profile(), 110.0, 30.0, rng=1)
+    >>> posterior = bj.sample([run], family="white", channels=["yaw"], max_steps=20, seed=1)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = bj.save_posterior(posterior, Path(folder) / "white.nc")
+    ...     out = Path(folder) / "report.html"
+    ...     drawn = draw_posterior_sections([path], out, ("png",))
+    ...     page = save_report([(path, posterior)], out, ("png",), drawn=drawn).read_text()
+    ...     in_place = save_report([(path, posterior)], out, ("png",)).read_text()
+    >>> len(drawn), page == in_place  # the page of the sections drawn in its place
+    (1, True)
+    """
+    posteriors, failed = read_posteriors(list(paths))
+    refuse(failed, len(paths))
+    figures = _figures_beside(Path(out), formats)
+    figures.folder.mkdir(parents=True, exist_ok=True)
+    return posterior_sections(posteriors, figures, lags)
 
 
 #: A section's heading: the report's own ``<h2>``/``<h3>``, which carry no attributes.
@@ -375,14 +437,20 @@ def write_page(
     drift.html ['drift.html', 'drift_figures']
     """
     out = Path(out)
-    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
-    refuse_link(figures.folder, folder=True)
+    figures = _figures_beside(out, formats)
     with removed_if_empty([figures.folder], on_success=False):  # a failed page leaves none
         figures.folder.mkdir(parents=True, exist_ok=True)
         text = render(figures)
     with atomic_path(out) as temporary:
         temporary.write_text(text, encoding="utf-8")
     return out
+
+
+def _figures_beside(out: Path, formats: tuple[str, ...]) -> ReportFigures:
+    """The figures of the page ``out``, in ``<out stem>_figures/`` (no link there)."""
+    figures = ReportFigures(out.parent / f"{out.stem}_figures", formats)
+    refuse_link(figures.folder, folder=True)
+    return figures
 
 
 #: The posteriors :func:`write_report` takes (see there).
@@ -496,10 +564,12 @@ def save_report(
     *,
     sections: Sequence[Section] = (),
     highlights: Sequence[str] = (),
+    drawn: Sequence[str] | None = None,
 ) -> Path:
     """Write the HTML report of posteriors already read (:func:`read_posteriors`).
 
-    Parameters and return value as :func:`write_report`.
+    Parameters and return value as :func:`write_report`; ``drawn``, the
+    posteriors' sections drawn beforehand, as :func:`render_report`'s.
 
     Examples
     --------
@@ -524,7 +594,7 @@ def save_report(
     return write_page(
         out,
         lambda figures: render_report(
-            posteriors, figures, lags, sections=sections, highlights=highlights
+            posteriors, figures, lags, sections=sections, highlights=highlights, drawn=drawn
         ),
         formats=formats,
     )

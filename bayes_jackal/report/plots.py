@@ -11,8 +11,10 @@ spectrum against the fitted filter's band).
 
 from __future__ import annotations
 
+import matplotlib
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -204,13 +206,31 @@ def plot_traces(idata, axes=None) -> tuple[Figure, np.ndarray]:
     for ax, name, values, base in zip(
         axes, names, np.moveaxis(draws, -1, 0), layout.bases, strict=True
     ):
-        ax.plot(values, lw=0.4, alpha=0.5, rasterized=True)
+        ax.add_collection(_walker_lines(values))
         ax.set_ylabel(name, fontsize="small")
         if base not in DAMPING:  # the noise parameters, spanning decades
             ax.set_yscale("log")
+        ax.autoscale_view()
     axes[0].set_title("walkers (kept draws)")
     axes[-1].set_xlabel("draw")
     return fig, axes
+
+
+def _walker_lines(values: np.ndarray) -> LineCollection:
+    """One line per walker (column of ``values``, against the draw), in the colour cycle.
+
+    One collection draws in half the time of a line per walker (the demo's
+    traces: 484 lines).
+    """
+    draws = np.broadcast_to(np.arange(len(values))[:, None], values.shape)
+    cycle = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
+    return LineCollection(
+        np.stack([draws, values], axis=-1).swapaxes(0, 1),
+        colors=[cycle[walker % len(cycle)] for walker in range(values.shape[1])],
+        linewidths=0.4,
+        alpha=0.5,
+        rasterized=True,
+    )
 
 
 def plot_damping(idata, ax: Axes | None = None) -> tuple[Figure, Axes]:

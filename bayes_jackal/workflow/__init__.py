@@ -1,7 +1,7 @@
 """The whole analysis of a set of logs, and the demo on the embedded data."""
 
 from .analysis import analyse_logs
-from .context import RunContext, StageResult, WrittenFile
+from .context import RunContext, StageResult, WrittenFile, background_jobs, in_background
 from .demo import DEMO_FAMILIES, DEMO_TRUTH, demo_folder, demo_labels, make_demo_bags, run_demo
 from .pipeline import PIPELINE, Analysis, run_pipeline
 

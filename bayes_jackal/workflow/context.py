@@ -7,25 +7,35 @@ validated on construction, so that a bad option is refused before a log is
 read. A stage (:mod:`bayes_jackal.workflow.stages`) is a function of the
 context and the results of the stages before it, and returns a
 :class:`StageResult`: its part of the analysis' JSON (``to_dict``), the
-files it wrote, and what it adds to the report.
+files it wrote, and what it adds to the report. A stage may start work
+that a later stage takes (:func:`in_background`: the report's figures
+drawn while the filters run).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import contextlib
+import contextvars
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from .._runtime import (
     DEFAULT_FAMILIES,
     REPORT_FORMATS,
     STATE_ESTIMATION,
 )
-from ..inference import Executor, FitOptions
+from ..inference import Background, Executor, FitOptions, Pending
 from ..io import ReadOptions, RunGroups, as_run_groups
 from ..report import figure_formats
 
-__all__ = ["RunContext", "StageResult", "WrittenFile"]
+__all__ = ["RunContext", "StageResult", "WrittenFile", "background_jobs", "in_background"]
+
+#: Where the running pipeline's background jobs go (:func:`background_jobs`).
+_BACKGROUND: contextvars.ContextVar[Background | None] = contextvars.ContextVar(
+    "bayes_jackal_background", default=None
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -161,3 +171,37 @@ class WrittenFile(StageResult):
 
     def files(self) -> dict[str, str | None]:
         return {self.key: str(self.path)}
+
+
+@contextlib.contextmanager
+def background_jobs(context: RunContext) -> Iterator[None]:
+    """While the block runs, :func:`in_background` jobs go to one more local process.
+
+    Where the context's executor runs jobs side by side (local processes,
+    a cluster), the machine has a core for them; a serial analysis runs
+    each where its result is taken. Leaving the block waits for them, or
+    on an exception (an interrupt) stops them
+    (:class:`~bayes_jackal.inference.Background`).
+    """
+    with Background(local=context.executor.slots(2) > 1) as background:
+        token = _BACKGROUND.set(background)
+        try:
+            yield
+        finally:
+            _BACKGROUND.reset(token)
+
+
+def in_background(work: Callable[..., Any], *args) -> Pending:
+    """Start ``work(*args)`` beside the stages that follow; a later stage takes its result.
+
+    ``work`` and ``args`` are picklable (a module-level function and data).
+    Outside :func:`background_jobs` (a stage called on its own) the job
+    runs where its result is taken.
+
+    Examples
+    --------
+    >>> from bayes_jackal.workflow.context import in_background
+    >>> in_background(sum, [1, 2, 3]).result()
+    6
+    """
+    return (_BACKGROUND.get() or Background(local=False)).submit(work, *args)

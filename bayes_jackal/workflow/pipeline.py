@@ -17,14 +17,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from .._runtime import InputError
-from .context import RunContext, StageResult
+from .context import RunContext, StageResult, background_jobs
 from .stages.family_comparison import families
 from .stages.grid_searches import grids
 from .stages.groups import groups_population
 from .stages.ingestion import ingest
 from .stages.left_out import state_estimation
 from .stages.prior_export import prior
-from .stages.report_page import report
+from .stages.report_page import report, report_sections
 from .stages.residual_table import residual_table
 
 __all__ = ["PIPELINE", "Analysis", "run_pipeline"]
@@ -38,6 +38,7 @@ PIPELINE: tuple[Stage, ...] = (
     grids,
     families,
     prior,
+    report_sections,
     state_estimation,
     groups_population,
     report,
@@ -131,6 +132,7 @@ def run_pipeline(context: RunContext, stages: tuple[Stage, ...] = PIPELINE) -> A
                 field="stages",
             )
     done: dict[str, StageResult] = {}
-    for stage, name in zip(stages, names, strict=True):
-        done[name] = stage(context, done)
+    with background_jobs(context):
+        for stage, name in zip(stages, names, strict=True):
+            done[name] = stage(context, done)
     return Analysis(str(context.out), done)
