@@ -138,3 +138,18 @@ def test_poses_slower_than_the_samples_are_refused():
     # pose noise is not.
     with pytest.raises(DataError, match=r"own no pose within half a step: the poses \(50 Hz\)"):
         tick_poses(_circle(50.0, 0.0))
+
+
+def test_an_experiments_tick_poses_are_moved_once_and_read_only():
+    # The filters take them once per prior draw: kept for the experiment's
+    # life, the same object, which no caller can change; a copy of the
+    # experiment (another object) moves its poses anew, to the same values.
+    run = _circle(360.0, 0.002)
+    ticks = tick_poses(run)
+    assert tick_poses(run) is ticks
+    with pytest.raises(ValueError, match="read-only"):
+        ticks.x[0] = 1.0
+    again = tick_poses(dataclasses.replace(run))
+    assert again is not ticks
+    for name in ("x", "y", "heading"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(ticks, name))
