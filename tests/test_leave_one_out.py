@@ -31,7 +31,7 @@ from bayes_jackal.cli.output import state_estimation_text
 from bayes_jackal.cli.parser import build_parser
 from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS, StateEstimate
 from bayes_jackal.filters.left_out import FOLDER, SUMMARY, leave_one_out, method_text
-from bayes_jackal.inference import FitOptions
+from bayes_jackal.inference import FitOptions, find_map
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_families, compare_groups
 from bayes_jackal.inference.executors import SerialExecutor
@@ -220,7 +220,10 @@ def test_a_failing_run_does_not_stop_the_others(analysis, tmp_path):
         assert len(said) == (run in _refit(result["state_estimation"]))
         for line in said:
             assert "> 0.7: the PSIS reweighting of the pooled posterior is unreliable" in line
-            assert line.endswith("; refitting it on the other runs")
+            assert line.endswith(
+                "; refitting it on the other runs, its MAP search started from the pooled "
+                "draws best without it"
+            )
     assert list(again.failed) == ["a"] and "a.csv: cannot write" in again.failed["a"]
     b = result["state_estimation"]["runs"]["b"]
     assert list(again.runs) == ["b"] and again.runs["b"]["method"] == b["method"]
@@ -475,6 +478,42 @@ def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
     assert np.all(gap < 4 * error), gap / error
     # ... where the pooled posterior (the run not left out) is far off: the test can tell.
     assert np.max(np.abs(logs["pooled"].mean(axis=0) - logs["refit"].mean(axis=0)) / error) > 8
+
+
+def test_a_refit_climbs_from_the_pooled_draws_to_the_profiles_maximum(four_runs):
+    # The refit of a posterior without a run starts its MAP search from the
+    # pooled draws best without it (a warm start) instead of the profile
+    # likelihood over the prior box. Leaving out each of the four runs, the
+    # warm search ends as high (within 1e-3 nats: the searches' tolerance)
+    # and at the same point, 1e-2 in log theta (the posterior's sd there is
+    # ~0.05-0.3), but along what piles on a prior bound, where the posterior
+    # is flat to 1e-3 nats (white's d_long and yaw sensor noise here).
+    runs, pooled, _, _, result, lines = four_runs
+    draws = PooledPosterior(pooled, runs, ROBOT, "white", OPTIONS)
+    for left in FOUR:
+        others = [run for run in runs if run.name != left]
+        starts = draws.best_draws_without(draws.weights(runs[FOUR.index(left)]), others)
+        assert starts.shape == (4, 4) and len(np.unique(starts, axis=0)) == 4
+        likelihood = OPTIONS.likelihood(others, ROBOT, "white")
+        prior = Prior.for_likelihood(likelihood, ROBOT)
+        log_posterior = LogPosterior(likelihood, prior)
+        cold = find_map(log_posterior, np.random.default_rng(1), 1024)
+        warm = find_map(log_posterior, np.random.default_rng(1), 1024, starts)
+        heights = log_posterior(np.array([warm, cold]))
+        assert heights[0] >= heights[1] - 1e-3
+        inside = (
+            np.minimum(np.minimum(warm, cold) - prior.z_low, prior.z_high - np.maximum(warm, cold))
+            > 0.05
+        )
+        assert inside[0]  # d_lat is never on its bound here
+        np.testing.assert_allclose(warm[inside], cold[inside], rtol=0, atol=1e-2)
+    refit = _refit(result.to_dict())
+    assert refit  # at least one of the four runs here
+    for run in refit:  # the refit runs said so, and their task holds it
+        assert any(line.startswith(f"  leaving out {run}: ") and "pooled draws best" in line
+                   for line in lines)  # fmt: skip
+        task = Posterior.of(load_posterior(result.runs[run]["files"]["posterior"])).metadata.task
+        assert len(task["starts"]) == 4
 
 
 def test_a_rerun_reuses_the_reweightings_and_the_json_and_report_carry_k_hat(four_runs, tmp_path):

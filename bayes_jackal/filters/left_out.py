@@ -396,6 +396,7 @@ def leave_one_out(
         result.estimates[name] = (by_name[name], estimates)
 
     refits: dict[str, dict] = {}  # run -> its record's fields, with the reason
+    starts: dict[str, dict[str, np.ndarray]] = {}  # run -> family -> the refit's warm start
 
     def reweigh(name: str, sequence: np.random.SeedSequence) -> None:
         path = posteriors[name]
@@ -408,8 +409,11 @@ def leave_one_out(
             weights = draws.weights(by_name[name])
             if weights.weights is None:
                 refits[name] = weights.fields("refit")
+                others = [e for e in experiments if e.name != name]
+                starts[name] = {family: draws.best_draws_without(weights, others)}
                 _log.info(
-                    f"  leaving out {name}: {weights.reason}; refitting it on the other runs"
+                    f"  leaving out {name}: {weights.reason}; refitting it on the other runs, "
+                    "its MAP search started from the pooled draws best without it"
                 )
                 return
             stored = weights.fields("psis") | {
@@ -445,6 +449,7 @@ def leave_one_out(
             reuse=reuse,
             on_family=save,
             on_failure=failed,
+            starts=starts,
         ):
             try:
                 done(name, comparison.posteriors[family], refits[name],

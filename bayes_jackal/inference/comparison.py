@@ -104,7 +104,8 @@ class _FamilyRun:
 
     ``lines`` (progress lines shared by the jobs running at once) and
     ``label`` (put before the family on its progress bar) only change the
-    display.
+    display; ``starts`` (family -> parameter values) warm-starts a family's
+    MAP search (:func:`~bayes_jackal.inference.sample_posterior`).
     """
 
     experiments: list[Experiment]
@@ -112,6 +113,10 @@ class _FamilyRun:
     cross_check: bool
     lines: int = 1
     label: str = ""
+    starts: Mapping[str, np.ndarray] | None = None
+
+    def _starts(self, family: str) -> np.ndarray | None:
+        return None if self.starts is None else self.starts.get(family)
 
     def _model(self, family: str) -> tuple[ResidualLikelihood, Prior]:
         fit = self.fit
@@ -134,6 +139,8 @@ class _FamilyRun:
         walkers = settings.n_walkers(len(prior.names))
         identity = run_identity(likelihood, prior, walkers, self.fit.seed)
         task = identity | {"sampler": sampler, "cross_check": self.cross_check}
+        if (starts := self._starts(family)) is not None:
+            task["starts"] = np.asarray(starts, float).tolist()
         return json.loads(json.dumps(task))
 
     def __call__(self, job: tuple[int, str]):
@@ -154,7 +161,11 @@ class _FamilyRun:
             # The families' chains run at once: their start searches are not told.
             with silenced(__package__):
                 idata = sample_posterior(
-                    likelihood, fit.settings, fit.seed, prior_overrides=fit.prior_overrides
+                    likelihood,
+                    fit.settings,
+                    fit.seed,
+                    prior_overrides=fit.prior_overrides,
+                    starts=self._starts(family),
                 )
             draws, lp = Posterior.of(idata).draws()
             # Keyed on the family, not on which others are compared: results are reusable.
@@ -236,6 +247,7 @@ def compare_groups(
     reuse: Mapping[K, Mapping[str, str | Path]] | None = None,
     on_family: Callable[[K, str, Evidence, az.InferenceData], None] | None = None,
     on_failure: Callable[[K, Exception], None] | None = None,
+    starts: Mapping[K, Mapping[str, np.ndarray]] | None = None,
 ) -> Iterator[tuple[K, Comparison]]:
     """Compare the families on several independent groups of experiments, all jobs at once.
 
@@ -278,6 +290,13 @@ def compare_groups(
         ``on_family`` does): the group is not yielded and the others go on.
         Without it the exception propagates and the jobs still pending
         are stopped.
+    starts : mapping of key to mapping of str to ndarray, optional
+        Per group and family, parameter values, shape (S, P) in the family's
+        layout, its MAP search climbs from instead of the profile
+        likelihood's (a warm start: the state estimation's refit of the
+        posterior without a run starts from the pooled posterior's draws).
+        Part of the family's task: a posterior saved without them is not
+        reused.
 
     Yields
     ------
@@ -332,6 +351,7 @@ def compare_groups(
             fit,
             cross_check,
             label="" if len(groups) == 1 else "+".join(e.name for e in group) + " ",
+            starts=(starts or {}).get(key),
         )
         for key, group in groups.items()
     }

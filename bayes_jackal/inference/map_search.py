@@ -94,7 +94,10 @@ def damping_design(design_points: int) -> int:
 
 @one_blas_thread()
 def find_map(
-    log_posterior: LogPosterior, rng: np.random.Generator, design_points: int = 1024
+    log_posterior: LogPosterior,
+    rng: np.random.Generator,
+    design_points: int = 1024,
+    starts: np.ndarray | None = None,
 ) -> np.ndarray:
     """Maximum a posteriori point in sampling coordinates.
 
@@ -104,7 +107,9 @@ def find_map(
     ``design_points / 16`` damping points) finds the basin where every
     channel's noise is right at once, which a design over the whole prior
     box does not. Its best points start the local searches and width
-    sweeps of :func:`climb`.
+    sweeps of :func:`climb`. Given ``starts`` (a warm start: points of a
+    posterior known to be close, e.g. the pooled one's best draws for a run
+    left out), the searches start there instead, and the profile is skipped.
 
     Parameters
     ----------
@@ -113,6 +118,8 @@ def find_map(
         Scrambles the damping design: same seed, same result.
     design_points : int
         Sixteen times the size of the damping design (at least 16 points).
+    starts : ndarray, shape (S, P), optional
+        Parameter values theta the local searches start from (warm).
 
     Returns
     -------
@@ -145,26 +152,29 @@ def find_map(
     prior = log_posterior.prior
     # Noise far below the data's overflows the likelihood's terms: -inf, checked below.
     with np.errstate(over="ignore", divide="ignore"):
-        theta, _ = profile_starts(
-            log_posterior.likelihood,
-            prior.low,
-            prior.high,
-            damping_points=damping_design(design_points),
-            starts=_MAP_STARTS,
-            rng=rng,
-        )
-        starts = np.log(theta)
-        finite = np.isfinite(log_posterior(starts))
+        if starts is None:
+            theta, _ = profile_starts(
+                log_posterior.likelihood,
+                prior.low,
+                prior.high,
+                damping_points=damping_design(design_points),
+                starts=_MAP_STARTS,
+                rng=rng,
+            )
+            where = f"the best {len(theta)} points of the profile likelihood"
+        else:
+            theta, where = np.atleast_2d(starts), f"the {len(np.atleast_2d(starts))} given"
+        z = np.log(theta)
+        finite = np.isfinite(log_posterior(z))
     if not finite.any():
         raise InputError(
-            f"the log-posterior is -inf at every start of the MAP search (the best {len(starts)} "
-            "points of the profile likelihood): the priors exclude every parameter value the "
-            "data allow",
+            f"the log-posterior is -inf at every start of the MAP search ({where}): the "
+            "priors exclude every parameter value the data allow",
             field="priors",
         )
     layout = log_posterior.likelihood.layout
     widths = layout.names_of(layout.width_name) if layout.width_name else ()
-    return climb(log_posterior, starts, widths=widths)
+    return climb(log_posterior, z, widths=widths)
 
 
 def _best_local(log_posterior: LogPosterior, starts: np.ndarray) -> scipy.optimize.OptimizeResult:

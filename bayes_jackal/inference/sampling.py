@@ -111,9 +111,13 @@ def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, see
     }
 
 
-def _fingerprint(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> str:
+def _fingerprint(
+    likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed, starts=None
+) -> str:
     """Hash of everything that defines a chain, to refuse resuming a different run."""
     identity = run_identity(likelihood, prior, walkers, seed)
+    if starts is not None:  # a warm start: another MAP search
+        identity["starts"] = np.asarray(starts, float).tolist()
     return hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
 
 
@@ -123,6 +127,7 @@ def sample_posterior(
     seed: int | None = None,
     chain_file: str | Path | None = None,
     prior_overrides: dict | None = None,
+    starts: np.ndarray | None = None,
 ) -> Posterior:
     """Sample the posterior of a residual likelihood with emcee.
 
@@ -137,6 +142,11 @@ def sample_posterior(
         HDF5 file of the chain; a run with the same file and settings resumes.
     prior_overrides : dict, optional
         (low, high) per base parameter name, over the profile's ranges.
+    starts : ndarray, shape (S, P), optional
+        Parameter values the MAP search climbs from instead of the profile
+        likelihood's best points (:func:`~bayes_jackal.inference.find_map`):
+        a warm start, e.g. the pooled posterior's best draws for the
+        posterior without one of its runs.
 
     Returns
     -------
@@ -172,8 +182,10 @@ def sample_posterior(
         _log.info(
             f"MAP search: the profile likelihood of each noise group on "
             f"{damping_design(settings.design_points)} damping points, then local searches"
+            if starts is None
+            else f"MAP search: local searches from {len(starts)} given points (a warm start)"
         )
-        centre = find_map(log_posterior, rng, settings.design_points)
+        centre = find_map(log_posterior, rng, settings.design_points, starts)
         check_interrupt()  # a signal swallowed in the search (scipy's Cython code)
         _log.info(
             f"MAP found in {time.perf_counter() - started:.0f} s; the walkers start around it"
@@ -185,7 +197,9 @@ def sample_posterior(
         initial,
         settings=settings,
         seed=seed,
-        fingerprint=_fingerprint(likelihood, prior, settings.n_walkers(len(prior.names)), seed),
+        fingerprint=_fingerprint(
+            likelihood, prior, settings.n_walkers(len(prior.names)), seed, starts
+        ),
         chain_file=chain_file,
     )
     return build_inference_data(

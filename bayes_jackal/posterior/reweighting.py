@@ -74,6 +74,9 @@ __all__ = [
     "psis_weights",
 ]
 
+#: The pooled draws a refit of the posterior without a run climbs from
+#: (:meth:`PooledPosterior.best_draws_without`), as many as the profile's.
+_WARM_STARTS = 4
 #: Largest Pareto shape k-hat at which a PSIS reweighting is used (arviz's
 #: ``loo`` and Vehtari et al. 2024's threshold); above it the run is refit.
 PARETO_K_THRESHOLD = 0.7
@@ -539,6 +542,28 @@ class PooledPosterior:
             k = pareto_k if math.isfinite(pareto_k) else None
             return RunWeights(weights=None, pareto_k=k, ess=ess, reason=reason, **common)
         return RunWeights(weights=weights, pareto_k=pareto_k, ess=ess, **common)
+
+    def best_draws_without(
+        self, weights: RunWeights, others: Sequence[Experiment], count: int = _WARM_STARTS
+    ) -> np.ndarray:
+        """The pooled draws of highest density without the run, in the others' layout.
+
+        log p(theta | y_-i) = log p(theta | y) - log p(y_i | theta) + c at
+        each pooled draw: the ``count`` best distinct draws, where a refit
+        of the posterior without the run starts its MAP search (``starts``
+        of :func:`~bayes_jackal.inference.compare_groups`) instead of a
+        profile over the whole prior box. ``weights`` are the run's.
+
+        Returns
+        -------
+        ndarray, shape (count, P)
+            Parameter values theta, columns as the likelihood of ``others``.
+        """
+        density = self.lp - weights.log_likelihood
+        order = np.argsort(-np.where(np.isfinite(density), density, -np.inf), kind="stable")
+        _, first = np.unique(self.theta[order], axis=0, return_index=True)
+        best = order[np.sort(first)[:count]]
+        return self.theta[best][:, self._columns(self._likelihood(list(others)).layout)]
 
     def posterior_without(
         self,
