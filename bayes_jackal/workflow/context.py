@@ -8,8 +8,8 @@ read. A stage (:mod:`bayes_jackal.workflow.stages`) is a function of the
 context and the results of the stages before it, and returns a
 :class:`StageResult`: its part of the analysis' JSON (``to_dict``), the
 files it wrote, and what it adds to the report. A stage may start work
-that a later stage takes (:func:`in_background`: the report's figures
-drawn while the filters run).
+that a later stage takes (:func:`in_background`: the grids run beside the
+families' chains, the report's figures are drawn while the filters run).
 """
 
 from __future__ import annotations
@@ -179,9 +179,9 @@ def background_jobs(context: RunContext) -> Iterator[None]:
 
     Where the context's executor runs jobs side by side (local processes,
     a cluster), the machine has a core for them; a serial analysis runs
-    each where its result is taken. Leaving the block waits for them, or
-    on an exception (an interrupt) stops them
-    (:class:`~bayes_jackal.inference.Background`).
+    each where its result is taken. Leaving the block takes every result
+    not taken yet (its lines told, its error raised), or on an exception
+    (an interrupt) stops the jobs (:class:`~bayes_jackal.inference.Background`).
     """
     with Background(local=context.executor.slots(2) > 1) as background:
         token = _BACKGROUND.set(background)
