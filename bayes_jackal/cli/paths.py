@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -20,9 +19,11 @@ from .._runtime import (
     OutputLock,
     chain_path,
     check_outputs,
+    each_input,
     protected,
     refuse,
     removed_if_empty,
+    require_file,
 )
 
 if TYPE_CHECKING:  # this module stays light: outputs are checked before numpy loads
@@ -81,17 +82,20 @@ def _data_inputs(args: argparse.Namespace) -> list[str]:
 
 
 def refuse_absent_inputs(args: argparse.Namespace) -> None:
-    """Refuse (DataError) a command none of whose data inputs exists, before the imports.
+    """Refuse (DataError) a command none of whose data inputs can be read, before the imports.
 
-    A mistyped path is told in a blink, not after the seconds numpy, scipy
-    and the sampler take to load; where some inputs exist, the command runs
-    and names the absent ones as it meets them (one bad file among many
-    does not stop the others).
+    Each input is checked as its reader will first check it
+    (:func:`~bayes_jackal._runtime.files.require_file`: no such file, a
+    named pipe, a loop of links), with the reader's message: a mistyped
+    path is told in a blink, not after the seconds numpy, scipy and the
+    sampler take to load. Where some inputs pass, the command runs and
+    names the others as it meets them (one bad file among many does not
+    stop the others).
     """
     inputs = _data_inputs(args)
-    absent = {given: f"{given}: no such file" for given in inputs if not os.path.lexists(given)}
-    if inputs and len(absent) == len(inputs):
-        refuse(absent, len(inputs))
+    _, failed = each_input(inputs, lambda given: require_file(given, given, folder=True))
+    if inputs and len(failed) == len(inputs):
+        refuse(failed, len(inputs))
 
 
 def check_named_outputs(args: argparse.Namespace, paths: Iterable[Path]) -> None:

@@ -137,10 +137,8 @@ class _FamilyRun:
             if key not in _DISPLAY_SETTINGS
         }
         walkers = settings.n_walkers(len(prior.names))
-        identity = run_identity(likelihood, prior, walkers, self.fit.seed)
+        identity = run_identity(likelihood, prior, walkers, self.fit.seed, self._starts(family))
         task = identity | {"sampler": sampler, "cross_check": self.cross_check}
-        if (starts := self._starts(family)) is not None:
-            task["starts"] = np.asarray(starts, float).tolist()
         return json.loads(json.dumps(task))
 
     def __call__(self, job: tuple[int, str]):

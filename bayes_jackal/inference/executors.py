@@ -35,7 +35,7 @@ import threading
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -180,18 +180,23 @@ def _kept_outcome(work: Callable[..., R], args: tuple) -> _Outcome:
     logger, handler = logging.getLogger(ROOT_LOGGER), _Kept()
     logger.addHandler(handler)
     logger.setLevel(logging.INFO)
-    value, error = None, None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")  # each one, to be filtered where it is told
         try:
             with contextlib.redirect_stderr(io.StringIO()):
-                value = work(*args)
-        except Exception as exc:  # raised where the result is taken
-            error = exc
+                outcome = _outcome_of(work, args)
         finally:
             logger.removeHandler(handler)
     warned = tuple((w.category, str(w.message)) for w in caught)
-    return _Outcome(value, error, tuple(handler.records), warned)
+    return replace(outcome, records=tuple(handler.records), warned=warned)
+
+
+def _outcome_of(work: Callable[..., R], args: tuple) -> _Outcome:
+    """``work(*args)``'s value, or its error, to be raised where the result is taken."""
+    try:
+        return _Outcome(work(*args))
+    except Exception as exc:
+        return _Outcome(error=exc)
 
 
 class Pending:
@@ -212,11 +217,8 @@ class Pending:
         Of a job that did not run in the background (a serial analysis), the job runs now, here.
         """
         if self._outcome is None:
-            if self._future is None:
-                try:
-                    self._outcome = _Outcome(self._work(*self._args))
-                except Exception as exc:  # raised below, and not again at the block's end
-                    self._outcome = _Outcome(error=exc)
+            if self._future is None:  # raised below, and not again at the block's end
+                self._outcome = _outcome_of(self._work, self._args)
             else:
                 self._outcome = self._future.result()
                 for record in self._outcome.records:  # as if logged here
@@ -294,16 +296,15 @@ class Background:
 
     def submit(self, work: Callable[..., R], *args) -> Pending:
         """Start ``work(*args)`` (picklable, as an executor's jobs); its result to take later."""
-        if not self.local:
-            self._submitted.append(Pending(work, args, None))
-            return self._submitted[-1]
-        if self._pool is None:
-            self._before = set(multiprocessing.active_children())
-            self._pool = concurrent.futures.ProcessPoolExecutor(
-                1, mp_context=_worker_context(), initializer=_start_worker, initargs=(True,)
-            )
-        with interrupts_blocked():  # a signal waits until the worker handles it
-            future = self._pool.submit(_kept_outcome, work, args)
+        future = None
+        if self.local:
+            if self._pool is None:
+                self._before = set(multiprocessing.active_children())
+                self._pool = concurrent.futures.ProcessPoolExecutor(
+                    1, mp_context=_worker_context(), initializer=_start_worker, initargs=(True,)
+                )
+            with interrupts_blocked():  # a signal waits until the worker handles it
+                future = self._pool.submit(_kept_outcome, work, args)
         self._submitted.append(Pending(work, args, future))
         return self._submitted[-1]
 

@@ -54,11 +54,19 @@ _log = logging.getLogger(__package__)
 _ROBOT_LABELS = ("name", "source", "topics", "wheels")
 
 
-def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed) -> dict:
+def run_identity(
+    likelihood: ResidualLikelihood,
+    prior: Prior,
+    walkers: int,
+    seed,
+    starts: np.ndarray | None = None,
+) -> dict:
     """What defines a chain, part by part (JSON-ready; data and robot as hashes).
 
     Keys ``data``, ``robot``, ``family``, ``likelihood``, ``priors``,
-    ``walkers`` and ``seed``: a resumed or reused run must match on all.
+    ``walkers`` and ``seed``, and ``starts`` where the MAP search was
+    warm-started (:func:`sample_posterior`): a resumed or reused run must
+    match on all.
 
     Examples
     --------
@@ -108,16 +116,20 @@ def run_identity(likelihood: ResidualLikelihood, prior: Prior, walkers: int, see
         "priors": {"low": prior.low.tolist(), "high": prior.high.tolist()},
         "walkers": walkers,
         "seed": seed,
+        # only when given: chains started from the profile keep their identity
+        **({} if starts is None else {"starts": np.asarray(starts, float).tolist()}),
     }
 
 
 def _fingerprint(
-    likelihood: ResidualLikelihood, prior: Prior, walkers: int, seed, starts=None
+    likelihood: ResidualLikelihood,
+    prior: Prior,
+    walkers: int,
+    seed,
+    starts: np.ndarray | None = None,
 ) -> str:
     """Hash of everything that defines a chain, to refuse resuming a different run."""
-    identity = run_identity(likelihood, prior, walkers, seed)
-    if starts is not None:  # a warm start: another MAP search
-        identity["starts"] = np.asarray(starts, float).tolist()
+    identity = run_identity(likelihood, prior, walkers, seed, starts)
     return hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
 
 
