@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import json
+import re
 import shutil
 import warnings
 from types import SimpleNamespace
@@ -30,8 +31,8 @@ from bayes_jackal.cli import main
 from bayes_jackal.cli.output import state_estimation_text
 from bayes_jackal.cli.parser import build_parser
 from bayes_jackal.filters.kalman_filters import KALMAN_FILTERS, StateEstimate
-from bayes_jackal.filters.left_out import FOLDER, SUMMARY, leave_one_out, method_text
-from bayes_jackal.inference import FitOptions, find_map
+from bayes_jackal.filters.left_out import FOLDER, METHODS, SUMMARY, leave_one_out, method_text
+from bayes_jackal.inference import FitOptions, find_map, importance_posterior
 from bayes_jackal.inference.chains import SamplerSettings
 from bayes_jackal.inference.comparison import compare_families, compare_groups
 from bayes_jackal.inference.executors import SerialExecutor
@@ -63,10 +64,13 @@ RUNS = ("a", "b")
 SETTINGS = SamplerSettings(max_steps=100, progress=False)
 
 
-def _refit(state: dict) -> list[str]:
-    """The runs of an analysis whose PSIS weights were unreliable (k-hat > 0.7)."""
+def _sampled_again(state: dict, method: str) -> list[str]:
+    """The runs of an analysis whose pooled PSIS weights were unreliable (k-hat > 0.7),
+    sampled again by ``method``, read from the reason given."""
     return [
-        run for run, record in state["runs"].items() if record["pareto_k"] > PARETO_K_THRESHOLD
+        run
+        for run, record in state["runs"].items()
+        if record["refit_reason"] is not None and record["method"] == method
     ]
 
 
@@ -123,19 +127,24 @@ def test_each_run_is_filtered_with_the_prior_of_exactly_the_others(analysis):
     # unreliable (k-hat > 0.7; here at least a's) the run's posterior is refit,
     # and the JSON says which with k-hat and why.
     assert state["pooled"] == str(out / "posteriors" / "white.nc")
+    # Sampled again by importance sampling from the Laplace fit on the other run
+    # where its own k-hat passes (the record's k-hat is then that one), else refit.
     for record in state["runs"].values():
-        refit = record["pareto_k"] > PARETO_K_THRESHOLD
-        assert record["method"] == ("refit" if refit else "psis")
-        if refit:
-            reason = f"Pareto k-hat {record['pareto_k']:.3f} > 0.7"
-            assert record["refit_reason"].startswith(reason)
+        assert record["method"] in METHODS
+        assert (record["method"] == "psis") == (record["refit_reason"] is None)
+        if record["method"] != "psis":
+            assert re.match(r"Pareto k-hat \d\.\d{3} > 0\.7", record["refit_reason"])
+        if record["method"] == "refit":
+            assert "importance sampling from its Laplace fit" in record["refit_reason"]
+        else:
+            assert record["pareto_k"] <= PARETO_K_THRESHOLD
         assert record["draws"] > 0 and record["weights_ess"] < record["draws"]
-    refit = [run for run, record in state["runs"].items() if record["method"] == "refit"]
-    assert refit == _refit(state) and "a" in refit
+    assert "a" in _sampled_again(state, "importance") + _sampled_again(state, "refit")
     # The left-out chains' convergence is reported with the run left out (a
-    # reweighting inherits the pooled chain's: 100 steps, not converged).
+    # reweighting inherits the pooled chain's: 100 steps, not converged; an
+    # importance sample has no chain).
     left_out = [w["left_out"] for w in result["warnings"] if "left_out" in w]
-    assert left_out == list(RUNS)
+    assert left_out == [run for run in RUNS if state["runs"][run]["method"] != "importance"]
 
 
 def test_the_analysis_writes_its_files_and_says_it_did_not_converge(analysis):
@@ -186,9 +195,13 @@ def test_the_report_has_the_section_its_table_and_figure(analysis):
     assert "<tr><td>b</td><td>a</td><td>kalman-coloured</td><td>yaw</td>" in section
     # How each posterior without a run was made: k-hat per run, and which were refit.
     assert ">The posterior without each run</h3>" in section
-    assert f"Refit: {', '.join(_refit(result['state_estimation']))}." in section
+    state = result["state_estimation"]
+    for label, method in (("By importance sampling", "importance"), ("Refit", "refit")):
+        runs = _sampled_again(state, method)
+        assert (f"{label}: {', '.join(runs)}." in section) == bool(runs)
+    names = {"psis": "PSIS reweighting", "importance": "importance sampling", "refit": "refit"}
     for run, record in runs_by_name.items():
-        method = {"psis": "PSIS reweighting", "refit": "refit"}[record["method"]]
+        method = names[record["method"]]
         row = f"<tr><td>{run}</td><td>{method}</td><td>{record['pareto_k']:.4g}</td>"
         assert row in section
     # One figure per run left out (issue 24, item 12: only the first had one).
@@ -214,24 +227,16 @@ def test_a_failing_run_does_not_stop_the_others(analysis, tmp_path):
             pooled=load_posterior(pooled),
             pooled_source=str(pooled),
         )
-    # The refused PSIS reweighting (a's), and its message tells which and why.
-    for run in RUNS:
-        said = [line for line in lines if line.startswith(f"  leaving out {run}: Pareto k-hat")]
-        assert len(said) == (run in _refit(result["state_estimation"]))
-        for line in said:
-            assert "> 0.7: the PSIS reweighting of the pooled posterior is unreliable" in line
-            assert line.endswith(
-                "; refitting it on the other runs, its MAP search started from the pooled "
-                "draws best without it"
-            )
     assert list(again.failed) == ["a"] and "a.csv: cannot write" in again.failed["a"]
     b = result["state_estimation"]["runs"]["b"]
     assert list(again.runs) == ["b"] and again.runs["b"]["method"] == b["method"]
     assert again.runs["b"]["scores"] == b["scores"]
-    refit = _refit(result["state_estimation"])
+    state = result["state_estimation"]
+    refit = _sampled_again(state, "refit")
     assert sum(line.startswith("  reusing white") for line in lines) == len(refit)
-    reweighted = sum("reusing the PSIS reweighting" in line for line in lines)
-    assert reweighted == len(RUNS) - len(refit)
+    for kind, method in (("PSIS reweighting", "psis"), ("importance sample", "importance")):
+        reused = sum(f"reusing the {kind}" in line for line in lines)
+        assert reused == sum(record["method"] == method for record in state["runs"].values())
     assert json.loads((tmp_path / SUMMARY).read_text())["failed"] == again.failed
     assert list(again.estimates) == ["b"]  # the runs done
 
@@ -268,16 +273,19 @@ def test_the_cli_says_how_each_posterior_without_a_run_was_made(analysis):
     state_estimation_text(result["state_estimation"], SimpleNamespace(say=lines.append))
     text = "\n".join(lines)
     pooled = out / "posteriors" / "white.nc"
+    refit = _sampled_again(result["state_estimation"], "refit")
     assert (
         f"posteriors without each run: {pooled} reweighted (Pareto-smoothed importance "
-        "sampling), refit where the reweighting is unreliable (Pareto k-hat > 0.7): "
-        f"{', '.join(_refit(result['state_estimation']))} refit"
+        "sampling); where the reweighting is unreliable (Pareto k-hat > 0.7), importance "
+        "sampling from the Laplace fit on the other runs, or a refit: "
+        + (f"{', '.join(refit)} refit" if refit else "none refit")
     ) in text
     for run, record in result["state_estimation"]["runs"].items():
         assert f"{run}: posterior without it by {method_text(record)}" in text
-        if run in _refit(result["state_estimation"]):
-            k_hat = f"Pareto k-hat {record['pareto_k']:.3f} > 0.7"
-            assert f"{run}: posterior without it by refit: {k_hat}" in text
+        if record["method"] == "importance":
+            k_hat = f"Pareto k-hat {record['pareto_k']:.3f} <= 0.7"
+            assert f"{run}: posterior without it by importance sampling" in text
+            assert f"from its Laplace fit on the other runs ({k_hat}, weights ESS" in text
 
 
 def test_one_run_has_nothing_to_leave_out(analysis, tmp_path):
@@ -429,7 +437,7 @@ def four_runs(tmp_path_factory) -> tuple:
     with messages() as lines:
         result = leave_one_out(
             runs, "white", folder, CONVERGED_FIT, pooled=pooled, pooled_source=str(source),
-            executor=SerialExecutor(),
+            executor=SerialExecutor(), importance=False,
         )  # fmt: skip
     return runs, pooled, source, folder, result, lines
 
@@ -480,6 +488,58 @@ def test_the_psis_posterior_without_a_run_agrees_with_a_refit(four_runs):
     assert np.max(np.abs(logs["pooled"].mean(axis=0) - logs["refit"].mean(axis=0)) / error) > 8
 
 
+def test_importance_sampling_without_a_run_agrees_with_its_refit(four_runs):
+    # Each run whose pooled reweighting was unreliable was refit by a chain in
+    # the fixture (converged, 2,000-step cap); the same posterior by importance
+    # sampling from the Laplace fit on the other runs (the route leave_one_out
+    # takes first) agrees with it. Tolerance: four Monte Carlo standard errors
+    # of the difference, the importance sample's from its weights' ESS plus the
+    # resampling's 1 / draws, the chain's from its autocorrelation ESS; for the
+    # sd, the normal's relative error 1 / sqrt(2 n) of each.
+    runs, pooled, _, _, result, _ = four_runs
+    draws = PooledPosterior(pooled, runs, ROBOT, "white", OPTIONS)
+    refit = _sampled_again(result.to_dict(), "refit")
+    assert refit  # at least one of the four runs
+    for left in refit:
+        others = [run for run in runs if run.name != left]
+        warm = draws.best_draws_without(draws.weights(runs[FOUR.index(left)]), others)
+        likelihood = OPTIONS.likelihood(others, ROBOT, "white")
+        prior = Prior.for_likelihood(likelihood, ROBOT)
+        sample = importance_posterior(
+            likelihood, prior, shape=draws.shape, settings=CONVERGED,
+            rng=np.random.default_rng(3), starts=warm,
+        )  # fmt: skip
+        assert sample.reason is None and sample.pareto_k <= PARETO_K_THRESHOLD
+        chain = Posterior.of(load_posterior(result.runs[left]["files"]["posterior"]))
+        logs = {
+            name: np.log(posterior.draws()[0]).reshape(-1, 4)
+            for name, posterior in (("importance", Posterior.of(sample.idata)), ("chain", chain))
+        }
+        chain_ess = np.array(list(chain.metadata.convergence.ess_autocorr.values()))
+        sd = logs["chain"].std(axis=0)
+        error = sd * np.sqrt(1 / sample.ess + 1 / sample.draws + 1 / chain_ess)
+        gap = np.abs(logs["importance"].mean(axis=0) - logs["chain"].mean(axis=0))
+        assert np.all(gap < 4 * error), gap / error
+        ratio = logs["importance"].std(axis=0) / sd
+        spread = np.sqrt(1 / (2 * sample.ess) + 1 / (2 * chain_ess))
+        assert np.all(np.abs(ratio - 1) < 4 * spread), (ratio - 1) / spread
+
+
+def test_importance_sampling_refuses_weights_worth_fewer_draws_than_min_ess(four_runs):
+    # The same posterior asked for more effective draws than the proposal's
+    # 4,608 draws can give: refused, saying why, and leave_one_out would refit.
+    runs, _, _, _, _, _ = four_runs
+    others = runs[1:]
+    likelihood = OPTIONS.likelihood(others, ROBOT, "white")
+    sample = importance_posterior(
+        likelihood, Prior.for_likelihood(likelihood, ROBOT), shape=(36, 128),
+        settings=SamplerSettings(min_ess=5000), rng=np.random.default_rng(3),
+    )  # fmt: skip
+    assert sample.idata is None and sample.draws == 36 * 128
+    assert sample.reason.startswith("importance sampling from its Laplace fit gives ")
+    assert sample.reason.endswith(f" effective draws of {36 * 128}, fewer than 5000")
+
+
 def test_a_refit_climbs_from_the_pooled_draws_to_the_profiles_maximum(four_runs):
     # The refit of a posterior without a run starts its MAP search from the
     # pooled draws best without it (a warm start) instead of the profile
@@ -507,7 +567,7 @@ def test_a_refit_climbs_from_the_pooled_draws_to_the_profiles_maximum(four_runs)
         )
         assert inside[0]  # d_lat is never on its bound here
         np.testing.assert_allclose(warm[inside], cold[inside], rtol=0, atol=1e-2)
-    refit = _refit(result.to_dict())
+    refit = _sampled_again(result.to_dict(), "refit")
     assert refit  # at least one of the four runs here
     for run in refit:  # the refit runs said so, and their task holds it
         assert any(line.startswith(f"  leaving out {run}: ") and "pooled draws best" in line
@@ -526,8 +586,9 @@ def test_a_rerun_reuses_the_reweightings_and_the_json_and_report_carry_k_hat(fou
         assert (record["method"] == "psis") == (record["pareto_k"] <= PARETO_K_THRESHOLD)
     with messages() as lines:
         again = leave_one_out(
-            runs, "white", folder, CONVERGED_FIT, pooled=pooled, pooled_source=str(source)
-        )
+            runs, "white", folder, CONVERGED_FIT, pooled=pooled, pooled_source=str(source),
+            importance=False,
+        )  # fmt: skip
     reweighted = [run for run, record in result.runs.items() if record["method"] == "psis"]
     reused = [line for line in lines if "reusing the PSIS reweighting" in line]
     assert len(reused) == len(reweighted)

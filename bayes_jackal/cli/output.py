@@ -265,8 +265,9 @@ def state_estimation_text(state: dict, out: Reporter) -> None:
     if state["pooled"] is not None:
         out.say(
             f"posteriors without each run: {state['pooled']} reweighted (Pareto-smoothed "
-            "importance sampling), refit where the reweighting is unreliable (Pareto k-hat "
-            f"> {state['pareto_k_threshold']:g}): "
+            "importance sampling); where the reweighting is unreliable (Pareto k-hat "
+            f"> {state['pareto_k_threshold']:g}), importance sampling from the Laplace fit on "
+            "the other runs, or a refit: "
             + (f"{', '.join(refit)} refit" if refit else "none refit")
         )
     for run, record in state["runs"].items():

@@ -32,10 +32,16 @@ generalised Pareto fit whose shape k-hat says whether they can be trusted:
   convergence of its chain is the pooled chain's.
 - k-hat > 0.7: run i moves the posterior further than the pooled draws
   reach (typical of few runs: of two, each is half the data), and a few
-  draws would carry the weights. That run's posterior is refit on the
-  other runs as before (:func:`bayes_jackal.inference.compare_groups`),
-  and its message (the ``bayes_jackal.filters`` logger), its record
-  (``method``, ``pareto_k``, ``refit_reason``) and the report say so and why.
+  draws would carry the weights. That run's posterior is then sampled
+  again on the other runs, first without a chain: importance sampling from
+  its Laplace fit at their MAP, the search started from the pooled draws
+  best without the run (:func:`bayes_jackal.inference.importance_posterior`;
+  ``method`` ``importance``), used where the same PSIS test holds for
+  those weights (k-hat <= 0.7) and they are worth the sampler's
+  ``min_ess`` draws; else refit by a chain
+  (:func:`bayes_jackal.inference.compare_groups`). Its message (the
+  ``bayes_jackal.filters`` logger), its record (``method``, ``pareto_k``,
+  ``refit_reason``) and the report say which and why.
 
 Without ``pooled`` every run is refit. With noise per run the left-out
 run's own noise parameters, which the other runs do not inform, are
@@ -46,7 +52,9 @@ is left (of two).
 
 Cost. A reweighting evaluates one run's likelihood once at each pooled
 draw (a few thousand: 0.7-1.4 s for 5,000 draws of a 38 s run's three
-channels); a refit is one more posterior on N - 1 runs, with the
+channels); importance sampling a warm MAP search and as many evaluations
+of the other runs' likelihood (the demo's v1_01: 2-3 s, where its refit
+chain took 7-9 s); a refit is one more posterior on N - 1 runs, with the
 analysis' sampler settings, seed, priors and likelihood options, run at
 once with the other refits on the analysis' executor (its bridge-sampling
 evidence adds a few per cent). The exported prior and the filters take
@@ -82,15 +90,24 @@ import numpy as np
 
 from .._runtime import DataError, az, describe, write_json
 from ..dem import export_prior, write_prior
-from ..inference import Executor, FitOptions, compare_groups, keep_warnings
+from ..inference import (
+    Executor,
+    FitOptions,
+    compare_groups,
+    importance_posterior,
+    keep_warnings,
+)
 from ..io import Experiment
+from ..likelihood import Prior
 from ..model import RobotProfile
 from ..posterior import (
     PARETO_K_THRESHOLD,
     PooledPosterior,
     Posterior,
+    RunWeights,
     load_posterior,
     save_posterior,
+    store_reweighting,
 )
 from .kalman_filters import StateEstimate
 from .state_estimation import (
@@ -111,7 +128,9 @@ FOLDER = "state_estimation"
 #: The scores of every left-out run, in the analysis folder.
 SUMMARY = "state_estimation.json"
 #: How the posterior without each run was made: reweighted, or sampled again.
-METHODS = ("psis", "refit")
+METHODS = ("psis", "importance", "refit")
+#: What an importance-sampled posterior's task adds to its reweighting's.
+_IMPORTANCE_TASK = {"method": "importance", "proposal": "laplace-t"}
 #: A run record's fields of how its posterior was made, besides ``refit_reason``.
 _RECORD_FIELDS = ("method", "pareto_k", "weights_ess", "draws", "relative_efficiency")
 
@@ -132,12 +151,14 @@ class LeaveOneOut:
         (:func:`~bayes_jackal.filters.score_estimates`) of the
         filters that ran, ``filters_failed`` (the reason for each filter
         that could not run on this prior), ``files``, and how its posterior
-        was made: ``method`` (``"psis"`` or ``"refit"``), ``pareto_k`` (the
-        PSIS shape k-hat; None when not estimated), ``weights_ess`` (the
-        smoothed weights' effective sample size 1 / sum(w^2), counting the
-        pooled draws as independent), ``draws`` (the pooled draws
-        reweighted), ``relative_efficiency`` (the pooled chain's ESS per
-        draw) and ``refit_reason`` (None for a reweighting).
+        was made: ``method`` (``"psis"``, ``"importance"`` or ``"refit"``),
+        ``pareto_k`` (the PSIS shape k-hat of the pooled draws' weights, or
+        for ``importance`` of the Laplace fit's; None when not estimated),
+        ``weights_ess`` (the smoothed weights' effective sample size
+        1 / sum(w^2), counting the draws as independent), ``draws`` (the
+        draws weighted), ``relative_efficiency`` (their ESS per draw before
+        weighting: the pooled chain's, 1 for independent draws) and
+        ``refit_reason`` (why the pooled reweighting was not used; None for one).
     failed : dict of str to str
         The reason for each run whose posterior, prior or filters failed.
     skipped : str or None
@@ -213,16 +234,61 @@ def method_text(record: Mapping) -> str:
     >>> print(method_text(psis))
     PSIS reweighting of the pooled posterior (Pareto k-hat 0.412 <= 0.7, weights ESS 812
     of 3200 draws)
+    >>> reason = "Pareto k-hat 1.287 > 0.7"
+    >>> drawn = psis | {"method": "importance", "pareto_k": 0.353, "refit_reason": reason}
+    >>> print(method_text(drawn))
+    importance sampling from its Laplace fit on the other runs (Pareto k-hat 0.353 <= 0.7,
+    weights ESS 812 of 3200 draws), without a chain; the pooled posterior's reweighting:
+    Pareto k-hat 1.287 > 0.7
     >>> print(method_text({"method": "refit", "refit_reason": "no pooled posterior was given"}))
     refit: no pooled posterior was given
     """
+    weights = (
+        f"(Pareto k-hat {record.get('pareto_k') or 0:.3f} <= {PARETO_K_THRESHOLD}, weights ESS "
+        f"{record.get('weights_ess') or 0:.0f} of {record.get('draws')} draws)"
+    )
     if record["method"] == "psis":
+        return f"PSIS reweighting of the pooled posterior {weights}"
+    if record["method"] == "importance":
         return (
-            f"PSIS reweighting of the pooled posterior (Pareto k-hat {record['pareto_k']:.3f} "
-            f"<= {PARETO_K_THRESHOLD}, weights ESS {record['weights_ess']:.0f} of "
-            f"{record['draws']} draws)"
+            f"importance sampling from its Laplace fit on the other runs {weights}, without a "
+            f"chain; the pooled posterior's reweighting: {record['refit_reason']}"
         )
     return f"refit: {record['refit_reason']}"
+
+
+def _importance(
+    others: list[Experiment],
+    family: str,
+    fit: FitOptions,
+    draws: PooledPosterior,
+    weights: RunWeights,
+    warm: np.ndarray,
+    rng: np.random.Generator,
+) -> tuple[az.InferenceData | None, dict]:
+    """The posterior on ``others`` by importance sampling from its Laplace fit, and its record.
+
+    :func:`~bayes_jackal.inference.importance_posterior`, as many draws as
+    the pooled posterior has, its MAP search started from ``warm``; where its
+    weights cannot be trusted, None and the record of a refit, saying why.
+    """
+    likelihood = fit.likelihood_options.likelihood(others, fit.robot, family)
+    prior = Prior.for_likelihood(likelihood, fit.robot, fit.prior_overrides)
+    sample = importance_posterior(
+        likelihood, prior, shape=draws.shape, settings=fit.settings, rng=rng, starts=warm
+    )
+    if sample.idata is None:
+        return None, weights.fields("refit") | {
+            "refit_reason": f"{weights.reason}; {sample.reason}"
+        }
+    return sample.idata, {
+        "method": "importance",
+        "pareto_k": sample.pareto_k,
+        "weights_ess": sample.ess,
+        "draws": sample.draws,
+        "relative_efficiency": 1.0,
+        "refit_reason": weights.reason,
+    }
 
 
 def _estimate(
@@ -271,6 +337,7 @@ def leave_one_out(
     pooled_source: str | None = None,
     executor: Executor | None = None,
     filters: Sequence[str] = FILTERS,
+    importance: bool = True,
 ) -> LeaveOneOut:
     """Each run's filters, driven by the prior of ``family`` given the other runs.
 
@@ -305,6 +372,10 @@ def leave_one_out(
         Where the refits run, as in :func:`bayes_jackal.inference.compare_groups`.
     filters : sequence of str
         Names from :data:`bayes_jackal.FILTERS`.
+    importance : bool
+        Where the pooled reweighting is unreliable, try importance sampling
+        from the Laplace fit on the other runs before a refit (True; False:
+        refit by a chain at once).
 
     Returns
     -------
@@ -368,8 +439,9 @@ def leave_one_out(
                                 fit.prior_overrides, source)  # fmt: skip
         _log.info(
             f"state estimation with the {family} prior, each of the {len(order)} runs left out "
-            f"in turn: the pooled posterior's {draws.count} draws reweighted by PSIS, refit "
-            f"where Pareto k-hat > {PARETO_K_THRESHOLD}:"
+            f"in turn: the pooled posterior's {draws.count} draws reweighted by PSIS; where "
+            f"its Pareto k-hat > {PARETO_K_THRESHOLD}, importance sampling from the Laplace fit "
+            "on the other runs, or a refit:"
         )
     else:
         _log.info(
@@ -402,31 +474,39 @@ def leave_one_out(
         path = posteriors[name]
         task = draws.task(name, fit.seed)
         saved = _reweighting(path)
-        if task is not None and saved is not None and saved[1].get("task") == task:
+        tasks = {"psis": task, "importance": None if task is None else task | _IMPORTANCE_TASK}
+        if task is not None and saved is not None and saved[1].get("task") in tasks.values():
             idata, stored = saved
-            _log.info(f"  leaving out {name}: reusing the PSIS reweighting in {path}")
+            kind = "PSIS reweighting" if stored["method"] == "psis" else "importance sample"
+            _log.info(f"  leaving out {name}: reusing the {kind} in {path}")
         else:
             weights = draws.weights(by_name[name])
-            if weights.weights is None:
-                refits[name] = weights.fields("refit")
-                others = [e for e in experiments if e.name != name]
-                starts[name] = {family: draws.best_draws_without(weights, others)}
-                _log.info(
-                    f"  leaving out {name}: {weights.reason}; refitting it on the other runs, "
-                    "its MAP search started from the pooled draws best without it"
-                )
-                return
-            stored = weights.fields("psis") | {
-                "of": source,
-                "experiments": order,
-                "left_out": name,
-                "task": task,
-            }
             rng = np.random.default_rng(sequence)
-            idata = draws.posterior_without(name, weights, rng, stored)
+            record = {"of": source, "experiments": order, "left_out": name}
+            if weights.weights is None:
+                others = [e for e in experiments if e.name != name]
+                warm = draws.best_draws_without(weights, others)
+                idata, stored = None, weights.fields("refit")
+                if importance:
+                    idata, stored = _importance(others, family, fit, draws, weights, warm, rng)
+                if idata is None:
+                    refits[name] = stored
+                    starts[name] = {family: warm}
+                    _log.info(
+                        f"  leaving out {name}: {stored['refit_reason']}; refitting it on the "
+                        "other runs, its MAP search started from the pooled draws best without it"
+                    )
+                    return
+                stored |= record | {"task": tasks["importance"]}
+                store_reweighting(idata, stored)
+            else:
+                stored = weights.fields("psis") | {"refit_reason": None} | record
+                stored["task"] = task
+                idata = draws.posterior_without(name, weights, rng, stored)
             save_posterior(idata, path)
-        fields = {key: stored[key] for key in _RECORD_FIELDS} | {"refit_reason": None}
-        done(name, idata, fields, list(draws.metadata.convergence_messages))
+        fields = {key: stored.get(key) for key in (*_RECORD_FIELDS, "refit_reason")}
+        messages = draws.metadata.convergence_messages if fields["method"] == "psis" else ()
+        done(name, idata, fields, list(messages))
 
     def refit() -> None:
         reuse = {}

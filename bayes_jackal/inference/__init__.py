@@ -42,6 +42,7 @@ from .hierarchy import (
     UnitPosterior,
     unit_posterior,
 )
+from .importance import ImportanceSample, importance_posterior
 from .map_search import (
     block_proposals,
     climb,

@@ -606,13 +606,17 @@ def state_estimation_highlight(result: LeaveOneOut) -> str | None:
     )
 
 
+#: How a posterior without a run was made, in the report's table.
+_METHOD_NAMES = {"psis": "PSIS reweighting", "importance": "importance sampling", "refit": "refit"}
+
+
 def _left_out_posteriors(result: LeaveOneOut) -> str:
     """How each posterior without a run was made: PSIS diagnostics, and which runs were refit."""
     threshold = f"{PARETO_K_THRESHOLD:g}"
     rows = [
         [
             run,
-            "PSIS reweighting" if record["method"] == "psis" else "refit",
+            _METHOD_NAMES[record["method"]],
             record["pareto_k"],
             record["weights_ess"],
             record["draws"],
@@ -620,7 +624,12 @@ def _left_out_posteriors(result: LeaveOneOut) -> str:
         ]
         for run, record in result.runs.items()
     ]
-    refit = [run for run, record in result.runs.items() if record["method"] == "refit"]
+    again = {
+        label: [run for run, record in result.runs.items() if record["method"] == method]
+        for label, method in (("By importance sampling", "importance"), ("Refit", "refit"))
+    }
+    said = " ".join(f"{label}: {html.escape(', '.join(runs))}." for label, runs in again.items()
+                    if runs)  # fmt: skip
     source = html.escape(result.pooled) if result.pooled else "none was given"
     return (
         "<h3>The posterior without each run</h3><p>Each is the analysis' pooled posterior "
@@ -630,12 +639,14 @@ def _left_out_posteriors(result: LeaveOneOut) -> str:
         f"them. The fit's shape k-hat says whether the weights can be trusted: at most "
         f"{threshold}, they can (Vehtari et al. 2024; arviz's threshold); above {threshold}, "
         "the run moves the posterior further than the pooled draws reach, and its posterior "
-        "is sampled again from the other runs (refit). The weights' ESS, 1 / sum of their "
+        "is sampled again from the other runs: by importance sampling from its Laplace fit "
+        "at their MAP where the same test passes for those weights, else by a chain (refit). "
+        "The weights' ESS, 1 / sum of their "
         "squares, is how many independent draws they are worth. "
-        + (f"Refit: {html.escape(', '.join(refit))}." if refit else "No run needed a refit.")
+        + (said or "No run needed sampling again.")
         + "</p>"
         + html_table(
-            ["left out", "posterior", "Pareto k-hat", "weights ESS", "pooled draws", "why refit"],
+            ["left out", "posterior", "Pareto k-hat", "weights ESS", "draws", "why not PSIS"],
             rows,
         )
     )
