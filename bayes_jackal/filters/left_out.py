@@ -243,18 +243,18 @@ def method_text(record: Mapping) -> str:
     >>> print(method_text({"method": "refit", "refit_reason": "no pooled posterior was given"}))
     refit: no pooled posterior was given
     """
+    if record["method"] == "refit":
+        return f"refit: {record['refit_reason']}"
     weights = (
-        f"(Pareto k-hat {record.get('pareto_k') or 0:.3f} <= {PARETO_K_THRESHOLD}, weights ESS "
-        f"{record.get('weights_ess') or 0:.0f} of {record.get('draws')} draws)"
+        f"(Pareto k-hat {record['pareto_k']:.3f} <= {PARETO_K_THRESHOLD}, weights ESS "
+        f"{record['weights_ess']:.0f} of {record['draws']} draws)"
     )
     if record["method"] == "psis":
         return f"PSIS reweighting of the pooled posterior {weights}"
-    if record["method"] == "importance":
-        return (
-            f"importance sampling from its Laplace fit on the other runs {weights}, without a "
-            f"chain; the pooled posterior's reweighting: {record['refit_reason']}"
-        )
-    return f"refit: {record['refit_reason']}"
+    return (
+        f"importance sampling from its Laplace fit on the other runs {weights}, without a "
+        f"chain; the pooled posterior's reweighting: {record['refit_reason']}"
+    )
 
 
 def _importance(
@@ -474,7 +474,9 @@ def leave_one_out(
         path = posteriors[name]
         task = draws.task(name, fit.seed)
         saved = _reweighting(path)
-        tasks = {"psis": task, "importance": None if task is None else task | _IMPORTANCE_TASK}
+        tasks = {"psis": task}
+        if importance and task is not None:  # a refit at once does not reuse one
+            tasks["importance"] = task | _IMPORTANCE_TASK
         if task is not None and saved is not None and saved[1].get("task") in tasks.values():
             idata, stored = saved
             kind = "PSIS reweighting" if stored["method"] == "psis" else "importance sample"
